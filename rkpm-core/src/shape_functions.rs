@@ -1,0 +1,315 @@
+//! RKPM shape functions and their gradients (paper Eqs. 6-11, DESIGN 3.3).
+//!
+//! The paper's form is `ϕ_k(X) = φ_k(X) P(p_k)ᵀ C(X)` with `P(X) = [1, x, y, z]ᵀ`,
+//! `M(X) C(X) = P(X)` and `M(X) = Σ_k φ_k(X) P(p_k) P(p_k)ᵀ` (Eqs. 7, 9-11). We evaluate the
+//! equivalent *shifted and scaled* form
+//!
+//! ```text
+//! b_k(X) = P((X - p_k) / s) = [1, (X - p_k)/s],   M̃(X) = Σ_k φ_k(X) b_k b_kᵀ,
+//! M̃(X) C̃(X) = e₁,   ϕ_k(X) = φ_k(X) b_kᵀ C̃(X),
+//! ```
+//!
+//! with `s` a local length (the largest radius among the kernels reaching X). Because
+//! `b_k = A(X) P(p_k)` for an invertible affine `A(X)` when the basis is linear, both forms give
+//! the same functions, but M̃ is O(1)-scaled and far better conditioned (tested against
+//! [`shape_function_values_unshifted`]).
+//!
+//! Gradients (with `u_d = e_{d+1}/s` the derivative of b_k along axis d):
+//!
+//! ```text
+//! ∂_d M̃ C̃ = Σ_k [∂_dφ_k (b_k·C̃) b_k + φ_k ((b_k·C̃) u_d + (u_d·C̃) b_k)],
+//! ∂_d C̃   = -M̃⁻¹ (∂_d M̃ C̃),
+//! ∂_d ϕ_k = ∂_dφ_k (b_k·C̃) + φ_k (u_d·C̃) + φ_k (b_k·∂_d C̃),   ∂_dφ_k = -2 (X - p_k)_d / r_k² φ_k.
+//! ```
+//!
+//! **Cutoff**: a kernel reaches X when `|X - p_k| < cutoff · r_k` (default 3, where the
+//! Gaussian has fallen to e⁻⁹ ≈ 1.2e-4). The reproducing conditions stay exact for any cutoff
+//! because M̃ is built from the same truncated set; the cutoff only trades sparsity against
+//! smoothness (the truncated kernel jumps by e^(-cutoff²) at the cutoff sphere).
+//!
+//! **Singularity**: M̃ is singular when fewer than 4 non-coplanar kernels reach X. We factor M̃
+//! by Cholesky and report [`ShapeFunctionError::SingularMomentMatrix`] when it fails or when the
+//! pivot ratio `(min L_ii / max L_ii)²` (a cheap reciprocal-condition estimate) falls below
+//! `ShapeFunctionParams::min_reciprocal_condition`.
+
+use nalgebra::{Matrix4, Vector3, Vector4};
+use rayon::prelude::*;
+use serde::{Deserialize, Serialize};
+
+use crate::kernels::Kernels;
+use crate::spatial_index::SpatialIndex;
+
+/// Options for [`evaluate_shape_functions`].
+#[derive(Clone, Copy, Debug, PartialEq, Serialize, Deserialize)]
+pub struct ShapeFunctionParams {
+    /// Kernel support in units of its radius: kernel k reaches X when `|X - p_k| < cutoff·r_k`
+    /// (default 3.0).
+    pub cutoff: f64,
+    /// Smallest accepted pivot-ratio estimate of the moment matrix's reciprocal condition number
+    /// (default 1e-12).
+    pub min_reciprocal_condition: f64,
+}
+
+impl Default for ShapeFunctionParams {
+    fn default() -> Self {
+        ShapeFunctionParams { cutoff: 3.0, min_reciprocal_condition: 1e-12 }
+    }
+}
+
+/// Shape functions could not be evaluated.
+#[derive(Debug, Clone, PartialEq, thiserror::Error)]
+pub enum ShapeFunctionError {
+    /// The moment matrix M(X) is singular or too ill-conditioned at a query point: fewer than 4
+    /// non-coplanar kernels reach it (a thin part, a sparse cloud, or a point outside the object).
+    #[error(
+        "singular RKPM moment matrix at query point {point} {position:?}: {kernels_in_reach} \
+         kernels reach it, reciprocal condition estimate {reciprocal_condition:e}"
+    )]
+    SingularMomentMatrix {
+        /// Index of the query point.
+        point: usize,
+        /// Its position.
+        position: [f64; 3],
+        /// How many kernels reach it within the cutoff.
+        kernels_in_reach: usize,
+        /// The pivot-ratio estimate (0 when the Cholesky factorization failed).
+        reciprocal_condition: f64,
+    },
+    /// A parameter is out of range.
+    #[error("invalid shape-function parameter `{name}` = {value}: must be positive and finite")]
+    InvalidParameter {
+        /// Parameter name.
+        name: &'static str,
+        /// The value given.
+        value: f64,
+    },
+    /// A query point is NaN or infinite.
+    #[error("query point {point} is not finite")]
+    NonFiniteQuery {
+        /// Index of the query point.
+        point: usize,
+    },
+}
+
+/// Shape functions of all kernels at a set of query points, in a compact sparse layout
+/// (compressed rows: point → list of (kernel, ϕ, ∇ϕ)).
+///
+/// For query point i, `kernels(i)`, `values(i)` and `gradients(i)` are parallel slices over the
+/// kernels that reach it, sorted by kernel index. Units: ϕ dimensionless, ∇ϕ in 1/m.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+pub struct ShapeFunctions {
+    offsets: Vec<usize>,
+    kernel_indices: Vec<u32>,
+    values: Vec<f64>,
+    gradients: Vec<Vector3<f64>>,
+    kernel_count: usize,
+}
+
+impl ShapeFunctions {
+    /// Number of query points.
+    pub fn point_count(&self) -> usize {
+        self.offsets.len() - 1
+    }
+
+    /// Number of kernels K the functions belong to.
+    pub fn kernel_count(&self) -> usize {
+        self.kernel_count
+    }
+
+    /// Number of stored (point, kernel) pairs.
+    pub fn nonzeros(&self) -> usize {
+        self.values.len()
+    }
+
+    /// Mean number of kernels reaching a query point.
+    pub fn mean_kernels_per_point(&self) -> f64 {
+        self.nonzeros() as f64 / self.point_count().max(1) as f64
+    }
+
+    /// Indices of the kernels reaching point i (ascending).
+    pub fn kernels(&self, i: usize) -> &[u32] {
+        &self.kernel_indices[self.offsets[i]..self.offsets[i + 1]]
+    }
+
+    /// `ϕ_k(X_i)` for the kernels of [`ShapeFunctions::kernels`].
+    pub fn values(&self, i: usize) -> &[f64] {
+        &self.values[self.offsets[i]..self.offsets[i + 1]]
+    }
+
+    /// `∇ϕ_k(X_i)` (1/m) for the kernels of [`ShapeFunctions::kernels`].
+    pub fn gradients(&self, i: usize) -> &[Vector3<f64>] {
+        &self.gradients[self.offsets[i]..self.offsets[i + 1]]
+    }
+
+    /// Interpolates nodal scalars: `u(X_i) = Σ_k ϕ_k(X_i) c_k` and `∇u(X_i) = Σ_k ∇ϕ_k(X_i) c_k`.
+    ///
+    /// # Panics
+    /// If `nodal.len()` differs from the kernel count.
+    pub fn interpolate(&self, i: usize, nodal: &[f64]) -> (f64, Vector3<f64>) {
+        assert_eq!(nodal.len(), self.kernel_count, "one nodal value per kernel");
+        self.kernels(i).iter().zip(self.values(i)).zip(self.gradients(i)).fold(
+            (0.0, Vector3::zeros()),
+            |(u, g), ((&k, &phi), grad)| (u + phi * nodal[k as usize], g + grad * nodal[k as usize]),
+        )
+    }
+}
+
+/// Shape functions and gradients at one point, for the kernels in reach (sorted by index).
+struct PointShapeFunctions {
+    kernels: Vec<u32>,
+    values: Vec<f64>,
+    gradients: Vec<Vector3<f64>>,
+}
+
+/// Evaluates ϕ_k and ∇ϕ_k of every kernel at every query point (parallel over points).
+///
+/// # Errors
+/// [`ShapeFunctionError::SingularMomentMatrix`] naming the first offending point (lowest index);
+/// [`ShapeFunctionError::NonFiniteQuery`]; [`ShapeFunctionError::InvalidParameter`].
+pub fn evaluate_shape_functions(
+    kernels: &Kernels,
+    queries: &[Vector3<f64>],
+    params: &ShapeFunctionParams,
+) -> Result<ShapeFunctions, ShapeFunctionError> {
+    for (name, value) in
+        [("cutoff", params.cutoff), ("min_reciprocal_condition", params.min_reciprocal_condition)]
+    {
+        if !(value.is_finite() && value > 0.0) {
+            return Err(ShapeFunctionError::InvalidParameter { name, value });
+        }
+    }
+    let index = SpatialIndex::new(kernels.centers());
+    let search_radius = params.cutoff * kernels.radii().iter().copied().fold(0.0, f64::max);
+    let per_point: Vec<PointShapeFunctions> = queries
+        .par_iter()
+        .enumerate()
+        .map(|(i, x)| {
+            if !x.iter().all(|c| c.is_finite()) {
+                return Err(ShapeFunctionError::NonFiniteQuery { point: i });
+            }
+            let mut reach: Vec<u32> = index
+                .within(x, search_radius)
+                .into_iter()
+                .filter(|&(k, d)| d < params.cutoff * kernels.radii()[k])
+                .map(|(k, _)| k as u32)
+                .collect();
+            reach.sort_unstable();
+            evaluate_at(x, kernels, reach, params.min_reciprocal_condition).map_err(
+                |(kernels_in_reach, reciprocal_condition)| {
+                    ShapeFunctionError::SingularMomentMatrix {
+                        point: i,
+                        position: [x.x, x.y, x.z],
+                        kernels_in_reach,
+                        reciprocal_condition,
+                    }
+                },
+            )
+        })
+        .collect::<Vec<_>>()
+        .into_iter()
+        .collect::<Result<_, _>>()?;
+    let mut offsets = Vec::with_capacity(queries.len() + 1);
+    offsets.push(0);
+    let nnz: usize = per_point.iter().map(|p| p.kernels.len()).sum();
+    let (mut kernel_indices, mut values, mut gradients) =
+        (Vec::with_capacity(nnz), Vec::with_capacity(nnz), Vec::with_capacity(nnz));
+    for p in per_point {
+        kernel_indices.extend(p.kernels);
+        values.extend(p.values);
+        gradients.extend(p.gradients);
+        offsets.push(values.len());
+    }
+    Ok(ShapeFunctions { offsets, kernel_indices, values, gradients, kernel_count: kernels.len() })
+}
+
+/// The shifted-and-scaled evaluation at one point; `Err((kernels in reach, rcond))` when the
+/// moment matrix is singular.
+#[allow(non_snake_case)]
+fn evaluate_at(
+    x: &Vector3<f64>,
+    kernels: &Kernels,
+    reach: Vec<u32>,
+    min_rcond: f64,
+) -> Result<PointShapeFunctions, (usize, f64)> {
+    let n = reach.len();
+    if n < 4 {
+        return Err((n, 0.0));
+    }
+    let s = reach.iter().map(|&k| kernels.radii()[k as usize]).fold(0.0, f64::max);
+    let mut phi = Vec::with_capacity(n);
+    let mut grad_phi = Vec::with_capacity(n);
+    let mut b = Vec::with_capacity(n);
+    let mut M = Matrix4::zeros();
+    for &k in &reach {
+        let (p, r) = (kernels.centers()[k as usize], kernels.radii()[k as usize]);
+        let d = x - p;
+        let f = (-d.norm_squared() / (r * r)).exp();
+        let bk = Vector4::new(1.0, d.x / s, d.y / s, d.z / s);
+        M += f * bk * bk.transpose();
+        phi.push(f);
+        grad_phi.push(d * (-2.0 * f / (r * r)));
+        b.push(bk);
+    }
+    let chol = M.cholesky().ok_or((n, 0.0))?;
+    let diag = chol.l_dirty().diagonal();
+    let rcond = (diag.min() / diag.max()).powi(2);
+    if !(rcond >= min_rcond) {
+        return Err((n, rcond));
+    }
+    let C = chol.solve(&Vector4::x());
+    let bc: Vec<f64> = b.iter().map(|bk| bk.dot(&C)).collect();
+    let mut dC = [Vector4::zeros(); 3];
+    for (d, dCd) in dC.iter_mut().enumerate() {
+        let u = Vector4::ith(d + 1, 1.0 / s);
+        let uc = u.dot(&C);
+        let dMC: Vector4<f64> = (0..n)
+            .map(|j| b[j] * (grad_phi[j][d] * bc[j] + phi[j] * uc) + u * (phi[j] * bc[j]))
+            .sum();
+        *dCd = -chol.solve(&dMC);
+    }
+    let values = (0..n).map(|j| phi[j] * bc[j]).collect();
+    let gradients = (0..n)
+        .map(|j| {
+            Vector3::from_fn(|d, _| {
+                grad_phi[j][d] * bc[j] + phi[j] * C[d + 1] / s + phi[j] * b[j].dot(&dC[d])
+            })
+        })
+        .collect();
+    Ok(PointShapeFunctions { kernels: reach, values, gradients })
+}
+
+/// The paper's literal, unshifted form (Eqs. 7, 9-11): `ϕ_k(X) = φ_k(X) P(p_k)ᵀ M(X)⁻¹ P(X)`,
+/// `M(X) = Σ_k φ_k(X) P(p_k) P(p_k)ᵀ`, for the kernels `reach` (values only).
+///
+/// Kept as the reference for verifying [`evaluate_shape_functions`]; it is badly conditioned
+/// far from the origin and is not used by the pipeline. Returns `None` when M(X) is singular.
+pub fn shape_function_values_unshifted(
+    x: &Vector3<f64>,
+    kernels: &Kernels,
+    reach: &[u32],
+) -> Option<Vec<f64>> {
+    let basis = |p: &Vector3<f64>| Vector4::new(1.0, p.x, p.y, p.z);
+    let weights: Vec<f64> = reach
+        .iter()
+        .map(|&k| {
+            let (p, r) = (kernels.centers()[k as usize], kernels.radii()[k as usize]);
+            (-(x - p).norm_squared() / (r * r)).exp()
+        })
+        .collect();
+    let moment: Matrix4<f64> = reach
+        .iter()
+        .zip(&weights)
+        .map(|(&k, &w)| {
+            let pk = basis(&kernels.centers()[k as usize]);
+            w * pk * pk.transpose()
+        })
+        .sum();
+    let c = moment.try_inverse()? * basis(x);
+    Some(
+        reach
+            .iter()
+            .zip(&weights)
+            .map(|(&k, &w)| w * basis(&kernels.centers()[k as usize]).dot(&c))
+            .collect(),
+    )
+}

@@ -1,0 +1,62 @@
+//! Locations of the shared test data.
+//!
+//! The data lives beside the repository in `shared/data` (checked out next to the workspace, as
+//! in CI). `FREEFORM_SHARED_DATA` overrides the location.
+
+use std::path::{Path, PathBuf};
+
+/// The shared data folder (`<workspace>/../shared/data`, or `$FREEFORM_SHARED_DATA`).
+///
+/// # Panics
+/// If the folder does not exist: the tests that call this need the real data and must not pass
+/// without it.
+pub fn shared_data_dir() -> PathBuf {
+    let dir = match std::env::var_os("FREEFORM_SHARED_DATA") {
+        Some(dir) => PathBuf::from(dir),
+        None => Path::new(env!("CARGO_MANIFEST_DIR")).join("../../shared/data"),
+    };
+    assert!(
+        dir.is_dir(),
+        "shared test data not found at {} (check out `shared/` beside the repository or set \
+         FREEFORM_SHARED_DATA)",
+        dir.display()
+    );
+    dir
+}
+
+/// Path of one shared mesh, e.g. `shared_mesh("bunny.obj")`.
+pub fn shared_mesh(name: &str) -> PathBuf {
+    shared_data_dir().join("meshes").join(name)
+}
+
+/// All closed meshes in the shared data (OBJ, STL, PLY), sorted by file name.
+pub fn shared_meshes() -> Vec<PathBuf> {
+    let mut paths: Vec<PathBuf> = std::fs::read_dir(shared_data_dir().join("meshes"))
+        .expect("shared meshes folder is readable")
+        .map(|entry| entry.expect("readable directory entry").path())
+        .filter(|path| {
+            matches!(
+                path.extension().and_then(|e| e.to_str()).map(str::to_ascii_lowercase).as_deref(),
+                Some("obj" | "stl" | "ply")
+            )
+        })
+        .collect();
+    paths.sort();
+    assert!(!paths.is_empty(), "no meshes in the shared data folder");
+    paths
+}
+
+/// Path of the shared 3D Gaussian Splatting file.
+pub fn shared_splat() -> PathBuf {
+    shared_data_dir().join("splats").join("donut_mipsplatting_fused.ply")
+}
+
+/// A fresh, empty scratch folder under the target directory, unique to `name`.
+pub fn scratch_dir(name: &str) -> PathBuf {
+    let dir = Path::new(env!("CARGO_MANIFEST_DIR"))
+        .join("../target/test-scratch")
+        .join(name);
+    let _ = std::fs::remove_dir_all(&dir);
+    std::fs::create_dir_all(&dir).expect("scratch folder can be created");
+    dir
+}
