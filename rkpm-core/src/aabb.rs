@@ -17,10 +17,16 @@ impl Aabb {
     pub fn from_points<'a>(points: impl IntoIterator<Item = &'a Vector3<f64>>) -> Option<Self> {
         let mut iter = points.into_iter();
         let first = *iter.next()?;
-        Some(iter.fold(Aabb { min: first, max: first }, |b, p| Aabb {
-            min: b.min.inf(p),
-            max: b.max.sup(p),
-        }))
+        Some(iter.fold(
+            Aabb {
+                min: first,
+                max: first,
+            },
+            |b, p| Aabb {
+                min: b.min.inf(p),
+                max: b.max.sup(p),
+            },
+        ))
     }
 
     /// Side lengths `max - min`.

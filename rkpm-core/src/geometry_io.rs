@@ -9,11 +9,11 @@
 use std::io::{BufReader, Cursor};
 use std::path::{Path, PathBuf};
 
-use nalgebra::{UnitQuaternion, Quaternion, Vector3};
+use nalgebra::{Quaternion, UnitQuaternion, Vector3};
 use serde::Deserialize;
 
 use crate::point_cloud::{GaussianSplatAttributes, PointCloud};
-use crate::triangle_mesh::{weld_exact_duplicates, MeshValidationError, TriangleMesh};
+use crate::triangle_mesh::{MeshValidationError, TriangleMesh, weld_exact_duplicates};
 
 /// A geometry file could not be turned into a mesh or point cloud.
 #[derive(Debug, thiserror::Error)]
@@ -105,11 +105,18 @@ impl GeometryFormat {
     /// # Errors
     /// [`GeometryReadError::UnsupportedFormat`] for any other extension.
     pub fn from_path(path: &Path) -> Result<Self, GeometryReadError> {
-        match path.extension().and_then(|e| e.to_str()).map(str::to_ascii_lowercase).as_deref() {
+        match path
+            .extension()
+            .and_then(|e| e.to_str())
+            .map(str::to_ascii_lowercase)
+            .as_deref()
+        {
             Some("obj") => Ok(GeometryFormat::Obj),
             Some("stl") => Ok(GeometryFormat::Stl),
             Some("ply") => Ok(GeometryFormat::Ply),
-            _ => Err(GeometryReadError::UnsupportedFormat { path: path.to_owned() }),
+            _ => Err(GeometryReadError::UnsupportedFormat {
+                path: path.to_owned(),
+            }),
         }
     }
 }
@@ -143,8 +150,10 @@ pub fn parse_triangle_mesh(
         GeometryFormat::Ply => parse_ply_mesh(bytes, path)?,
     };
     let (vertices, triangles) = weld_exact_duplicates(&vertices, &triangles);
-    TriangleMesh::new(vertices, triangles)
-        .map_err(|source| GeometryReadError::InvalidMesh { path: path.to_owned(), source })
+    TriangleMesh::new(vertices, triangles).map_err(|source| GeometryReadError::InvalidMesh {
+        path: path.to_owned(),
+        source,
+    })
 }
 
 /// Reads a point cloud from a PLY file: the `vertex` element's `x, y, z`, plus the 3D Gaussian
@@ -157,13 +166,18 @@ pub fn parse_triangle_mesh(
 pub fn read_point_cloud(path: impl AsRef<Path>) -> Result<PointCloud, GeometryReadError> {
     let path = path.as_ref();
     if GeometryFormat::from_path(path)? != GeometryFormat::Ply {
-        return Err(GeometryReadError::UnsupportedFormat { path: path.to_owned() });
+        return Err(GeometryReadError::UnsupportedFormat {
+            path: path.to_owned(),
+        });
     }
     parse_point_cloud(&read_bytes(path)?, path)
 }
 
 fn read_bytes(path: &Path) -> Result<Vec<u8>, GeometryReadError> {
-    std::fs::read(path).map_err(|source| GeometryReadError::Io { path: path.to_owned(), source })
+    std::fs::read(path).map_err(|source| GeometryReadError::Io {
+        path: path.to_owned(),
+        source,
+    })
 }
 
 type Soup = (Vec<Vector3<f64>>, Vec<[usize; 3]>);
@@ -176,8 +190,11 @@ fn parse_obj(bytes: &[u8], path: &Path) -> Result<Soup, GeometryReadError> {
         ignore_lines: true,
         ..Default::default()
     };
-    let parse_error =
-        |message: String| GeometryReadError::Parse { path: path.to_owned(), format: "OBJ", message };
+    let parse_error = |message: String| GeometryReadError::Parse {
+        path: path.to_owned(),
+        format: "OBJ",
+        message,
+    };
     let (models, _) = tobj::load_obj_buf(&mut BufReader::new(Cursor::new(bytes)), &options, |_| {
         Err(tobj::LoadError::OpenFileFailed)
     })
@@ -189,7 +206,9 @@ fn parse_obj(bytes: &[u8], path: &Path) -> Result<Soup, GeometryReadError> {
         let mesh = &model.mesh;
         let base = vertices.len();
         vertices.extend(
-            mesh.positions.chunks_exact(3).map(|p| Vector3::new(p[0], p[1], p[2]).cast::<f64>()),
+            mesh.positions
+                .chunks_exact(3)
+                .map(|p| Vector3::new(p[0], p[1], p[2]).cast::<f64>()),
         );
         let mut start = 0;
         // `face_arities` is empty when every face is a triangle.
@@ -223,8 +242,11 @@ fn parse_obj(bytes: &[u8], path: &Path) -> Result<Soup, GeometryReadError> {
 }
 
 fn parse_stl(bytes: &[u8], path: &Path) -> Result<Soup, GeometryReadError> {
-    let parse_error =
-        |message: String| GeometryReadError::Parse { path: path.to_owned(), format: "STL", message };
+    let parse_error = |message: String| GeometryReadError::Parse {
+        path: path.to_owned(),
+        format: "STL",
+        message,
+    };
     if bytes.is_empty() {
         return Err(parse_error("the file is empty".into()));
     }
@@ -250,8 +272,11 @@ fn parse_stl(bytes: &[u8], path: &Path) -> Result<Soup, GeometryReadError> {
         }
     }
     let mesh = stl_io::read_stl(&mut Cursor::new(bytes)).map_err(|e| parse_error(e.to_string()))?;
-    let vertices =
-        mesh.vertices.iter().map(|v| Vector3::new(v[0], v[1], v[2]).cast::<f64>()).collect();
+    let vertices = mesh
+        .vertices
+        .iter()
+        .map(|v| Vector3::new(v[0], v[1], v[2]).cast::<f64>())
+        .collect();
     let triangles: Vec<[usize; 3]> = mesh.faces.iter().map(|f| f.vertices).collect();
     if triangles.is_empty() {
         return Err(GeometryReadError::NoData {
@@ -295,8 +320,11 @@ struct PlyContents {
 }
 
 fn parse_ply(bytes: &[u8], path: &Path) -> Result<PlyContents, GeometryReadError> {
-    let parse_error =
-        |message: String| GeometryReadError::Parse { path: path.to_owned(), format: "PLY", message };
+    let parse_error = |message: String| GeometryReadError::Parse {
+        path: path.to_owned(),
+        format: "PLY",
+        message,
+    };
     let mut reader = serde_ply::PlyReader::from_reader(BufReader::new(Cursor::new(bytes)))
         .map_err(|e| parse_error(e.to_string()))?;
     let missing = |element: &str, property: &str| GeometryReadError::MissingProperty {
@@ -354,18 +382,26 @@ fn parse_ply(bytes: &[u8], path: &Path) -> Result<PlyContents, GeometryReadError
             )));
         }
     }
-    Ok(PlyContents { vertices: vertices.unwrap_or_default(), faces })
+    Ok(PlyContents {
+        vertices: vertices.unwrap_or_default(),
+        faces,
+    })
 }
 
 fn parse_ply_mesh(bytes: &[u8], path: &Path) -> Result<Soup, GeometryReadError> {
     let contents = parse_ply(bytes, path)?;
-    let faces = contents.faces.ok_or_else(|| GeometryReadError::MissingProperty {
-        path: path.to_owned(),
-        element: "face".into(),
-        property: "vertex_indices".into(),
-    })?;
-    let vertices =
-        contents.vertices.iter().map(|r| Vector3::new(r.x, r.y, r.z)).collect::<Vec<_>>();
+    let faces = contents
+        .faces
+        .ok_or_else(|| GeometryReadError::MissingProperty {
+            path: path.to_owned(),
+            element: "face".into(),
+            property: "vertex_indices".into(),
+        })?;
+    let vertices = contents
+        .vertices
+        .iter()
+        .map(|r| Vector3::new(r.x, r.y, r.z))
+        .collect::<Vec<_>>();
     let mut triangles = Vec::with_capacity(faces.len());
     for (face, row) in faces.iter().enumerate() {
         if row.vertex_indices.len() != 3 {
@@ -376,7 +412,8 @@ fn parse_ply_mesh(bytes: &[u8], path: &Path) -> Result<Soup, GeometryReadError> 
             });
         }
         // Negative indices become out-of-range ones, which validation reports.
-        triangles.push([0, 1, 2].map(|k| usize::try_from(row.vertex_indices[k]).unwrap_or(usize::MAX)));
+        triangles
+            .push([0, 1, 2].map(|k| usize::try_from(row.vertex_indices[k]).unwrap_or(usize::MAX)));
     }
     if triangles.is_empty() {
         return Err(GeometryReadError::NoData {
@@ -396,8 +433,14 @@ fn parse_point_cloud(bytes: &[u8], path: &Path) -> Result<PointCloud, GeometryRe
         });
     }
     let positions: Vec<Vector3<f64>> = rows.iter().map(|r| Vector3::new(r.x, r.y, r.z)).collect();
-    if let Some(index) = positions.iter().position(|p| !p.iter().all(|c| c.is_finite())) {
-        return Err(GeometryReadError::NonFinitePoint { path: path.to_owned(), index });
+    if let Some(index) = positions
+        .iter()
+        .position(|p| !p.iter().all(|c| c.is_finite()))
+    {
+        return Err(GeometryReadError::NonFinitePoint {
+            path: path.to_owned(),
+            index,
+        });
     }
     let splat_row = |r: &PlyVertexRow| -> Option<(f64, [f64; 3], UnitQuaternion<f64>)> {
         let quaternion = Quaternion::new(r.rot_0?, r.rot_1?, r.rot_2?, r.rot_3?);

@@ -40,8 +40,9 @@ enum RayResult {
 impl InsideTest {
     /// Bins the mesh's triangles. Cost O(#triangles · cells each covers).
     pub fn new(mesh: &TriangleMesh) -> Self {
-        let triangles: Vec<[Vector3<f64>; 3]> =
-            (0..mesh.triangles().len()).map(|t| mesh.triangle_corners(t)).collect();
+        let triangles: Vec<[Vector3<f64>; 3]> = (0..mesh.triangles().len())
+            .map(|t| mesh.triangle_corners(t))
+            .collect();
         let bbox = mesh.bounding_box();
         let ext = bbox.extent();
         let scale = bbox.largest_side();
@@ -99,8 +100,12 @@ impl InsideTest {
     }
 
     fn bin_of(&self, y: f64, z: f64) -> (usize, usize) {
-        let by = ((y - self.bbox.min.y) / self.cell.x).floor().clamp(0.0, (self.bins_y - 1) as f64);
-        let bz = ((z - self.bbox.min.z) / self.cell.y).floor().clamp(0.0, (self.bins_z - 1) as f64);
+        let by = ((y - self.bbox.min.y) / self.cell.x)
+            .floor()
+            .clamp(0.0, (self.bins_y - 1) as f64);
+        let bz = ((z - self.bbox.min.z) / self.cell.y)
+            .floor()
+            .clamp(0.0, (self.bins_z - 1) as f64);
         (by as usize, bz as usize)
     }
 
@@ -154,12 +159,10 @@ impl InsideTest {
             }
             let s = area.signum();
             let (e0, e1, e2) = (e0 * s, e1 * s, e2 * s);
-            if e0 < -self.area_tolerance || e1 < -self.area_tolerance || e2 < -self.area_tolerance
-            {
+            if e0 < -self.area_tolerance || e1 < -self.area_tolerance || e2 < -self.area_tolerance {
                 continue; // clearly misses
             }
-            if e0 <= self.area_tolerance || e1 <= self.area_tolerance || e2 <= self.area_tolerance
-            {
+            if e0 <= self.area_tolerance || e1 <= self.area_tolerance || e2 <= self.area_tolerance {
                 return RayResult::Degenerate; // through an edge or vertex
             }
             let x_hit = (e0 * a.x + e1 * b.x + e2 * c.x) / (e0 + e1 + e2);

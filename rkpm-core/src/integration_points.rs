@@ -45,8 +45,13 @@ impl IntegrationPoints {
                 volumes.len()
             )));
         }
-        if let Some(i) = positions.iter().position(|p| !p.iter().all(|c| c.is_finite())) {
-            return Err(SamplingError::InvalidInput(format!("point {i} is not finite")));
+        if let Some(i) = positions
+            .iter()
+            .position(|p| !p.iter().all(|c| c.is_finite()))
+        {
+            return Err(SamplingError::InvalidInput(format!(
+                "point {i} is not finite"
+            )));
         }
         if let Some(i) = volumes.iter().position(|v| !(v.is_finite() && *v > 0.0)) {
             return Err(SamplingError::InvalidInput(format!(
@@ -102,7 +107,13 @@ pub(crate) fn mean_nearest_neighbor_distance(points: &[Vector3<f64>]) -> f64 {
     let index = SpatialIndex::new(points);
     let total: f64 = points
         .par_iter()
-        .map(|p| index.nearest(p, 2).iter().map(|&(_, d)| d).fold(0.0, f64::max))
+        .map(|p| {
+            index
+                .nearest(p, 2)
+                .iter()
+                .map(|&(_, d)| d)
+                .fold(0.0, f64::max)
+        })
         .sum();
     total / points.len() as f64
 }
@@ -144,7 +155,9 @@ pub struct GridSamplingParams {
 
 impl Default for GridSamplingParams {
     fn default() -> Self {
-        GridSamplingParams { target_points: 30_000 }
+        GridSamplingParams {
+            target_points: 30_000,
+        }
     }
 }
 
@@ -186,10 +199,15 @@ pub fn sample_grid(
         })
         .collect();
     let keep = inside.contains_all(&candidates);
-    let positions: Vec<_> =
-        candidates.into_iter().zip(keep).filter_map(|(p, k)| k.then_some(p)).collect();
+    let positions: Vec<_> = candidates
+        .into_iter()
+        .zip(keep)
+        .filter_map(|(p, k)| k.then_some(p))
+        .collect();
     if positions.is_empty() {
-        return Err(SamplingError::NoPointsInside { requested: params.target_points });
+        return Err(SamplingError::NoPointsInside {
+            requested: params.target_points,
+        });
     }
     let volumes = vec![cell.product(); positions.len()];
     Ok(IntegrationPoints { positions, volumes })
@@ -206,7 +224,10 @@ pub struct RandomSamplingParams {
 
 impl Default for RandomSamplingParams {
     fn default() -> Self {
-        RandomSamplingParams { points: 30_000, seed: 0 }
+        RandomSamplingParams {
+            points: 30_000,
+            seed: 0,
+        }
     }
 }
 
@@ -234,7 +255,9 @@ pub fn sample_random(
     // Batches keep the inside test parallel while the random stream stays sequential.
     while positions.len() < params.points {
         if tries > 1000 * params.points {
-            return Err(SamplingError::NoPointsInside { requested: params.points });
+            return Err(SamplingError::NoPointsInside {
+                requested: params.points,
+            });
         }
         let batch: Vec<Vector3<f64>> = (0..params.points.clamp(1024, 65_536))
             .map(|_| bbox.min + bbox.extent().map(|l| l * rng.random::<f64>()))
@@ -386,5 +409,10 @@ pub fn sample_box_grid(
     }
     let mesh = TriangleMesh::cuboid(min, max);
     let target = (mesh.volume() / spacing.powi(3)).round().max(1.0) as usize;
-    sample_grid(&mesh, &GridSamplingParams { target_points: target })
+    sample_grid(
+        &mesh,
+        &GridSamplingParams {
+            target_points: target,
+        },
+    )
 }

@@ -30,7 +30,12 @@ pub struct KernelParams {
 
 impl Default for KernelParams {
     fn default() -> Self {
-        KernelParams { count: 1000, radius_scale: 1.0, min_radius_factor: 3.0, seed: 0 }
+        KernelParams {
+            count: 1000,
+            radius_scale: 1.0,
+            min_radius_factor: 3.0,
+            seed: 0,
+        }
     }
 }
 
@@ -86,7 +91,10 @@ impl Kernels {
             });
         }
         if let Some(k) = radii.iter().position(|r| !(r.is_finite() && *r > 0.0)) {
-            return Err(KernelError::DegenerateRadius { kernel: k, radius: radii[k] });
+            return Err(KernelError::DegenerateRadius {
+                kernel: k,
+                radius: radii[k],
+            });
         }
         Ok(Kernels { centers, radii })
     }
@@ -119,7 +127,11 @@ impl Kernels {
 /// # Panics
 /// If `count > points.len()`.
 pub fn farthest_point_sampling(points: &[Vector3<f64>], count: usize, seed: u64) -> Vec<usize> {
-    assert!(count <= points.len(), "cannot choose {count} of {} points", points.len());
+    assert!(
+        count <= points.len(),
+        "cannot choose {count} of {} points",
+        points.len()
+    );
     if count == 0 {
         return Vec::new();
     }
@@ -142,7 +154,13 @@ pub fn farthest_point_sampling(points: &[Vector3<f64>], count: usize, seed: u64)
             })
             .reduce(
                 || (usize::MAX, f64::NEG_INFINITY),
-                |a, b| if b.1 > a.1 || (b.1 == a.1 && b.0 < a.0) { b } else { a },
+                |a, b| {
+                    if b.1 > a.1 || (b.1 == a.1 && b.0 < a.0) {
+                        b
+                    } else {
+                        a
+                    }
+                },
             );
         current = far;
     }
@@ -187,7 +205,10 @@ pub fn place_kernels(
         })
         .collect();
     if let Some(k) = radii.iter().position(|r| !(*r > 0.0)) {
-        return Err(KernelError::DegenerateRadius { kernel: k, radius: radii[k] });
+        return Err(KernelError::DegenerateRadius {
+            kernel: k,
+            radius: radii[k],
+        });
     }
     Ok(Kernels { centers, radii })
 }
@@ -221,14 +242,22 @@ mod tests {
         let pts = lattice(6);
         let k = place_kernels(
             &pts,
-            &KernelParams { count: pts.len(), min_radius_factor: 0.5, ..Default::default() },
+            &KernelParams {
+                count: pts.len(),
+                min_radius_factor: 0.5,
+                ..Default::default()
+            },
         )
         .unwrap();
         // All lattice points are centres: second-nearest other centre is at distance 1.
         assert!(k.radii().iter().all(|&r| (r - 1.0).abs() < 1e-12));
         let k = place_kernels(
             &pts,
-            &KernelParams { count: pts.len(), min_radius_factor: 3.0, ..Default::default() },
+            &KernelParams {
+                count: pts.len(),
+                min_radius_factor: 3.0,
+                ..Default::default()
+            },
         )
         .unwrap();
         assert!(k.radii().iter().all(|&r| (r - 3.0).abs() < 1e-12));
@@ -237,7 +266,19 @@ mod tests {
     #[test]
     fn too_many_kernels_is_an_error() {
         let pts = lattice(2);
-        let err = place_kernels(&pts, &KernelParams { count: 9, ..Default::default() });
-        assert_eq!(err, Err(KernelError::InvalidCount { requested: 9, available: 8 }));
+        let err = place_kernels(
+            &pts,
+            &KernelParams {
+                count: 9,
+                ..Default::default()
+            },
+        );
+        assert_eq!(
+            err,
+            Err(KernelError::InvalidCount {
+                requested: 9,
+                available: 8
+            })
+        );
     }
 }

@@ -34,20 +34,20 @@ pub mod triangle_mesh;
 
 pub use aabb::Aabb;
 pub use geometry_io::{
-    parse_triangle_mesh, read_point_cloud, read_triangle_mesh, GeometryFormat, GeometryReadError,
+    GeometryFormat, GeometryReadError, parse_triangle_mesh, read_point_cloud, read_triangle_mesh,
 };
 pub use inside_test::InsideTest;
 pub use integration_points::{
-    sample_box_grid, sample_grid, sample_point_cloud, sample_random, CloudVolume,
-    GridSamplingParams, IntegrationPoints, PointCloudSamplingParams, RandomSamplingParams,
-    SamplingError,
+    CloudVolume, GridSamplingParams, IntegrationPoints, PointCloudSamplingParams,
+    RandomSamplingParams, SamplingError, sample_box_grid, sample_grid, sample_point_cloud,
+    sample_random,
 };
-pub use kernels::{farthest_point_sampling, place_kernels, KernelError, KernelParams, Kernels};
+pub use kernels::{KernelError, KernelParams, Kernels, farthest_point_sampling, place_kernels};
 pub use material_field::{MaterialField, MaterialSample};
 pub use point_cloud::{GaussianSplatAttributes, PointCloud};
 pub use shape_functions::{
-    evaluate_shape_functions, shape_function_values_unshifted, ShapeFunctionError,
-    ShapeFunctionParams, ShapeFunctions,
+    ShapeFunctionError, ShapeFunctionParams, ShapeFunctions, evaluate_shape_functions,
+    shape_function_values_unshifted,
 };
 pub use spatial_index::SpatialIndex;
 pub use triangle_mesh::{MeshValidationError, Normalization, TriangleMesh};

@@ -55,9 +55,17 @@ mod tests {
 
     #[test]
     fn function_field_is_evaluated_per_point() {
-        let soft = MaterialSample { youngs_modulus: 1e5, poisson_ratio: 0.45, density: 1000.0 };
+        let soft = MaterialSample {
+            youngs_modulus: 1e5,
+            poisson_ratio: 0.45,
+            density: 1000.0,
+        };
         let field = MaterialField::Function(Arc::new(move |x: &Vector3<f64>| MaterialSample {
-            youngs_modulus: if x.x < 0.5 { soft.youngs_modulus } else { 100.0 * soft.youngs_modulus },
+            youngs_modulus: if x.x < 0.5 {
+                soft.youngs_modulus
+            } else {
+                100.0 * soft.youngs_modulus
+            },
             ..soft
         }));
         let samples = field.sample(&[Vector3::new(0.2, 0.0, 0.0), Vector3::new(0.8, 0.0, 0.0)]);

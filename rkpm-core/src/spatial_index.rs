@@ -19,11 +19,17 @@ impl SpatialIndex {
     /// # Panics
     /// If `points` has more than `u32::MAX` entries.
     pub fn new(points: &[Vector3<f64>]) -> Self {
-        assert!(points.len() < u32::MAX as usize, "too many points for the spatial index");
+        assert!(
+            points.len() < u32::MAX as usize,
+            "too many points for the spatial index"
+        );
         let coords: Vec<[f64; 3]> = points.iter().map(|p| [p.x, p.y, p.z]).collect();
         let tree = ImmutableKdTree::new_from_slice(&coords)
             .expect("a k-d tree can be built over finite points");
-        SpatialIndex { tree, len: points.len() }
+        SpatialIndex {
+            tree,
+            len: points.len(),
+        }
     }
 
     /// Number of indexed points.

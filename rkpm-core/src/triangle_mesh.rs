@@ -127,7 +127,10 @@ impl TriangleMesh {
         vertices: Vec<Vector3<f64>>,
         triangles: Vec<[usize; 3]>,
     ) -> Result<Self, MeshValidationError> {
-        let mesh = TriangleMesh { vertices, triangles };
+        let mesh = TriangleMesh {
+            vertices,
+            triangles,
+        };
         mesh.validate()?;
         Ok(mesh)
     }
@@ -135,18 +138,23 @@ impl TriangleMesh {
     fn validate(&self) -> Result<(), MeshValidationError> {
         let (nv, nt) = (self.vertices.len(), self.triangles.len());
         if nv == 0 || nt == 0 {
-            return Err(MeshValidationError::Empty { vertices: nv, triangles: nt });
+            return Err(MeshValidationError::Empty {
+                vertices: nv,
+                triangles: nt,
+            });
         }
-        if let Some((vertex, p)) =
-            self.vertices.iter().enumerate().find(|(_, p)| !p.iter().all(|c| c.is_finite()))
+        if let Some((vertex, p)) = self
+            .vertices
+            .iter()
+            .enumerate()
+            .find(|(_, p)| !p.iter().all(|c| c.is_finite()))
         {
             return Err(MeshValidationError::NonFiniteVertex {
                 vertex,
                 position: [p.x, p.y, p.z],
             });
         }
-        let mut directed: HashMap<(usize, usize), (usize, usize)> =
-            HashMap::with_capacity(3 * nt);
+        let mut directed: HashMap<(usize, usize), (usize, usize)> = HashMap::with_capacity(3 * nt);
         for (t, tri) in self.triangles.iter().enumerate() {
             if let Some(&index) = tri.iter().find(|&&i| i >= nv) {
                 return Err(MeshValidationError::IndexOutOfRange {
@@ -156,7 +164,10 @@ impl TriangleMesh {
                 });
             }
             if tri[0] == tri[1] || tri[1] == tri[2] || tri[0] == tri[2] {
-                return Err(MeshValidationError::DegenerateTriangle { triangle: t, indices: *tri });
+                return Err(MeshValidationError::DegenerateTriangle {
+                    triangle: t,
+                    indices: *tri,
+                });
             }
             for e in 0..3 {
                 let entry = directed.entry((tri[e], tri[(e + 1) % 3])).or_insert((t, 0));
@@ -166,8 +177,10 @@ impl TriangleMesh {
         if let Some((&(from, to), &(_, times))) = directed.iter().find(|(_, (_, n))| *n > 1) {
             return Err(MeshValidationError::NonManifoldEdge { from, to, times });
         }
-        let unmatched: Vec<_> =
-            directed.iter().filter(|((a, b), _)| !directed.contains_key(&(*b, *a))).collect();
+        let unmatched: Vec<_> = directed
+            .iter()
+            .filter(|((a, b), _)| !directed.contains_key(&(*b, *a)))
+            .collect();
         if let Some(&(&(from, to), &(triangle, _))) = unmatched.iter().min_by_key(|(e, _)| **e) {
             return Err(MeshValidationError::OpenOrInconsistent {
                 from,
@@ -212,7 +225,11 @@ impl TriangleMesh {
         self.triangles
             .iter()
             .map(|&[a, b, d]| {
-                let (a, b, d) = (self.vertices[a] - c, self.vertices[b] - c, self.vertices[d] - c);
+                let (a, b, d) = (
+                    self.vertices[a] - c,
+                    self.vertices[b] - c,
+                    self.vertices[d] - c,
+                );
                 a.dot(&b.cross(&d))
             })
             .sum::<f64>()
@@ -233,9 +250,16 @@ impl TriangleMesh {
     /// side is 1, with the transform applied (DESIGN 4.2).
     pub fn normalized(&self) -> (TriangleMesh, Normalization) {
         let bbox = self.bounding_box();
-        let normalization = Normalization { origin: bbox.min, scale: 1.0 / bbox.largest_side() };
+        let normalization = Normalization {
+            origin: bbox.min,
+            scale: 1.0 / bbox.largest_side(),
+        };
         let mesh = TriangleMesh {
-            vertices: self.vertices.iter().map(|p| normalization.apply(p)).collect(),
+            vertices: self
+                .vertices
+                .iter()
+                .map(|p| normalization.apply(p))
+                .collect(),
             triangles: self.triangles.clone(),
         };
         (mesh, normalization)
@@ -260,14 +284,23 @@ impl TriangleMesh {
         };
         let vertices = (0..8).map(corner).collect();
         let triangles = vec![
-            [0, 2, 1], [1, 2, 3], // z = min
-            [4, 5, 6], [5, 7, 6], // z = max
-            [0, 1, 4], [1, 5, 4], // y = min
-            [2, 6, 3], [3, 6, 7], // y = max
-            [0, 4, 2], [2, 4, 6], // x = min
-            [1, 3, 5], [3, 7, 5], // x = max
+            [0, 2, 1],
+            [1, 2, 3], // z = min
+            [4, 5, 6],
+            [5, 7, 6], // z = max
+            [0, 1, 4],
+            [1, 5, 4], // y = min
+            [2, 6, 3],
+            [3, 6, 7], // y = max
+            [0, 4, 2],
+            [2, 4, 6], // x = min
+            [1, 3, 5],
+            [3, 7, 5], // x = max
         ];
-        TriangleMesh { vertices, triangles }
+        TriangleMesh {
+            vertices,
+            triangles,
+        }
     }
 }
 
@@ -319,7 +352,13 @@ mod tests {
         let mut tris = b.triangles().to_vec();
         tris.pop();
         let err = TriangleMesh::new(b.vertices().to_vec(), tris).unwrap_err();
-        assert!(matches!(err, MeshValidationError::OpenOrInconsistent { count: 3, .. }), "{err}");
+        assert!(
+            matches!(
+                err,
+                MeshValidationError::OpenOrInconsistent { count: 3, .. }
+            ),
+            "{err}"
+        );
     }
 
     #[test]
@@ -344,7 +383,10 @@ mod tests {
         let mut v = b.vertices().to_vec();
         v[5].y = f64::NAN;
         let err = TriangleMesh::new(v, b.triangles().to_vec()).unwrap_err();
-        assert!(matches!(err, MeshValidationError::NonFiniteVertex { vertex: 5, .. }));
+        assert!(matches!(
+            err,
+            MeshValidationError::NonFiniteVertex { vertex: 5, .. }
+        ));
     }
 
     #[test]

@@ -1,7 +1,7 @@
 //! Every shared mesh loads, validates and has its published volume; the inside test agrees
 //! with the divergence-theorem volume; the 3DGS file loads with its header-defined layout.
 
-use rkpm_core::{read_point_cloud, read_triangle_mesh, sample_grid, GridSamplingParams};
+use rkpm_core::{GridSamplingParams, read_point_cloud, read_triangle_mesh, sample_grid};
 use test_support::fixtures::{shared_data_dir, shared_meshes, shared_splat};
 
 /// `file → volume` from the shared manifest (file units³).
@@ -15,7 +15,10 @@ fn manifest_volumes() -> Vec<(String, f64)> {
     lines
         .map(|line| {
             let fields: Vec<&str> = line.split(',').collect();
-            (fields[0].to_string(), fields[fields.len() - from_end].parse().unwrap())
+            (
+                fields[0].to_string(),
+                fields[fields.len() - from_end].parse().unwrap(),
+            )
         })
         .collect()
 }
@@ -30,7 +33,11 @@ fn every_shared_mesh_is_closed_with_the_manifest_volume() {
         let mesh = read_triangle_mesh(&path).unwrap_or_else(|e| panic!("{e}"));
         let expected = volumes.iter().find(|(f, _)| f == name).unwrap().1;
         let rel = (mesh.volume() - expected).abs() / expected;
-        assert!(rel < 1e-6, "{name}: volume {} vs manifest {expected}", mesh.volume());
+        assert!(
+            rel < 1e-6,
+            "{name}: volume {} vs manifest {expected}",
+            mesh.volume()
+        );
         let (unit, _) = mesh.normalized();
         assert!((unit.bounding_box().largest_side() - 1.0).abs() < 1e-12);
     }
@@ -40,10 +47,27 @@ fn every_shared_mesh_is_closed_with_the_manifest_volume() {
 fn grid_inside_fraction_matches_divergence_volume_within_one_percent() {
     for path in shared_meshes() {
         let (mesh, _) = read_triangle_mesh(&path).unwrap().normalized();
-        let points = sample_grid(&mesh, &GridSamplingParams { target_points: 2_000_000 }).unwrap();
+        let points = sample_grid(
+            &mesh,
+            &GridSamplingParams {
+                target_points: 2_000_000,
+            },
+        )
+        .unwrap();
         let rel = (points.total_volume() - mesh.volume()).abs() / mesh.volume();
-        println!("{:32} {:8} points  grid volume error {:.3}%", path.display().to_string().rsplit('/').next().unwrap(), points.len(), 100.0 * rel);
-        assert!(rel < 0.01, "{}: grid volume {} vs {}", path.display(), points.total_volume(), mesh.volume());
+        println!(
+            "{:32} {:8} points  grid volume error {:.3}%",
+            path.display().to_string().rsplit('/').next().unwrap(),
+            points.len(),
+            100.0 * rel
+        );
+        assert!(
+            rel < 0.01,
+            "{}: grid volume {} vs {}",
+            path.display(),
+            points.total_volume(),
+            mesh.volume()
+        );
     }
 }
 
@@ -64,7 +88,8 @@ fn ray_inside_test_agrees_with_exact_winding_number() {
         for offset in [0.0, 0.013_579] {
             for i in 0..n * n * n {
                 let f = Vector3::new((i / (n * n)) as f64, ((i / n) % n) as f64, (i % n) as f64);
-                let q = bbox.min + (f / (n - 1) as f64 + Vector3::repeat(offset)).component_mul(&bbox.extent());
+                let q = bbox.min
+                    + (f / (n - 1) as f64 + Vector3::repeat(offset)).component_mul(&bbox.extent());
                 let w = test.winding_number(&q);
                 // Points on the surface (w ≈ ½) may go either way.
                 if (w - 0.5).abs() > 0.1 && test.contains(&q) != (w > 0.5) {
@@ -85,7 +110,16 @@ fn gaussian_splat_file_loads_with_header_defined_properties() {
     let bbox = cloud.bounding_box().unwrap();
     assert!((bbox.min.x - -0.1032).abs() < 1e-3 && (bbox.max.y - 0.1095).abs() < 1e-3);
     // Scales are logs of small standard deviations (README: from -9.66 to -3.38).
-    let (lo, hi) = splats.log_scales.iter().flatten().fold((f64::MAX, f64::MIN), |(a, b), &s| (a.min(s), b.max(s)));
+    let (lo, hi) = splats
+        .log_scales
+        .iter()
+        .flatten()
+        .fold((f64::MAX, f64::MIN), |(a, b), &s| (a.min(s), b.max(s)));
     assert!(lo > -9.7 && hi < -3.3, "{lo} {hi}");
-    assert!(splats.rotations.iter().all(|q| (q.quaternion().norm() - 1.0).abs() < 1e-12));
+    assert!(
+        splats
+            .rotations
+            .iter()
+            .all(|q| (q.quaternion().norm() - 1.0).abs() < 1e-12)
+    );
 }

@@ -36,7 +36,10 @@ pub fn shared_meshes() -> Vec<PathBuf> {
         .map(|entry| entry.expect("readable directory entry").path())
         .filter(|path| {
             matches!(
-                path.extension().and_then(|e| e.to_str()).map(str::to_ascii_lowercase).as_deref(),
+                path.extension()
+                    .and_then(|e| e.to_str())
+                    .map(str::to_ascii_lowercase)
+                    .as_deref(),
                 Some("obj" | "stl" | "ply")
             )
         })
@@ -48,7 +51,9 @@ pub fn shared_meshes() -> Vec<PathBuf> {
 
 /// Path of the shared 3D Gaussian Splatting file.
 pub fn shared_splat() -> PathBuf {
-    shared_data_dir().join("splats").join("donut_mipsplatting_fused.ply")
+    shared_data_dir()
+        .join("splats")
+        .join("donut_mipsplatting_fused.ply")
 }
 
 /// A fresh, empty scratch folder under the target directory, unique to `name`.
