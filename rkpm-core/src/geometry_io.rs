@@ -188,7 +188,6 @@ fn parse_obj(bytes: &[u8], path: &Path) -> Result<Soup, GeometryReadError> {
         single_index: false,
         ignore_points: true,
         ignore_lines: true,
-        ..Default::default()
     };
     let parse_error = |message: String| GeometryReadError::Parse {
         path: path.to_owned(),

@@ -43,7 +43,7 @@ pub use integration_points::{
     sample_random,
 };
 pub use kernels::{KernelError, KernelParams, Kernels, farthest_point_sampling, place_kernels};
-pub use material_field::{MaterialField, MaterialSample};
+pub use material_field::{MaterialField, MaterialFunction, MaterialSample};
 pub use point_cloud::{GaussianSplatAttributes, PointCloud};
 pub use shape_functions::{
     ShapeFunctionError, ShapeFunctionParams, ShapeFunctions, evaluate_shape_functions,

@@ -21,13 +21,16 @@ pub struct MaterialSample {
     pub density: f64,
 }
 
+/// A material as a function of rest position X (m).
+pub type MaterialFunction = Arc<dyn Fn(&Vector3<f64>) -> MaterialSample + Send + Sync>;
+
 /// A material over the object: one value everywhere, or a function of rest position X (m).
 #[derive(Clone)]
 pub enum MaterialField {
     /// The same material at every point.
     Uniform(MaterialSample),
     /// `f(X)` evaluated at each integration point.
-    Function(Arc<dyn Fn(&Vector3<f64>) -> MaterialSample + Send + Sync>),
+    Function(MaterialFunction),
 }
 
 impl MaterialField {

@@ -1,0 +1,96 @@
+//! The constitutive-model trait shared by every solver, with batch entry points.
+
+use nalgebra::Matrix3;
+
+use crate::determinant::Matrix9;
+use crate::lame_parameters::LameParameters;
+use crate::psd_projection::project_to_psd;
+
+/// Which tangent a batch call returns.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Tangent {
+    /// The exact `∂P/∂F`.
+    Exact,
+    /// Its projection onto the positive semi-definite cone (negative eigenvalues clamped to 0),
+    /// what Newton's method needs.
+    ProjectedPsd,
+}
+
+/// A hyperelastic material: energy density Ψ(F) (J/m³ = Pa), first Piola-Kirchhoff stress
+/// P = ∂Ψ/∂F (Pa) and the 9×9 tangent ∂P/∂F (Pa) over column-major `vec(F)`, with per-point
+/// Lamé parameters (heterogeneous objects).
+///
+/// Implementations must be isotropic and frame-indifferent with Ψ(I) = 0, P(I) = 0.
+pub trait HyperelasticMaterial: Sync {
+    /// A short name for reports ("stable Neo-Hookean").
+    fn name(&self) -> &'static str;
+
+    /// Energy density Ψ(F) (Pa).
+    fn energy_density(&self, params: &LameParameters, f: &Matrix3<f64>) -> f64;
+
+    /// First Piola-Kirchhoff stress P(F) = ∂Ψ/∂F (Pa).
+    fn first_piola_kirchhoff(&self, params: &LameParameters, f: &Matrix3<f64>) -> Matrix3<f64>;
+
+    /// The exact tangent ∂vec(P)/∂vec(F) (9×9, symmetric, Pa).
+    fn stress_derivative(&self, params: &LameParameters, f: &Matrix3<f64>) -> Matrix9;
+
+    /// The tangent projected to be positive semi-definite. The default clamps the eigenvalues of
+    /// a numeric 9×9 eigendecomposition; materials with an analytic eigensystem override it.
+    fn projected_stress_derivative(&self, params: &LameParameters, f: &Matrix3<f64>) -> Matrix9 {
+        project_to_psd(&self.stress_derivative(params, f))
+    }
+
+    /// Ψ at many points: `out[i] = Ψ(params[i], F[i])`.
+    ///
+    /// # Panics
+    /// If the three slices differ in length.
+    fn energy_densities(&self, params: &[LameParameters], f: &[Matrix3<f64>], out: &mut [f64]) {
+        assert_batch_lengths(params.len(), f.len(), out.len());
+        for ((o, p), f) in out.iter_mut().zip(params).zip(f) {
+            *o = self.energy_density(p, f);
+        }
+    }
+
+    /// P at many points: `out[i] = P(params[i], F[i])`.
+    ///
+    /// # Panics
+    /// If the three slices differ in length.
+    fn first_piola_kirchhoff_stresses(
+        &self,
+        params: &[LameParameters],
+        f: &[Matrix3<f64>],
+        out: &mut [Matrix3<f64>],
+    ) {
+        assert_batch_lengths(params.len(), f.len(), out.len());
+        for ((o, p), f) in out.iter_mut().zip(params).zip(f) {
+            *o = self.first_piola_kirchhoff(p, f);
+        }
+    }
+
+    /// ∂P/∂F (exact or PSD-projected) at many points.
+    ///
+    /// # Panics
+    /// If the three slices differ in length.
+    fn stress_derivatives(
+        &self,
+        params: &[LameParameters],
+        f: &[Matrix3<f64>],
+        tangent: Tangent,
+        out: &mut [Matrix9],
+    ) {
+        assert_batch_lengths(params.len(), f.len(), out.len());
+        for ((o, p), f) in out.iter_mut().zip(params).zip(f) {
+            *o = match tangent {
+                Tangent::Exact => self.stress_derivative(p, f),
+                Tangent::ProjectedPsd => self.projected_stress_derivative(p, f),
+            };
+        }
+    }
+}
+
+fn assert_batch_lengths(params: usize, f: usize, out: usize) {
+    assert!(
+        params == f && f == out,
+        "batch lengths differ: {params} parameter sets, {f} deformation gradients, {out} outputs"
+    );
+}
