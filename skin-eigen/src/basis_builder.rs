@@ -1,0 +1,144 @@
+//! The whole basis construction ("training"): kernels → shape functions → 𝓜, H_w → eigen
+//! solve, timed per phase.
+
+use std::time::Instant;
+
+use hyperelastic::LameParameters;
+use nalgebra::DMatrix;
+use rkpm_core::{
+    IntegrationPoints, KernelError, KernelParams, ShapeFunctionError, ShapeFunctionParams,
+    evaluate_shape_functions, place_kernels,
+};
+use serde::{Deserialize, Serialize};
+
+use crate::assembly::{AssemblyError, WeightSpaceMatrices, assemble_weight_space_matrices};
+use crate::generalized_eigen::{EigenError, EigenParams, solve_skinning_modes};
+use crate::skinning_basis::{BasisMetadata, SkinningBasis};
+
+/// Options for [`build_basis`]; every default is the documented default of its part
+/// (K = 1000 kernels, cutoff 4 r_k, m = 16).
+#[derive(Clone, Copy, Debug, Default, PartialEq, Serialize, Deserialize)]
+pub struct BasisParams {
+    /// Kernel count and radius rule.
+    pub kernels: KernelParams,
+    /// Shape-function cutoff and conditioning threshold.
+    pub shape_functions: ShapeFunctionParams,
+    /// Number of modes and mass-rank tolerance.
+    pub eigen: EigenParams,
+}
+
+/// Seconds spent in each phase of basis construction.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Serialize, Deserialize)]
+pub struct PhaseTimings {
+    /// Farthest point sampling and radii.
+    pub kernel_placement: f64,
+    /// Shape functions and gradients at the integration points.
+    pub shape_functions: f64,
+    /// 𝓜 and H_w.
+    pub assembly: f64,
+    /// Generalized eigen solve.
+    pub eigen_solve: f64,
+}
+
+impl PhaseTimings {
+    /// Sum of all phases (s).
+    pub fn total(&self) -> f64 {
+        self.kernel_placement + self.shape_functions + self.assembly + self.eigen_solve
+    }
+}
+
+/// What [`build_basis`] measured, returned to the caller (the library prints nothing).
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+pub struct BasisReport {
+    /// Per-phase wall time.
+    pub timings: PhaseTimings,
+    /// Number of kernels K.
+    pub kernels: usize,
+    /// Number of integration points N.
+    pub integration_points: usize,
+    /// Mean kernels reaching an integration point.
+    pub mean_kernels_per_point: f64,
+    /// `λ_max(𝓜)/λ_min(𝓜)`.
+    pub mass_condition_number: f64,
+    /// Near-null mass directions discarded.
+    pub discarded_mass_directions: usize,
+    /// `max_j |H_w c_j - λ_j 𝓜 c_j| / (|H_w|_F |c_j|)`.
+    pub eigen_relative_residual: f64,
+    /// `max |cᵀ𝓜c - I|`.
+    pub orthonormality_error: f64,
+}
+
+/// Basis construction failed; the variant says in which phase.
+#[derive(Debug, thiserror::Error)]
+pub enum BasisError {
+    /// Kernel placement.
+    #[error("kernel placement: {0}")]
+    Kernels(#[from] KernelError),
+    /// Shape-function evaluation.
+    #[error("shape functions: {0}")]
+    ShapeFunctions(#[from] ShapeFunctionError),
+    /// Assembly.
+    #[error("assembly: {0}")]
+    Assembly(#[from] AssemblyError),
+    /// Eigen solve.
+    #[error("eigen solve: {0}")]
+    Eigen(#[from] EigenError),
+}
+
+/// Builds the skinning basis of an object given by integration points and per-point Lamé
+/// parameters (the rest Hessian of the stable Neo-Hookean energy, Prop. 1).
+///
+/// Returns the basis, its report, and the assembled matrices (for checks and ablations).
+///
+/// # Errors
+/// [`BasisError`] naming the phase and the problem (e.g. m ≥ K, a singular moment matrix).
+pub fn build_basis(
+    points: &IntegrationPoints,
+    materials: &[LameParameters],
+    params: &BasisParams,
+) -> Result<(SkinningBasis, BasisReport, WeightSpaceMatrices), BasisError> {
+    let mut timings = PhaseTimings::default();
+    let t = Instant::now();
+    let kernels = place_kernels(points.positions(), &params.kernels)?;
+    timings.kernel_placement = t.elapsed().as_secs_f64();
+
+    let t = Instant::now();
+    let shape = evaluate_shape_functions(&kernels, points.positions(), &params.shape_functions)?;
+    timings.shape_functions = t.elapsed().as_secs_f64();
+
+    let t = Instant::now();
+    let matrices = assemble_weight_space_matrices(&shape, points.volumes(), materials)?;
+    timings.assembly = t.elapsed().as_secs_f64();
+
+    let t = Instant::now();
+    let solution = solve_skinning_modes(&matrices, &params.eigen)?;
+    timings.eigen_solve = t.elapsed().as_secs_f64();
+
+    let c = &solution.coefficients;
+    let coefficients = DMatrix::from_fn(c.nrows(), c.ncols(), |i, j| c[(i, j)]);
+    let metadata = BasisMetadata {
+        material: "stable Neo-Hookean (rest Hessian, λ + 4μ)".into(),
+        integration_points: points.len(),
+        mass_condition_number: solution.mass_condition_number,
+        discarded_mass_directions: solution.discarded_mass_directions,
+        constant_eigenvalue: solution.constant_eigenvalue,
+    };
+    let report = BasisReport {
+        timings,
+        kernels: kernels.len(),
+        integration_points: points.len(),
+        mean_kernels_per_point: shape.mean_kernels_per_point(),
+        mass_condition_number: solution.mass_condition_number,
+        discarded_mass_directions: solution.discarded_mass_directions,
+        eigen_relative_residual: solution.max_relative_residual,
+        orthonormality_error: solution.orthonormality_error,
+    };
+    let basis = SkinningBasis::new(
+        kernels,
+        params.shape_functions,
+        coefficients,
+        solution.eigenvalues,
+        metadata,
+    );
+    Ok((basis, report, matrices))
+}
