@@ -46,8 +46,8 @@ pub use kernels::{KernelError, KernelParams, Kernels, farthest_point_sampling, p
 pub use material_field::{MaterialField, MaterialFunction, MaterialSample};
 pub use point_cloud::{GaussianSplatAttributes, PointCloud};
 pub use shape_functions::{
-    ShapeFunctionError, ShapeFunctionParams, ShapeFunctions, evaluate_shape_functions,
-    shape_function_values_unshifted,
+    ReproducingErrors, ShapeFunctionError, ShapeFunctionParams, ShapeFunctions,
+    evaluate_shape_functions, shape_function_values_unshifted,
 };
 pub use spatial_index::SpatialIndex;
 pub use triangle_mesh::{MeshValidationError, Normalization, TriangleMesh};

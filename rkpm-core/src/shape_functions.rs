@@ -35,7 +35,7 @@
 //! pivot ratio `(min L_ii / max L_ii)²` (a cheap reciprocal-condition estimate) falls below
 //! `ShapeFunctionParams::min_reciprocal_condition`.
 
-use nalgebra::{Matrix4, Vector3, Vector4};
+use nalgebra::{Matrix3, Matrix4, Vector3, Vector4};
 use rayon::prelude::*;
 use serde::{Deserialize, Serialize};
 
@@ -160,6 +160,78 @@ impl ShapeFunctions {
             .fold((0.0, Vector3::zeros()), |(u, g), ((&k, &phi), grad)| {
                 (u + phi * nodal[k as usize], g + grad * nodal[k as usize])
             })
+    }
+}
+
+/// Largest violation over a set of points of the four reproducing conditions (DESIGN 3.3),
+/// made dimensionless with a length `L`. All are round-off small wherever M(X) is invertible.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Serialize, Deserialize)]
+pub struct ReproducingErrors {
+    /// `max |Σ_k ϕ_k - 1|`.
+    pub partition_of_unity: f64,
+    /// `max |Σ_k ϕ_k p_k - X| / L`.
+    pub linear: f64,
+    /// `max |Σ_k ∇ϕ_k| · L`.
+    pub gradient_sum: f64,
+    /// `max |Σ_k p_k ∇ϕ_kᵀ - I|` (Frobenius).
+    pub gradient_linear: f64,
+}
+
+impl ReproducingErrors {
+    /// The largest of the four.
+    pub fn max(&self) -> f64 {
+        self.partition_of_unity
+            .max(self.linear)
+            .max(self.gradient_sum)
+            .max(self.gradient_linear)
+    }
+}
+
+impl ShapeFunctions {
+    /// Checks the reproducing conditions at the points the functions were evaluated at.
+    ///
+    /// # Panics
+    /// If `queries` or `kernels` do not match the ones used to evaluate `self`.
+    pub fn reproducing_errors(
+        &self,
+        kernels: &Kernels,
+        queries: &[Vector3<f64>],
+        length: f64,
+    ) -> ReproducingErrors {
+        assert_eq!(
+            queries.len(),
+            self.point_count(),
+            "one query per evaluated point"
+        );
+        assert_eq!(
+            kernels.len(),
+            self.kernel_count,
+            "the kernels the functions belong to"
+        );
+        let mut e = ReproducingErrors::default();
+        for (i, x) in queries.iter().enumerate() {
+            let (mut sum, mut first) = (0.0, Vector3::zeros());
+            let (mut grad_sum, mut grad_first) = (Vector3::zeros(), Matrix3::zeros());
+            for ((&k, &phi), g) in self
+                .kernels(i)
+                .iter()
+                .zip(self.values(i))
+                .zip(self.gradients(i))
+            {
+                let p = kernels.centers()[k as usize];
+                sum += phi;
+                first += p * phi;
+                grad_sum += g;
+                grad_first += p * g.transpose();
+            }
+            e.partition_of_unity = e.partition_of_unity.max((sum - 1.0).abs());
+            e.linear = e.linear.max((first - x).norm() / length);
+            e.gradient_sum = e.gradient_sum.max(grad_sum.norm() * length);
+            e.gradient_linear = e
+                .gradient_linear
+                .max((grad_first - Matrix3::identity()).norm());
+        }
+        e
     }
 }
 

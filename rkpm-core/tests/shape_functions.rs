@@ -1,46 +1,37 @@
 //! RKPM shape functions: the four reproducing conditions (DESIGN 3.3), gradients against
 //! central differences, equivalence with the paper's unshifted Eqs. 7-11, singularity reports.
 
-use nalgebra::{Matrix3, Vector3};
+use nalgebra::Vector3;
 use proptest::prelude::*;
 use rkpm_core::{
-    GridSamplingParams, KernelParams, Kernels, ShapeFunctionError, ShapeFunctionParams,
-    ShapeFunctions, evaluate_shape_functions, place_kernels, read_triangle_mesh, sample_box_grid,
-    sample_grid, shape_function_values_unshifted,
+    GridSamplingParams, IntegrationPoints, KernelParams, Kernels, ShapeFunctionError,
+    ShapeFunctionParams, ShapeFunctions, evaluate_shape_functions, place_kernels,
+    read_triangle_mesh, sample_box_grid, sample_grid, shape_function_values_unshifted,
 };
 use test_support::fixtures::shared_mesh;
 
-/// Largest violation over all points of the four reproducing conditions:
-/// Σϕ = 1, Σϕ p = X, Σ∇ϕ = 0, Σ p ∇ϕᵀ = I (positions relative to `scale`).
+/// Largest violation of the four reproducing conditions (positions relative to `scale`).
 fn reproducing_error(
     shape: &ShapeFunctions,
     kernels: &Kernels,
     queries: &[Vector3<f64>],
     scale: f64,
 ) -> f64 {
-    let mut worst: f64 = 0.0;
-    for (i, x) in queries.iter().enumerate() {
-        let (mut sum, mut first) = (0.0, Vector3::zeros());
-        let (mut grad_sum, mut grad_first) = (Vector3::zeros(), Matrix3::zeros());
-        for ((&k, &phi), g) in shape
-            .kernels(i)
-            .iter()
-            .zip(shape.values(i))
-            .zip(shape.gradients(i))
-        {
-            let p = kernels.centers()[k as usize];
-            sum += phi;
-            first += p * phi;
-            grad_sum += g;
-            grad_first += p * g.transpose();
-        }
-        worst = worst
-            .max((sum - 1.0).abs())
-            .max((first - x).norm() / scale)
-            .max(grad_sum.norm() * scale)
-            .max((grad_first - Matrix3::identity()).norm());
-    }
-    worst
+    shape.reproducing_errors(kernels, queries, scale).max()
+}
+
+/// Grid points in the box [0, sides] with the given spacing, and `count` kernels placed on them.
+fn box_layout(sides: [f64; 3], spacing: f64, count: usize) -> (IntegrationPoints, Kernels) {
+    let points = sample_box_grid(Vector3::zeros(), Vector3::from(sides), spacing).unwrap();
+    let kernels = place_kernels(
+        points.positions(),
+        &KernelParams {
+            count,
+            ..Default::default()
+        },
+    )
+    .unwrap();
+    (points, kernels)
 }
 
 fn random_kernels(centers: Vec<[f64; 3]>, radius: f64) -> Kernels {
@@ -84,15 +75,7 @@ proptest! {
 
 #[test]
 fn reproducing_conditions_hold_on_the_beam() {
-    let points = sample_box_grid(Vector3::zeros(), Vector3::new(5.0, 1.0, 1.0), 0.1).unwrap();
-    let kernels = place_kernels(
-        points.positions(),
-        &KernelParams {
-            count: 400,
-            ..Default::default()
-        },
-    )
-    .unwrap();
+    let (points, kernels) = box_layout([5.0, 1.0, 1.0], 0.1, 400);
     let shape = evaluate_shape_functions(
         &kernels,
         points.positions(),
@@ -135,15 +118,7 @@ fn reproducing_conditions_hold_on_shared_meshes() {
 
 #[test]
 fn gradients_match_central_differences() {
-    let points = sample_box_grid(Vector3::zeros(), Vector3::new(2.0, 1.0, 1.0), 0.1).unwrap();
-    let kernels = place_kernels(
-        points.positions(),
-        &KernelParams {
-            count: 120,
-            ..Default::default()
-        },
-    )
-    .unwrap();
+    let (_, kernels) = box_layout([2.0, 1.0, 1.0], 0.1, 120);
     let params = ShapeFunctionParams {
         cutoff: 6.0,
         ..Default::default()
@@ -193,15 +168,7 @@ fn gradients_match_central_differences() {
 
 #[test]
 fn shifted_form_equals_the_papers_unshifted_form() {
-    let points = sample_box_grid(Vector3::zeros(), Vector3::new(2.0, 1.0, 1.0), 0.1).unwrap();
-    let kernels = place_kernels(
-        points.positions(),
-        &KernelParams {
-            count: 100,
-            ..Default::default()
-        },
-    )
-    .unwrap();
+    let (points, kernels) = box_layout([2.0, 1.0, 1.0], 0.1, 100);
     let shape = evaluate_shape_functions(
         &kernels,
         points.positions(),
@@ -225,15 +192,7 @@ fn shifted_form_equals_the_papers_unshifted_form() {
 
 #[test]
 fn isolated_query_reports_singular_moment_matrix_with_the_point() {
-    let points = sample_box_grid(Vector3::zeros(), Vector3::new(1.0, 1.0, 1.0), 0.1).unwrap();
-    let kernels = place_kernels(
-        points.positions(),
-        &KernelParams {
-            count: 50,
-            ..Default::default()
-        },
-    )
-    .unwrap();
+    let (_, kernels) = box_layout([1.0, 1.0, 1.0], 0.1, 50);
     let queries = [Vector3::new(0.5, 0.5, 0.5), Vector3::new(50.0, 0.5, 0.5)];
     let err =
         evaluate_shape_functions(&kernels, &queries, &ShapeFunctionParams::default()).unwrap_err();
@@ -277,15 +236,7 @@ fn coplanar_kernels_are_reported_singular_not_nan() {
 /// number of kernels per point grows.
 #[test]
 fn cutoff_changes_values_by_the_truncated_tail_only() {
-    let points = sample_box_grid(Vector3::zeros(), Vector3::new(2.0, 1.0, 1.0), 0.1).unwrap();
-    let kernels = place_kernels(
-        points.positions(),
-        &KernelParams {
-            count: 150,
-            ..Default::default()
-        },
-    )
-    .unwrap();
+    let (points, kernels) = box_layout([2.0, 1.0, 1.0], 0.1, 150);
     let eval = |cutoff| {
         evaluate_shape_functions(
             &kernels,
