@@ -6,14 +6,14 @@
 //! ```
 //! Options: `--mesh PATH` (default: the 5×1×1 m beam), `--points N` (default 30000),
 //! `--kernels K` (default 1000), `--modes m` (default 32), `--young E` (Pa, default 1e5),
-//! `--save PATH`.
+//! `--solver auto|dense|iterative` (default auto: dense up to K = 3000), `--save PATH`.
 
 use std::time::Instant;
 
 use hyperelastic::LameParameters;
 use nalgebra::Vector3;
 use rkpm_core::{GridSamplingParams, KernelParams, TriangleMesh, read_triangle_mesh, sample_grid};
-use skin_eigen::{BasisParams, EigenParams, build_basis};
+use skin_eigen::{BasisParams, EigenParams, EigenSolverChoice, SubspaceParams, build_basis};
 
 fn value<T: std::str::FromStr>(args: &[String], name: &str) -> Result<Option<T>, String> {
     match args.iter().position(|a| a == name) {
@@ -34,6 +34,16 @@ fn run() -> Result<(), String> {
     let modes = value(&args, "--modes")?.unwrap_or(32);
     let young = value(&args, "--young")?.unwrap_or(1e5);
     let save: Option<String> = value(&args, "--save")?;
+    let solver = match value::<String>(&args, "--solver")?.as_deref() {
+        None | Some("auto") => EigenSolverChoice::Auto,
+        Some("dense") => EigenSolverChoice::Dense,
+        Some("iterative") => EigenSolverChoice::Iterative(SubspaceParams::default()),
+        Some(other) => {
+            return Err(format!(
+                "--solver must be auto, dense or iterative, not {other}"
+            ));
+        }
+    };
 
     let t = Instant::now();
     let (mesh, label) = match &mesh_path {
@@ -62,6 +72,7 @@ fn run() -> Result<(), String> {
             modes,
             ..Default::default()
         },
+        solver,
         ..Default::default()
     };
     let (basis, report, _) =

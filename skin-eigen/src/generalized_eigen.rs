@@ -108,8 +108,48 @@ pub fn solve_skinning_modes(
     if params.modes == 0 {
         return Err(EigenError::NoModes);
     }
-    let (d, q) =
-        scaled_self_adjoint_eigen(mass.as_ref()).ok_or(EigenError::NoConvergence { size: k })?;
+    let pencil = smallest_generalized_eigenpairs(
+        mass.as_ref(),
+        hessian.as_ref(),
+        params.modes + 1,
+        params.modes + 1,
+        params.mass_rank_tolerance,
+    )?;
+    let hc = hessian * &pencil.vectors;
+    let mc = mass * &pencil.vectors;
+    Ok(EigenSolution::from_pencil(
+        pencil,
+        &hc,
+        &mc,
+        hessian.norm_l2(),
+    ))
+}
+
+/// The `count` smallest pairs of `H y = λ M y` (M symmetric positive semi-definite, H
+/// symmetric) by the mass-rank-reduced dense method of [`solve_skinning_modes`], with the
+/// vectors M-orthonormal. Shared by the dense path and the Rayleigh-Ritz step of the iterative
+/// path.
+pub(crate) struct Pencil {
+    /// All computed eigenvalues (ascending), the first `count` used.
+    pub values: Vec<f64>,
+    /// The first `count` eigenvectors (n × count).
+    pub vectors: Mat<f64>,
+    pub mass_condition_number: f64,
+    pub discarded_mass_directions: usize,
+}
+
+///
+/// Returns `min(count, rank)` pairs; fails with [`EigenError::TooManyModes`] when the rank kept
+/// is below `required`.
+pub(crate) fn smallest_generalized_eigenpairs(
+    mass: MatRef<'_, f64>,
+    hessian: MatRef<'_, f64>,
+    count: usize,
+    required: usize,
+    mass_rank_tolerance: f64,
+) -> Result<Pencil, EigenError> {
+    let k = mass.nrows();
+    let (d, q) = scaled_self_adjoint_eigen(mass).ok_or(EigenError::NoConvergence { size: k })?;
     let (d_min, d_max) = (d[0], d[k - 1]);
     if !(d_max > 0.0) {
         return Err(EigenError::DegenerateMass { largest: d_max });
@@ -120,35 +160,61 @@ pub fn solve_skinning_modes(
         f64::INFINITY
     };
     let keep: Vec<usize> = (0..k)
-        .filter(|&i| d[i] > params.mass_rank_tolerance * d_max)
+        .filter(|&i| d[i] > mass_rank_tolerance * d_max)
         .collect();
     let r = keep.len();
-    if params.modes + 1 > r {
+    if required > r {
         return Err(EigenError::TooManyModes {
-            requested: params.modes,
+            requested: required.saturating_sub(1),
             available: r.saturating_sub(1),
         });
     }
+    let count = count.min(r);
     let b = Mat::from_fn(k, r, |row, col| q[(row, keep[col])] / d[keep[col]].sqrt());
     let reduced = b.transpose() * hessian * &b;
     // Symmetrize away round-off before the symmetric solver.
     let reduced = Mat::from_fn(r, r, |i, j| 0.5 * (reduced[(i, j)] + reduced[(j, i)]));
     let (values, vectors) =
         scaled_self_adjoint_eigen(reduced.as_ref()).ok_or(EigenError::NoConvergence { size: r })?;
-    let y = vectors.subcols(1, params.modes);
-    let coefficients = &b * y;
-    let eigenvalues: Vec<f64> = (1..=params.modes).map(|i| values[i]).collect();
-    let (max_relative_residual, orthonormality_error) =
-        accuracy(matrices, &coefficients, &eigenvalues);
-    Ok(EigenSolution {
-        eigenvalues,
-        coefficients,
-        max_relative_residual,
-        orthonormality_error,
-        constant_eigenvalue: values[0],
+    Ok(Pencil {
+        values,
+        vectors: &b * vectors.subcols(0, count),
         mass_condition_number,
         discarded_mass_directions: k - r,
     })
+}
+
+impl EigenSolution {
+    /// Drops the constant (first) pair of a pencil solution and measures the accuracy from
+    /// `hc = H_w c`, `mc = 𝓜 c` (all `count` columns) and `|H_w|_F`.
+    pub(crate) fn from_pencil(pencil: Pencil, hc: &Mat<f64>, mc: &Mat<f64>, h_norm: f64) -> Self {
+        let modes = pencil.vectors.ncols() - 1;
+        let coefficients = pencil.vectors.subcols(1, modes).to_owned();
+        let eigenvalues: Vec<f64> = pencil.values[1..=modes].to_vec();
+        let (hc, mc) = (hc.subcols(1, modes), mc.subcols(1, modes));
+        let max_relative_residual = (0..modes)
+            .map(|j| {
+                let r: f64 = (0..coefficients.nrows())
+                    .map(|i| (hc[(i, j)] - eigenvalues[j] * mc[(i, j)]).powi(2))
+                    .sum();
+                r.sqrt() / (h_norm * coefficients.col(j).norm_l2())
+            })
+            .fold(0.0, f64::max);
+        let gram = coefficients.transpose() * mc;
+        let orthonormality_error = (0..modes)
+            .flat_map(|i| (0..modes).map(move |j| (i, j)))
+            .map(|(i, j)| (gram[(i, j)] - if i == j { 1.0 } else { 0.0 }).abs())
+            .fold(0.0, f64::max);
+        EigenSolution {
+            eigenvalues,
+            coefficients,
+            constant_eigenvalue: pencil.values[0],
+            mass_condition_number: pencil.mass_condition_number,
+            discarded_mass_directions: pencil.discarded_mass_directions,
+            max_relative_residual,
+            orthonormality_error,
+        }
+    }
 }
 
 /// Eigenvalues (ascending) and eigenvectors of a symmetric matrix, computed on `A / max|a_ij|`
@@ -177,25 +243,4 @@ fn scaled_self_adjoint_eigen(a: MatRef<'_, f64>) -> Option<(Vec<f64>, Mat<f64>)>
         .map(|v| v * scale)
         .collect();
     Some((values, eigen.U().to_owned()))
-}
-
-/// `(max relative residual, max |cᵀ𝓜c - I|)` of eigenpairs (c_j, λ_j).
-fn accuracy(matrices: &WeightSpaceMatrices, c: &Mat<f64>, eigenvalues: &[f64]) -> (f64, f64) {
-    let hc = &matrices.hessian * c;
-    let mc = &matrices.mass * c;
-    let h_norm = matrices.hessian.norm_l2();
-    let residual = (0..c.ncols())
-        .map(|j| {
-            let r: f64 = (0..c.nrows())
-                .map(|i| (hc[(i, j)] - eigenvalues[j] * mc[(i, j)]).powi(2))
-                .sum();
-            r.sqrt() / (h_norm * c.col(j).norm_l2())
-        })
-        .fold(0.0, f64::max);
-    let gram = c.transpose() * &mc;
-    let orthonormality = (0..gram.nrows())
-        .flat_map(|i| (0..gram.ncols()).map(move |j| (i, j)))
-        .map(|(i, j)| (gram[(i, j)] - if i == j { 1.0 } else { 0.0 }).abs())
-        .fold(0.0, f64::max);
-    (residual, orthonormality)
 }

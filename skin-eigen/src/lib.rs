@@ -6,17 +6,26 @@
 //! m + 1 smallest pairs, drop the constant mode, and wrap the rest as a [`SkinningBasis`] that
 //! evaluates `W(X)` and `∇W(X)` anywhere (constant handle first) and saves/loads itself.
 //!
-//! Status: the dense eigen path (K up to a few thousand). The iterative solver for larger K
-//! is not built yet.
+//! Two solver paths: dense (K up to a few thousand: [`assemble_weight_space_matrices`] +
+//! [`solve_skinning_modes`]) and sparse iterative for larger K
+//! ([`assemble_sparse_weight_space_matrices`] + [`solve_skinning_modes_iteratively`]);
+//! [`build_basis`] picks by K (see [`EigenSolverChoice`]).
 
 pub mod assembly;
 pub mod basis_builder;
 pub mod generalized_eigen;
 pub mod skinning_basis;
+pub mod sparse_assembly;
+pub mod subspace_iteration;
 
 pub use assembly::{AssemblyError, WeightSpaceMatrices, assemble_weight_space_matrices};
-pub use basis_builder::{BasisError, BasisParams, BasisReport, PhaseTimings, build_basis};
+pub use basis_builder::{
+    AssembledMatrices, BasisError, BasisParams, BasisReport, DENSE_SOLVER_MAX_KERNELS,
+    EigenSolverChoice, PhaseTimings, build_basis,
+};
 pub use generalized_eigen::{EigenError, EigenParams, EigenSolution, solve_skinning_modes};
 pub use skinning_basis::{
     BASIS_FORMAT_VERSION, BasisFileError, BasisMetadata, SkinningBasis, SkinningWeights,
 };
+pub use sparse_assembly::{SparseWeightSpaceMatrices, assemble_sparse_weight_space_matrices};
+pub use subspace_iteration::{SubspaceParams, solve_skinning_modes_iteratively};

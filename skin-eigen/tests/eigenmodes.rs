@@ -8,7 +8,8 @@ use hyperelastic::LameParameters;
 use nalgebra::Vector3;
 use rkpm_core::{IntegrationPoints, KernelParams, sample_box_grid};
 use skin_eigen::{
-    BasisFileError, BasisParams, EigenParams, SkinningBasis, WeightSpaceMatrices, build_basis,
+    AssembledMatrices, BasisFileError, BasisParams, EigenParams, EigenSolverChoice, SkinningBasis,
+    SubspaceParams, WeightSpaceMatrices, build_basis,
 };
 
 const BEAM: [f64; 3] = [5.0, 1.0, 1.0];
@@ -43,6 +44,9 @@ fn beam_basis(
     let points = beam_points(spacing);
     let materials = vec![lame(); points.len()];
     let (basis, _, matrices) = build_basis(&points, &materials, &params(kernels, modes)).unwrap();
+    let AssembledMatrices::Dense(matrices) = matrices else {
+        panic!("small K is solved densely")
+    };
     (basis, matrices, points)
 }
 
@@ -237,4 +241,46 @@ fn more_modes_than_kernels_is_a_clear_error() {
     let materials = vec![lame(); points.len()];
     let err = build_basis(&points, &materials, &params(20, 25)).unwrap_err();
     assert!(err.to_string().contains("modes"), "{err}");
+}
+
+/// The iterative (sparse, shift-invert subspace) solver reproduces the dense solver's
+/// eigenvalues and weight fields.
+#[test]
+fn iterative_solver_matches_dense_solver() {
+    let points = beam_points(0.1);
+    let materials = vec![lame(); points.len()];
+    let dense = build_basis(&points, &materials, &params(300, 8)).unwrap().0;
+    let iterative_params = BasisParams {
+        solver: EigenSolverChoice::Iterative(SubspaceParams::default()),
+        ..params(300, 8)
+    };
+    let (iterative, report, matrices) =
+        build_basis(&points, &materials, &iterative_params).unwrap();
+    assert!(matches!(matrices, AssembledMatrices::Sparse(_)));
+    assert!(
+        report.eigen_relative_residual < 1e-10,
+        "residual {:e}",
+        report.eigen_relative_residual
+    );
+    assert!(
+        report.orthonormality_error < 1e-10,
+        "orthonormality {:e}",
+        report.orthonormality_error
+    );
+    for (a, b) in dense.eigenvalues().iter().zip(iterative.eigenvalues()) {
+        assert!((a - b).abs() < 1e-9 * a, "{a} vs {b}");
+    }
+    // Modes 1 and 2 are simple: the weight fields agree up to sign.
+    let (wd, wi) = (
+        dense.evaluate(points.positions()).unwrap().weights,
+        iterative.evaluate(points.positions()).unwrap().weights,
+    );
+    for mode in 1..=2 {
+        let sign = (wd.column(mode).dot(&wi.column(mode))).signum();
+        let diff = (wd.column(mode) - wi.column(mode) * sign).amax();
+        assert!(
+            diff < 1e-7 * wd.column(mode).amax(),
+            "mode {mode}: {diff:e}"
+        );
+    }
 }
