@@ -47,50 +47,10 @@ pub fn assemble_weight_space_matrices(
     volumes: &[f64],
     materials: &[LameParameters],
 ) -> Result<WeightSpaceMatrices, AssemblyError> {
-    let n = shape.point_count();
-    for (what, got) in [("volumes", volumes.len()), ("materials", materials.len())] {
-        if got != n {
-            return Err(AssemblyError::LengthMismatch {
-                what,
-                got,
-                expected: n,
-            });
-        }
-    }
     let k = shape.kernel_count();
-    // One accumulator pair (2 K² doubles) per thread: 512 MB at K = 4000 on two threads.
-    let chunk = n.div_ceil(rayon::current_num_threads()).max(1);
-    let (mass, hessian) = (0..n)
-        .into_par_iter()
-        .chunks(chunk)
-        .map(|points| {
-            let mut mass = vec![0.0; k * k];
-            let mut hessian = vec![0.0; k * k];
-            for i in points {
-                let (kernels, values, gradients) =
-                    (shape.kernels(i), shape.values(i), shape.gradients(i));
-                let v = volumes[i];
-                let modulus = v * materials[i].weight_space_hessian_modulus();
-                for (a, &ka) in kernels.iter().enumerate() {
-                    let row = ka as usize * k;
-                    let (va, ga) = (v * values[a], modulus * gradients[a]);
-                    // Kernels are sorted, so kb ≥ ka for b ≥ a: the upper triangle.
-                    for (b, &kb) in kernels.iter().enumerate().skip(a) {
-                        mass[row + kb as usize] += va * values[b];
-                        hessian[row + kb as usize] += ga.dot(&gradients[b]);
-                    }
-                }
-            }
-            (mass, hessian)
-        })
-        .reduce(
-            || (vec![0.0; k * k], vec![0.0; k * k]),
-            |(mut m1, mut h1), (m2, h2)| {
-                m1.iter_mut().zip(&m2).for_each(|(a, b)| *a += b);
-                h1.iter_mut().zip(&h2).for_each(|(a, b)| *a += b);
-                (m1, h1)
-            },
-        );
+    let (mass, hessian) = accumulate_kernel_pairs(shape, volumes, materials, k * k, |a, b| {
+        a as usize * k + b as usize
+    })?;
     // Row-major upper triangle → symmetric faer matrices.
     let symmetric = |upper: &[f64]| {
         Mat::from_fn(k, k, |r, c| {
@@ -105,4 +65,61 @@ pub fn assemble_weight_space_matrices(
         mass: symmetric(&mass),
         hessian: symmetric(&hessian),
     })
+}
+
+/// The shared assembly loop: for every point i and kernel pair (a, b ≥ a) reaching it, adds
+/// `v_i ϕ_a ϕ_b` and `v_i (λ_i + 4μ_i) ∇ϕ_a·∇ϕ_b` at `slot(a, b)` of two `len`-long arrays.
+/// Parallel over points, one pair of arrays per thread (summed at the end).
+///
+/// # Errors
+/// [`AssemblyError::LengthMismatch`] unless `volumes` and `materials` have one entry per point.
+pub(crate) fn accumulate_kernel_pairs(
+    shape: &ShapeFunctions,
+    volumes: &[f64],
+    materials: &[LameParameters],
+    len: usize,
+    slot: impl Fn(u32, u32) -> usize + Sync,
+) -> Result<(Vec<f64>, Vec<f64>), AssemblyError> {
+    let n = shape.point_count();
+    for (what, got) in [("volumes", volumes.len()), ("materials", materials.len())] {
+        if got != n {
+            return Err(AssemblyError::LengthMismatch {
+                what,
+                got,
+                expected: n,
+            });
+        }
+    }
+    // One accumulator pair per thread: 2 · len doubles each (512 MB at K = 4000 dense).
+    let chunk = n.div_ceil(rayon::current_num_threads()).max(1);
+    Ok((0..n)
+        .into_par_iter()
+        .chunks(chunk)
+        .map(|points| {
+            let (mut mass, mut hessian) = (vec![0.0; len], vec![0.0; len]);
+            for i in points {
+                let (kernels, values, gradients) =
+                    (shape.kernels(i), shape.values(i), shape.gradients(i));
+                let v = volumes[i];
+                let modulus = v * materials[i].weight_space_hessian_modulus();
+                for (a, &ka) in kernels.iter().enumerate() {
+                    let (va, ga) = (v * values[a], modulus * gradients[a]);
+                    // Kernels are sorted, so kb ≥ ka for b ≥ a: the upper triangle.
+                    for (b, &kb) in kernels.iter().enumerate().skip(a) {
+                        let s = slot(ka, kb);
+                        mass[s] += va * values[b];
+                        hessian[s] += ga.dot(&gradients[b]);
+                    }
+                }
+            }
+            (mass, hessian)
+        })
+        .reduce(
+            || (vec![0.0; len], vec![0.0; len]),
+            |(mut m1, mut h1), (m2, h2)| {
+                m1.iter_mut().zip(&m2).for_each(|(a, b)| *a += b);
+                h1.iter_mut().zip(&h2).for_each(|(a, b)| *a += b);
+                (m1, h1)
+            },
+        ))
 }

@@ -5,7 +5,7 @@ use hyperelastic::LameParameters;
 use rayon::prelude::*;
 use rkpm_core::{Kernels, ShapeFunctions, SpatialIndex};
 
-use crate::assembly::AssemblyError;
+use crate::assembly::{AssemblyError, accumulate_kernel_pairs};
 
 /// 𝓜 and H_w (same formulas as [`crate::WeightSpaceMatrices`]) as sparse symmetric matrices
 /// with both triangles stored.
@@ -31,16 +31,6 @@ pub fn assemble_sparse_weight_space_matrices(
     volumes: &[f64],
     materials: &[LameParameters],
 ) -> Result<SparseWeightSpaceMatrices, AssemblyError> {
-    let n = shape.point_count();
-    for (what, got) in [("volumes", volumes.len()), ("materials", materials.len())] {
-        if got != n {
-            return Err(AssemblyError::LengthMismatch {
-                what,
-                got,
-                expected: n,
-            });
-        }
-    }
     let k = kernels.len();
     let (centers, radii) = (kernels.centers(), kernels.radii());
     let r_max = radii.iter().copied().fold(0.0, f64::max);
@@ -65,41 +55,13 @@ pub fn assemble_sparse_weight_space_matrices(
     }
     let columns: Vec<u32> = rows.into_iter().flatten().collect();
     let nnz = columns.len();
-    let chunk = n.div_ceil(rayon::current_num_threads()).max(1);
-    let (mass, hessian) = (0..n)
-        .into_par_iter()
-        .chunks(chunk)
-        .map(|points| {
-            let (mut mass, mut hessian) = (vec![0.0; nnz], vec![0.0; nnz]);
-            for i in points {
-                let (ks, values, gradients) =
-                    (shape.kernels(i), shape.values(i), shape.gradients(i));
-                let v = volumes[i];
-                let modulus = v * materials[i].weight_space_hessian_modulus();
-                for (a, &ka) in ks.iter().enumerate() {
-                    let (start, end) = (offsets[ka as usize], offsets[ka as usize + 1]);
-                    let row = &columns[start..end];
-                    let (va, ga) = (v * values[a], modulus * gradients[a]);
-                    for (b, &kb) in ks.iter().enumerate().skip(a) {
-                        let slot = start
-                            + row
-                                .binary_search(&kb)
-                                .expect("pattern holds every overlapping pair");
-                        mass[slot] += va * values[b];
-                        hessian[slot] += ga.dot(&gradients[b]);
-                    }
-                }
-            }
-            (mass, hessian)
-        })
-        .reduce(
-            || (vec![0.0; nnz], vec![0.0; nnz]),
-            |(mut m1, mut h1), (m2, h2)| {
-                m1.iter_mut().zip(&m2).for_each(|(a, b)| *a += b);
-                h1.iter_mut().zip(&h2).for_each(|(a, b)| *a += b);
-                (m1, h1)
-            },
-        );
+    let (mass, hessian) = accumulate_kernel_pairs(shape, volumes, materials, nnz, |a, b| {
+        let (start, end) = (offsets[a as usize], offsets[a as usize + 1]);
+        start
+            + columns[start..end]
+                .binary_search(&b)
+                .expect("pattern holds every overlapping pair")
+    })?;
     let symmetric = |values: &[f64]| {
         let mut triplets = Vec::with_capacity(2 * nnz);
         for a in 0..k {
