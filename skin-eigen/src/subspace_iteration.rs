@@ -8,7 +8,7 @@ use faer::{Accum, Mat, Par, Side};
 use serde::{Deserialize, Serialize};
 
 use crate::generalized_eigen::{
-    EigenError, EigenParams, EigenSolution, smallest_generalized_eigenpairs,
+    EigenError, EigenParams, EigenSolution, Pencil, smallest_generalized_eigenpairs,
 };
 use crate::sparse_assembly::SparseWeightSpaceMatrices;
 
@@ -136,24 +136,21 @@ pub fn solve_skinning_modes_iteratively(
         )?;
         // Ritz vectors: the whole block goes on to the next iteration.
         x = &y * &ritz.vectors;
-        let pencil = crate::generalized_eigen::Pencil {
-            vectors: ritz.vectors.subcols(0, wanted).to_owned(),
-            ..ritz
-        };
-        let c = x.subcols(0, wanted).to_owned();
-        let (hc, mc) = (&hy * &pencil.vectors, &my * &pencil.vectors);
+        let wanted_ritz = ritz.vectors.subcols(0, wanted);
+        let (hc, mc) = (&hy * wanted_ritz, &my * wanted_ritz);
+        let c = x.subcols(0, wanted);
         let converged = (0..wanted).all(|j| {
             let r: f64 = (0..k)
-                .map(|i| (hc[(i, j)] - pencil.values[j] * mc[(i, j)]).powi(2))
+                .map(|i| (hc[(i, j)] - ritz.values[j] * mc[(i, j)]).powi(2))
                 .sum();
             r.sqrt() <= subspace.tolerance * h_norm * c.col(j).norm_l2()
         });
         if converged {
-            let full = crate::generalized_eigen::Pencil {
-                vectors: c,
-                ..pencil
+            let pencil = Pencil {
+                vectors: c.to_owned(),
+                ..ritz
             };
-            let mut solution = EigenSolution::from_pencil(full, &hc, &mc, h_norm);
+            let mut solution = EigenSolution::from_pencil(pencil, &hc, &mc, h_norm);
             solution.mass_condition_number = f64::NAN;
             return Ok(solution);
         }
