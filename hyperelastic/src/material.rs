@@ -1,13 +1,14 @@
 //! The constitutive-model trait shared by every solver, with batch entry points.
 
 use nalgebra::Matrix3;
+use serde::{Deserialize, Serialize};
 
 use crate::determinant::Matrix9;
 use crate::lame_parameters::LameParameters;
 use crate::psd_projection::project_to_psd;
 
 /// Which tangent a batch call returns.
-#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, Deserialize)]
 pub enum Tangent {
     /// The exact `∂P/∂F`.
     Exact,

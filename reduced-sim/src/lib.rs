@@ -1,5 +1,56 @@
-//! Implicit reduced-order elastodynamics on any skinning basis (paper Eqs. 1-2, DESIGN 3.7).
+//! Reduced-order implicit elastodynamics on any skinning basis (paper Eqs. 1-2, DESIGN 3.7).
 //!
-//! Will hold: the basis trait, the linear-blend-skinning deformation map, the reduced model
-//! (integration points, reduced mass matrix) and the backward-Euler Newton integrator with
-//! gravity, pin and floor terms. Not built yet (see the reduced-sim issue).
+//! - [`SkinningField`]: the basis trait (weights and weight gradients at points); the RKPM
+//!   eigenbasis [`skin_eigen::SkinningBasis`] implements it, the neural baseline will too.
+//! - [`DeformationMap`]: the LBS map `x_i(z)`, `F_i(z)` at fixed rest points, precomputed once
+//!   (integration points, or output points such as FEM vertices and splat centers).
+//! - [`ReducedModel`]: integration points with volumes and materials, and the constant reduced
+//!   mass matrix; [`ReducedModel::elastic_energy`] with its gradient and Hessian.
+//! - [`Scene`]: gravity, pinned/moving regions, a floor; [`PenaltyParams`] for their stiffness.
+//! - [`Simulator`]: backward Euler with Newton and a line search; one [`StepReport`] per step.
+//!
+//! Units: SI throughout (m, s, kg, Pa, J). z is dimensionless (its translation entries are m).
+//!
+//! ```no_run
+//! # fn main() -> Result<(), Box<dyn std::error::Error>> {
+//! use hyperelastic::StableNeoHookean;
+//! use nalgebra::Vector3;
+//! use reduced_sim::{PinTarget, PinnedRegion, ReducedModel, Scene, SimulationParams, Simulator};
+//! # let (basis, points, materials): (skin_eigen::SkinningBasis, rkpm_core::IntegrationPoints,
+//! #     Vec<rkpm_core::MaterialSample>) = todo!();
+//! let model = ReducedModel::new(&basis, &points, &materials, StableNeoHookean)?;
+//! let pinned = model.points_where(|x| x.x <= 0.5);
+//! let scene = Scene {
+//!     gravity: Some(Vector3::new(0.0, -9.8, 0.0)),
+//!     pins: vec![PinnedRegion { points: pinned, target: PinTarget::Rest }],
+//!     floor: None,
+//! };
+//! let mut sim = Simulator::new(model, &scene, SimulationParams::default())?;
+//! for _ in 0..100 {
+//!     let report = sim.step()?;
+//!     assert!(report.converged());
+//! }
+//! # Ok(()) }
+//! ```
+
+#[cfg(test)]
+mod analytic_field;
+pub mod deformation_map;
+pub mod elastic_energy;
+mod incremental_potential;
+pub mod newton;
+pub mod reduced_coordinates;
+pub mod reduced_model;
+pub mod scene;
+mod scene_terms;
+pub mod simulator;
+pub mod skinning_field;
+
+pub use deformation_map::{DeformationMap, DeformationMapError};
+pub use newton::{NewtonParams, NewtonStop, StepError, StepReport, StepTimings};
+pub use reduced_coordinates::ReducedLayout;
+pub use reduced_model::{ReducedModel, ReducedModelError};
+pub use scene::{Floor, PenaltyParams, PinTarget, PinnedRegion, Scene, TargetFunction};
+pub use scene_terms::SceneError;
+pub use simulator::{ReducedState, SimulationParams, Simulator, StateError};
+pub use skinning_field::SkinningField;

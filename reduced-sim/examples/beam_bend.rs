@@ -1,0 +1,194 @@
+//! The beam Bend scene of DESIGN 4.1 on the reduced simulator: a 5 m × 1 m × 1 m beam
+//! (E = 5 MPa, ν = 0.45, ρ = 1000 kg/m³) with x ≤ 0.5 m pinned, bending under gravity
+//! (9.8 m/s² along -y), 100 steps of h = 0.01 s.
+//!
+//! ```sh
+//! cargo run --release -p reduced-sim --example beam_bend -- --modes 16 --json
+//! ```
+//! Options: `--modes m` (default 16), `--kernels K` (default 1000), `--basis-points N` (grid
+//! points the basis is built on, default 20000), `--points N` (simulation points, default
+//! 5000), `--steps S` (default 100), `--tolerance T` (Newton, default 1e-6), `--pin-factor F`
+//! (default 1e4), `--json`.
+//!
+//! Output: `tip_y` at t = 0.5 s and 1.0 s — the y displacement (m) of the end face x = 5,
+//! averaged over an 11 × 11 lattice of points on it — plus ms per step (and its split into
+//! assembly / solve / line search) and mean Newton iterations.
+
+use std::time::Instant;
+
+use hyperelastic::{LameParameters, StableNeoHookean};
+use nalgebra::Vector3;
+use reduced_sim::{
+    DeformationMap, NewtonParams, PenaltyParams, PinTarget, PinnedRegion, ReducedModel, Scene,
+    SimulationParams, Simulator, StepTimings,
+};
+use rkpm_core::{KernelParams, MaterialSample, sample_box_grid};
+use skin_eigen::{BasisParams, EigenParams, build_basis};
+
+fn value<T: std::str::FromStr>(args: &[String], name: &str, default: T) -> Result<T, String> {
+    match args.iter().position(|a| a == name) {
+        None => Ok(default),
+        Some(i) => args
+            .get(i + 1)
+            .and_then(|v| v.parse().ok())
+            .ok_or_else(|| format!("{name} needs a valid value")),
+    }
+}
+
+const BEAM_MIN: Vector3<f64> = Vector3::new(0.0, 0.0, 0.0);
+const BEAM_MAX: Vector3<f64> = Vector3::new(5.0, 1.0, 1.0);
+
+/// Spacing of a box grid with about `n` cells.
+fn spacing_for(n: usize) -> f64 {
+    (5.0 / n as f64).cbrt()
+}
+
+fn run() -> Result<(), String> {
+    let args: Vec<String> = std::env::args().skip(1).collect();
+    let json = args.iter().any(|a| a == "--json");
+    let modes = value(&args, "--modes", 16usize)?;
+    let kernels = value(&args, "--kernels", 1000usize)?;
+    let basis_points = value(&args, "--basis-points", 20_000usize)?;
+    let sim_points = value(&args, "--points", 5000usize)?;
+    let steps = value(&args, "--steps", 100usize)?;
+    let tolerance = value(&args, "--tolerance", NewtonParams::default().tolerance)?;
+    let pin_factor = value(&args, "--pin-factor", PenaltyParams::default().pin_factor)?;
+    if modes == 0 || kernels == 0 || basis_points == 0 || sim_points == 0 {
+        return Err("--modes, --kernels, --basis-points and --points must be positive".into());
+    }
+
+    let material = MaterialSample {
+        youngs_modulus: 5e6,
+        poisson_ratio: 0.45,
+        density: 1000.0,
+    };
+    let lame = LameParameters::from_young_poisson(material.youngs_modulus, material.poisson_ratio)
+        .map_err(|e| e.to_string())?;
+
+    let t = Instant::now();
+    let basis_grid = sample_box_grid(BEAM_MIN, BEAM_MAX, spacing_for(basis_points))
+        .map_err(|e| e.to_string())?;
+    let params = BasisParams {
+        kernels: KernelParams {
+            count: kernels,
+            ..Default::default()
+        },
+        eigen: EigenParams {
+            modes,
+            ..Default::default()
+        },
+        ..Default::default()
+    };
+    let (basis, _, _) = build_basis(&basis_grid, &vec![lame; basis_grid.len()], &params)
+        .map_err(|e| e.to_string())?;
+    let basis_seconds = t.elapsed().as_secs_f64();
+
+    let t = Instant::now();
+    let points =
+        sample_box_grid(BEAM_MIN, BEAM_MAX, spacing_for(sim_points)).map_err(|e| e.to_string())?;
+    let model = ReducedModel::new(
+        &basis,
+        &points,
+        &vec![material; points.len()],
+        StableNeoHookean,
+    )
+    .map_err(|e| e.to_string())?;
+    let pinned = model.points_where(|x| x.x <= 0.5);
+    let scene = Scene {
+        gravity: Some(Vector3::new(0.0, -9.8, 0.0)),
+        pins: vec![PinnedRegion {
+            points: pinned,
+            target: PinTarget::Rest,
+        }],
+        floor: None,
+    };
+    let sim_params = SimulationParams {
+        time_step: 0.01,
+        newton: NewtonParams {
+            tolerance,
+            ..Default::default()
+        },
+        penalty: PenaltyParams {
+            pin_factor,
+            ..Default::default()
+        },
+    };
+    let mut sim = Simulator::new(model, &scene, sim_params).map_err(|e| e.to_string())?;
+    let lattice: Vec<Vector3<f64>> = (0..11)
+        .flat_map(|a| (0..11).map(move |b| Vector3::new(5.0, a as f64 / 10.0, b as f64 / 10.0)))
+        .collect();
+    let tip = DeformationMap::new(&basis, &lattice).map_err(|e| e.to_string())?;
+    let setup_seconds = t.elapsed().as_secs_f64();
+
+    let mut timings = StepTimings::default();
+    let mut iterations = 0usize;
+    let mut unconverged = 0usize;
+    let mut tip_y = Vec::new();
+    let mut pin_deviation: f64 = 0.0;
+    let t = Instant::now();
+    for step in 1..=steps {
+        let report = sim.step().map_err(|e| format!("step {step} failed: {e}"))?;
+        iterations += report.iterations;
+        unconverged += usize::from(!report.converged());
+        timings.assembly += report.timings.assembly;
+        timings.solve += report.timings.solve;
+        timings.line_search += report.timings.line_search;
+        pin_deviation = pin_deviation.max(sim.max_pin_deviation().unwrap_or(0.0));
+        if step == 50 || step == 100 {
+            let x = tip.positions(&sim.state().z);
+            let dy = x.iter().zip(&lattice).map(|(x, r)| x.y - r.y).sum::<f64>() / 121.0;
+            tip_y.push((if step == 50 { "0.5" } else { "1.0" }, dy));
+        }
+    }
+    let wall = t.elapsed().as_secs_f64();
+    let per_step = |s: f64| 1e3 * s / steps as f64;
+    let iterations_mean = iterations as f64 / steps as f64;
+    if json {
+        let tips: Vec<String> = tip_y
+            .iter()
+            .map(|(k, v)| format!("\"{k}\": {v:.8e}"))
+            .collect();
+        println!(
+            "{{\"modes\": {modes}, \"kernels\": {kernels}, \"basis_points\": {}, \
+             \"simulation_points\": {}, \"steps\": {steps}, \"tip_y\": {{{}}}, \
+             \"ms_per_step\": {:.4}, \"ms_assembly\": {:.4}, \"ms_solve\": {:.4}, \
+             \"ms_line_search\": {:.4}, \"newton_iterations_mean\": {iterations_mean:.4}, \
+             \"unconverged_steps\": {unconverged}, \"max_pin_deviation\": {pin_deviation:.4e}, \"basis_seconds\": {basis_seconds:.4}, \
+             \"setup_seconds\": {setup_seconds:.4}}}",
+            basis_grid.len(),
+            sim.model().rest_positions().len(),
+            tips.join(", "),
+            per_step(wall),
+            per_step(timings.assembly),
+            per_step(timings.solve),
+            per_step(timings.line_search),
+        );
+    } else {
+        println!(
+            "beam Bend, m = {modes}, K = {kernels}, basis on {} points, simulated on {} points",
+            basis_grid.len(),
+            sim.model().rest_positions().len()
+        );
+        println!("basis {basis_seconds:.2} s, model setup {setup_seconds:.2} s");
+        for (k, v) in &tip_y {
+            println!("tip y at t = {k} s: {v:.6} m");
+        }
+        println!(
+            "{:.2} ms/step (assembly {:.2}, solve {:.2}, line search {:.2}), \
+             {iterations_mean:.2} Newton iterations/step, {unconverged} unconverged steps, \
+             pinned points within {pin_deviation:.2e} m of their targets",
+            per_step(wall),
+            per_step(timings.assembly),
+            per_step(timings.solve),
+            per_step(timings.line_search)
+        );
+    }
+    Ok(())
+}
+
+fn main() {
+    if let Err(e) = run() {
+        eprintln!("beam_bend: {e}");
+        std::process::exit(1);
+    }
+}

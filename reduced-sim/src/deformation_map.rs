@@ -1,0 +1,259 @@
+//! The linear-blend-skinning deformation map at a fixed set of rest points, precomputed once
+//! (DESIGN 3.7, paper Eq. 1).
+
+use faer::{Accum, MatRef, Par};
+use nalgebra::{Matrix3, Vector3};
+use rayon::prelude::*;
+use thiserror::Error;
+
+use crate::reduced_coordinates::ReducedLayout;
+use crate::skinning_field::SkinningField;
+
+/// The weights could not be turned into a deformation map.
+#[derive(Debug, Error)]
+pub enum DeformationMapError {
+    /// The basis failed to evaluate at the points.
+    #[error("the skinning basis could not be evaluated at the points: {0}")]
+    Basis(#[source] Box<dyn std::error::Error + Send + Sync>),
+    /// A rest point has a NaN or infinite coordinate.
+    #[error("rest point {point} is not finite: {position:?}")]
+    NonFinitePoint {
+        /// Index of the point.
+        point: usize,
+        /// Its coordinates.
+        position: [f64; 3],
+    },
+    /// The basis returned a NaN or infinite weight or weight gradient.
+    #[error("the basis returned a non-finite weight or gradient at point {point}")]
+    NonFiniteWeight {
+        /// Index of the point.
+        point: usize,
+    },
+    /// Column 0 of the weights is not the constant handle 1 (the [`SkinningField`] contract).
+    #[error("handle 0 must be the constant weight 1, but W⁰ = {value} at point {point}")]
+    ConstantHandleMissing {
+        /// Index of the first offending point.
+        point: usize,
+        /// The weight found there.
+        value: f64,
+    },
+    /// The basis returned matrices of the wrong shape.
+    #[error("the basis returned weights of shape {rows}×{cols}, expected {points}×{handles}")]
+    WrongShape {
+        /// Rows returned.
+        rows: usize,
+        /// Columns returned.
+        cols: usize,
+        /// Points asked for.
+        points: usize,
+        /// Handles the basis declared.
+        handles: usize,
+    },
+}
+
+/// `x_i(z)` and `F_i(z)` at N rest points, both linear in z:
+///
+/// ```text
+/// x_i = X_i + Σ_r e_r b_iᵀ z_r,          b_i[4j + c] = W^j(X_i) X̄_i[c]            (4(m+1))
+/// F_i = I + Zᵀ G_i,  Z = [z_0 z_1 z_2],  G_i[4j + c, s] = ∂_s W^j(X_i) X̄_i[c] + W^j(X_i) δ_cs
+/// ```
+///
+/// (G_i is `4(m+1) × 3`, the paper's `G_ij = X̄ ∇W^jᵀ + W^j [I₃; 0]` stacked over handles.)
+/// Stored as two dense column-major matrices, `B = [b_1 … b_N]` (`4(m+1) × N`) and
+/// `G = [G_1 … G_N]` (`4(m+1) × 3N`), so positions and deformation gradients of all points are
+/// one matrix product each, and per-frame output never re-evaluates the basis.
+#[derive(Clone, Debug)]
+pub struct DeformationMap {
+    layout: ReducedLayout,
+    rest: Vec<Vector3<f64>>,
+    /// B, column-major, `block_len × N`.
+    b: Vec<f64>,
+    /// G, column-major, `block_len × 3N`.
+    g: Vec<f64>,
+}
+
+impl DeformationMap {
+    /// Evaluates the basis at `rest` (m) and precomputes B and G.
+    ///
+    /// # Errors
+    /// [`DeformationMapError`]: non-finite points or weights, a basis error, or a basis whose
+    /// handle 0 is not the constant 1.
+    pub fn new<B: SkinningField + ?Sized>(
+        basis: &B,
+        rest: &[Vector3<f64>],
+    ) -> Result<Self, DeformationMapError> {
+        if let Some(point) = rest.iter().position(|p| !p.iter().all(|v| v.is_finite())) {
+            return Err(DeformationMapError::NonFinitePoint {
+                point,
+                position: rest[point].into(),
+            });
+        }
+        let handles = basis.handles();
+        let layout = ReducedLayout::new(handles);
+        let weights = basis
+            .evaluate(rest)
+            .map_err(|e| DeformationMapError::Basis(Box::new(e)))?;
+        let w = &weights.weights;
+        let shapes_ok = std::iter::once(w)
+            .chain(weights.gradients.iter())
+            .all(|m| m.nrows() == rest.len() && m.ncols() == handles);
+        if !shapes_ok {
+            return Err(DeformationMapError::WrongShape {
+                rows: w.nrows(),
+                cols: w.ncols(),
+                points: rest.len(),
+                handles,
+            });
+        }
+        for i in 0..rest.len() {
+            let finite = (0..handles).all(|j| {
+                w[(i, j)].is_finite() && weights.gradients.iter().all(|g| g[(i, j)].is_finite())
+            });
+            if !finite {
+                return Err(DeformationMapError::NonFiniteWeight { point: i });
+            }
+            let gradient_zero = weights.gradients.iter().all(|g| g[(i, 0)].abs() <= 1e-12);
+            if (w[(i, 0)] - 1.0).abs() > 1e-12 || !gradient_zero {
+                return Err(DeformationMapError::ConstantHandleMissing {
+                    point: i,
+                    value: w[(i, 0)],
+                });
+            }
+        }
+        let n4 = layout.block_len();
+        let n = rest.len();
+        let mut b = vec![0.0; n4 * n];
+        let mut g = vec![0.0; n4 * 3 * n];
+        b.par_chunks_mut(n4)
+            .zip(g.par_chunks_mut(3 * n4))
+            .enumerate()
+            .for_each(|(i, (bi, gi))| {
+                let xbar = [rest[i].x, rest[i].y, rest[i].z, 1.0];
+                for j in 0..handles {
+                    let wj = w[(i, j)];
+                    for c in 0..4 {
+                        bi[4 * j + c] = wj * xbar[c];
+                        for s in 0..3 {
+                            let kronecker = if c == s { wj } else { 0.0 };
+                            gi[s * n4 + 4 * j + c] =
+                                weights.gradients[s][(i, j)] * xbar[c] + kronecker;
+                        }
+                    }
+                }
+            });
+        Ok(DeformationMap {
+            layout,
+            rest: rest.to_vec(),
+            b,
+            g,
+        })
+    }
+
+    /// The layout of z.
+    pub fn layout(&self) -> ReducedLayout {
+        self.layout
+    }
+
+    /// Number of points N.
+    pub fn len(&self) -> usize {
+        self.rest.len()
+    }
+
+    /// True when the map has no points.
+    pub fn is_empty(&self) -> bool {
+        self.rest.is_empty()
+    }
+
+    /// Rest positions X_i (m).
+    pub fn rest_positions(&self) -> &[Vector3<f64>] {
+        &self.rest
+    }
+
+    /// B (`4(m+1) × N`, column i is b_i).
+    pub fn position_matrix(&self) -> MatRef<'_, f64> {
+        MatRef::from_column_major_slice(&self.b, self.layout.block_len(), self.len())
+    }
+
+    /// G (`4(m+1) × 3N`, columns 3i..3i+3 are G_i).
+    pub fn gradient_matrix(&self) -> MatRef<'_, f64> {
+        MatRef::from_column_major_slice(&self.g, self.layout.block_len(), 3 * self.len())
+    }
+
+    /// b_i (length `4(m+1)`).
+    pub fn position_row(&self, i: usize) -> &[f64] {
+        let n4 = self.layout.block_len();
+        &self.b[i * n4..(i + 1) * n4]
+    }
+
+    /// G_i, column-major `4(m+1) × 3`.
+    pub fn gradient_block(&self, i: usize) -> &[f64] {
+        let n4 = self.layout.block_len();
+        &self.g[3 * i * n4..3 * (i + 1) * n4]
+    }
+
+    /// Deformed positions `x_i(z)` (m).
+    ///
+    /// # Panics
+    /// If `z.len() != 12(m + 1)`.
+    pub fn positions(&self, z: &[f64]) -> Vec<Vector3<f64>> {
+        let u = self.displacement_columns(z);
+        self.rest
+            .iter()
+            .enumerate()
+            .map(|(i, x)| x + Vector3::new(u[3 * i], u[3 * i + 1], u[3 * i + 2]))
+            .collect()
+    }
+
+    /// Displacements `x_i(z) - X_i` (m); applied to ż, the point velocities (m/s).
+    ///
+    /// # Panics
+    /// If `z.len() != 12(m + 1)`.
+    pub fn displacements(&self, z: &[f64]) -> Vec<Vector3<f64>> {
+        self.displacement_columns(z)
+            .chunks_exact(3)
+            .map(|u| Vector3::new(u[0], u[1], u[2]))
+            .collect()
+    }
+
+    /// Deformation gradients `F_i(z) = I + Zᵀ G_i` (dimensionless).
+    ///
+    /// # Panics
+    /// If `z.len() != 12(m + 1)`.
+    pub fn deformation_gradients(&self, z: &[f64]) -> Vec<Matrix3<f64>> {
+        let n = self.len();
+        let mut out = vec![0.0; 9 * n];
+        let zt = self.z_matrix(z).transpose();
+        faer::linalg::matmul::matmul(
+            faer::MatMut::from_column_major_slice_mut(&mut out, 3, 3 * n),
+            Accum::Replace,
+            zt,
+            self.gradient_matrix(),
+            1.0,
+            Par::rayon(0),
+        );
+        out.chunks_exact(9)
+            .map(|c| Matrix3::from_column_slice(c) + Matrix3::identity())
+            .collect()
+    }
+
+    /// `Zᵀ B` as a column-major 3 × N slice: displacement of point i in entries 3i..3i+3.
+    pub(crate) fn displacement_columns(&self, z: &[f64]) -> Vec<f64> {
+        let n = self.len();
+        let mut out = vec![0.0; 3 * n];
+        faer::linalg::matmul::matmul(
+            faer::MatMut::from_column_major_slice_mut(&mut out, 3, n),
+            Accum::Replace,
+            self.z_matrix(z).transpose(),
+            self.position_matrix(),
+            1.0,
+            Par::rayon(0),
+        );
+        out
+    }
+
+    /// z viewed as the `4(m+1) × 3` matrix Z = [z_0 z_1 z_2].
+    pub(crate) fn z_matrix<'a>(&self, z: &'a [f64]) -> MatRef<'a, f64> {
+        assert_eq!(z.len(), self.layout.len(), "z has the wrong length");
+        MatRef::from_column_major_slice(z, self.layout.block_len(), 3)
+    }
+}

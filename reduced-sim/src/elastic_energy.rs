@@ -1,0 +1,185 @@
+//! The reduced elastic energy `Σ_i v_i Ψ(F_i(z))`, its gradient and its Hessian, built from
+//! dense matrix products over the per-point G_i (DESIGN 3.7, paper Eq. 2).
+
+use faer::linalg::matmul::triangular::{self, BlockStructure};
+use faer::{Accum, Mat, MatRef, Par};
+use hyperelastic::{HyperelasticMaterial, Matrix9, Tangent};
+use nalgebra::Matrix3;
+use rayon::prelude::*;
+
+use crate::reduced_model::ReducedModel;
+
+/// The three diagonal and three upper row-block pairs (r, q) of the reduced Hessian.
+const BLOCK_PAIRS: [(usize, usize); 6] = [(0, 0), (1, 1), (2, 2), (0, 1), (0, 2), (1, 2)];
+
+impl<M: HyperelasticMaterial> ReducedModel<M> {
+    /// Elastic energy `E_el(z) = Σ_i v_i Ψ(F_i(z))` (J).
+    ///
+    /// # Panics
+    /// If `z.len() != 12(m + 1)`.
+    pub fn elastic_energy(&self, z: &[f64]) -> f64 {
+        let f = self.deformation_map().deformation_gradients(z);
+        self.elastic_energy_at(&f)
+    }
+
+    /// Elastic energy from precomputed deformation gradients (J).
+    pub(crate) fn elastic_energy_at(&self, f: &[Matrix3<f64>]) -> f64 {
+        let lame = self.lame_parameters();
+        let material = self.material();
+        f.par_iter()
+            .zip(lame.par_iter())
+            .zip(self.volumes().par_iter())
+            .map(|((f, p), v)| v * material.energy_density(p, f))
+            .sum()
+    }
+
+    /// Gradient `∂E_el/∂z` (J per unit z, length 12(m + 1), z's layout):
+    /// `∂E_el/∂z_r = Σ_i v_i G_i P_i[r, :]ᵀ`, computed as the product `G · P̃` with
+    /// `P̃[3i + s, r] = v_i P_i[r, s]` (`4(m+1) × 3N` times `3N × 3`).
+    ///
+    /// # Panics
+    /// If `z.len() != 12(m + 1)`.
+    pub fn elastic_gradient(&self, z: &[f64]) -> Vec<f64> {
+        let f = self.deformation_map().deformation_gradients(z);
+        self.elastic_gradient_at(&f)
+    }
+
+    pub(crate) fn elastic_gradient_at(&self, f: &[Matrix3<f64>]) -> Vec<f64> {
+        let n = f.len();
+        let material = self.material();
+        let lame = self.lame_parameters();
+        let volumes = self.volumes();
+        // P̃ column-major 3N × 3: entry (3i + s, r) at r·3N + 3i + s. Fill it row-major per
+        // point first (contiguous per point), then transpose into place.
+        let mut per_point = vec![0.0; 9 * n];
+        per_point
+            .par_chunks_mut(9)
+            .enumerate()
+            .for_each(|(i, out)| {
+                let p = material.first_piola_kirchhoff(&lame[i], &f[i]) * volumes[i];
+                // out[3s + r] = v P[r, s] = column-major storage of vP.
+                out.copy_from_slice(p.as_slice());
+            });
+        let mut stacked = vec![0.0; 9 * n];
+        for i in 0..n {
+            for s in 0..3 {
+                for r in 0..3 {
+                    stacked[r * 3 * n + 3 * i + s] = per_point[9 * i + 3 * s + r];
+                }
+            }
+        }
+        let n4 = self.deformation_map().layout().block_len();
+        let mut gradient = vec![0.0; 3 * n4];
+        faer::linalg::matmul::matmul(
+            faer::MatMut::from_column_major_slice_mut(&mut gradient, n4, 3),
+            Accum::Replace,
+            self.deformation_map().gradient_matrix(),
+            MatRef::from_column_major_slice(&stacked, 3 * n, 3),
+            1.0,
+            Par::rayon(0),
+        );
+        gradient
+    }
+
+    /// Hessian `∂²E_el/∂z²` (`12(m+1) × 12(m+1)`, symmetric), exact or with PSD-projected
+    /// material tangents (then PSD itself).
+    ///
+    /// Block (r, q) of size `4(m+1)` is `Σ_i G_i A_i^{rq} G_iᵀ` with
+    /// `A_i^{rq}[s, t] = v_i ∂²Ψ/∂F_rs∂F_qt`: each is formed as `T^{rq} Gᵀ`, one GEMM of inner
+    /// dimension 3N, where `T^{rq}[:, 3i + t] = Σ_s G_i[:, s] A_i^{rq}[s, t]`. Six blocks are
+    /// computed, the other three are their transposes.
+    ///
+    /// # Panics
+    /// If `z.len() != 12(m + 1)`.
+    pub fn elastic_hessian(&self, z: &[f64], tangent: Tangent) -> Mat<f64> {
+        let f = self.deformation_map().deformation_gradients(z);
+        let mut h = Mat::zeros(z.len(), z.len());
+        self.add_elastic_hessian_at(&f, tangent, &mut h);
+        h
+    }
+
+    /// Adds the elastic Hessian at the deformation gradients `f` to `h`.
+    pub(crate) fn add_elastic_hessian_at(
+        &self,
+        f: &[Matrix3<f64>],
+        tangent: Tangent,
+        h: &mut Mat<f64>,
+    ) {
+        let n = f.len();
+        let material = self.material();
+        let lame = self.lame_parameters();
+        let volumes = self.volumes();
+        let mut tangents = vec![Matrix9::zeros(); n];
+        tangents.par_iter_mut().enumerate().for_each(|(i, d)| {
+            let raw = match tangent {
+                Tangent::Exact => material.stress_derivative(&lame[i], &f[i]),
+                Tangent::ProjectedPsd => material.projected_stress_derivative(&lame[i], &f[i]),
+            };
+            *d = raw * volumes[i];
+        });
+        let map = self.deformation_map();
+        let n4 = map.layout().block_len();
+        let g = map.gradient_matrix();
+        let mut t_buffer = vec![0.0; n4 * 3 * n];
+        let mut block = Mat::<f64>::zeros(n4, n4);
+        for (r, q) in BLOCK_PAIRS {
+            t_buffer
+                .par_chunks_mut(3 * n4)
+                .enumerate()
+                .for_each(|(i, ti)| {
+                    let gi = map.gradient_block(i);
+                    let d = &tangents[i];
+                    for t in 0..3 {
+                        let col = &mut ti[t * n4..(t + 1) * n4];
+                        col.fill(0.0);
+                        for s in 0..3 {
+                            let a = d[(3 * s + r, 3 * t + q)];
+                            for (c, gs) in col.iter_mut().zip(&gi[s * n4..(s + 1) * n4]) {
+                                *c += a * gs;
+                            }
+                        }
+                    }
+                });
+            let t_mat = MatRef::from_column_major_slice(&t_buffer, n4, 3 * n);
+            if r == q {
+                // A^{rr} is symmetric, so is the block: compute its lower triangle only.
+                triangular::matmul(
+                    block.as_mut(),
+                    BlockStructure::TriangularLower,
+                    Accum::Replace,
+                    t_mat,
+                    BlockStructure::Rectangular,
+                    g.transpose(),
+                    BlockStructure::Rectangular,
+                    1.0,
+                    Par::rayon(0),
+                );
+                for b in 0..n4 {
+                    for a in b..n4 {
+                        let v = block[(a, b)];
+                        h[(r * n4 + a, r * n4 + b)] += v;
+                        if a != b {
+                            h[(r * n4 + b, r * n4 + a)] += v;
+                        }
+                    }
+                }
+            } else {
+                faer::linalg::matmul::matmul(
+                    block.as_mut(),
+                    Accum::Replace,
+                    t_mat,
+                    g.transpose(),
+                    1.0,
+                    Par::rayon(0),
+                );
+                for b in 0..n4 {
+                    for a in 0..n4 {
+                        let v = block[(a, b)];
+                        h[(r * n4 + a, q * n4 + b)] += v;
+                        h[(q * n4 + b, r * n4 + a)] += v;
+                    }
+                }
+            }
+        }
+    }
+}

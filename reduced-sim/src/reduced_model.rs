@@ -1,0 +1,267 @@
+//! What the simulator simulates: integration points with volumes and materials, their
+//! deformation map, and the constant reduced mass matrix (DESIGN 3.7).
+
+use faer::{Accum, Mat, Par, Side};
+use hyperelastic::{HyperelasticMaterial, LameParameters, MaterialParameterError};
+use nalgebra::Vector3;
+use rkpm_core::{Aabb, IntegrationPoints, MaterialSample};
+use thiserror::Error;
+
+use crate::deformation_map::{DeformationMap, DeformationMapError};
+use crate::skinning_field::SkinningField;
+
+/// The model could not be built.
+#[derive(Debug, Error)]
+pub enum ReducedModelError {
+    /// The deformation map failed (basis evaluation, non-finite input).
+    #[error(transparent)]
+    DeformationMap(#[from] DeformationMapError),
+    /// One material sample per integration point is required.
+    #[error("{materials} material samples given for {points} integration points")]
+    MaterialCount {
+        /// Samples given.
+        materials: usize,
+        /// Integration points.
+        points: usize,
+    },
+    /// A material sample is invalid.
+    #[error("material at integration point {point}: {source}")]
+    Material {
+        /// Index of the point.
+        point: usize,
+        /// What is wrong with it.
+        #[source]
+        source: MaterialParameterError,
+    },
+    /// A density is not finite and positive.
+    #[error(
+        "density at integration point {point} must be finite and positive, got {density} kg/m³"
+    )]
+    Density {
+        /// Index of the point.
+        point: usize,
+        /// The value.
+        density: f64,
+    },
+    /// The reduced mass matrix is not positive definite: some skinning DoF moves no mass at
+    /// these points (too few points for the basis, or weights that are linearly dependent
+    /// there after multiplication by `[X; 1]`).
+    #[error(
+        "the reduced mass matrix ({size}×{size} block) is singular on these {points} points: \
+         use more integration points or fewer modes"
+    )]
+    SingularMass {
+        /// Block size 4(m + 1).
+        size: usize,
+        /// Number of integration points.
+        points: usize,
+    },
+}
+
+/// A reduced elastic object: N integration points (rest positions X_i in m, volumes v_i in m³,
+/// densities ρ_i in kg/m³, Lamé parameters), a constitutive model, the deformation map of a
+/// skinning basis at those points, and the reduced mass matrix
+///
+/// ```text
+/// M_z = blockdiag(M, M, M),   M = Σ_i ρ_i v_i b_i b_iᵀ   (4(m+1) × 4(m+1), kg·m² / kg),
+/// ```
+///
+/// constant in time and factored once (Cholesky; [`ReducedModel::new`] fails if it is not
+/// positive definite).
+///
+/// Any integration points work: the points the basis was built on, a coarser grid, random
+/// points or a cubature set.
+pub struct ReducedModel<M: HyperelasticMaterial> {
+    map: DeformationMap,
+    volumes: Vec<f64>,
+    densities: Vec<f64>,
+    lame: Vec<LameParameters>,
+    material: M,
+    mass_block: Mat<f64>,
+    mass_factor: faer::linalg::solvers::Llt<f64>,
+    total_mass: f64,
+    bounds: Aabb,
+}
+
+impl<M: HyperelasticMaterial> ReducedModel<M> {
+    /// Builds the model: evaluates the basis at the points and assembles and factors M.
+    ///
+    /// # Errors
+    /// [`ReducedModelError`]: basis evaluation failed, a material or density is invalid, the
+    /// counts differ, or the reduced mass matrix is singular.
+    pub fn new<B: SkinningField + ?Sized>(
+        basis: &B,
+        points: &IntegrationPoints,
+        materials: &[MaterialSample],
+        material: M,
+    ) -> Result<Self, ReducedModelError> {
+        if materials.len() != points.len() {
+            return Err(ReducedModelError::MaterialCount {
+                materials: materials.len(),
+                points: points.len(),
+            });
+        }
+        let mut lame = Vec::with_capacity(points.len());
+        let mut densities = Vec::with_capacity(points.len());
+        for (point, s) in materials.iter().enumerate() {
+            lame.push(
+                LameParameters::from_young_poisson(s.youngs_modulus, s.poisson_ratio)
+                    .map_err(|source| ReducedModelError::Material { point, source })?,
+            );
+            if !(s.density > 0.0 && s.density.is_finite()) {
+                return Err(ReducedModelError::Density {
+                    point,
+                    density: s.density,
+                });
+            }
+            densities.push(s.density);
+        }
+        let map = DeformationMap::new(basis, points.positions())?;
+        let n4 = map.layout().block_len();
+        // M = B diag(ρv) Bᵀ as one product.
+        let weighted: Vec<f64> = points
+            .volumes()
+            .iter()
+            .zip(&densities)
+            .enumerate()
+            .flat_map(|(i, (v, rho))| map.position_row(i).iter().map(move |b| b * v * rho))
+            .collect();
+        let mut mass_block = Mat::<f64>::zeros(n4, n4);
+        faer::linalg::matmul::matmul(
+            mass_block.as_mut(),
+            Accum::Replace,
+            faer::MatRef::from_column_major_slice(&weighted, n4, points.len()),
+            map.position_matrix().transpose(),
+            1.0,
+            Par::rayon(0),
+        );
+        symmetrize(&mut mass_block);
+        let mass_factor =
+            mass_block
+                .llt(Side::Lower)
+                .map_err(|_| ReducedModelError::SingularMass {
+                    size: n4,
+                    points: points.len(),
+                })?;
+        let total_mass = points
+            .volumes()
+            .iter()
+            .zip(&densities)
+            .map(|(v, rho)| v * rho)
+            .sum();
+        Ok(ReducedModel {
+            volumes: points.volumes().to_vec(),
+            bounds: points.bounding_box(),
+            map,
+            densities,
+            lame,
+            material,
+            mass_block,
+            mass_factor,
+            total_mass,
+        })
+    }
+
+    /// The deformation map at the integration points.
+    pub fn deformation_map(&self) -> &DeformationMap {
+        &self.map
+    }
+
+    /// Rest positions of the integration points (m).
+    pub fn rest_positions(&self) -> &[Vector3<f64>] {
+        self.map.rest_positions()
+    }
+
+    /// Volumes v_i (m³).
+    pub fn volumes(&self) -> &[f64] {
+        &self.volumes
+    }
+
+    /// Densities ρ_i (kg/m³).
+    pub fn densities(&self) -> &[f64] {
+        &self.densities
+    }
+
+    /// Lamé parameters per point.
+    pub fn lame_parameters(&self) -> &[LameParameters] {
+        &self.lame
+    }
+
+    /// The constitutive model.
+    pub fn material(&self) -> &M {
+        &self.material
+    }
+
+    /// One diagonal block M of the reduced mass matrix (`4(m+1) × 4(m+1)`, kg·m²).
+    pub fn mass_block(&self) -> &Mat<f64> {
+        &self.mass_block
+    }
+
+    /// Total mass Σ ρ_i v_i (kg).
+    pub fn total_mass(&self) -> f64 {
+        self.total_mass
+    }
+
+    /// The rest bounding box of the integration points.
+    pub fn bounds(&self) -> Aabb {
+        self.bounds
+    }
+
+    /// The largest p-wave modulus λ + 2μ over the points (Pa): the stiffness scale used by the
+    /// penalty rules.
+    pub fn max_p_wave_modulus(&self) -> f64 {
+        self.lame
+            .iter()
+            .map(|l| l.p_wave_modulus())
+            .fold(0.0, f64::max)
+    }
+
+    /// Indices of the integration points whose rest position satisfies `predicate`.
+    pub fn points_where(&self, predicate: impl Fn(&Vector3<f64>) -> bool) -> Vec<usize> {
+        (0..self.map.len())
+            .filter(|&i| predicate(&self.map.rest_positions()[i]))
+            .collect()
+    }
+
+    /// The mass-weighted least-squares fit of a per-point vector field: the ż (or z) minimizing
+    /// `Σ_i ρ_i v_i |B_i ż - u(X_i)|²`, i.e. `M_z ż = Σ_i ρ_i v_i B_iᵀ u_i`. With u an initial
+    /// velocity field (m/s) this is the reduced initial velocity; with u a displacement field
+    /// (m) it is the best reduced displacement.
+    ///
+    /// # Panics
+    /// If `field` does not have one vector per integration point.
+    pub fn project_field(&self, field: &[Vector3<f64>]) -> Vec<f64> {
+        assert_eq!(
+            field.len(),
+            self.map.len(),
+            "one vector per integration point"
+        );
+        let n4 = self.map.layout().block_len();
+        let mut rhs = Mat::<f64>::zeros(n4, 3);
+        for (i, u) in field.iter().enumerate() {
+            let w = self.densities[i] * self.volumes[i];
+            for (k, b) in self.map.position_row(i).iter().enumerate() {
+                for r in 0..3 {
+                    rhs[(k, r)] += w * b * u[r];
+                }
+            }
+        }
+        use faer::linalg::solvers::Solve;
+        self.mass_factor.solve_in_place(rhs.as_mut());
+        (0..3)
+            .flat_map(|r| (0..n4).map(move |k| (k, r)))
+            .map(|(k, r)| rhs[(k, r)])
+            .collect()
+    }
+}
+
+/// Copies the lower triangle's mirror over round-off asymmetry: `A ← (A + Aᵀ)/2`.
+pub(crate) fn symmetrize(a: &mut Mat<f64>) {
+    for j in 0..a.ncols() {
+        for i in 0..j {
+            let v = 0.5 * (a[(i, j)] + a[(j, i)]);
+            a[(i, j)] = v;
+            a[(j, i)] = v;
+        }
+    }
+}

@@ -1,0 +1,117 @@
+//! The external terms of a scene, each present only when the scene has it (DESIGN 3.7):
+//! gravity, pinned or moving points, a floor half-space.
+
+use std::fmt;
+use std::sync::Arc;
+
+use hyperelastic::HyperelasticMaterial;
+use nalgebra::Vector3;
+use serde::{Deserialize, Serialize};
+
+use crate::reduced_model::ReducedModel;
+use crate::scene_terms::{SceneError, SceneTerms};
+
+/// A target position (m) as a function of rest position X (m) and time t (s).
+pub type TargetFunction = Arc<dyn Fn(&Vector3<f64>, f64) -> Vector3<f64> + Send + Sync>;
+
+/// Where pinned points must be.
+#[derive(Clone)]
+pub enum PinTarget {
+    /// At their rest positions (a fixed region).
+    Rest,
+    /// At `f(X, t)`: a moving handle such as the beam Twist's rotating end.
+    Moving(TargetFunction),
+}
+
+impl PinTarget {
+    /// The target of rest point `rest` at time `t` (m).
+    pub fn at(&self, rest: &Vector3<f64>, t: f64) -> Vector3<f64> {
+        match self {
+            PinTarget::Rest => *rest,
+            PinTarget::Moving(f) => f(rest, t),
+        }
+    }
+}
+
+impl fmt::Debug for PinTarget {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        match self {
+            PinTarget::Rest => write!(f, "Rest"),
+            PinTarget::Moving(_) => write!(f, "Moving(<function>)"),
+        }
+    }
+}
+
+/// A set of integration points held at targets by a penalty.
+#[derive(Clone, Debug)]
+pub struct PinnedRegion {
+    /// Indices of the pinned integration points (see
+    /// [`crate::ReducedModel::points_where`]).
+    pub points: Vec<usize>,
+    /// Where they must be.
+    pub target: PinTarget,
+}
+
+/// The half-space `{x : n·x ≥ offset}` the object must stay in (a floor when n = +y).
+#[derive(Clone, Copy, Debug, PartialEq, Serialize, Deserialize)]
+pub struct Floor {
+    /// Unit normal n, pointing into the allowed side.
+    pub normal: Vector3<f64>,
+    /// Offset (m): the plane is `n·x = offset`.
+    pub offset: f64,
+}
+
+/// Everything outside the object that acts on it.
+#[derive(Clone, Debug, Default)]
+pub struct Scene {
+    /// Gravitational acceleration g (m/s²), e.g. `(0, -9.8, 0)`; `None` for no gravity term.
+    pub gravity: Option<Vector3<f64>>,
+    /// Pinned and moving regions.
+    pub pins: Vec<PinnedRegion>,
+    /// An optional floor.
+    pub floor: Option<Floor>,
+}
+
+impl Scene {
+    /// Checks that the scene fits `model` (what [`crate::Simulator::new`] checks), without
+    /// giving the model away: pin indices in range and non-empty, finite gravity, a valid floor,
+    /// valid penalty factors.
+    ///
+    /// # Errors
+    /// The first [`SceneError`] found.
+    pub fn validate<M: HyperelasticMaterial>(
+        &self,
+        model: &ReducedModel<M>,
+        penalty: &PenaltyParams,
+    ) -> Result<(), SceneError> {
+        SceneTerms::new(model, self, penalty).map(|_| ())
+    }
+}
+
+/// Penalty stiffnesses, scale-aware: with `E_ref` the largest p-wave modulus λ + 2μ of the
+/// object (Pa) and `L` the largest side of its rest bounding box (m),
+///
+/// ```text
+/// κ_pin   = pin_factor   · E_ref / L²     E_pin   = κ_pin/2   Σ_{i pinned} v_i |x_i - target_i|²
+/// κ_floor = floor_factor · E_ref / L²     E_floor = κ_floor/2 Σ_i v_i max(0, offset - n·x_i)²
+/// ```
+///
+/// (κ in Pa/m², energies in J). With these rules, a pinned region deviates from its target by
+/// roughly `strain · L / factor` under the elastic forces acting on it, whatever the units or
+/// size of the object.
+#[derive(Clone, Copy, Debug, PartialEq, Serialize, Deserialize)]
+pub struct PenaltyParams {
+    /// Pin stiffness factor (dimensionless, default 1e4).
+    pub pin_factor: f64,
+    /// Floor stiffness factor (dimensionless, default 1e4).
+    pub floor_factor: f64,
+}
+
+impl Default for PenaltyParams {
+    fn default() -> Self {
+        PenaltyParams {
+            pin_factor: 1e4,
+            floor_factor: 1e4,
+        }
+    }
+}

@@ -1,0 +1,369 @@
+//! A [`Scene`] turned into reduced energy terms on one model: gravity, pin and floor penalties
+//! with their gradients and Hessians in z (DESIGN 3.7).
+
+use faer::{Accum, Mat, MatRef, Par};
+use hyperelastic::HyperelasticMaterial;
+use nalgebra::Vector3;
+use thiserror::Error;
+
+use crate::reduced_model::ReducedModel;
+use crate::scene::{Floor, PenaltyParams, PinTarget, Scene};
+
+/// The scene does not fit the model.
+#[derive(Debug, Error, Clone, PartialEq)]
+pub enum SceneError {
+    /// A pinned point index is not an integration point of the model.
+    #[error("pinned region {region} names point {point}, but the model has {points} points")]
+    PinOutOfRange {
+        /// Region index in [`Scene::pins`].
+        region: usize,
+        /// The bad index.
+        point: usize,
+        /// Number of integration points.
+        points: usize,
+    },
+    /// A pinned region selects no point.
+    #[error("pinned region {region} contains no integration point")]
+    EmptyPin {
+        /// Region index.
+        region: usize,
+    },
+    /// Gravity is not finite.
+    #[error("gravity must be finite, got {0:?}")]
+    Gravity([f64; 3]),
+    /// The floor's normal is zero or not finite, or its offset is not finite.
+    #[error(
+        "the floor needs a finite non-zero normal and a finite offset, got {normal:?}, {offset}"
+    )]
+    Floor {
+        /// The normal given.
+        normal: [f64; 3],
+        /// The offset given.
+        offset: f64,
+    },
+    /// A penalty factor is not finite and positive.
+    #[error("penalty factors must be finite and positive, got pin {pin}, floor {floor}")]
+    Penalty {
+        /// Pin factor.
+        pin: f64,
+        /// Floor factor.
+        floor: f64,
+    },
+}
+
+struct PinTerm {
+    rest: Vec<Vector3<f64>>,
+    volumes: Vec<f64>,
+    /// B restricted to the pinned points, column-major `4(m+1) × P`.
+    b: Vec<f64>,
+    target: PinTarget,
+}
+
+/// The scene's terms prepared on one model. Terms the scene does not have cost nothing.
+pub(crate) struct SceneTerms {
+    /// `∂E_grav/∂z` (constant), or `None` without gravity.
+    gravity_gradient: Option<Vec<f64>>,
+    pins: Vec<PinTerm>,
+    /// κ_pin Σ_pinned v_i b_i b_iᵀ: the pin Hessian's diagonal block, constant.
+    pin_hessian_block: Option<Mat<f64>>,
+    pin_stiffness: f64,
+    floor: Option<Floor>,
+    floor_stiffness: f64,
+}
+
+/// Pin targets of every region at one time, evaluated once per step.
+pub(crate) struct PinTargets(Vec<Vec<Vector3<f64>>>);
+
+impl SceneTerms {
+    pub(crate) fn new<M: HyperelasticMaterial>(
+        model: &ReducedModel<M>,
+        scene: &Scene,
+        penalty: &PenaltyParams,
+    ) -> Result<Self, SceneError> {
+        let valid = |x: f64| x.is_finite() && x > 0.0;
+        if !valid(penalty.pin_factor) || !valid(penalty.floor_factor) {
+            return Err(SceneError::Penalty {
+                pin: penalty.pin_factor,
+                floor: penalty.floor_factor,
+            });
+        }
+        let map = model.deformation_map();
+        let n4 = map.layout().block_len();
+        let n = map.len();
+        let scale = model.max_p_wave_modulus() / model.bounds().largest_side().powi(2);
+
+        let gravity_gradient = match scene.gravity {
+            None => None,
+            Some(g) if !g.iter().all(|v| v.is_finite()) => {
+                return Err(SceneError::Gravity(g.into()));
+            }
+            Some(g) => {
+                // E_grav = -Σ ρ v gᵀ x_i  ⇒  ∂E/∂z_r = -g_r Σ ρ_i v_i b_i.
+                let mut weighted_sum = vec![0.0; n4];
+                for i in 0..n {
+                    let w = model.densities()[i] * model.volumes()[i];
+                    for (s, b) in weighted_sum.iter_mut().zip(map.position_row(i)) {
+                        *s += w * b;
+                    }
+                }
+                Some(
+                    (0..3)
+                        .flat_map(|r| weighted_sum.iter().map(move |s| -g[r] * s))
+                        .collect(),
+                )
+            }
+        };
+
+        let pin_stiffness = penalty.pin_factor * scale;
+        let mut pins = Vec::with_capacity(scene.pins.len());
+        let mut pin_hessian_block: Option<Mat<f64>> = None;
+        for (region, pin) in scene.pins.iter().enumerate() {
+            if pin.points.is_empty() {
+                return Err(SceneError::EmptyPin { region });
+            }
+            if let Some(&point) = pin.points.iter().find(|&&p| p >= n) {
+                return Err(SceneError::PinOutOfRange {
+                    region,
+                    point,
+                    points: n,
+                });
+            }
+            let b: Vec<f64> = pin
+                .points
+                .iter()
+                .flat_map(|&i| map.position_row(i).iter().copied())
+                .collect();
+            let volumes: Vec<f64> = pin.points.iter().map(|&i| model.volumes()[i]).collect();
+            let scaled: Vec<f64> = b
+                .chunks_exact(n4)
+                .zip(&volumes)
+                .flat_map(|(bi, v)| bi.iter().map(move |x| x * v * pin_stiffness))
+                .collect();
+            let block = pin_hessian_block.get_or_insert_with(|| Mat::zeros(n4, n4));
+            let p = pin.points.len();
+            faer::linalg::matmul::matmul(
+                block.as_mut(),
+                Accum::Add,
+                MatRef::from_column_major_slice(&scaled, n4, p),
+                MatRef::from_column_major_slice(&b, n4, p).transpose(),
+                1.0,
+                Par::rayon(0),
+            );
+            pins.push(PinTerm {
+                rest: pin
+                    .points
+                    .iter()
+                    .map(|&i| map.rest_positions()[i])
+                    .collect(),
+                volumes,
+                b,
+                target: pin.target.clone(),
+            });
+        }
+        if let Some(block) = pin_hessian_block.as_mut() {
+            crate::reduced_model::symmetrize(block);
+        }
+
+        let floor = match scene.floor {
+            None => None,
+            Some(floor) => {
+                let norm = floor.normal.norm();
+                if !(norm > 0.0 && norm.is_finite() && floor.offset.is_finite()) {
+                    return Err(SceneError::Floor {
+                        normal: floor.normal.into(),
+                        offset: floor.offset,
+                    });
+                }
+                Some(Floor {
+                    normal: floor.normal / norm,
+                    offset: floor.offset / norm,
+                })
+            }
+        };
+        Ok(SceneTerms {
+            gravity_gradient,
+            pins,
+            pin_hessian_block,
+            pin_stiffness,
+            floor,
+            floor_stiffness: penalty.floor_factor * scale,
+        })
+    }
+
+    /// The pin stiffness κ_pin (Pa/m²).
+    pub(crate) fn pin_stiffness(&self) -> f64 {
+        self.pin_stiffness
+    }
+
+    /// Every region's targets at time `t` (s).
+    pub(crate) fn pin_targets(&self, t: f64) -> PinTargets {
+        PinTargets(
+            self.pins
+                .iter()
+                .map(|p| p.rest.iter().map(|x| p.target.at(x, t)).collect())
+                .collect(),
+        )
+    }
+
+    /// The largest distance (m) of a pinned point from its target at z, or `None` without pins.
+    pub(crate) fn max_pin_deviation<M: HyperelasticMaterial>(
+        &self,
+        model: &ReducedModel<M>,
+        z: &[f64],
+        targets: &PinTargets,
+    ) -> Option<f64> {
+        let mut max: Option<f64> = None;
+        for (pin, targets) in self.pins.iter().zip(&targets.0) {
+            let u = pinned_displacements(model, pin, z);
+            for (i, t) in targets.iter().enumerate() {
+                let x = pin.rest[i] + Vector3::new(u[3 * i], u[3 * i + 1], u[3 * i + 2]);
+                let d = (x - t).norm();
+                max = Some(max.map_or(d, |m| m.max(d)));
+            }
+        }
+        max
+    }
+
+    /// Energy of every external term at z (J; gravity up to a constant).
+    pub(crate) fn energy<M: HyperelasticMaterial>(
+        &self,
+        model: &ReducedModel<M>,
+        z: &[f64],
+        targets: &PinTargets,
+    ) -> f64 {
+        let mut e = 0.0;
+        if let Some(g) = &self.gravity_gradient {
+            e += g.iter().zip(z).map(|(a, b)| a * b).sum::<f64>();
+        }
+        for (pin, targets) in self.pins.iter().zip(&targets.0) {
+            let u = pinned_displacements(model, pin, z);
+            for (i, t) in targets.iter().enumerate() {
+                let x = pin.rest[i] + Vector3::new(u[3 * i], u[3 * i + 1], u[3 * i + 2]);
+                e += 0.5 * self.pin_stiffness * pin.volumes[i] * (x - t).norm_squared();
+            }
+        }
+        if let Some(floor) = &self.floor {
+            let u = model.deformation_map().displacement_columns(z);
+            for (i, x0) in model.rest_positions().iter().enumerate() {
+                let x = x0 + Vector3::new(u[3 * i], u[3 * i + 1], u[3 * i + 2]);
+                let depth = floor.offset - floor.normal.dot(&x);
+                if depth > 0.0 {
+                    e += 0.5 * self.floor_stiffness * model.volumes()[i] * depth * depth;
+                }
+            }
+        }
+        e
+    }
+
+    /// Adds every external term's gradient at z to `gradient`, and its Hessian to `hessian`
+    /// when given.
+    pub(crate) fn add_derivatives<M: HyperelasticMaterial>(
+        &self,
+        model: &ReducedModel<M>,
+        z: &[f64],
+        targets: &PinTargets,
+        gradient: &mut [f64],
+        mut hessian: Option<&mut Mat<f64>>,
+    ) {
+        let map = model.deformation_map();
+        let n4 = map.layout().block_len();
+        if let Some(g) = &self.gravity_gradient {
+            for (a, b) in gradient.iter_mut().zip(g) {
+                *a += b;
+            }
+        }
+        for (pin, targets) in self.pins.iter().zip(&targets.0) {
+            // ∂E/∂z_r = κ Σ v_i b_i (x_i - t_i)_r
+            let u = pinned_displacements(model, pin, z);
+            for (i, t) in targets.iter().enumerate() {
+                let x = pin.rest[i] + Vector3::new(u[3 * i], u[3 * i + 1], u[3 * i + 2]);
+                let w = self.pin_stiffness * pin.volumes[i];
+                let bi = &pin.b[i * n4..(i + 1) * n4];
+                for r in 0..3 {
+                    let c = w * (x[r] - t[r]);
+                    for (gk, bk) in gradient[r * n4..(r + 1) * n4].iter_mut().zip(bi) {
+                        *gk += c * bk;
+                    }
+                }
+            }
+        }
+        if let (Some(block), Some(hessian)) = (&self.pin_hessian_block, hessian.as_deref_mut()) {
+            for r in 0..3 {
+                for b in 0..n4 {
+                    for a in 0..n4 {
+                        hessian[(r * n4 + a, r * n4 + b)] += block[(a, b)];
+                    }
+                }
+            }
+        }
+        if let Some(floor) = &self.floor {
+            let u = map.displacement_columns(z);
+            // Active points: E = κ/2 v d², d = offset - n·x, ∂d/∂z_r = -n_r b_i.
+            let mut active_b = Vec::new();
+            let mut active_bw = Vec::new();
+            for (i, x0) in model.rest_positions().iter().enumerate() {
+                let x = x0 + Vector3::new(u[3 * i], u[3 * i + 1], u[3 * i + 2]);
+                let depth = floor.offset - floor.normal.dot(&x);
+                if depth > 0.0 {
+                    let w = self.floor_stiffness * model.volumes()[i];
+                    let bi = map.position_row(i);
+                    for r in 0..3 {
+                        let c = -w * depth * floor.normal[r];
+                        for (gk, bk) in gradient[r * n4..(r + 1) * n4].iter_mut().zip(bi) {
+                            *gk += c * bk;
+                        }
+                    }
+                    active_b.extend_from_slice(bi);
+                    active_bw.extend(bi.iter().map(|b| b * w));
+                }
+            }
+            let active = active_b.len() / n4;
+            if let (true, Some(hessian)) = (active > 0, hessian) {
+                let mut block = Mat::<f64>::zeros(n4, n4);
+                faer::linalg::matmul::matmul(
+                    block.as_mut(),
+                    Accum::Replace,
+                    MatRef::from_column_major_slice(&active_bw, n4, active),
+                    MatRef::from_column_major_slice(&active_b, n4, active).transpose(),
+                    1.0,
+                    Par::rayon(0),
+                );
+                let nrm = floor.normal;
+                for r in 0..3 {
+                    for q in 0..3 {
+                        let c = nrm[r] * nrm[q];
+                        if c == 0.0 {
+                            continue;
+                        }
+                        for b in 0..n4 {
+                            for a in 0..n4 {
+                                hessian[(r * n4 + a, q * n4 + b)] += c * block[(a, b)];
+                            }
+                        }
+                    }
+                }
+            }
+        }
+    }
+}
+
+/// Displacements of a region's pinned points, column-major 3 × P.
+fn pinned_displacements<M: HyperelasticMaterial>(
+    model: &ReducedModel<M>,
+    pin: &PinTerm,
+    z: &[f64],
+) -> Vec<f64> {
+    let map = model.deformation_map();
+    let n4 = map.layout().block_len();
+    let p = pin.rest.len();
+    let mut u = vec![0.0; 3 * p];
+    faer::linalg::matmul::matmul(
+        faer::MatMut::from_column_major_slice_mut(&mut u, 3, p),
+        Accum::Replace,
+        map.z_matrix(z).transpose(),
+        MatRef::from_column_major_slice(&pin.b, n4, p),
+        1.0,
+        Par::Seq,
+    );
+    u
+}

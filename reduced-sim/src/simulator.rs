@@ -1,0 +1,227 @@
+//! The time stepper: a model, a scene, and the reduced state advanced by backward Euler
+//! (DESIGN 3.7, paper Eqs. 1-2).
+
+use hyperelastic::HyperelasticMaterial;
+use serde::{Deserialize, Serialize};
+use thiserror::Error;
+
+use crate::incremental_potential::{IncrementalPotential, Inertia, mass_inner};
+use crate::newton::{NewtonParams, StepError, StepReport, minimize};
+use crate::reduced_model::ReducedModel;
+use crate::scene::{PenaltyParams, Scene};
+use crate::scene_terms::{SceneError, SceneTerms};
+
+/// Options of a simulation.
+#[derive(Clone, Copy, Debug, PartialEq, Serialize, Deserialize)]
+pub struct SimulationParams {
+    /// Time step h (s, default 0.01).
+    pub time_step: f64,
+    /// Newton options.
+    pub newton: NewtonParams,
+    /// Penalty stiffness rules for pins and floor.
+    pub penalty: PenaltyParams,
+}
+
+impl Default for SimulationParams {
+    fn default() -> Self {
+        SimulationParams {
+            time_step: 0.01,
+            newton: NewtonParams::default(),
+            penalty: PenaltyParams::default(),
+        }
+    }
+}
+
+/// The reduced state: coordinates z, velocities ż (both length 12(m + 1), see
+/// [`crate::ReducedLayout`]) and time t (s).
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+pub struct ReducedState {
+    /// z.
+    pub z: Vec<f64>,
+    /// ż (1/s).
+    pub velocity: Vec<f64>,
+    /// t (s).
+    pub time: f64,
+}
+
+/// A state of the wrong size or with non-finite entries was given.
+#[derive(Clone, Debug, Error, PartialEq)]
+pub enum StateError {
+    /// z or ż has the wrong length.
+    #[error("the state has z of length {z} and ż of length {velocity}, expected {expected}")]
+    WrongLength {
+        /// Length of z.
+        z: usize,
+        /// Length of ż.
+        velocity: usize,
+        /// 12(m + 1).
+        expected: usize,
+    },
+    /// A NaN or infinity in the state or its time.
+    #[error("the state contains a non-finite value")]
+    NonFinite,
+}
+
+/// Backward-Euler simulation of a [`ReducedModel`] in a [`Scene`].
+pub struct Simulator<M: HyperelasticMaterial> {
+    model: ReducedModel<M>,
+    terms: SceneTerms,
+    params: SimulationParams,
+    state: ReducedState,
+}
+
+impl<M: HyperelasticMaterial> Simulator<M> {
+    /// A simulator at rest (z = 0, ż = 0, t = 0).
+    ///
+    /// # Errors
+    /// [`SceneError`] when the scene does not fit the model (pin indices, non-finite gravity or
+    /// floor, invalid penalty factors).
+    pub fn new(
+        model: ReducedModel<M>,
+        scene: &Scene,
+        params: SimulationParams,
+    ) -> Result<Self, SceneError> {
+        let terms = SceneTerms::new(&model, scene, &params.penalty)?;
+        let layout = model.deformation_map().layout();
+        Ok(Simulator {
+            model,
+            terms,
+            params,
+            state: ReducedState {
+                z: layout.rest(),
+                velocity: layout.rest(),
+                time: 0.0,
+            },
+        })
+    }
+
+    /// The model.
+    pub fn model(&self) -> &ReducedModel<M> {
+        &self.model
+    }
+
+    /// The options.
+    pub fn params(&self) -> &SimulationParams {
+        &self.params
+    }
+
+    /// The current state.
+    pub fn state(&self) -> &ReducedState {
+        &self.state
+    }
+
+    /// The pin penalty stiffness κ_pin in use (Pa/m², see [`PenaltyParams`]).
+    pub fn pin_stiffness(&self) -> f64 {
+        self.terms.pin_stiffness()
+    }
+
+    /// How far the pinned points are from their targets now: the largest distance (m), or
+    /// `None` without pins. The penalty lets them deviate; this is the number to watch when
+    /// choosing [`PenaltyParams::pin_factor`].
+    pub fn max_pin_deviation(&self) -> Option<f64> {
+        let targets = self.terms.pin_targets(self.state.time);
+        self.terms
+            .max_pin_deviation(&self.model, &self.state.z, &targets)
+    }
+
+    /// Replaces the state (e.g. to start with an initial velocity).
+    ///
+    /// # Errors
+    /// [`StateError`] for a wrong length or non-finite entries.
+    pub fn set_state(&mut self, state: ReducedState) -> Result<(), StateError> {
+        let expected = self.model.deformation_map().layout().len();
+        if state.z.len() != expected || state.velocity.len() != expected {
+            return Err(StateError::WrongLength {
+                z: state.z.len(),
+                velocity: state.velocity.len(),
+                expected,
+            });
+        }
+        let finite = state.z.iter().chain(&state.velocity).all(|v| v.is_finite());
+        if !finite || !state.time.is_finite() {
+            return Err(StateError::NonFinite);
+        }
+        self.state = state;
+        Ok(())
+    }
+
+    /// Advances one step of h: minimizes the incremental potential from `ẑ = z_t + h ż_t`,
+    /// then `ż_{t+h} = (z_{t+h} - z_t)/h`. A step that does not converge still advances (to
+    /// Newton's last iterate) and says so in its report.
+    ///
+    /// # Errors
+    /// [`StepError`] on a non-finite value or a singular system; the state is then unchanged.
+    pub fn step(&mut self) -> Result<StepReport, StepError> {
+        let h = self.params.time_step;
+        if !(h > 0.0 && h.is_finite()) {
+            return Err(StepError::InvalidTimeStep(h));
+        }
+        let predicted: Vec<f64> = self
+            .state
+            .z
+            .iter()
+            .zip(&self.state.velocity)
+            .map(|(z, v)| z + h * v)
+            .collect();
+        let next_time = self.state.time + h;
+        let potential = IncrementalPotential {
+            model: &self.model,
+            terms: &self.terms,
+            targets: self.terms.pin_targets(next_time),
+            inertia: Some(Inertia {
+                predicted: &predicted,
+                inverse_step_squared: 1.0 / (h * h),
+            }),
+            tangent: self.params.newton.tangent,
+        };
+        let mut z = predicted.clone();
+        let report = minimize(&potential, &mut z, &self.params.newton, |dz| {
+            self.step_norm(dz)
+        })?;
+        let velocity = z
+            .iter()
+            .zip(&self.state.z)
+            .map(|(a, b)| (a - b) / h)
+            .collect();
+        self.state = ReducedState {
+            z,
+            velocity,
+            time: next_time,
+        };
+        Ok(report)
+    }
+
+    /// Static equilibrium under the scene's loads and pin targets at `time` (s): minimizes the
+    /// potential without the inertia term from the current z, then sets ż = 0 and t = `time`.
+    /// The scene must remove the rigid motions (pins, or a floor with gravity), otherwise the
+    /// system is singular.
+    ///
+    /// # Errors
+    /// [`StepError`]; the state is then unchanged.
+    pub fn solve_static(&mut self, time: f64) -> Result<StepReport, StepError> {
+        let potential = IncrementalPotential {
+            model: &self.model,
+            terms: &self.terms,
+            targets: self.terms.pin_targets(time),
+            inertia: None,
+            tangent: self.params.newton.tangent,
+        };
+        let mut z = self.state.z.clone();
+        let report = minimize(&potential, &mut z, &self.params.newton, |dz| {
+            self.step_norm(dz)
+        })?;
+        let layout = self.model.deformation_map().layout();
+        self.state = ReducedState {
+            z,
+            velocity: layout.rest(),
+            time,
+        };
+        Ok(report)
+    }
+
+    /// `sqrt(Δzᵀ M_z Δz / mass) / L`.
+    fn step_norm(&self, dz: &[f64]) -> f64 {
+        (mass_inner(&self.model, dz, dz).max(0.0) / self.model.total_mass()).sqrt()
+            / self.model.bounds().largest_side()
+    }
+}

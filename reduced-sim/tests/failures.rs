@@ -1,0 +1,199 @@
+//! Honest failure: unconverged steps say so, bad input is refused with a named error, and a
+//! failed step leaves the state as it was.
+
+mod support;
+
+use std::sync::Arc;
+
+use hyperelastic::StableNeoHookean;
+use nalgebra::Vector3;
+use reduced_sim::{
+    DeformationMap, DeformationMapError, NewtonParams, NewtonStop, PenaltyParams, PinTarget,
+    PinnedRegion, ReducedModel, ReducedModelError, ReducedState, Scene, SceneError,
+    SimulationParams, Simulator, StateError, StepError,
+};
+use rkpm_core::{IntegrationPoints, MaterialSample};
+use support::BEAM_MATERIAL;
+
+fn setup() -> (skin_eigen::SkinningBasis, IntegrationPoints) {
+    support::box_basis(Vector3::new(3.0, 1.0, 1.0), 0.125, 200, 6, &BEAM_MATERIAL)
+}
+
+fn bend_scene(model: &ReducedModel<StableNeoHookean>) -> Scene {
+    Scene {
+        gravity: Some(Vector3::new(0.0, -9.8, 0.0)),
+        pins: vec![PinnedRegion {
+            points: model.points_where(|x| x.x <= 0.5),
+            target: PinTarget::Rest,
+        }],
+        floor: None,
+    }
+}
+
+#[test]
+fn step_reports_non_convergence_under_an_impossible_iteration_cap() {
+    let (basis, points) = setup();
+    let model = support::uniform_model(&basis, &points, &BEAM_MATERIAL);
+    let scene = bend_scene(&model);
+    let params = SimulationParams {
+        newton: NewtonParams {
+            max_iterations: 1,
+            tolerance: 1e-14,
+            ..Default::default()
+        },
+        ..Default::default()
+    };
+    let mut sim = Simulator::new(model, &scene, params).unwrap();
+    let report = sim.step().unwrap();
+    assert!(!report.converged());
+    assert_eq!(report.stop, NewtonStop::IterationLimit);
+    assert_eq!(report.iterations, 1);
+    assert!(report.residual >= 1e-14, "residual {:e}", report.residual);
+    // The state still advanced to Newton's last iterate.
+    assert!((sim.state().time - 0.01).abs() < 1e-15);
+}
+
+#[test]
+fn non_finite_pin_target_stops_the_step_and_keeps_the_state() {
+    let (basis, points) = setup();
+    let model = support::uniform_model(&basis, &points, &BEAM_MATERIAL);
+    let pinned = model.points_where(|x| x.x <= 0.5);
+    let scene = Scene {
+        pins: vec![PinnedRegion {
+            points: pinned,
+            target: PinTarget::Moving(Arc::new(|x, t| {
+                if t > 0.015 {
+                    Vector3::repeat(f64::NAN)
+                } else {
+                    *x
+                }
+            })),
+        }],
+        ..Default::default()
+    };
+    let mut sim = Simulator::new(model, &scene, SimulationParams::default()).unwrap();
+    sim.step().unwrap();
+    let before = sim.state().clone();
+    let err = sim.step().unwrap_err();
+    assert!(
+        matches!(
+            err,
+            StepError::NonFinite {
+                quantity: "energy",
+                ..
+            }
+        ),
+        "{err}"
+    );
+    assert_eq!(sim.state(), &before);
+}
+
+#[test]
+fn bad_inputs_are_refused_with_named_errors() {
+    let (basis, points) = setup();
+    // One material per point.
+    let err = ReducedModel::new(&basis, &points, &[BEAM_MATERIAL], StableNeoHookean).err();
+    assert!(matches!(
+        err,
+        Some(ReducedModelError::MaterialCount { materials: 1, .. })
+    ));
+    // ν ≥ 0.5 and a NaN density, with the point index.
+    let mut materials = vec![BEAM_MATERIAL; points.len()];
+    materials[7] = MaterialSample {
+        poisson_ratio: 0.5,
+        ..BEAM_MATERIAL
+    };
+    let err = ReducedModel::new(&basis, &points, &materials, StableNeoHookean).err();
+    assert!(matches!(
+        err,
+        Some(ReducedModelError::Material { point: 7, .. })
+    ));
+    materials[7] = MaterialSample {
+        density: f64::NAN,
+        ..BEAM_MATERIAL
+    };
+    let err = ReducedModel::new(&basis, &points, &materials, StableNeoHookean).err();
+    assert!(matches!(
+        err,
+        Some(ReducedModelError::Density { point: 7, .. })
+    ));
+    // A NaN query point.
+    let err = DeformationMap::new(&basis, &[Vector3::new(0.0, f64::NAN, 0.0)]).err();
+    assert!(matches!(
+        err,
+        Some(DeformationMapError::NonFinitePoint { point: 0, .. })
+    ));
+
+    let model = support::uniform_model(&basis, &points, &BEAM_MATERIAL);
+    let n = points.len();
+    let layout = model.deformation_map().layout();
+    let scenes = [
+        (
+            Scene {
+                pins: vec![PinnedRegion {
+                    points: vec![n],
+                    target: PinTarget::Rest,
+                }],
+                ..Default::default()
+            },
+            SceneError::PinOutOfRange {
+                region: 0,
+                point: n,
+                points: n,
+            },
+        ),
+        (
+            Scene {
+                pins: vec![PinnedRegion {
+                    points: vec![],
+                    target: PinTarget::Rest,
+                }],
+                ..Default::default()
+            },
+            SceneError::EmptyPin { region: 0 },
+        ),
+        (
+            Scene {
+                gravity: Some(Vector3::new(0.0, f64::INFINITY, 0.0)),
+                ..Default::default()
+            },
+            SceneError::Gravity([0.0, f64::INFINITY, 0.0]),
+        ),
+    ];
+    for (scene, expected) in scenes {
+        let err = scene.validate(&model, &PenaltyParams::default()).err();
+        assert_eq!(err, Some(expected));
+    }
+    let err = Scene::default()
+        .validate(
+            &model,
+            &PenaltyParams {
+                pin_factor: -1.0,
+                ..Default::default()
+            },
+        )
+        .err();
+    assert!(matches!(err, Some(SceneError::Penalty { .. })));
+    let mut sim = Simulator::new(
+        model,
+        &Scene::default(),
+        SimulationParams {
+            time_step: 0.0,
+            ..Default::default()
+        },
+    )
+    .unwrap();
+    assert_eq!(sim.step().unwrap_err(), StepError::InvalidTimeStep(0.0));
+    let err = sim.set_state(ReducedState {
+        z: vec![f64::NAN; layout.len()],
+        velocity: layout.rest(),
+        time: 0.0,
+    });
+    assert_eq!(err, Err(StateError::NonFinite));
+    let err = sim.set_state(ReducedState {
+        z: vec![0.0; 3],
+        velocity: layout.rest(),
+        time: 0.0,
+    });
+    assert!(matches!(err, Err(StateError::WrongLength { z: 3, .. })));
+}

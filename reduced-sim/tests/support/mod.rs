@@ -1,0 +1,59 @@
+//! Shared setup of the reduced-sim integration tests: small RKPM bases of boxes.
+
+#![allow(dead_code)]
+
+use hyperelastic::{LameParameters, StableNeoHookean};
+use nalgebra::Vector3;
+use reduced_sim::ReducedModel;
+use rkpm_core::{IntegrationPoints, KernelParams, MaterialSample, sample_box_grid};
+use skin_eigen::{BasisParams, EigenParams, SkinningBasis, build_basis};
+
+/// An RKPM skinning basis of the box [0, size] sampled on a grid of spacing `spacing`, with
+/// `kernels` kernels and `modes` modes, for a uniform material; returns the basis and its
+/// integration points.
+pub fn box_basis(
+    size: Vector3<f64>,
+    spacing: f64,
+    kernels: usize,
+    modes: usize,
+    material: &MaterialSample,
+) -> (SkinningBasis, IntegrationPoints) {
+    let points = sample_box_grid(Vector3::zeros(), size, spacing).expect("valid box");
+    let lame = LameParameters::from_young_poisson(material.youngs_modulus, material.poisson_ratio)
+        .expect("valid material");
+    let params = BasisParams {
+        kernels: KernelParams {
+            count: kernels,
+            ..Default::default()
+        },
+        eigen: EigenParams {
+            modes,
+            ..Default::default()
+        },
+        ..Default::default()
+    };
+    let (basis, _, _) = build_basis(&points, &vec![lame; points.len()], &params).expect("basis");
+    (basis, points)
+}
+
+/// The model of `basis` on `points` with one uniform material.
+pub fn uniform_model(
+    basis: &SkinningBasis,
+    points: &IntegrationPoints,
+    material: &MaterialSample,
+) -> ReducedModel<StableNeoHookean> {
+    ReducedModel::new(
+        basis,
+        points,
+        &vec![*material; points.len()],
+        StableNeoHookean,
+    )
+    .expect("valid model")
+}
+
+/// The beam material of DESIGN 4.1: E = 5 MPa, ν = 0.45, ρ = 1000 kg/m³.
+pub const BEAM_MATERIAL: MaterialSample = MaterialSample {
+    youngs_modulus: 5e6,
+    poisson_ratio: 0.45,
+    density: 1000.0,
+};
