@@ -1,0 +1,114 @@
+//! The beam Bend scene of DESIGN 4.1 on the FEM reference: 5 m × 1 m × 1 m, E = 5 MPa,
+//! ν = 0.45, ρ = 1000 kg/m³, nodes with x ≤ 0.5 m fixed (the plane x = 0.5 included), gravity
+//! 9.8 m/s² along -y, 100 steps of h = 0.01 s.
+//!
+//! ```sh
+//! cargo run --release -p fem-ref --example beam_bend -- --order 2 --res 4 --json
+//! ```
+//! Options: `--order 1|2` (default 2), `--res r` (elements across the 1 m side, default 4; the
+//! mesh has 5r × r × r cubes of 6 tetrahedra), `--steps S` (default 100), `--tangent psd|exact`
+//! (default psd), `--tolerance T` (Newton, default 1e-6), `--json`.
+//!
+//! `tip_y`: the y displacement (m) of the end face x = 5, the mean over an 11 × 11 lattice of
+//! points on it interpolated from the elements, at t = 0.5 s and 1.0 s.
+
+#[path = "common/beam.rs"]
+mod beam;
+
+use beam::{BeamScene, run_beam};
+use fem_ref::ElementOrder;
+use hyperelastic::Tangent;
+
+fn value<T: std::str::FromStr>(args: &[String], name: &str, default: T) -> Result<T, String> {
+    match args.iter().position(|a| a == name) {
+        None => Ok(default),
+        Some(i) => args
+            .get(i + 1)
+            .and_then(|v| v.parse().ok())
+            .ok_or_else(|| format!("{name} needs a valid value")),
+    }
+}
+
+fn run() -> Result<(), String> {
+    let args: Vec<String> = std::env::args().skip(1).collect();
+    let json = args.iter().any(|a| a == "--json");
+    let order = match value(&args, "--order", 2u32)? {
+        1 => ElementOrder::Linear,
+        2 => ElementOrder::Quadratic,
+        other => return Err(format!("--order must be 1 or 2, not {other}")),
+    };
+    let res = value(&args, "--res", 4usize)?;
+    let steps = value(&args, "--steps", 100usize)?;
+    let tolerance = value(&args, "--tolerance", 1e-6f64)?;
+    let tangent = match value(&args, "--tangent", "psd".to_string())?.as_str() {
+        "psd" => Tangent::ProjectedPsd,
+        "exact" => Tangent::Exact,
+        other => return Err(format!("--tangent must be psd or exact, not {other}")),
+    };
+    if res == 0 || steps == 0 {
+        return Err("--res and --steps must be positive".into());
+    }
+    let run = run_beam(
+        BeamScene::Bend,
+        order,
+        res,
+        steps,
+        &[50, 100],
+        tangent,
+        tolerance,
+    )?;
+    let tip: Vec<(String, f64)> = run
+        .probes
+        .iter()
+        .map(|(t, v)| (format!("{t:.1}"), *v))
+        .collect();
+    if json {
+        let tips: Vec<String> = tip
+            .iter()
+            .map(|(k, v)| format!("\"{k}\": {v:.8e}"))
+            .collect();
+        println!(
+            "{{\"order\": {}, \"res\": {res}, \"steps\": {steps}, \"tip_y\": {{{}}}, \
+             \"seconds_per_step\": {:.5}, \"assembly_seconds_per_step\": {:.5}, \
+             \"factorization_seconds_per_step\": {:.5}, \"newton_iterations_mean\": {:.3}, \
+             \"factorizations_mean\": {:.3}, \"unconverged_steps\": {}, \"dofs\": {}, \
+             \"matrix_nonzeros\": {}}}",
+            if order == ElementOrder::Linear { 1 } else { 2 },
+            tips.join(", "),
+            run.seconds_per_step,
+            run.assembly_per_step,
+            run.factorization_per_step,
+            run.iterations_per_step,
+            run.factorizations_per_step,
+            run.unconverged_steps,
+            run.dofs,
+            run.nonzeros,
+        );
+    } else {
+        println!(
+            "FEM beam Bend, {order:?} elements, res {res}: {} free DOFs",
+            run.dofs
+        );
+        for (k, v) in &tip {
+            println!("tip y at t = {k} s: {v:.6} m");
+        }
+        println!(
+            "{:.3} s/step (assembly {:.3}, factorization + solves {:.3}), {:.2} Newton \
+             iterations and {:.2} factorizations per step, {} unconverged steps",
+            run.seconds_per_step,
+            run.assembly_per_step,
+            run.factorization_per_step,
+            run.iterations_per_step,
+            run.factorizations_per_step,
+            run.unconverged_steps
+        );
+    }
+    Ok(())
+}
+
+fn main() {
+    if let Err(e) = run() {
+        eprintln!("beam_bend: {e}");
+        std::process::exit(1);
+    }
+}

@@ -1,0 +1,710 @@
+//! Backward Euler with Newton on the full FEM model, exact Dirichlet conditions, per-step
+//! reports (DESIGN 3.8).
+
+use std::time::Instant;
+
+use faer::Side;
+use faer::linalg::solvers::Solve;
+use faer::sparse::linalg::solvers::Llt;
+use hyperelastic::{HyperelasticMaterial, Tangent};
+use nalgebra::Vector3;
+use rayon::prelude::*;
+use serde::{Deserialize, Serialize};
+use thiserror::Error;
+
+use crate::fem_model::FemModel;
+use crate::scene::{FemFloor, FemScene};
+use crate::sparse_system::SparseSystem;
+use crate::trajectory_cache::{
+    Trajectory, TrajectoryCache, TrajectoryCacheError, TrajectoryKey, TrajectoryKeyBuilder,
+};
+
+/// Newton options of the FEM solve.
+#[derive(Clone, Copy, Debug, PartialEq, Serialize, Deserialize)]
+pub struct FemNewtonParams {
+    /// Iteration cap (default 20).
+    pub max_iterations: usize,
+    /// Converged when `sqrt(Δxᵀ M Δx / mass) / L < tolerance` (default 1e-6), L the largest
+    /// rest bounding-box side: the same scale-invariant test as the reduced simulator.
+    pub tolerance: f64,
+    /// Armijo constant (default 1e-4).
+    pub armijo: f64,
+    /// Line-search halvings per iteration (default 30).
+    pub max_line_search_cuts: usize,
+    /// Element tangent (default PSD-projected; `Exact` is only safe while the system stays
+    /// positive definite, and a failed factorization is then reported).
+    pub tangent: Tangent,
+}
+
+impl Default for FemNewtonParams {
+    fn default() -> Self {
+        FemNewtonParams {
+            max_iterations: 20,
+            tolerance: 1e-6,
+            armijo: 1e-4,
+            max_line_search_cuts: 30,
+            tangent: Tangent::ProjectedPsd,
+        }
+    }
+}
+
+/// Options of a FEM simulation.
+#[derive(Clone, Copy, Debug, PartialEq, Serialize, Deserialize)]
+pub struct FemParams {
+    /// Time step h (s, default 0.01).
+    pub time_step: f64,
+    /// Newton options.
+    pub newton: FemNewtonParams,
+}
+
+impl Default for FemParams {
+    fn default() -> Self {
+        FemParams {
+            time_step: 0.01,
+            newton: FemNewtonParams::default(),
+        }
+    }
+}
+
+/// Seconds per part of a step.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Serialize, Deserialize)]
+pub struct FemStepTimings {
+    /// Element gradients and Hessians, scatter.
+    pub assembly: f64,
+    /// Numeric Cholesky and triangular solves.
+    pub factorization: f64,
+    /// Energy evaluations of the line search.
+    pub line_search: f64,
+}
+
+/// What one step did.
+#[derive(Clone, Copy, Debug, PartialEq, Serialize, Deserialize)]
+pub struct FemStepReport {
+    /// Newton iterations.
+    pub iterations: usize,
+    /// Hessians assembled and factored.
+    pub factorizations: usize,
+    /// Last convergence measure.
+    pub residual: f64,
+    /// Total line-search halvings.
+    pub line_search_cuts: usize,
+    /// Whether the tolerance was met.
+    pub converged: bool,
+    /// Time per part.
+    pub timings: FemStepTimings,
+}
+
+/// The scene does not fit the model, or the system cannot be set up.
+#[derive(Clone, Debug, Error, PartialEq)]
+pub enum FemSetupError {
+    /// A Dirichlet node index is out of range.
+    #[error("Dirichlet region {region} names node {node}, but the mesh has {nodes} nodes")]
+    NodeOutOfRange {
+        /// Region.
+        region: usize,
+        /// Bad index.
+        node: usize,
+        /// Node count.
+        nodes: usize,
+    },
+    /// Gravity or the floor is not finite, or the floor normal is zero.
+    #[error("invalid scene: {0}")]
+    InvalidScene(String),
+    /// Every node is fixed.
+    #[error("every node is fixed by Dirichlet conditions: nothing to solve")]
+    NothingFree,
+    /// The time step is not finite and positive.
+    #[error("the time step must be finite and positive, got {0} s")]
+    InvalidTimeStep(f64),
+    /// The sparse symbolic analysis failed (out of memory).
+    #[error("sparse symbolic analysis failed: {0}")]
+    Symbolic(String),
+}
+
+/// A step failed; the state is unchanged.
+#[derive(Clone, Debug, Error, PartialEq)]
+pub enum FemStepError {
+    /// A NaN or infinity appeared.
+    #[error("non-finite {quantity} at Newton iteration {iteration}")]
+    NonFinite {
+        /// Iteration.
+        iteration: usize,
+        /// What.
+        quantity: &'static str,
+    },
+    /// The Newton system was not positive definite.
+    #[error("the Newton system is not positive definite at iteration {iteration}")]
+    NotPositiveDefinite {
+        /// Iteration.
+        iteration: usize,
+    },
+}
+
+/// A cached run failed.
+#[derive(Debug, Error)]
+pub enum FemRunError {
+    /// A step failed.
+    #[error("FEM step {step} failed: {source}")]
+    Step {
+        /// 1-based step.
+        step: usize,
+        /// Why.
+        #[source]
+        source: FemStepError,
+    },
+    /// The cache could not be read.
+    #[error(transparent)]
+    Cache(TrajectoryCacheError),
+    /// The trajectory was computed but could not be stored; it is returned here.
+    #[error("the trajectory was computed but not cached: {error}")]
+    CacheWrite {
+        /// Why.
+        error: TrajectoryCacheError,
+        /// The computed trajectory.
+        trajectory: Box<Trajectory>,
+    },
+}
+
+/// Backward-Euler FEM simulation.
+pub struct FemSimulator<M: HyperelasticMaterial> {
+    model: FemModel<M>,
+    scene: FemScene,
+    floor: Option<(FemFloor, f64)>,
+    params: FemParams,
+    system: SparseSystem,
+    /// Flat node positions (m) and velocities (m/s).
+    x: Vec<f64>,
+    v: Vec<f64>,
+    time: f64,
+    length_scale: f64,
+}
+
+struct StepProblem<'a> {
+    predicted: Option<&'a [f64]>,
+    inverse_step_squared: f64,
+}
+
+impl<M: HyperelasticMaterial> FemSimulator<M> {
+    /// A simulator at rest at t = 0.
+    ///
+    /// # Errors
+    /// [`FemSetupError`].
+    pub fn new(
+        model: FemModel<M>,
+        scene: FemScene,
+        params: FemParams,
+    ) -> Result<Self, FemSetupError> {
+        if !(params.time_step > 0.0 && params.time_step.is_finite()) {
+            return Err(FemSetupError::InvalidTimeStep(params.time_step));
+        }
+        let nodes = model.mesh().nodes().len();
+        let mut fixed = vec![false; nodes];
+        for (region, d) in scene.dirichlet.iter().enumerate() {
+            for &node in &d.nodes {
+                if node >= nodes {
+                    return Err(FemSetupError::NodeOutOfRange {
+                        region,
+                        node,
+                        nodes,
+                    });
+                }
+                fixed[node] = true;
+            }
+        }
+        if fixed.iter().all(|&f| f) {
+            return Err(FemSetupError::NothingFree);
+        }
+        if let Some(g) = scene.gravity
+            && !g.iter().all(|c| c.is_finite())
+        {
+            return Err(FemSetupError::InvalidScene(format!(
+                "gravity {g:?} is not finite"
+            )));
+        }
+        let bounds = rkpm_core::Aabb::from_points(model.mesh().nodes()).expect("non-empty mesh");
+        let length_scale = bounds.largest_side();
+        let floor = match scene.floor {
+            None => None,
+            Some(f) => {
+                let norm = f.normal.norm();
+                if !(norm > 0.0 && norm.is_finite() && f.offset.is_finite() && f.floor_factor > 0.0)
+                {
+                    return Err(FemSetupError::InvalidScene(format!("invalid floor {f:?}")));
+                }
+                let kappa = f.floor_factor * model.max_p_wave_modulus() / length_scale.powi(2);
+                Some((
+                    FemFloor {
+                        normal: f.normal / norm,
+                        offset: f.offset / norm,
+                        ..f
+                    },
+                    kappa,
+                ))
+            }
+        };
+        let system = SparseSystem::new(&model, &fixed)
+            .map_err(|e| FemSetupError::Symbolic(e.to_string()))?;
+        let x: Vec<f64> = model
+            .mesh()
+            .nodes()
+            .iter()
+            .flat_map(|p| [p.x, p.y, p.z])
+            .collect();
+        let v = vec![0.0; x.len()];
+        Ok(FemSimulator {
+            model,
+            scene,
+            floor,
+            params,
+            system,
+            x,
+            v,
+            time: 0.0,
+            length_scale,
+        })
+    }
+
+    /// The model.
+    pub fn model(&self) -> &FemModel<M> {
+        &self.model
+    }
+
+    /// Current time (s).
+    pub fn time(&self) -> f64 {
+        self.time
+    }
+
+    /// Current node positions (m).
+    pub fn positions(&self) -> Vec<Vector3<f64>> {
+        self.x
+            .chunks_exact(3)
+            .map(|c| Vector3::new(c[0], c[1], c[2]))
+            .collect()
+    }
+
+    /// Current node velocities (m/s).
+    pub fn velocities(&self) -> Vec<Vector3<f64>> {
+        self.v
+            .chunks_exact(3)
+            .map(|c| Vector3::new(c[0], c[1], c[2]))
+            .collect()
+    }
+
+    /// Unknowns of the Newton system (free DOFs).
+    pub fn free_dofs(&self) -> usize {
+        self.system.free_count
+    }
+
+    /// Stored entries of the lower triangle of the Newton matrix.
+    pub fn matrix_nonzeros(&self) -> usize {
+        self.system.nonzeros()
+    }
+
+    /// The cache key of `steps` steps from the rest state: a hash of the mesh, element order,
+    /// mass kind, material model and per-element parameters, gravity, Dirichlet node sets,
+    /// floor, time step, Newton options and `steps`. Moving Dirichlet targets are closures and
+    /// cannot be hashed: `scene_label` must name them uniquely (e.g. "twist 2160 deg/s to 720
+    /// deg about y = z = 0.5").
+    pub fn trajectory_key(&self, scene_label: &str, steps: usize) -> TrajectoryKey {
+        let mut key = TrajectoryKeyBuilder::default();
+        let mesh = self.model.mesh();
+        let tets = mesh.tet_mesh();
+        let vertices: Vec<f64> = tets
+            .vertices()
+            .iter()
+            .flat_map(|v| [v.x, v.y, v.z])
+            .collect();
+        key.f64s(&vertices);
+        key.u64(tets.tets().len() as u64);
+        for t in tets.tets() {
+            for &v in t {
+                key.u64(v as u64);
+            }
+        }
+        key.str(&format!("{:?} {:?}", mesh.order(), self.model.mass_kind()));
+        key.str(self.model.material().name());
+        let lame: Vec<f64> = self
+            .model
+            .lame_parameters()
+            .iter()
+            .flat_map(|l| [l.lambda(), l.mu()])
+            .collect();
+        key.f64s(&lame).f64s(self.model.densities());
+        match self.scene.gravity {
+            Some(g) => key.f64s(g.as_slice()),
+            None => key.str("no gravity"),
+        };
+        for d in &self.scene.dirichlet {
+            key.u64(d.nodes.len() as u64);
+            for &n in &d.nodes {
+                key.u64(n as u64);
+            }
+            key.str(match d.target {
+                crate::scene::NodeTarget::Rest => "rest",
+                crate::scene::NodeTarget::Moving(_) => "moving",
+            });
+        }
+        match &self.floor {
+            Some((f, kappa)) => key.f64s(&[f.normal.x, f.normal.y, f.normal.z, f.offset, *kappa]),
+            None => key.str("no floor"),
+        };
+        let n = &self.params.newton;
+        key.f64s(&[self.params.time_step, n.tolerance, n.armijo])
+            .u64(n.max_iterations as u64)
+            .u64(n.max_line_search_cuts as u64)
+            .str(&format!("{:?}", n.tangent))
+            .str(scene_label)
+            .u64(steps as u64);
+        key.finish()
+    }
+
+    /// `steps` steps from the current state, recording all node positions per frame (frame 0 =
+    /// the current state) — or the cached trajectory when `cache` holds one for
+    /// [`Self::trajectory_key`]. Returns the trajectory and whether it came from the cache; a
+    /// fresh run is stored. `progress(step)` is called after each computed step.
+    ///
+    /// Only meaningful from the rest state at t = 0 (what the key describes).
+    ///
+    /// # Errors
+    /// [`FemRunError`]: a step failed (nothing is stored), or the cache could not be read or
+    /// written (the computed trajectory is still returned inside the error).
+    pub fn run_cached(
+        &mut self,
+        steps: usize,
+        scene_label: &str,
+        cache: &TrajectoryCache,
+        mut progress: impl FnMut(usize),
+    ) -> Result<(Trajectory, bool), FemRunError> {
+        let key = self.trajectory_key(scene_label, steps);
+        if let Some(t) = cache.load(key).map_err(FemRunError::Cache)? {
+            return Ok((t, true));
+        }
+        let start = Instant::now();
+        let frame = |sim: &Self| -> Vec<[f64; 3]> {
+            sim.x.chunks_exact(3).map(|c| [c[0], c[1], c[2]]).collect()
+        };
+        let mut trajectory = Trajectory {
+            times: vec![self.time],
+            frames: vec![frame(self)],
+            iterations: Vec::with_capacity(steps),
+            converged: Vec::with_capacity(steps),
+            seconds: 0.0,
+        };
+        for step in 1..=steps {
+            let report = self
+                .step()
+                .map_err(|source| FemRunError::Step { step, source })?;
+            trajectory.times.push(self.time);
+            trajectory.frames.push(frame(self));
+            trajectory.iterations.push(report.iterations);
+            trajectory.converged.push(report.converged);
+            progress(step);
+        }
+        trajectory.seconds = start.elapsed().as_secs_f64();
+        match cache.store(key, &trajectory) {
+            Ok(_) => Ok((trajectory, false)),
+            Err(e) => Err(FemRunError::CacheWrite {
+                error: e,
+                trajectory: Box::new(trajectory),
+            }),
+        }
+    }
+
+    /// Sets Dirichlet nodes to their targets at `t`.
+    fn apply_targets(&self, x: &mut [f64], t: f64) {
+        let rest = self.model.mesh().nodes();
+        for d in &self.scene.dirichlet {
+            for &node in &d.nodes {
+                let p = d.target.at(&rest[node], t);
+                x[3 * node..3 * node + 3].copy_from_slice(p.as_slice());
+            }
+        }
+    }
+
+    /// One backward-Euler step of h.
+    ///
+    /// # Errors
+    /// [`FemStepError`]; the state is then unchanged.
+    pub fn step(&mut self) -> Result<FemStepReport, FemStepError> {
+        let h = self.params.time_step;
+        let mut predicted: Vec<f64> = self.x.iter().zip(&self.v).map(|(x, v)| x + h * v).collect();
+        self.apply_targets(&mut predicted, self.time + h);
+        let mut x = predicted.clone();
+        let problem = StepProblem {
+            predicted: Some(&predicted),
+            inverse_step_squared: 1.0 / (h * h),
+        };
+        let report = self.minimize(&problem, &mut x)?;
+        self.v = x.iter().zip(&self.x).map(|(a, b)| (a - b) / h).collect();
+        self.x = x;
+        self.time += h;
+        Ok(report)
+    }
+
+    /// Static equilibrium with the Dirichlet targets at `time`; sets velocities to zero.
+    ///
+    /// # Errors
+    /// [`FemStepError`]; the state is then unchanged.
+    pub fn solve_static(&mut self, time: f64) -> Result<FemStepReport, FemStepError> {
+        let mut x = self.x.clone();
+        self.apply_targets(&mut x, time);
+        let problem = StepProblem {
+            predicted: None,
+            inverse_step_squared: 0.0,
+        };
+        let report = self.minimize(&problem, &mut x)?;
+        self.x = x;
+        self.v.fill(0.0);
+        self.time = time;
+        Ok(report)
+    }
+
+    fn energy(&self, problem: &StepProblem<'_>, x: &[f64]) -> f64 {
+        let mut e = self.model.elastic_energy(x);
+        if let Some(g) = self.scene.gravity {
+            e -= self
+                .model
+                .node_masses()
+                .iter()
+                .zip(x.chunks_exact(3))
+                .map(|(m, xa)| m * (g.x * xa[0] + g.y * xa[1] + g.z * xa[2]))
+                .sum::<f64>();
+        }
+        if let Some((floor, kappa)) = &self.floor {
+            e += x
+                .chunks_exact(3)
+                .zip(self.model.node_volumes())
+                .map(|(xa, v)| {
+                    let depth = floor.offset - floor.normal.dot(&Vector3::new(xa[0], xa[1], xa[2]));
+                    if depth > 0.0 {
+                        0.5 * kappa * v * depth * depth
+                    } else {
+                        0.0
+                    }
+                })
+                .sum::<f64>();
+        }
+        if let Some(pred) = problem.predicted {
+            let d: Vec<f64> = x.iter().zip(pred).map(|(a, b)| a - b).collect();
+            let md = self.model.apply_mass(&d);
+            e += 0.5
+                * problem.inverse_step_squared
+                * d.iter().zip(&md).map(|(a, b)| a * b).sum::<f64>();
+        }
+        e
+    }
+
+    /// Full-length gradient (fixed DOFs included, ignored later).
+    fn gradient(&self, problem: &StepProblem<'_>, x: &[f64]) -> Vec<f64> {
+        let mut g = self.model.elastic_gradient(x);
+        if let Some(grav) = self.scene.gravity {
+            for (a, m) in self.model.node_masses().iter().enumerate() {
+                for i in 0..3 {
+                    g[3 * a + i] -= m * grav[i];
+                }
+            }
+        }
+        if let Some((floor, kappa)) = &self.floor {
+            for (a, v) in self.model.node_volumes().iter().enumerate() {
+                let xa = Vector3::new(x[3 * a], x[3 * a + 1], x[3 * a + 2]);
+                let depth = floor.offset - floor.normal.dot(&xa);
+                if depth > 0.0 {
+                    for i in 0..3 {
+                        g[3 * a + i] -= kappa * v * depth * floor.normal[i];
+                    }
+                }
+            }
+        }
+        if let Some(pred) = problem.predicted {
+            let d: Vec<f64> = x.iter().zip(pred).map(|(a, b)| a - b).collect();
+            let md = self.model.apply_mass(&d);
+            for (gi, m) in g.iter_mut().zip(md) {
+                *gi += problem.inverse_step_squared * m;
+            }
+        }
+        g
+    }
+
+    /// Sparse Hessian values on the free DOFs (lower triangle).
+    fn hessian(&self, problem: &StepProblem<'_>, x: &[f64]) -> Vec<f64> {
+        let tangent = self.params.newton.tangent;
+        let locals: Vec<Vec<f64>> = (0..self.model.mesh().element_count())
+            .into_par_iter()
+            .map(|e| {
+                self.model
+                    .element_derivatives(e, x, tangent, problem.inverse_step_squared)
+                    .1
+            })
+            .collect();
+        let mut values = vec![0.0; self.system.nonzeros()];
+        for (e, local) in locals.iter().enumerate() {
+            self.system.scatter_element(e, local, &mut values);
+        }
+        if let Some((floor, kappa)) = &self.floor {
+            for (a, v) in self.model.node_volumes().iter().enumerate() {
+                let xa = Vector3::new(x[3 * a], x[3 * a + 1], x[3 * a + 2]);
+                if floor.offset - floor.normal.dot(&xa) > 0.0 {
+                    for i in 0..3 {
+                        for j in 0..=i {
+                            let (r, c) = (
+                                self.system.free_index[3 * a + i],
+                                self.system.free_index[3 * a + j],
+                            );
+                            if r != usize::MAX && c != usize::MAX {
+                                let k = kappa * v * floor.normal[i] * floor.normal[j];
+                                self.system.add(r, c, k, &mut values);
+                            }
+                        }
+                    }
+                }
+            }
+        }
+        values
+    }
+
+    fn free_part(&self, full: &[f64]) -> Vec<f64> {
+        let mut out = vec![0.0; self.system.free_count];
+        for (dof, &k) in self.system.free_index.iter().enumerate() {
+            if k != usize::MAX {
+                out[k] = full[dof];
+            }
+        }
+        out
+    }
+
+    fn scatter_step(&self, free: &[f64]) -> Vec<f64> {
+        self.system
+            .free_index
+            .iter()
+            .map(|&k| if k == usize::MAX { 0.0 } else { free[k] })
+            .collect()
+    }
+
+    fn step_norm(&self, dx: &[f64]) -> f64 {
+        let m = self.model.apply_mass(dx);
+        let e: f64 = dx.iter().zip(&m).map(|(a, b)| a * b).sum();
+        (e.max(0.0) / self.model.total_mass()).sqrt() / self.length_scale
+    }
+
+    fn solve(&self, llt: &Llt<usize, f64>, gradient_free: &[f64]) -> Vec<f64> {
+        let mut rhs = faer::Mat::<f64>::from_fn(gradient_free.len(), 1, |i, _| -gradient_free[i]);
+        llt.solve_in_place(rhs.as_mut());
+        self.scatter_step(
+            &(0..gradient_free.len())
+                .map(|i| rhs[(i, 0)])
+                .collect::<Vec<_>>(),
+        )
+    }
+
+    fn minimize(
+        &self,
+        problem: &StepProblem<'_>,
+        x: &mut Vec<f64>,
+    ) -> Result<FemStepReport, FemStepError> {
+        let params = &self.params.newton;
+        let mut timings = FemStepTimings::default();
+        let mut energy = self.energy(problem, x);
+        if !energy.is_finite() {
+            return Err(FemStepError::NonFinite {
+                iteration: 0,
+                quantity: "energy",
+            });
+        }
+        let mut report = FemStepReport {
+            iterations: 0,
+            factorizations: 0,
+            residual: f64::INFINITY,
+            line_search_cuts: 0,
+            converged: false,
+            timings,
+        };
+        let mut factor: Option<Llt<usize, f64>> = None;
+        let apply = |x: &mut [f64], step: &[f64], alpha: f64| {
+            for (a, s) in x.iter_mut().zip(step) {
+                *a += alpha * s;
+            }
+        };
+        for iteration in 1..=params.max_iterations {
+            report.iterations = iteration;
+            let t = Instant::now();
+            let gradient = self.free_part(&self.gradient(problem, x));
+            timings.assembly += t.elapsed().as_secs_f64();
+            if !gradient.iter().all(|g| g.is_finite()) {
+                return Err(FemStepError::NonFinite {
+                    iteration,
+                    quantity: "gradient",
+                });
+            }
+            // Convergence test with the last factorization first (no new Hessian if it passes).
+            if let Some(llt) = &factor {
+                let t = Instant::now();
+                let step = self.solve(llt, &gradient);
+                timings.factorization += t.elapsed().as_secs_f64();
+                let residual = self.step_norm(&step);
+                if residual.is_finite() && residual < params.tolerance {
+                    report.residual = residual;
+                    apply(x, &step, 1.0);
+                    report.converged = true;
+                    break;
+                }
+            }
+            let t = Instant::now();
+            let values = self.hessian(problem, x);
+            timings.assembly += t.elapsed().as_secs_f64();
+            let t = Instant::now();
+            let llt = Llt::try_new_with_symbolic(
+                self.system.symbolic.clone(),
+                self.system.matrix(&values),
+                Side::Lower,
+            )
+            .map_err(|_| FemStepError::NotPositiveDefinite { iteration })?;
+            let step = self.solve(&llt, &gradient);
+            factor = Some(llt);
+            report.factorizations += 1;
+            timings.factorization += t.elapsed().as_secs_f64();
+            if !step.iter().all(|s| s.is_finite()) {
+                return Err(FemStepError::NonFinite {
+                    iteration,
+                    quantity: "Newton step",
+                });
+            }
+            let residual = self.step_norm(&step);
+            report.residual = residual;
+            if residual < params.tolerance {
+                apply(x, &step, 1.0);
+                report.converged = true;
+                break;
+            }
+            let t = Instant::now();
+            let slope: f64 = self
+                .free_part(&step)
+                .iter()
+                .zip(&gradient)
+                .map(|(s, g)| s * g)
+                .sum();
+            let mut alpha = 1.0;
+            let mut accepted = None;
+            for _ in 0..=params.max_line_search_cuts {
+                let mut trial = x.clone();
+                apply(&mut trial, &step, alpha);
+                let e = self.energy(problem, &trial);
+                if e.is_finite() && e <= energy + params.armijo * alpha * slope {
+                    accepted = Some((trial, e));
+                    break;
+                }
+                alpha *= 0.5;
+                report.line_search_cuts += 1;
+            }
+            timings.line_search += t.elapsed().as_secs_f64();
+            match accepted {
+                Some((trial, e)) => {
+                    *x = trial;
+                    energy = e;
+                }
+                None => break,
+            }
+        }
+        report.timings = timings;
+        Ok(report)
+    }
+}

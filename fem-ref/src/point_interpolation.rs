@@ -1,0 +1,81 @@
+//! Interpolating the FEM displacement at arbitrary points inside the mesh.
+
+use nalgebra::{Vector3, Vector4};
+use thiserror::Error;
+
+use crate::element::{FemMesh, shape_values};
+
+/// A query point is not inside any element.
+#[derive(Clone, Debug, Error, PartialEq)]
+#[error("point {point} at {position:?} is not inside the mesh (tolerance {tolerance:e})")]
+pub struct PointLocationError {
+    /// Index of the query.
+    pub point: usize,
+    /// Its coordinates.
+    pub position: [f64; 3],
+    /// Barycentric tolerance used.
+    pub tolerance: f64,
+}
+
+/// For each query point: its element and shape-function values, so that
+/// `x(p) = Σ_a N_a(p) x_a` is a cheap sum per frame.
+#[derive(Clone, Debug)]
+pub struct PointInterpolation {
+    entries: Vec<(Vec<usize>, Vec<f64>)>,
+}
+
+impl PointInterpolation {
+    /// Locates every point (rest coordinates, m) in `mesh`; points on faces or edges (within a
+    /// barycentric tolerance of 1e-9) belong to one of the touching elements.
+    ///
+    /// # Errors
+    /// [`PointLocationError`] for the first point outside the mesh.
+    pub fn new(mesh: &FemMesh, points: &[Vector3<f64>]) -> Result<Self, PointLocationError> {
+        let tolerance = 1e-9;
+        let tets = mesh.tet_mesh();
+        let inverses: Vec<_> = (0..mesh.element_count())
+            .map(|e| tets.edge_matrix(e).try_inverse().expect("positive volume"))
+            .collect();
+        let mut entries = Vec::with_capacity(points.len());
+        for (i, p) in points.iter().enumerate() {
+            let mut best: Option<(usize, Vector4<f64>, f64)> = None;
+            for (e, inv) in inverses.iter().enumerate() {
+                let x0 = tets.vertices()[tets.tets()[e][0]];
+                let l = inv * (p - x0);
+                let lambda = Vector4::new(1.0 - l.sum(), l.x, l.y, l.z);
+                let worst = lambda.min();
+                if best.as_ref().is_none_or(|b| worst > b.2) {
+                    best = Some((e, lambda, worst));
+                }
+            }
+            match best {
+                Some((e, lambda, worst)) if worst >= -tolerance => entries.push((
+                    mesh.element(e).to_vec(),
+                    shape_values(mesh.order(), &lambda),
+                )),
+                _ => {
+                    return Err(PointLocationError {
+                        point: i,
+                        position: (*p).into(),
+                        tolerance,
+                    });
+                }
+            }
+        }
+        Ok(PointInterpolation { entries })
+    }
+
+    /// Interpolated positions from node positions (m).
+    pub fn interpolate(&self, node_positions: &[Vector3<f64>]) -> Vec<Vector3<f64>> {
+        self.entries
+            .iter()
+            .map(|(nodes, values)| {
+                nodes
+                    .iter()
+                    .zip(values)
+                    .map(|(&n, v)| node_positions[n] * *v)
+                    .sum()
+            })
+            .collect()
+    }
+}

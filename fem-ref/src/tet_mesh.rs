@@ -1,0 +1,292 @@
+//! Linear tetrahedral meshes: validation, volume, quality, and structured meshes of boxes
+//! (DESIGN 3.8).
+
+use nalgebra::{Matrix3, Vector3};
+use serde::{Deserialize, Serialize};
+use thiserror::Error;
+
+/// A tetrahedral mesh is unusable.
+#[derive(Clone, Debug, Error, PartialEq)]
+pub enum TetMeshError {
+    /// No vertices or no tetrahedra.
+    #[error("the tetrahedral mesh is empty ({vertices} vertices, {tets} tetrahedra)")]
+    Empty {
+        /// Vertex count.
+        vertices: usize,
+        /// Tetrahedron count.
+        tets: usize,
+    },
+    /// A vertex has a NaN or infinite coordinate.
+    #[error("vertex {vertex} is not finite: {position:?}")]
+    NonFiniteVertex {
+        /// Index.
+        vertex: usize,
+        /// Coordinates.
+        position: [f64; 3],
+    },
+    /// A tetrahedron names a vertex that does not exist.
+    #[error("tetrahedron {tet} names vertex {vertex}, but there are {vertices} vertices")]
+    IndexOutOfRange {
+        /// Tetrahedron.
+        tet: usize,
+        /// The bad index.
+        vertex: usize,
+        /// Vertex count.
+        vertices: usize,
+    },
+    /// A tetrahedron is inverted or flat (signed volume ≤ 0).
+    #[error("tetrahedron {tet} has signed volume {volume:e} m³ (inverted or flat)")]
+    NonPositiveVolume {
+        /// Tetrahedron.
+        tet: usize,
+        /// Its signed volume.
+        volume: f64,
+    },
+    /// A box mesh was asked for with a zero resolution or an empty box.
+    #[error("invalid box mesh: {0}")]
+    InvalidBox(String),
+}
+
+/// A linear tetrahedral mesh: vertices (m) and positively oriented tetrahedra
+/// (`det[x1-x0, x2-x0, x3-x0] > 0`).
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+pub struct TetMesh {
+    vertices: Vec<Vector3<f64>>,
+    tets: Vec<[usize; 4]>,
+}
+
+/// Shape statistics of a mesh.
+#[derive(Clone, Copy, Debug, PartialEq, Serialize, Deserialize)]
+pub struct TetQuality {
+    /// Smallest dihedral angle over all tetrahedra (degrees; 70.5° for a regular one).
+    pub min_dihedral_degrees: f64,
+    /// Largest dihedral angle (degrees).
+    pub max_dihedral_degrees: f64,
+    /// Smallest and largest tetrahedron volume (m³).
+    pub volume_range: [f64; 2],
+}
+
+impl TetMesh {
+    /// A validated mesh.
+    ///
+    /// # Errors
+    /// [`TetMeshError`]: empty, non-finite vertices, indices out of range, non-positive volumes.
+    pub fn new(vertices: Vec<Vector3<f64>>, tets: Vec<[usize; 4]>) -> Result<Self, TetMeshError> {
+        if vertices.is_empty() || tets.is_empty() {
+            return Err(TetMeshError::Empty {
+                vertices: vertices.len(),
+                tets: tets.len(),
+            });
+        }
+        if let Some(vertex) = vertices
+            .iter()
+            .position(|v| !v.iter().all(|c| c.is_finite()))
+        {
+            return Err(TetMeshError::NonFiniteVertex {
+                vertex,
+                position: vertices[vertex].into(),
+            });
+        }
+        for (tet, t) in tets.iter().enumerate() {
+            if let Some(&vertex) = t.iter().find(|&&v| v >= vertices.len()) {
+                return Err(TetMeshError::IndexOutOfRange {
+                    tet,
+                    vertex,
+                    vertices: vertices.len(),
+                });
+            }
+        }
+        let mesh = TetMesh { vertices, tets };
+        for tet in 0..mesh.tets.len() {
+            let volume = mesh.tet_volume(tet);
+            if !(volume > 0.0) {
+                return Err(TetMeshError::NonPositiveVolume { tet, volume });
+            }
+        }
+        Ok(mesh)
+    }
+
+    /// Vertices (m).
+    pub fn vertices(&self) -> &[Vector3<f64>] {
+        &self.vertices
+    }
+
+    /// Tetrahedra (vertex indices).
+    pub fn tets(&self) -> &[[usize; 4]] {
+        &self.tets
+    }
+
+    /// `[x1 - x0, x2 - x0, x3 - x0]` of tetrahedron `tet`.
+    pub fn edge_matrix(&self, tet: usize) -> Matrix3<f64> {
+        let [a, b, c, d] = self.tets[tet].map(|v| self.vertices[v]);
+        Matrix3::from_columns(&[b - a, c - a, d - a])
+    }
+
+    /// Signed volume of tetrahedron `tet` (m³).
+    pub fn tet_volume(&self, tet: usize) -> f64 {
+        self.edge_matrix(tet).determinant() / 6.0
+    }
+
+    /// Total volume (m³).
+    pub fn volume(&self) -> f64 {
+        (0..self.tets.len()).map(|t| self.tet_volume(t)).sum()
+    }
+
+    /// Dihedral angles and volumes.
+    pub fn quality(&self) -> TetQuality {
+        let mut q = TetQuality {
+            min_dihedral_degrees: 180.0,
+            max_dihedral_degrees: 0.0,
+            volume_range: [f64::INFINITY, 0.0],
+        };
+        for (t, tet) in self.tets.iter().enumerate() {
+            let p = tet.map(|v| self.vertices[v]);
+            // Outward face normals; the dihedral angle at the edge shared by faces i and j is
+            // π minus the angle between their outward normals.
+            let normal = |i: usize| {
+                let [a, b, c] = [0, 1, 2, 3]
+                    .into_iter()
+                    .filter(|&k| k != i)
+                    .map(|k| p[k])
+                    .collect::<Vec<_>>()[..]
+                else {
+                    unreachable!()
+                };
+                let n = (b - a).cross(&(c - a)).normalize();
+                if n.dot(&(p[i] - a)) > 0.0 { -n } else { n }
+            };
+            let normals: Vec<Vector3<f64>> = (0..4).map(normal).collect();
+            for i in 0..4 {
+                for j in i + 1..4 {
+                    let angle = 180.0
+                        - normals[i]
+                            .dot(&normals[j])
+                            .clamp(-1.0, 1.0)
+                            .acos()
+                            .to_degrees();
+                    q.min_dihedral_degrees = q.min_dihedral_degrees.min(angle);
+                    q.max_dihedral_degrees = q.max_dihedral_degrees.max(angle);
+                }
+            }
+            let v = self.tet_volume(t);
+            q.volume_range[0] = q.volume_range[0].min(v);
+            q.volume_range[1] = q.volume_range[1].max(v);
+        }
+        q
+    }
+
+    /// A structured mesh of the box `[min, max]` with `cells[d]` cubes per axis, each split into
+    /// six tetrahedra around its diagonal from corner (0,0,0) to (1,1,1) (the Kuhn/Freudenthal
+    /// split: one tetrahedron per permutation of the axes). All cubes use the same split, so
+    /// faces match across cubes and the mesh is conforming.
+    ///
+    /// # Errors
+    /// [`TetMeshError::InvalidBox`] for a zero resolution or a box with a non-positive side.
+    pub fn cuboid(
+        min: Vector3<f64>,
+        max: Vector3<f64>,
+        cells: [usize; 3],
+    ) -> Result<Self, TetMeshError> {
+        if cells.contains(&0) {
+            return Err(TetMeshError::InvalidBox(format!(
+                "{cells:?} cells: every axis needs at least one"
+            )));
+        }
+        let extent = max - min;
+        if !(extent.min() > 0.0) || !extent.iter().all(|e| e.is_finite()) {
+            return Err(TetMeshError::InvalidBox(format!(
+                "box from {min:?} to {max:?} has a non-positive or infinite side"
+            )));
+        }
+        let [nx, ny, nz] = cells;
+        let index = |i: usize, j: usize, k: usize| (i * (ny + 1) + j) * (nz + 1) + k;
+        let mut vertices = Vec::with_capacity((nx + 1) * (ny + 1) * (nz + 1));
+        for i in 0..=nx {
+            for j in 0..=ny {
+                for k in 0..=nz {
+                    vertices.push(
+                        min + Vector3::new(
+                            extent.x * i as f64 / nx as f64,
+                            extent.y * j as f64 / ny as f64,
+                            extent.z * k as f64 / nz as f64,
+                        ),
+                    );
+                }
+            }
+        }
+        const PERMUTATIONS: [[usize; 3]; 6] = [
+            [0, 1, 2],
+            [0, 2, 1],
+            [1, 0, 2],
+            [1, 2, 0],
+            [2, 0, 1],
+            [2, 1, 0],
+        ];
+        let mut tets = Vec::with_capacity(6 * nx * ny * nz);
+        for i in 0..nx {
+            for j in 0..ny {
+                for k in 0..nz {
+                    for perm in PERMUTATIONS {
+                        // Walk from corner 000 to 111 adding one axis at a time.
+                        let mut corner = [i, j, k];
+                        let mut tet = [index(i, j, k); 4];
+                        for (n, axis) in perm.into_iter().enumerate() {
+                            corner[axis] += 1;
+                            tet[n + 1] = index(corner[0], corner[1], corner[2]);
+                        }
+                        // Odd permutations give negative orientation: swap two vertices.
+                        let v = &vertices;
+                        let d = Matrix3::from_columns(&[
+                            v[tet[1]] - v[tet[0]],
+                            v[tet[2]] - v[tet[0]],
+                            v[tet[3]] - v[tet[0]],
+                        ])
+                        .determinant();
+                        if d < 0.0 {
+                            tet.swap(2, 3);
+                        }
+                        tets.push(tet);
+                    }
+                }
+            }
+        }
+        TetMesh::new(vertices, tets)
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn cuboid_mesh_tiles_the_box_exactly_with_six_tets_per_cell() {
+        let mesh =
+            TetMesh::cuboid(Vector3::zeros(), Vector3::new(5.0, 1.0, 1.0), [10, 2, 2]).unwrap();
+        assert_eq!(mesh.tets().len(), 6 * 40);
+        assert!((mesh.volume() - 5.0).abs() < 1e-12);
+        let q = mesh.quality();
+        // Kuhn tets of a cube: dihedral angles 45°, 60° and 90°; of these stretched cells less.
+        assert!(
+            q.min_dihedral_degrees > 30.0 && q.max_dihedral_degrees < 130.0,
+            "{q:?}"
+        );
+    }
+
+    #[test]
+    fn invalid_meshes_are_rejected_with_the_reason() {
+        let v = vec![Vector3::zeros(), Vector3::x(), Vector3::y(), Vector3::z()];
+        assert!(matches!(
+            TetMesh::new(v.clone(), vec![[0, 2, 1, 3]]),
+            Err(TetMeshError::NonPositiveVolume { tet: 0, .. })
+        ));
+        assert!(matches!(
+            TetMesh::new(v.clone(), vec![[0, 1, 2, 4]]),
+            Err(TetMeshError::IndexOutOfRange { vertex: 4, .. })
+        ));
+        assert!(matches!(
+            TetMesh::new(v, vec![]),
+            Err(TetMeshError::Empty { .. })
+        ));
+        assert!(TetMesh::cuboid(Vector3::zeros(), Vector3::x(), [1, 1, 1]).is_err());
+    }
+}

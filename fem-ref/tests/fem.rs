@@ -1,0 +1,249 @@
+//! Ground truth for the FEM reference: finite differences, the patch test, rigid motions and
+//! Euler-Bernoulli.
+
+use std::sync::Arc;
+
+use fem_ref::{
+    DirichletRegion, ElementOrder, FemMesh, FemModel, FemNewtonParams, FemParams, FemScene,
+    FemSimulator, MassKind, NodeTarget, PointInterpolation, TetMesh,
+};
+use hyperelastic::{StableNeoHookean, Tangent};
+use nalgebra::{DMatrix, Matrix3, Rotation3, Vector3};
+use rkpm_core::MaterialSample;
+use test_support::finite_difference;
+
+const MATERIAL: MaterialSample = MaterialSample {
+    youngs_modulus: 1e6,
+    poisson_ratio: 0.45,
+    density: 1000.0,
+};
+
+fn model(cells: [usize; 3], size: Vector3<f64>, order: ElementOrder) -> FemModel<StableNeoHookean> {
+    let mesh = FemMesh::new(
+        TetMesh::cuboid(Vector3::zeros(), size, cells).unwrap(),
+        order,
+    );
+    let n = mesh.element_count();
+    FemModel::new(
+        mesh,
+        &vec![MATERIAL; n],
+        StableNeoHookean,
+        MassKind::Consistent,
+    )
+    .unwrap()
+}
+
+fn flat(points: &[Vector3<f64>]) -> Vec<f64> {
+    points.iter().flat_map(|p| [p.x, p.y, p.z]).collect()
+}
+
+/// A deterministic deformation of amplitude about 0.1 (no inversion).
+fn perturbed(model: &FemModel<StableNeoHookean>) -> Vec<f64> {
+    flat(model.mesh().nodes())
+        .iter()
+        .enumerate()
+        .map(|(i, x)| x + 0.05 * ((i as f64 * 1.3).sin() + 0.5 * (i as f64 * 0.37).cos()))
+        .collect()
+}
+
+#[test]
+fn element_gradient_and_hessian_match_finite_differences() {
+    for order in [ElementOrder::Linear, ElementOrder::Quadratic] {
+        let model = model([1, 1, 1], Vector3::new(1.0, 1.0, 1.0), order);
+        let x = perturbed(&model);
+        let n = x.len();
+        let gradient = model.elastic_gradient(&x);
+        let numeric = finite_difference::gradient(|x| model.elastic_energy(x), &x, 1e-6);
+        let err = finite_difference::relative_error(
+            &DMatrix::from_column_slice(n, 1, &gradient),
+            &DMatrix::from_column_slice(n, 1, numeric.as_slice()),
+            1e-12,
+        );
+        assert!(err < 1e-6, "{order:?} gradient: relative error {err:e}");
+
+        // Assemble the exact Hessian from element blocks (also checks element gradients).
+        let mut hessian = DMatrix::zeros(n, n);
+        let mut from_elements = vec![0.0; n];
+        for e in 0..model.mesh().element_count() {
+            let (g, h) = model.element_derivatives(e, &x, Tangent::Exact, 0.0);
+            let dofs: Vec<usize> = model
+                .mesh()
+                .element(e)
+                .iter()
+                .flat_map(|&node| (0..3).map(move |i| 3 * node + i))
+                .collect();
+            let k = dofs.len();
+            for (a, &r) in dofs.iter().enumerate() {
+                from_elements[r] += g[a];
+                for (b, &c) in dofs.iter().enumerate() {
+                    hessian[(r, c)] += h[a * k + b];
+                }
+            }
+        }
+        let diff: f64 = from_elements
+            .iter()
+            .zip(&gradient)
+            .map(|(a, b)| (a - b).abs())
+            .sum();
+        assert!(diff < 1e-9 * gradient.iter().map(|g| g.abs()).sum::<f64>());
+        let numeric = finite_difference::jacobian(|x| model.elastic_gradient(x), &x, 1e-6);
+        let err = finite_difference::relative_error(&hessian, &numeric, 1e-12);
+        assert!(err < 1e-6, "{order:?} Hessian: relative error {err:e}");
+    }
+}
+
+#[test]
+fn patch_test_reproduces_affine_fields_exactly_and_rigid_motions_cost_nothing() {
+    let a = Matrix3::new(1.1, 0.05, -0.02, 0.03, 0.95, 0.04, -0.01, 0.02, 1.05);
+    let b = Vector3::new(0.1, -0.2, 0.05);
+    for order in [ElementOrder::Linear, ElementOrder::Quadratic] {
+        let model = model([3, 3, 3], Vector3::new(1.0, 1.0, 1.0), order);
+        let nodes = model.mesh().nodes().to_vec();
+        let boundary: Vec<usize> = (0..nodes.len())
+            .filter(|&i| {
+                nodes[i]
+                    .iter()
+                    .any(|c| c.abs() < 1e-12 || (c - 1.0).abs() < 1e-12)
+            })
+            .collect();
+        let interior = nodes.len() - boundary.len();
+        assert!(interior > 0);
+        let scene = FemScene {
+            dirichlet: vec![DirichletRegion {
+                nodes: boundary,
+                target: NodeTarget::Moving(Arc::new(move |x, _| a * x + b)),
+            }],
+            ..Default::default()
+        };
+        let params = FemParams {
+            newton: FemNewtonParams {
+                tolerance: 1e-12,
+                ..Default::default()
+            },
+            ..Default::default()
+        };
+        let mut sim = FemSimulator::new(model, scene, params).unwrap();
+        let report = sim.solve_static(0.0).unwrap();
+        assert!(report.converged, "{report:?}");
+        let worst = sim
+            .positions()
+            .iter()
+            .zip(&nodes)
+            .map(|(x, rest)| (x - (a * rest + b)).norm())
+            .fold(0.0, f64::max);
+        assert!(
+            worst < 1e-10,
+            "{order:?}: affine field missed by {worst:e} m ({interior} free nodes)"
+        );
+
+        // Rigid motion: zero elastic force at every node.
+        let model = self::model([2, 2, 2], Vector3::new(1.0, 1.0, 1.0), order);
+        let r = Rotation3::from_scaled_axis(Vector3::new(0.4, -0.9, 0.3)).into_inner();
+        let moved: Vec<Vector3<f64>> = model.mesh().nodes().iter().map(|p| r * p + b).collect();
+        let x = flat(&moved);
+        let max_abs = |v: Vec<f64>| v.iter().map(|g| g.abs()).fold(0.0, f64::max);
+        let force = max_abs(model.elastic_gradient(&x));
+        let scale = max_abs(model.elastic_gradient(&perturbed(&model)));
+        assert!(
+            force < 1e-10 * scale,
+            "{order:?}: rigid force {force:e} N vs {scale:e} N"
+        );
+        let energy = model.elastic_energy(&x);
+        assert!(energy.abs() < 1e-12 * model.elastic_energy(&perturbed(&model)));
+    }
+}
+
+/// A 10 × 1 × 1 m beam (9.5 m span) clamped on x ≤ 0.5, ν = 0.3, 1% of gravity: linear regime.
+/// Euler-Bernoulli δ = qL⁴/(8EI); Timoshenko's shear term adds 1.2% at this slenderness.
+#[test]
+fn static_p2_cantilever_is_within_two_percent_of_euler_bernoulli() {
+    let material = MaterialSample {
+        youngs_modulus: 5e6,
+        poisson_ratio: 0.3,
+        density: 1000.0,
+    };
+    let g = 0.098;
+    let length = 10.0f64;
+    let tets =
+        TetMesh::cuboid(Vector3::zeros(), Vector3::new(length, 1.0, 1.0), [20, 2, 2]).unwrap();
+    let mesh = FemMesh::new(tets, ElementOrder::Quadratic);
+    let n = mesh.element_count();
+    let model = FemModel::new(
+        mesh,
+        &vec![material; n],
+        StableNeoHookean,
+        MassKind::Consistent,
+    )
+    .unwrap();
+    let nodes = model.mesh().nodes().to_vec();
+    let clamped: Vec<usize> = (0..nodes.len())
+        .filter(|&i| nodes[i].x <= 0.5 + 1e-9)
+        .collect();
+    let face: Vec<Vector3<f64>> = (0..11)
+        .flat_map(|a| (0..11).map(move |c| Vector3::new(length, a as f64 / 10.0, c as f64 / 10.0)))
+        .collect();
+    let probe = PointInterpolation::new(model.mesh(), &face).unwrap();
+    let scene = FemScene {
+        gravity: Some(Vector3::new(0.0, -g, 0.0)),
+        dirichlet: vec![DirichletRegion {
+            nodes: clamped,
+            target: NodeTarget::Rest,
+        }],
+        floor: None,
+    };
+    let mut sim = FemSimulator::new(model, scene, FemParams::default()).unwrap();
+    assert!(sim.solve_static(0.0).unwrap().converged);
+    let x = probe.interpolate(&sim.positions());
+    let tip = -x.iter().zip(&face).map(|(x, r)| x.y - r.y).sum::<f64>() / face.len() as f64;
+    let span = length - 0.5;
+    let euler_bernoulli =
+        material.density * g * span.powi(4) / (8.0 * material.youngs_modulus / 12.0);
+    let ratio = tip / euler_bernoulli;
+    eprintln!(
+        "P2 cantilever tip {tip:.6e} m, Euler-Bernoulli {euler_bernoulli:.6e} m, ratio {ratio:.4}"
+    );
+    assert!((ratio - 1.0).abs() < 0.02, "ratio {ratio:.4}");
+}
+
+#[test]
+fn cached_trajectory_is_reused_and_any_input_change_misses() {
+    use fem_ref::{TrajectoryCache, TrajectoryCacheError};
+    let dir = test_support::fixtures::scratch_dir("fem-trajectory-cache");
+    let cache = TrajectoryCache::new(&dir);
+    let simulator = |g: f64| {
+        let model = model([2, 1, 1], Vector3::new(2.0, 1.0, 1.0), ElementOrder::Linear);
+        let fixed: Vec<usize> = (0..model.mesh().nodes().len())
+            .filter(|&i| model.mesh().nodes()[i].x < 1e-9)
+            .collect();
+        let scene = FemScene {
+            gravity: Some(Vector3::new(0.0, -g, 0.0)),
+            dirichlet: vec![DirichletRegion {
+                nodes: fixed,
+                target: NodeTarget::Rest,
+            }],
+            floor: None,
+        };
+        FemSimulator::new(model, scene, FemParams::default()).unwrap()
+    };
+    let mut steps_run = 0;
+    let (first, cached) = simulator(9.8)
+        .run_cached(3, "test", &cache, |_| steps_run += 1)
+        .unwrap();
+    assert!(!cached && steps_run == 3 && first.frames.len() == 4);
+    let (second, cached) = simulator(9.8)
+        .run_cached(3, "test", &cache, |_| panic!())
+        .unwrap();
+    assert!(cached);
+    assert_eq!(first, second);
+    // A different load, label or step count is a different trajectory.
+    let a = simulator(9.8).trajectory_key("test", 3);
+    assert_ne!(a, simulator(9.7).trajectory_key("test", 3));
+    assert_ne!(a, simulator(9.8).trajectory_key("other", 3));
+    assert_ne!(a, simulator(9.8).trajectory_key("test", 4));
+    // A damaged file is reported, not trusted.
+    std::fs::write(cache.path(a), b"FFTRAJ\x01\x00\x00\x00garbage").unwrap();
+    assert!(matches!(
+        cache.load(a),
+        Err(TrajectoryCacheError::Format { .. })
+    ));
+}
