@@ -196,11 +196,10 @@ impl DeformationMap {
     /// # Panics
     /// If `z.len() != 12(m + 1)`.
     pub fn positions(&self, z: &[f64]) -> Vec<Vector3<f64>> {
-        let u = self.displacement_columns(z);
         self.rest
             .iter()
-            .enumerate()
-            .map(|(i, x)| x + Vector3::new(u[3 * i], u[3 * i + 1], u[3 * i + 2]))
+            .zip(self.displacements(z))
+            .map(|(x, u)| x + u)
             .collect()
     }
 
@@ -209,8 +208,17 @@ impl DeformationMap {
     /// # Panics
     /// If `z.len() != 12(m + 1)`.
     pub fn displacements(&self, z: &[f64]) -> Vec<Vector3<f64>> {
-        self.displacement_columns(z)
-            .chunks_exact(3)
+        let n = self.len();
+        let mut u = vec![0.0; 3 * n];
+        faer::linalg::matmul::matmul(
+            faer::MatMut::from_column_major_slice_mut(&mut u, 3, n),
+            Accum::Replace,
+            self.z_matrix(z).transpose(),
+            self.position_matrix(),
+            1.0,
+            Par::rayon(0),
+        );
+        u.chunks_exact(3)
             .map(|u| Vector3::new(u[0], u[1], u[2]))
             .collect()
     }
@@ -234,21 +242,6 @@ impl DeformationMap {
         out.chunks_exact(9)
             .map(|c| Matrix3::from_column_slice(c) + Matrix3::identity())
             .collect()
-    }
-
-    /// `Zᵀ B` as a column-major 3 × N slice: displacement of point i in entries 3i..3i+3.
-    pub(crate) fn displacement_columns(&self, z: &[f64]) -> Vec<f64> {
-        let n = self.len();
-        let mut out = vec![0.0; 3 * n];
-        faer::linalg::matmul::matmul(
-            faer::MatMut::from_column_major_slice_mut(&mut out, 3, n),
-            Accum::Replace,
-            self.z_matrix(z).transpose(),
-            self.position_matrix(),
-            1.0,
-            Par::rayon(0),
-        );
-        out
     }
 
     /// z viewed as the `4(m+1) × 3` matrix Z = [z_0 z_1 z_2].

@@ -49,32 +49,23 @@ impl<M: HyperelasticMaterial> ReducedModel<M> {
         let material = self.material();
         let lame = self.lame_parameters();
         let volumes = self.volumes();
-        // P̃ column-major 3N × 3: entry (3i + s, r) at r·3N + 3i + s. Fill it row-major per
-        // point first (contiguous per point), then transpose into place.
-        let mut per_point = vec![0.0; 9 * n];
-        per_point
+        // Per point, the column-major storage of v_i P_i: entry 3s + r is v_i P_i[r, s], so the
+        // whole buffer is P̃ᵀ as a column-major 3 × 3N matrix.
+        let mut stresses_t = vec![0.0; 9 * n];
+        stresses_t
             .par_chunks_mut(9)
             .enumerate()
             .for_each(|(i, out)| {
                 let p = material.first_piola_kirchhoff(&lame[i], &f[i]) * volumes[i];
-                // out[3s + r] = v P[r, s] = column-major storage of vP.
                 out.copy_from_slice(p.as_slice());
             });
-        let mut stacked = vec![0.0; 9 * n];
-        for i in 0..n {
-            for s in 0..3 {
-                for r in 0..3 {
-                    stacked[r * 3 * n + 3 * i + s] = per_point[9 * i + 3 * s + r];
-                }
-            }
-        }
         let n4 = self.deformation_map().layout().block_len();
         let mut gradient = vec![0.0; 3 * n4];
         faer::linalg::matmul::matmul(
             faer::MatMut::from_column_major_slice_mut(&mut gradient, n4, 3),
             Accum::Replace,
             self.deformation_map().gradient_matrix(),
-            MatRef::from_column_major_slice(&stacked, 3 * n, 3),
+            MatRef::from_column_major_slice(&stresses_t, 3, 3 * n).transpose(),
             1.0,
             Par::rayon(0),
         );

@@ -37,7 +37,7 @@ impl<M: HyperelasticMaterial> IncrementalPotential<'_, M> {
                 .zip(inertia.predicted)
                 .map(|(a, b)| a - b)
                 .collect();
-            e += 0.5 * inertia.inverse_step_squared * self.mass_inner(&d, &d);
+            e += 0.5 * inertia.inverse_step_squared * mass_inner(self.model, &d, &d);
         }
         e
     }
@@ -90,11 +90,6 @@ impl<M: HyperelasticMaterial> IncrementalPotential<'_, M> {
                 }
             }
         }
-    }
-
-    /// `aᵀ M_z b` (kg·m²-ish units of z).
-    pub(crate) fn mass_inner(&self, a: &[f64], b: &[f64]) -> f64 {
-        mass_inner(self.model, a, b)
     }
 }
 

@@ -35,7 +35,7 @@ impl ReducedLayout {
         12 * self.handles
     }
 
-    /// Always false: a layout has at least the constant handle's 12 entries when `handles ≥ 1`.
+    /// True for a layout of zero handles (no basis); any basis has at least the constant one.
     pub fn is_empty(&self) -> bool {
         self.handles == 0
     }

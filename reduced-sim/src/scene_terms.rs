@@ -214,9 +214,7 @@ impl SceneTerms {
     ) -> Option<f64> {
         let mut max: Option<f64> = None;
         for (pin, targets) in self.pins.iter().zip(&targets.0) {
-            let u = pinned_displacements(model, pin, z);
-            for (i, t) in targets.iter().enumerate() {
-                let x = pin.rest[i] + Vector3::new(u[3 * i], u[3 * i + 1], u[3 * i + 2]);
+            for (x, t) in pinned_positions(model, pin, z).iter().zip(targets) {
                 let d = (x - t).norm();
                 max = Some(max.map_or(d, |m| m.max(d)));
             }
@@ -236,19 +234,17 @@ impl SceneTerms {
             e += g.iter().zip(z).map(|(a, b)| a * b).sum::<f64>();
         }
         for (pin, targets) in self.pins.iter().zip(&targets.0) {
-            let u = pinned_displacements(model, pin, z);
-            for (i, t) in targets.iter().enumerate() {
-                let x = pin.rest[i] + Vector3::new(u[3 * i], u[3 * i + 1], u[3 * i + 2]);
-                e += 0.5 * self.pin_stiffness * pin.volumes[i] * (x - t).norm_squared();
+            let x = pinned_positions(model, pin, z);
+            for ((x, t), v) in x.iter().zip(targets).zip(&pin.volumes) {
+                e += 0.5 * self.pin_stiffness * v * (x - t).norm_squared();
             }
         }
         if let Some(floor) = &self.floor {
-            let u = model.deformation_map().displacement_columns(z);
-            for (i, x0) in model.rest_positions().iter().enumerate() {
-                let x = x0 + Vector3::new(u[3 * i], u[3 * i + 1], u[3 * i + 2]);
-                let depth = floor.offset - floor.normal.dot(&x);
+            let x = model.deformation_map().positions(z);
+            for (x, v) in x.iter().zip(model.volumes()) {
+                let depth = floor.offset - floor.normal.dot(x);
                 if depth > 0.0 {
-                    e += 0.5 * self.floor_stiffness * model.volumes()[i] * depth * depth;
+                    e += 0.5 * self.floor_stiffness * v * depth * depth;
                 }
             }
         }
@@ -274,9 +270,8 @@ impl SceneTerms {
         }
         for (pin, targets) in self.pins.iter().zip(&targets.0) {
             // ∂E/∂z_r = κ Σ v_i b_i (x_i - t_i)_r
-            let u = pinned_displacements(model, pin, z);
-            for (i, t) in targets.iter().enumerate() {
-                let x = pin.rest[i] + Vector3::new(u[3 * i], u[3 * i + 1], u[3 * i + 2]);
+            let x = pinned_positions(model, pin, z);
+            for (i, (x, t)) in x.iter().zip(targets).enumerate() {
                 let w = self.pin_stiffness * pin.volumes[i];
                 let bi = &pin.b[i * n4..(i + 1) * n4];
                 for r in 0..3 {
@@ -297,13 +292,11 @@ impl SceneTerms {
             }
         }
         if let Some(floor) = &self.floor {
-            let u = map.displacement_columns(z);
             // Active points: E = κ/2 v d², d = offset - n·x, ∂d/∂z_r = -n_r b_i.
             let mut active_b = Vec::new();
             let mut active_bw = Vec::new();
-            for (i, x0) in model.rest_positions().iter().enumerate() {
-                let x = x0 + Vector3::new(u[3 * i], u[3 * i + 1], u[3 * i + 2]);
-                let depth = floor.offset - floor.normal.dot(&x);
+            for (i, x) in map.positions(z).iter().enumerate() {
+                let depth = floor.offset - floor.normal.dot(x);
                 if depth > 0.0 {
                     let w = self.floor_stiffness * model.volumes()[i];
                     let bi = map.position_row(i);
@@ -347,12 +340,12 @@ impl SceneTerms {
     }
 }
 
-/// Displacements of a region's pinned points, column-major 3 × P.
-fn pinned_displacements<M: HyperelasticMaterial>(
+/// Positions `x_i(z)` (m) of a region's pinned points.
+fn pinned_positions<M: HyperelasticMaterial>(
     model: &ReducedModel<M>,
     pin: &PinTerm,
     z: &[f64],
-) -> Vec<f64> {
+) -> Vec<Vector3<f64>> {
     let map = model.deformation_map();
     let n4 = map.layout().block_len();
     let p = pin.rest.len();
@@ -365,5 +358,9 @@ fn pinned_displacements<M: HyperelasticMaterial>(
         1.0,
         Par::Seq,
     );
-    u
+    pin.rest
+        .iter()
+        .zip(u.chunks_exact(3))
+        .map(|(x, u)| x + Vector3::new(u[0], u[1], u[2]))
+        .collect()
 }
