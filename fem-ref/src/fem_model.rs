@@ -309,23 +309,20 @@ impl<M: HyperelasticMaterial> FemModel<M> {
             .sum()
     }
 
-    /// Element e's elastic gradient (3·npe entries, node-major: `[a][i]` at `3a + i`, N) and
-    /// Hessian (`(3·npe)²`, row-major, N/m) at node positions x (flat, m), with
-    /// `mass_scale · M_e ⊗ I₃` added to the Hessian (`mass_scale = 1/h²` gives the backward-Euler
-    /// system; 0 the elastic tangent alone).
-    ///
-    /// `g_a = Σ_q w_q P(F_q) ∇N_a`, `K_ab[i][j] = Σ_q w_q Σ_kl ∂P_ik/∂F_jl ∇N_a[k] ∇N_b[l]`.
-    pub fn element_derivatives(
+    /// Element e's Hessian (`(3·npe)²`, row-major, N/m, node-major DOFs `3a + i`) at node
+    /// positions x (flat, m), with `mass_scale · M_e ⊗ I₃` added (`mass_scale = 1/h²` gives the
+    /// backward-Euler system; 0 the elastic tangent alone):
+    /// `K_ab[i][j] = Σ_q w_q Σ_kl ∂P_ik/∂F_jl ∇N_a[k] ∇N_b[l]`.
+    pub fn element_hessian(
         &self,
         e: usize,
         x: &[f64],
         tangent: Tangent,
         mass_scale: f64,
-    ) -> (Vec<f64>, Vec<f64>) {
+    ) -> Vec<f64> {
         let npe = self.mesh.order().nodes_per_element();
         let nq = self.quadrature_points();
         let n = 3 * npe;
-        let mut gradient = vec![0.0; n];
         let mut hessian = vec![0.0; n * n];
         let lame = &self.lame[e];
         for q in 0..nq {
@@ -333,17 +330,10 @@ impl<M: HyperelasticMaterial> FemModel<M> {
             let w = self.qp_weights[k];
             let grads = &self.qp_gradients[k * npe..(k + 1) * npe];
             let f = self.deformation_gradient(e, q, x);
-            let p = self.material.first_piola_kirchhoff(lame, &f);
             let d: Matrix9 = match tangent {
                 Tangent::Exact => self.material.stress_derivative(lame, &f),
                 Tangent::ProjectedPsd => self.material.projected_stress_derivative(lame, &f),
             } * w;
-            for (a, ga) in grads.iter().enumerate() {
-                let force = w * p * ga;
-                for i in 0..3 {
-                    gradient[3 * a + i] += force[i];
-                }
-            }
             // Y_b[(3k + i), j] = Σ_l D[(3k + i), (3l + j)] ∇N_b[l]; K_ab[i][j] = Σ_k ∇N_a[k] Y_b.
             for (b, gb) in grads.iter().enumerate() {
                 let mut y = [[0.0; 3]; 9];
@@ -373,30 +363,34 @@ impl<M: HyperelasticMaterial> FemModel<M> {
                 }
             }
         }
-        (gradient, hessian)
+        hessian
+    }
+
+    /// Element e's elastic gradient `g_a = Σ_q w_q P(F_q) ∇N_a` (3·npe entries, node-major:
+    /// `[a][i]` at `3a + i`, N) at node positions x (flat, m).
+    pub fn element_gradient(&self, e: usize, x: &[f64]) -> Vec<f64> {
+        let npe = self.mesh.order().nodes_per_element();
+        let nq = self.quadrature_points();
+        let mut g = vec![0.0; 3 * npe];
+        for q in 0..nq {
+            let k = e * nq + q;
+            let f = self.deformation_gradient(e, q, x);
+            let p = self.material.first_piola_kirchhoff(&self.lame[e], &f);
+            for (a, ga) in self.qp_gradients[k * npe..(k + 1) * npe].iter().enumerate() {
+                let force = self.qp_weights[k] * p * ga;
+                for i in 0..3 {
+                    g[3 * a + i] += force[i];
+                }
+            }
+        }
+        g
     }
 
     /// Elastic gradient `∂E_el/∂x` (N, flat) at x.
     pub fn elastic_gradient(&self, x: &[f64]) -> Vec<f64> {
-        let npe = self.mesh.order().nodes_per_element();
-        let nq = self.quadrature_points();
         let per_element: Vec<Vec<f64>> = (0..self.mesh.element_count())
             .into_par_iter()
-            .map(|e| {
-                let mut g = vec![0.0; 3 * npe];
-                for q in 0..nq {
-                    let k = e * nq + q;
-                    let f = self.deformation_gradient(e, q, x);
-                    let p = self.material.first_piola_kirchhoff(&self.lame[e], &f);
-                    for (a, ga) in self.qp_gradients[k * npe..(k + 1) * npe].iter().enumerate() {
-                        let force = self.qp_weights[k] * p * ga;
-                        for i in 0..3 {
-                            g[3 * a + i] += force[i];
-                        }
-                    }
-                }
-                g
-            })
+            .map(|e| self.element_gradient(e, x))
             .collect();
         let mut gradient = vec![0.0; x.len()];
         for (e, g) in per_element.iter().enumerate() {

@@ -532,8 +532,7 @@ impl<M: HyperelasticMaterial> FemSimulator<M> {
             .into_par_iter()
             .map(|e| {
                 self.model
-                    .element_derivatives(e, x, tangent, problem.inverse_step_squared)
-                    .1
+                    .element_hessian(e, x, tangent, problem.inverse_step_squared)
             })
             .collect();
         let mut values = vec![0.0; self.system.nonzeros()];
