@@ -1,7 +1,8 @@
 //! Tetrahedral finite-element ground truth (DESIGN 3.8): the reference every table's error is
 //! measured against.
 //!
-//! - [`TetMesh`]: validated linear tet meshes; [`TetMesh::cuboid`] for boxes.
+//! - [`TetMesh`]: validated linear tet meshes; [`TetMesh::cuboid`] for boxes;
+//!   [`tetrahedralize`] for the solid inside a closed triangle surface.
 //! - [`FemMesh`]: P1 (4-node) or P2 (10-node) elements on a tet mesh ([`ElementOrder`]).
 //! - [`FemModel`]: per-element materials (the shared `hyperelastic` models), quadrature data,
 //!   consistent or lumped mass ([`MassKind`]).
@@ -17,6 +18,7 @@
 pub mod element;
 pub mod fem_model;
 pub mod fem_simulator;
+pub mod lattice_mesher;
 pub mod point_interpolation;
 pub mod scene;
 mod sparse_system;
@@ -28,6 +30,10 @@ pub use fem_model::{FemModel, FemModelError, MassKind};
 pub use fem_simulator::{
     FemNewtonParams, FemParams, FemRunError, FemSetupError, FemSimulator, FemStepError,
     FemStepReport, FemStepTimings,
+};
+pub use lattice_mesher::{
+    LatticeMesherError, LatticeMesherParams, LatticeMesherReport, VolumeTarget, tetrahedralize,
+    tetrahedralize_to_volume,
 };
 pub use point_interpolation::{PointInterpolation, PointLocationError};
 pub use scene::{DirichletRegion, FemFloor, FemScene, NodeTarget, NodeTargetFunction};

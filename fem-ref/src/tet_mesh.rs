@@ -124,7 +124,7 @@ impl TetMesh {
 
     /// Signed volume of tetrahedron `tet` (m³).
     pub fn tet_volume(&self, tet: usize) -> f64 {
-        self.edge_matrix(tet).determinant() / 6.0
+        signed_volume(&self.tets[tet].map(|v| self.vertices[v]))
     }
 
     /// Total volume (m³).
@@ -140,34 +140,9 @@ impl TetMesh {
             volume_range: [f64::INFINITY, 0.0],
         };
         for (t, tet) in self.tets.iter().enumerate() {
-            let p = tet.map(|v| self.vertices[v]);
-            // Outward face normals; the dihedral angle at the edge shared by faces i and j is
-            // π minus the angle between their outward normals.
-            let normal = |i: usize| {
-                let [a, b, c] = [0, 1, 2, 3]
-                    .into_iter()
-                    .filter(|&k| k != i)
-                    .map(|k| p[k])
-                    .collect::<Vec<_>>()[..]
-                else {
-                    unreachable!()
-                };
-                let n = (b - a).cross(&(c - a)).normalize();
-                if n.dot(&(p[i] - a)) > 0.0 { -n } else { n }
-            };
-            let normals: Vec<Vector3<f64>> = (0..4).map(normal).collect();
-            for i in 0..4 {
-                for j in i + 1..4 {
-                    let angle = 180.0
-                        - normals[i]
-                            .dot(&normals[j])
-                            .clamp(-1.0, 1.0)
-                            .acos()
-                            .to_degrees();
-                    q.min_dihedral_degrees = q.min_dihedral_degrees.min(angle);
-                    q.max_dihedral_degrees = q.max_dihedral_degrees.max(angle);
-                }
-            }
+            let [lo, hi] = dihedral_angle_range(&tet.map(|v| self.vertices[v]));
+            q.min_dihedral_degrees = q.min_dihedral_degrees.min(lo);
+            q.max_dihedral_degrees = q.max_dihedral_degrees.max(hi);
             let v = self.tet_volume(t);
             q.volume_range[0] = q.volume_range[0].min(v);
             q.volume_range[1] = q.volume_range[1].max(v);
@@ -214,35 +189,14 @@ impl TetMesh {
                 }
             }
         }
-        const PERMUTATIONS: [[usize; 3]; 6] = [
-            [0, 1, 2],
-            [0, 2, 1],
-            [1, 0, 2],
-            [1, 2, 0],
-            [2, 0, 1],
-            [2, 1, 0],
-        ];
         let mut tets = Vec::with_capacity(6 * nx * ny * nz);
         for i in 0..nx {
             for j in 0..ny {
                 for k in 0..nz {
-                    for perm in PERMUTATIONS {
-                        // Walk from corner 000 to 111 adding one axis at a time.
-                        let mut corner = [i, j, k];
-                        let mut tet = [index(i, j, k); 4];
-                        for (n, axis) in perm.into_iter().enumerate() {
-                            corner[axis] += 1;
-                            tet[n + 1] = index(corner[0], corner[1], corner[2]);
-                        }
-                        // Odd permutations give negative orientation: swap two vertices.
-                        let v = &vertices;
-                        let d = Matrix3::from_columns(&[
-                            v[tet[1]] - v[tet[0]],
-                            v[tet[2]] - v[tet[0]],
-                            v[tet[3]] - v[tet[0]],
-                        ])
-                        .determinant();
-                        if d < 0.0 {
+                    for corners in KUHN_CUBE_TETS {
+                        let mut tet = corners.map(|[a, b, c]| index(i + a, j + b, k + c));
+                        let [p0, p1, p2, p3] = tet.map(|v| vertices[v]);
+                        if signed_volume(&[p0, p1, p2, p3]) < 0.0 {
                             tet.swap(2, 3);
                         }
                         tets.push(tet);
@@ -252,6 +206,63 @@ impl TetMesh {
         }
         TetMesh::new(vertices, tets)
     }
+}
+
+/// The six tetrahedra of the Kuhn (Freudenthal) split of the unit cube, as corner offsets: each
+/// walks from corner (0,0,0) to (1,1,1) adding one axis at a time, one tetrahedron per
+/// permutation of the axes. Odd permutations come out negatively oriented.
+pub(crate) const KUHN_CUBE_TETS: [[[usize; 3]; 4]; 6] = {
+    const PERMUTATIONS: [[usize; 3]; 6] = [
+        [0, 1, 2],
+        [0, 2, 1],
+        [1, 0, 2],
+        [1, 2, 0],
+        [2, 0, 1],
+        [2, 1, 0],
+    ];
+    let mut tets = [[[0; 3]; 4]; 6];
+    let mut t = 0;
+    while t < 6 {
+        let mut n = 0;
+        while n < 3 {
+            tets[t][n + 1] = tets[t][n];
+            tets[t][n + 1][PERMUTATIONS[t][n]] = 1;
+            n += 1;
+        }
+        t += 1;
+    }
+    tets
+};
+
+/// Signed volume `det[x1-x0, x2-x0, x3-x0] / 6` of a tetrahedron (m³).
+pub fn signed_volume([a, b, c, d]: &[Vector3<f64>; 4]) -> f64 {
+    Matrix3::from_columns(&[b - a, c - a, d - a]).determinant() / 6.0
+}
+
+/// Smallest and largest of a tetrahedron's six dihedral angles (degrees; 70.53° each for a
+/// regular one, 0° or 180° for a flat one).
+pub fn dihedral_angle_range(p: &[Vector3<f64>; 4]) -> [f64; 2] {
+    // Outward face normals; the dihedral angle at the edge shared by faces i and j is π minus
+    // the angle between their outward normals. Face i is the one opposite vertex i.
+    let normals: [Vector3<f64>; 4] = std::array::from_fn(|i| {
+        let [a, b, c] = [(i + 1) % 4, (i + 2) % 4, (i + 3) % 4].map(|k| p[k]);
+        let n = (b - a).cross(&(c - a)).normalize();
+        if n.dot(&(p[i] - a)) > 0.0 { -n } else { n }
+    });
+    let mut range = [180.0_f64, 0.0_f64];
+    for i in 0..4 {
+        for j in i + 1..4 {
+            let angle = 180.0
+                - normals[i]
+                    .dot(&normals[j])
+                    .clamp(-1.0, 1.0)
+                    .acos()
+                    .to_degrees();
+            range[0] = range[0].min(angle);
+            range[1] = range[1].max(angle);
+        }
+    }
+    range
 }
 
 #[cfg(test)]

@@ -30,6 +30,7 @@ pub mod material_field;
 pub mod point_cloud;
 pub mod shape_functions;
 pub mod spatial_index;
+pub mod surface_distance;
 pub mod triangle_mesh;
 
 pub use aabb::Aabb;
@@ -50,4 +51,5 @@ pub use shape_functions::{
     evaluate_shape_functions, shape_function_values_unshifted,
 };
 pub use spatial_index::SpatialIndex;
+pub use surface_distance::{ClosestPoint, SurfaceDistance};
 pub use triangle_mesh::{MeshValidationError, Normalization, TriangleMesh};

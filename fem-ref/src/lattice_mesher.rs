@@ -1,0 +1,532 @@
+//! Tetrahedralization of a closed triangle surface by cutting a Kuhn lattice along the surface
+//! (DESIGN 3.8: "a real tetrahedralization of the surface, volumes within 1%").
+//!
+//! Method (a marching-tetrahedra variant of isosurface stuffing, Labelle & Shewchuk 2007):
+//!
+//! 1. A cubic lattice of spacing `h = L / cells_across` (L: the surface's largest bounding-box
+//!    side) covers the surface's box with one cell of padding; every cube is split into the six
+//!    Kuhn tetrahedra ([`TetMesh::cuboid`]'s split).
+//! 2. At every lattice vertex, the signed distance `φ` to the surface (negative inside; the sign
+//!    from [`InsideTest`], the magnitude from [`SurfaceDistance`], clamped at `2h`). Vertices with
+//!    `|φ| < snap_fraction · h` count as *on* the surface (`φ := 0`).
+//! 3. `φ` is linear on each tetrahedron, so its inside part `{φ ≤ 0}` is a convex polytope: the
+//!    whole tetrahedron, a tetrahedron, a pyramid or a prism. Cut points on edges are shared
+//!    between neighbours, and every quadrilateral face is split along the diagonal through its
+//!    smallest vertex index (the rule of Dompierre et al. 1999), so the pieces are conforming.
+//!    Because `φ` is 1-Lipschitz and `|φ| ≥ snap_fraction · h` at every cut edge's ends, cut points
+//!    lie at least `snap_fraction / √3` of the edge from either end: no piece is arbitrarily thin.
+//! 4. Every vertex on the mesh's boundary is moved to its closest surface point, or a fraction
+//!    (½, ¼) of the way if the full move would push an incident tetrahedron's smallest dihedral
+//!    angle below `min_dihedral_guard_degrees` (or below its current value, if lower already).
+//!
+//! Features thinner than about one cell are lost; sharp edges are cut off by O(h²) per unit
+//! length. [`LatticeMesherReport::relative_volume_error`] says how close the result is.
+
+use std::collections::HashMap;
+use std::time::Instant;
+
+use nalgebra::Vector3;
+use rayon::prelude::*;
+use rkpm_core::{InsideTest, SurfaceDistance, TriangleMesh};
+use serde::{Deserialize, Serialize};
+use thiserror::Error;
+
+use crate::tet_mesh::{
+    KUHN_CUBE_TETS, TetMesh, TetMeshError, TetQuality, dihedral_angle_range, signed_volume,
+};
+
+/// A unit vector in no lattice or coordinate plane (see the sign query in [`tetrahedralize`]).
+const GENERIC_DIRECTION: Vector3<f64> = Vector3::new(
+    0.267_261_241_912_424_4,
+    0.534_522_483_824_848_8,
+    0.801_783_725_737_273_2,
+);
+
+/// Options of [`tetrahedralize`].
+#[derive(Clone, Copy, Debug, PartialEq, Serialize, Deserialize)]
+pub struct LatticeMesherParams {
+    /// Lattice cells along the surface's largest bounding-box side (`h = L / cells_across`).
+    /// Default 32.
+    pub cells_across: usize,
+    /// Lattice vertices closer to the surface than `snap_fraction · h` are treated as on it, in
+    /// `[0, 0.5)`. Larger values give fatter boundary tetrahedra. Default 0.3.
+    pub snap_fraction: f64,
+    /// A boundary vertex is moved onto the surface only as far as keeps every incident
+    /// tetrahedron's smallest dihedral angle at or above this (degrees). Default 10.
+    pub min_dihedral_guard_degrees: f64,
+}
+
+impl Default for LatticeMesherParams {
+    fn default() -> Self {
+        LatticeMesherParams {
+            cells_across: 32,
+            snap_fraction: 0.3,
+            min_dihedral_guard_degrees: 10.0,
+        }
+    }
+}
+
+/// What [`tetrahedralize`] built and how close it is to the surface.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+pub struct LatticeMesherReport {
+    /// Lattice spacing `h` (surface units).
+    pub cell_size: f64,
+    /// Lattice cells per axis (with padding).
+    pub lattice_cells: [usize; 3],
+    /// Vertices of the result.
+    pub vertices: usize,
+    /// Tetrahedra of the result.
+    pub tets: usize,
+    /// The surface's enclosed volume (divergence theorem).
+    pub surface_volume: f64,
+    /// The tetrahedral mesh's volume.
+    pub mesh_volume: f64,
+    /// `(mesh_volume - surface_volume) / surface_volume`.
+    pub relative_volume_error: f64,
+    /// Vertices on the mesh's boundary.
+    pub boundary_vertices: usize,
+    /// Boundary vertices moved only part of the way to the surface (quality guard), and not at
+    /// all.
+    pub boundary_vertices_held_back: [usize; 2],
+    /// Largest distance from a boundary vertex to the surface after the projection.
+    pub max_boundary_distance: f64,
+    /// Dihedral angles and volumes of the result.
+    pub quality: TetQuality,
+    /// Wall time (s).
+    pub seconds: f64,
+}
+
+/// Why [`tetrahedralize`] failed.
+#[derive(Debug, Error)]
+pub enum LatticeMesherError {
+    /// A parameter is out of range.
+    #[error("invalid lattice mesher parameter: {0}")]
+    InvalidParams(String),
+    /// No tetrahedron lies inside: the shape is thinner than the lattice resolves.
+    #[error(
+        "no lattice tetrahedron lies inside the surface at {cells_across} cells across \
+         (cell {cell_size:e}): the shape is thinner than the lattice; raise cells_across"
+    )]
+    NothingInside {
+        /// The resolution used.
+        cells_across: usize,
+        /// The cell size used.
+        cell_size: f64,
+    },
+    /// [`tetrahedralize_to_volume`] reached its finest lattice without the volume agreeing.
+    #[error(
+        "the tetrahedral volume is still {:+.2}% off the surface's at {cells_across} cells across \
+         (target ±{:.2}%): the shape has features thinner than the finest lattice",
+        100.0 * relative_volume_error, 100.0 * target
+    )]
+    VolumeNotReached {
+        /// The finest resolution tried.
+        cells_across: usize,
+        /// Its volume error.
+        relative_volume_error: f64,
+        /// The target.
+        target: f64,
+    },
+    /// The result failed validation (a bug if it happens: report it with the input).
+    #[error("the generated tetrahedral mesh is invalid: {0}")]
+    InvalidResult(#[from] TetMeshError),
+}
+
+/// When [`tetrahedralize_to_volume`] refines the lattice, and how far.
+#[derive(Clone, Copy, Debug, PartialEq, Serialize, Deserialize)]
+pub struct VolumeTarget {
+    /// Largest accepted `|relative_volume_error|`. Default 0.01 (DESIGN 3.8).
+    pub max_relative_error: f64,
+    /// Finest lattice tried. Default 128.
+    pub max_cells_across: usize,
+    /// Factor by which `cells_across` grows between tries (> 1). Default 1.5.
+    pub growth: f64,
+}
+
+impl Default for VolumeTarget {
+    fn default() -> Self {
+        VolumeTarget {
+            max_relative_error: 0.01,
+            max_cells_across: 128,
+            growth: 1.5,
+        }
+    }
+}
+
+/// [`tetrahedralize`], starting at `params.cells_across` and refining by `target.growth` until
+/// the volume agrees with the surface's within `target.max_relative_error`. The report's
+/// `cell_size` says which lattice was used.
+///
+/// # Errors
+/// As [`tetrahedralize`] (at the coarsest lattice where it fails, `NothingInside` is not an
+/// error but a reason to refine), and [`LatticeMesherError::VolumeNotReached`] with the finest
+/// lattice's error.
+pub fn tetrahedralize_to_volume(
+    surface: &TriangleMesh,
+    params: &LatticeMesherParams,
+    target: &VolumeTarget,
+) -> Result<(TetMesh, LatticeMesherReport), LatticeMesherError> {
+    if !(target.growth > 1.0) || !(target.max_relative_error > 0.0) {
+        return Err(LatticeMesherError::InvalidParams(format!(
+            "volume target needs growth > 1 and a positive error, got {target:?}"
+        )));
+    }
+    let mut cells_across = params.cells_across;
+    loop {
+        let attempt = tetrahedralize(
+            surface,
+            &LatticeMesherParams {
+                cells_across,
+                ..*params
+            },
+        );
+        let relative_volume_error = match attempt {
+            Ok((mesh, report)) => {
+                if report.relative_volume_error.abs() <= target.max_relative_error {
+                    return Ok((mesh, report));
+                }
+                report.relative_volume_error
+            }
+            Err(LatticeMesherError::NothingInside { .. }) => -1.0,
+            Err(e) => return Err(e),
+        };
+        if cells_across >= target.max_cells_across {
+            return Err(LatticeMesherError::VolumeNotReached {
+                cells_across,
+                relative_volume_error,
+                target: target.max_relative_error,
+            });
+        }
+        cells_across = ((cells_across as f64 * target.growth).ceil() as usize)
+            .clamp(cells_across + 1, target.max_cells_across);
+    }
+}
+
+/// Tetrahedralizes the solid bounded by a closed, consistently oriented surface (see the module
+/// docs for the method). Vertices are in the surface's units.
+///
+/// # Errors
+/// [`LatticeMesherError::InvalidParams`] for `cells_across = 0` or a snap fraction outside
+/// `[0, 0.5)`; [`LatticeMesherError::NothingInside`] when the lattice misses the solid.
+#[allow(non_snake_case)]
+pub fn tetrahedralize(
+    surface: &TriangleMesh,
+    params: &LatticeMesherParams,
+) -> Result<(TetMesh, LatticeMesherReport), LatticeMesherError> {
+    let start = Instant::now();
+    if params.cells_across == 0 {
+        return Err(LatticeMesherError::InvalidParams(
+            "cells_across must be at least 1".into(),
+        ));
+    }
+    if !(0.0..0.5).contains(&params.snap_fraction) {
+        return Err(LatticeMesherError::InvalidParams(format!(
+            "snap_fraction {} is outside [0, 0.5)",
+            params.snap_fraction
+        )));
+    }
+    if !(0.0..60.0).contains(&params.min_dihedral_guard_degrees) {
+        return Err(LatticeMesherError::InvalidParams(format!(
+            "min_dihedral_guard_degrees {} is outside [0, 60)",
+            params.min_dihedral_guard_degrees
+        )));
+    }
+    let bbox = surface.bounding_box();
+    let h = bbox.largest_side() / params.cells_across as f64;
+    let origin = bbox.min - Vector3::repeat(h);
+    let cells: [usize; 3] = std::array::from_fn(|d| (bbox.extent()[d] / h).ceil() as usize + 2);
+    let [nx, ny, nz] = cells;
+    let lattice_index = |i: usize, j: usize, k: usize| (i * (ny + 1) + j) * (nz + 1) + k;
+    let lattice_vertices = (nx + 1) * (ny + 1) * (nz + 1);
+    let mut positions: Vec<Vector3<f64>> = (0..lattice_vertices)
+        .map(|v| {
+            let (i, j, k) = (
+                v / ((ny + 1) * (nz + 1)),
+                (v / (nz + 1)) % (ny + 1),
+                v % (nz + 1),
+            );
+            origin + Vector3::new(i as f64, j as f64, k as f64) * h
+        })
+        .collect();
+
+    // 2. Signed distance, clamped and snapped.
+    let inside = InsideTest::new(surface);
+    let distance = SurfaceDistance::new(surface);
+    let snap = params.snap_fraction * h;
+    let phi: Vec<f64> = positions
+        .par_iter()
+        .map(|p| {
+            let d = distance
+                .closest_point(p, 2.0 * h)
+                .map_or(2.0 * h, |c| c.distance);
+            // The side of a point farther than d from the surface is the side of every point
+            // within d of it: query a generic neighbour instead, so rays from lattice points
+            // do not graze the edges of axis-aligned (CAD) surfaces and fall back to the slow
+            // exact winding number.
+            if d < snap {
+                0.0
+            } else if inside.contains(&(p + GENERIC_DIRECTION * (0.5 * d))) {
+                -d
+            } else {
+                d
+            }
+        })
+        .collect();
+
+    // 3. Inside parts of the Kuhn tetrahedra.
+    let mut builder = PieceBuilder {
+        positions: &mut positions,
+        phi: &phi,
+        cut_points: HashMap::new(),
+        tets: Vec::new(),
+    };
+    for i in 0..nx {
+        for j in 0..ny {
+            for k in 0..nz {
+                let corner = |[a, b, c]: [usize; 3]| lattice_index(i + a, j + b, k + c);
+                let any_inside =
+                    (0..8).any(|c| phi[corner([c >> 2 & 1, c >> 1 & 1, c & 1])] <= 0.0);
+                if !any_inside {
+                    continue;
+                }
+                for offsets in KUHN_CUBE_TETS {
+                    builder.add_inside_part(offsets.map(corner), &inside);
+                }
+            }
+        }
+    }
+    let PieceBuilder { mut tets, .. } = builder;
+    if tets.is_empty() {
+        return Err(LatticeMesherError::NothingInside {
+            cells_across: params.cells_across,
+            cell_size: h,
+        });
+    }
+
+    for tet in &mut tets {
+        if signed_volume(&tet.map(|w| positions[w])) < 0.0 {
+            tet.swap(2, 3);
+        }
+    }
+
+    // 4. Boundary vertices onto the surface, guarded.
+    let boundary = boundary_vertices(&tets);
+    let incident = incident_tets(&tets, positions.len());
+    let mut held_back = [0usize; 2];
+    let mut max_boundary_distance = 0.0_f64;
+    for &v in &boundary {
+        let p = positions[v];
+        let Some(target) = distance.closest_point(&p, f64::INFINITY) else {
+            continue;
+        };
+        let guard = |positions: &[Vector3<f64>]| -> Vec<f64> {
+            incident[v]
+                .iter()
+                .map(|&t| {
+                    let corners = tets[t].map(|w| positions[w]);
+                    if signed_volume(&corners) <= 0.0 {
+                        -1.0
+                    } else {
+                        dihedral_angle_range(&corners)[0]
+                    }
+                })
+                .collect()
+        };
+        let before = guard(&positions);
+        let mut accepted = None;
+        for (attempt, fraction) in [1.0, 0.5, 0.25].into_iter().enumerate() {
+            positions[v] = p + (target.point - p) * fraction;
+            let after = guard(&positions);
+            let ok = before
+                .iter()
+                .zip(&after)
+                .all(|(&b, &a)| a > 0.0 && a >= params.min_dihedral_guard_degrees.min(b));
+            if ok {
+                accepted = Some(attempt);
+                break;
+            }
+        }
+        match accepted {
+            Some(0) => {}
+            Some(_) => held_back[0] += 1,
+            None => {
+                held_back[1] += 1;
+                positions[v] = p;
+            }
+        }
+        max_boundary_distance = max_boundary_distance.max((positions[v] - target.point).norm());
+    }
+
+    // Compact and validate.
+    let mut renumber = vec![usize::MAX; positions.len()];
+    let mut vertices = Vec::new();
+    for tet in &mut tets {
+        for w in tet.iter_mut() {
+            if renumber[*w] == usize::MAX {
+                renumber[*w] = vertices.len();
+                vertices.push(positions[*w]);
+            }
+            *w = renumber[*w];
+        }
+    }
+    let mesh = TetMesh::new(vertices, tets)?;
+    let surface_volume = surface.volume();
+    let mesh_volume = mesh.volume();
+    let report = LatticeMesherReport {
+        cell_size: h,
+        lattice_cells: cells,
+        vertices: mesh.vertices().len(),
+        tets: mesh.tets().len(),
+        surface_volume,
+        mesh_volume,
+        relative_volume_error: (mesh_volume - surface_volume) / surface_volume,
+        boundary_vertices: boundary.len(),
+        boundary_vertices_held_back: held_back,
+        max_boundary_distance,
+        quality: mesh.quality(),
+        seconds: start.elapsed().as_secs_f64(),
+    };
+    Ok((mesh, report))
+}
+
+/// Accumulates the inside parts of lattice tetrahedra. Vertex ids: lattice vertices first, then
+/// cut points in order of creation (appended to `positions`).
+struct PieceBuilder<'a> {
+    positions: &'a mut Vec<Vector3<f64>>,
+    phi: &'a [f64],
+    /// Lattice edge (smaller id, larger id) → cut-point id.
+    cut_points: HashMap<(usize, usize), usize>,
+    tets: Vec<[usize; 4]>,
+}
+
+impl PieceBuilder<'_> {
+    /// The point where `φ` crosses zero on the edge from `a` (inside) to `b` (outside).
+    fn cut(&mut self, a: usize, b: usize) -> usize {
+        let key = (a.min(b), a.max(b));
+        if let Some(&id) = self.cut_points.get(&key) {
+            return id;
+        }
+        let t = self.phi[a] / (self.phi[a] - self.phi[b]);
+        let p = self.positions[a] + (self.positions[b] - self.positions[a]) * t;
+        let id = self.positions.len();
+        self.positions.push(p);
+        self.cut_points.insert(key, id);
+        id
+    }
+
+    fn add_inside_part(&mut self, tet: [usize; 4], inside: &InsideTest) {
+        let phi = |v: usize| self.phi[v];
+        let ins: Vec<usize> = tet.iter().copied().filter(|&v| phi(v) < 0.0).collect();
+        let ons: Vec<usize> = tet.iter().copied().filter(|&v| phi(v) == 0.0).collect();
+        let outs: Vec<usize> = tet.iter().copied().filter(|&v| phi(v) > 0.0).collect();
+        match (ins.len(), ons.len(), outs.len()) {
+            (0, 4, 0) => {
+                // Every corner on the surface: keep it if its centroid is inside.
+                let centroid = tet.iter().map(|&v| self.positions[v]).sum::<Vector3<f64>>() / 4.0;
+                if inside.contains(&centroid) {
+                    self.tets.push(tet);
+                }
+            }
+            (0, _, _) => {}
+            (_, _, 0) => self.tets.push(tet),
+            (1, _, _) => {
+                let a = ins[0];
+                let cuts: Vec<usize> = outs.iter().map(|&c| self.cut(a, c)).collect();
+                let mut piece = vec![a];
+                piece.extend(&ons);
+                piece.extend(cuts);
+                self.tets.push([piece[0], piece[1], piece[2], piece[3]]);
+            }
+            (2, 0, 2) => {
+                let ([a, b], [c, d]) = ([ins[0], ins[1]], [outs[0], outs[1]]);
+                let bottom = [a, self.cut(a, c), self.cut(a, d)];
+                let top = [b, self.cut(b, c), self.cut(b, d)];
+                self.push_prism(bottom, top);
+            }
+            (2, 1, 1) => {
+                let ([a, b], o, c) = ([ins[0], ins[1]], ons[0], outs[0]);
+                let quad = [a, b, self.cut(b, c), self.cut(a, c)];
+                self.push_pyramid(quad, o);
+            }
+            (3, 0, 1) => {
+                let d = outs[0];
+                let bottom = [ins[0], ins[1], ins[2]];
+                let top = bottom.map(|a| self.cut(a, d));
+                self.push_prism(bottom, top);
+            }
+            _ => unreachable!("four corners classify into in/on/out"),
+        }
+    }
+
+    /// Splits the pyramid with base quad `q` (cyclic order) and apex `apex` along the quad's
+    /// diagonal through its smallest id.
+    fn push_pyramid(&mut self, q: [usize; 4], apex: usize) {
+        let first = (0..4).min_by_key(|&i| q[i]).unwrap_or(0);
+        let [q0, q1, q2, q3] = std::array::from_fn(|i| q[(first + i) % 4]);
+        self.tets.push([q0, q1, q2, apex]);
+        self.tets.push([q0, q2, q3, apex]);
+    }
+
+    /// Splits the prism with triangles `bottom` and `top` (`bottom[i]`–`top[i]` are its lateral
+    /// edges) into three tetrahedra, every quad split along the diagonal through its smallest id
+    /// (Dompierre et al. 1999, Table 2).
+    fn push_prism(&mut self, bottom: [usize; 3], top: [usize; 3]) {
+        let all = [bottom, top];
+        let (side, first) = (0..6)
+            .map(|n| (n / 3, n % 3))
+            .min_by_key(|&(s, i)| all[s][i])
+            .unwrap_or((0, 0));
+        // Rotate (and swap bottom/top) so the smallest id is a0.
+        let a: [usize; 3] = std::array::from_fn(|i| all[side][(first + i) % 3]);
+        let b: [usize; 3] = std::array::from_fn(|i| all[1 - side][(first + i) % 3]);
+        let [a0, a1, a2] = a;
+        let [b0, b1, b2] = b;
+        let quad_min = a1.min(a2).min(b1).min(b2);
+        if quad_min == b1 || quad_min == a2 {
+            self.tets.push([a0, a1, a2, b1]);
+            self.tets.push([a0, b1, a2, b2]);
+        } else {
+            self.tets.push([a0, a1, a2, b2]);
+            self.tets.push([a0, a1, b2, b1]);
+        }
+        self.tets.push([a0, b1, b2, b0]);
+    }
+}
+
+/// Vertices of faces that belong to exactly one tetrahedron, sorted.
+fn boundary_vertices(tets: &[[usize; 4]]) -> Vec<usize> {
+    let mut faces: HashMap<[usize; 3], u32> = HashMap::with_capacity(2 * tets.len());
+    for tet in tets {
+        for skip in 0..4 {
+            let mut face = [0; 3];
+            let mut n = 0;
+            for (i, &v) in tet.iter().enumerate() {
+                if i != skip {
+                    face[n] = v;
+                    n += 1;
+                }
+            }
+            face.sort_unstable();
+            *faces.entry(face).or_insert(0) += 1;
+        }
+    }
+    let mut vertices: Vec<usize> = faces
+        .into_iter()
+        .filter(|&(_, count)| count == 1)
+        .flat_map(|(face, _)| face)
+        .collect();
+    vertices.sort_unstable();
+    vertices.dedup();
+    vertices
+}
+
+/// For each vertex id below `vertex_count`, the tetrahedra that use it.
+fn incident_tets(tets: &[[usize; 4]], vertex_count: usize) -> Vec<Vec<usize>> {
+    let mut incident = vec![Vec::new(); vertex_count];
+    for (t, tet) in tets.iter().enumerate() {
+        for &v in tet {
+            incident[v].push(t);
+        }
+    }
+    incident
+}
