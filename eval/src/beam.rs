@@ -1,0 +1,98 @@
+//! The beam experiments of DESIGN 4.1: a 5 m × 1 m × 1 m beam, E = 5 MPa, ν = 0.45,
+//! ρ = 1000 kg/m³, h = 0.01 s; Bend (gravity, x ≤ 0.5 pinned, 300 steps) and Twist (x ≤ 0.5
+//! pinned, x ≥ 4.5 rotated about the beam axis by min(2160°/s · t, 720°), 34 steps).
+
+use nalgebra::Vector3;
+use rkpm_core::MaterialSample;
+use serde::{Deserialize, Serialize};
+
+use crate::scene_spec::{Constraint, Motion, Region, SceneSpec};
+
+/// Rest box of the beam (m).
+pub const BEAM_MIN: Vector3<f64> = Vector3::new(0.0, 0.0, 0.0);
+/// Rest box of the beam (m).
+pub const BEAM_MAX: Vector3<f64> = Vector3::new(5.0, 1.0, 1.0);
+/// Time step of every beam run (s).
+pub const BEAM_TIME_STEP: f64 = 0.01;
+
+/// The beam's material: E = 5·10⁶ Pa, ν = 0.45, ρ = 1000 kg/m³.
+pub fn beam_material() -> MaterialSample {
+    MaterialSample {
+        youngs_modulus: 5e6,
+        poisson_ratio: 0.45,
+        density: 1000.0,
+    }
+}
+
+/// The two beam tests.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash, Serialize, Deserialize)]
+#[serde(rename_all = "lowercase")]
+pub enum BeamTest {
+    /// Gravity 9.8 m/s² along -y, x ≤ 0.5 pinned (Tables call it Bend or Drop).
+    Bend,
+    /// No gravity, x ≤ 0.5 pinned, x ≥ 4.5 twisted to 720°.
+    Twist,
+}
+
+impl BeamTest {
+    /// Both tests, Bend first.
+    pub const ALL: [BeamTest; 2] = [BeamTest::Bend, BeamTest::Twist];
+
+    /// "bend" or "twist".
+    pub fn name(self) -> &'static str {
+        match self {
+            BeamTest::Bend => "bend",
+            BeamTest::Twist => "twist",
+        }
+    }
+
+    /// Steps of DESIGN 4.1: 300 for Bend (3 s), 34 for Twist (the end reaches 720° at 1/3 s).
+    pub fn steps(self) -> usize {
+        match self {
+            BeamTest::Bend => 300,
+            BeamTest::Twist => 34,
+        }
+    }
+
+    /// The scene, shared by every solver.
+    pub fn scene(self) -> SceneSpec {
+        let pinned = Constraint {
+            region: Region::Below {
+                axis: 0,
+                value: 0.5,
+            },
+            motion: Motion::Rest,
+        };
+        match self {
+            BeamTest::Bend => SceneSpec {
+                gravity: Some(Vector3::new(0.0, -9.8, 0.0)),
+                constraints: vec![pinned],
+                floor: None,
+            },
+            BeamTest::Twist => SceneSpec {
+                gravity: None,
+                constraints: vec![
+                    pinned,
+                    Constraint {
+                        region: Region::Above {
+                            axis: 0,
+                            value: 4.5,
+                        },
+                        motion: Motion::Rotate {
+                            center: Vector3::new(4.75, 0.5, 0.5),
+                            axis: Vector3::x(),
+                            rate_degrees_per_second: 2160.0,
+                            max_angle_degrees: 720.0,
+                        },
+                    },
+                ],
+                floor: None,
+            },
+        }
+    }
+}
+
+/// Grid spacing of a beam grid with about `n` cells (m).
+pub fn beam_grid_spacing(n: usize) -> f64 {
+    (5.0 / n.max(1) as f64).cbrt()
+}

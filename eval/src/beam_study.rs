@@ -1,0 +1,200 @@
+//! The beam study behind Tables 1, 5 and 6: for each m, one basis; for each test, the FEM ground
+//! truth (cached) and a reduced run evaluated at the FEM vertices.
+
+use std::path::PathBuf;
+
+use reduced_sim::DeformationMap;
+use serde::{Deserialize, Serialize};
+
+use crate::EvalError;
+use crate::beam::{BEAM_MAX, BEAM_MIN, BeamTest};
+use crate::fem_reference::{FemBeamRun, FemResolution, run_fem_beam};
+use crate::metrics::{basis_fitting_residual, trajectory_errors};
+use crate::progress::Progress;
+use crate::reduced_beam::{ReducedSettings, build_beam_basis, run_reduced_beam};
+
+/// What the study runs.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+pub struct BeamStudyConfig {
+    /// Modes m to run.
+    pub modes: Vec<usize>,
+    /// Tests to run.
+    pub tests: Vec<BeamTest>,
+    /// Everything but m.
+    pub settings: ReducedSettings,
+    /// Steps per test; `None` for DESIGN 4.1's (300 Bend, 34 Twist).
+    pub steps: Option<usize>,
+    /// The FEM ground truth.
+    pub fem: FemResolution,
+    /// Cache folder (FEM trajectories under `fem/`).
+    pub cache_dir: PathBuf,
+}
+
+impl BeamStudyConfig {
+    /// The paper's configuration: m ∈ {6, 9, 16, 32}, both tests, K = 1000, DESIGN 4.1's steps,
+    /// FEM P2 res 6.
+    pub fn full(cache_dir: PathBuf) -> Self {
+        BeamStudyConfig {
+            modes: vec![6, 9, 16, 32],
+            tests: BeamTest::ALL.to_vec(),
+            settings: ReducedSettings::default(),
+            steps: None,
+            fem: FemResolution::GROUND_TRUTH,
+            cache_dir,
+        }
+    }
+
+    /// A few-minute version: m ∈ {6, 16}, K = 500 on 10k basis points, 100 Bend steps (Twist
+    /// keeps its 34), FEM P2 res 4.
+    pub fn quick(cache_dir: PathBuf) -> Self {
+        BeamStudyConfig {
+            modes: vec![6, 16],
+            settings: ReducedSettings {
+                kernels: 500,
+                basis_points: 10_000,
+                ..ReducedSettings::default()
+            },
+            steps: Some(100),
+            fem: FemResolution {
+                cells_per_metre: 4,
+                ..FemResolution::GROUND_TRUTH
+            },
+            ..BeamStudyConfig::full(cache_dir)
+        }
+    }
+
+    /// Steps of `test` in this configuration (Twist never runs past its 34 steps).
+    pub fn steps_of(&self, test: BeamTest) -> usize {
+        self.steps.unwrap_or(test.steps()).min(test.steps())
+    }
+}
+
+/// One (test, m) result.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+pub struct BeamRow {
+    /// Bend or Twist.
+    pub test: BeamTest,
+    /// Modes.
+    pub m: usize,
+    /// Normalized MSE against FEM (DESIGN 4.3).
+    pub ours_mse: f64,
+    /// Normalized max error against FEM.
+    pub ours_max: f64,
+    /// Basis fitting residual of the FEM trajectory through our deformation map.
+    pub fitting_residual: f64,
+    /// Wall time per step (ms).
+    pub ms_per_step: f64,
+    /// Mean Newton iterations per step.
+    pub iterations_per_step: f64,
+    /// Steps that did not converge.
+    pub unconverged_steps: usize,
+    /// Largest pinned-point drift (m).
+    pub max_pin_deviation: f64,
+    /// Basis build time (s).
+    pub basis_seconds: f64,
+}
+
+/// The FEM side of a test.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+pub struct FemSummary {
+    /// Bend or Twist.
+    pub test: BeamTest,
+    /// "P2 res 6".
+    pub resolution: String,
+    /// Steps run.
+    pub steps: usize,
+    /// Free DOFs.
+    pub dofs: usize,
+    /// Vertices where metrics are evaluated.
+    pub vertices: usize,
+    /// Seconds per step of the run that produced the trajectory.
+    pub seconds_per_step: f64,
+    /// Newton iterations per step.
+    pub iterations_per_step: f64,
+    /// Unconverged steps.
+    pub unconverged_steps: usize,
+    /// Loaded from the cache.
+    pub cached: bool,
+}
+
+/// Everything the beam tables print.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+pub struct BeamStudy {
+    /// What was run.
+    pub config: BeamStudyConfig,
+    /// One row per (test, m), tests outermost.
+    pub rows: Vec<BeamRow>,
+    /// One summary per test.
+    pub fem: Vec<FemSummary>,
+}
+
+/// Largest side of the beam's rest box, the normalization length L (m).
+pub fn beam_length_scale() -> f64 {
+    (BEAM_MAX - BEAM_MIN).max()
+}
+
+/// Runs the study.
+///
+/// # Errors
+/// [`EvalError`] from any run; nothing is half-reported.
+pub fn run_beam_study(
+    config: &BeamStudyConfig,
+    progress: &Progress,
+) -> Result<BeamStudy, EvalError> {
+    let mut references: Vec<(BeamTest, FemBeamRun)> = Vec::new();
+    let mut fem = Vec::new();
+    for &test in &config.tests {
+        let steps = config.steps_of(test);
+        let run = run_fem_beam(test, config.fem, steps, &config.cache_dir, progress)?;
+        fem.push(FemSummary {
+            test,
+            resolution: config.fem.label(),
+            steps,
+            dofs: run.dofs,
+            vertices: run.vertices().len(),
+            seconds_per_step: run.seconds_per_step,
+            iterations_per_step: run.iterations_per_step,
+            unconverged_steps: run.unconverged_steps,
+            cached: run.cached,
+        });
+        references.push((test, run));
+    }
+    let length = beam_length_scale();
+    let mut rows = Vec::new();
+    for &m in &config.modes {
+        let settings = ReducedSettings {
+            modes: m,
+            ..config.settings
+        };
+        progress.status(format!("basis m = {m}, K = {}", settings.kernels));
+        let basis = build_beam_basis(&settings)?;
+        for (test, reference) in &references {
+            let steps = config.steps_of(*test);
+            let vertices = reference.vertices();
+            let run = run_reduced_beam(*test, &basis.basis, &settings, vertices, steps, progress)?;
+            let fem_frames = reference.vertex_frames();
+            let errors = trajectory_errors(&run.frames[1..], &fem_frames[1..], length)?;
+            let map = DeformationMap::new(&basis.basis, vertices)
+                .map_err(|e| EvalError::Setup(e.to_string()))?;
+            let fitting_residual = basis_fitting_residual(&map, &fem_frames[1..], length)?;
+            rows.push(BeamRow {
+                test: *test,
+                m,
+                ours_mse: errors.normalized_mse,
+                ours_max: errors.normalized_max,
+                fitting_residual,
+                ms_per_step: run.ms_per_step,
+                iterations_per_step: run.iterations_per_step,
+                unconverged_steps: run.unconverged_steps,
+                max_pin_deviation: run.max_pin_deviation,
+                basis_seconds: basis.seconds,
+            });
+        }
+    }
+    rows.sort_by_key(|r| (r.test != BeamTest::Bend, r.m));
+    Ok(BeamStudy {
+        config: config.clone(),
+        rows,
+        fem,
+    })
+}

@@ -1,0 +1,408 @@
+//! The error-vs-time study (DESIGN 5) on the beam Bend: sweep the knobs that trade time for
+//! error — modes m, kernels K, simulation points, Newton tolerance, and coarser FEM as its own
+//! method — and mark the Pareto front (no other configuration is both faster and more accurate).
+
+use std::fmt::Write as _;
+use std::path::{Path, PathBuf};
+
+use fem_ref::ElementOrder;
+use serde::{Deserialize, Serialize};
+
+use crate::EvalError;
+use crate::beam::BeamTest;
+use crate::beam_study::beam_length_scale;
+use crate::fem_reference::{FemResolution, run_fem_beam};
+use crate::metrics::trajectory_errors;
+use crate::output::write_atomically;
+use crate::plot::{PlotSpec, Series};
+use crate::progress::Progress;
+use crate::reduced_beam::{ReducedSettings, build_beam_basis, run_reduced_beam};
+
+/// One configuration to time.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+pub enum BenchMethod {
+    /// FreeForm with these settings.
+    FreeForm(ReducedSettings),
+    /// The FEM at a coarser resolution than the ground truth.
+    Fem(FemResolution),
+}
+
+/// What to sweep.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+pub struct BenchConfig {
+    /// Bend steps (300 = DESIGN 4.1).
+    pub steps: usize,
+    /// The ground truth.
+    pub ground_truth: FemResolution,
+    /// (knob being varied, configuration).
+    pub runs: Vec<(String, BenchMethod)>,
+    /// Cache folder.
+    pub cache_dir: PathBuf,
+}
+
+impl BenchConfig {
+    /// The full sweep around the default (m = 16, K = 1000, 5000 points, tolerance 1e-6).
+    pub fn full(cache_dir: PathBuf) -> Self {
+        let base = ReducedSettings::default();
+        let mut runs = Vec::new();
+        for m in [6, 9, 16, 32] {
+            runs.push((
+                "m".into(),
+                BenchMethod::FreeForm(ReducedSettings { modes: m, ..base }),
+            ));
+        }
+        for k in [250, 500, 2000] {
+            runs.push((
+                "K".into(),
+                BenchMethod::FreeForm(ReducedSettings { kernels: k, ..base }),
+            ));
+        }
+        for n in [1000, 2000, 10_000] {
+            runs.push((
+                "points".into(),
+                BenchMethod::FreeForm(ReducedSettings {
+                    simulation_points: n,
+                    ..base
+                }),
+            ));
+        }
+        for tol in [1e-2, 1e-4] {
+            runs.push((
+                "tolerance".into(),
+                BenchMethod::FreeForm(ReducedSettings {
+                    tolerance: tol,
+                    ..base
+                }),
+            ));
+        }
+        for pin_factor in [1e2, 1e4] {
+            runs.push((
+                "pin factor".into(),
+                BenchMethod::FreeForm(ReducedSettings { pin_factor, ..base }),
+            ));
+        }
+        for (order, r) in [
+            (ElementOrder::Linear, 2),
+            (ElementOrder::Linear, 4),
+            (ElementOrder::Linear, 8),
+            (ElementOrder::Quadratic, 2),
+            (ElementOrder::Quadratic, 4),
+        ] {
+            runs.push((
+                "FEM".into(),
+                BenchMethod::Fem(FemResolution {
+                    order,
+                    cells_per_metre: r,
+                }),
+            ));
+        }
+        BenchConfig {
+            steps: BeamTest::Bend.steps(),
+            ground_truth: FemResolution::GROUND_TRUTH,
+            runs,
+            cache_dir,
+        }
+    }
+
+    /// A one-minute sweep: 100 steps, ground truth P2 res 4, m ∈ {6, 16} at K = 500, two FEM
+    /// levels.
+    pub fn quick(cache_dir: PathBuf) -> Self {
+        let base = ReducedSettings {
+            kernels: 500,
+            basis_points: 10_000,
+            ..ReducedSettings::default()
+        };
+        let mut runs: Vec<(String, BenchMethod)> = [6, 16]
+            .into_iter()
+            .map(|m| {
+                (
+                    "m".into(),
+                    BenchMethod::FreeForm(ReducedSettings { modes: m, ..base }),
+                )
+            })
+            .collect();
+        runs.push((
+            "points".into(),
+            BenchMethod::FreeForm(ReducedSettings {
+                simulation_points: 2000,
+                ..base
+            }),
+        ));
+        for order in [ElementOrder::Linear, ElementOrder::Quadratic] {
+            runs.push((
+                "FEM".into(),
+                BenchMethod::Fem(FemResolution {
+                    order,
+                    cells_per_metre: 2,
+                }),
+            ));
+        }
+        BenchConfig {
+            steps: 100,
+            ground_truth: FemResolution {
+                cells_per_metre: 4,
+                ..FemResolution::GROUND_TRUTH
+            },
+            runs,
+            cache_dir,
+        }
+    }
+}
+
+/// One timed configuration.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+pub struct BenchResult {
+    /// "freeform" or "fem".
+    pub method: String,
+    /// The knob varied ("m", "K", "points", "tolerance", "pin factor", "FEM").
+    pub knob: String,
+    /// Human-readable settings.
+    pub label: String,
+    /// Wall time per step (ms).
+    pub ms_per_step: f64,
+    /// One-off cost before stepping: basis build for FreeForm (s); 0 for FEM.
+    pub setup_seconds: f64,
+    /// Normalized MSE against the ground truth.
+    pub normalized_mse: f64,
+    /// Normalized max error.
+    pub normalized_max: f64,
+    /// On the Pareto front of (ms per step, MSE).
+    pub pareto: bool,
+}
+
+/// Indices of the results no other result beats in both time and error.
+pub fn pareto_front(points: &[(f64, f64)]) -> Vec<usize> {
+    (0..points.len())
+        .filter(|&i| {
+            !(0..points.len()).any(|j| {
+                j != i
+                    && points[j].0 <= points[i].0
+                    && points[j].1 <= points[i].1
+                    && (points[j].0 < points[i].0 || points[j].1 < points[i].1)
+            })
+        })
+        .collect()
+}
+
+/// Runs every configuration against the ground truth.
+///
+/// # Errors
+/// [`EvalError`] from any run.
+pub fn run_bench(config: &BenchConfig, progress: &Progress) -> Result<Vec<BenchResult>, EvalError> {
+    let truth = run_fem_beam(
+        BeamTest::Bend,
+        config.ground_truth,
+        config.steps,
+        &config.cache_dir,
+        progress,
+    )?;
+    let truth_frames = truth.vertex_frames();
+    let vertices = truth.vertices().to_vec();
+    let length = beam_length_scale();
+    let mut results = Vec::new();
+    for (knob, method) in &config.runs {
+        let (name, label, ms, setup, frames) = match method {
+            BenchMethod::FreeForm(s) => {
+                let basis = build_beam_basis(s)?;
+                let run = run_reduced_beam(
+                    BeamTest::Bend,
+                    &basis.basis,
+                    s,
+                    &vertices,
+                    config.steps,
+                    progress,
+                )?;
+                (
+                    "freeform",
+                    format!(
+                        "m={} K={} pts={} tol={:e} pin={:e}",
+                        s.modes, s.kernels, run.simulation_points, s.tolerance, s.pin_factor
+                    ),
+                    run.ms_per_step,
+                    basis.seconds,
+                    run.frames,
+                )
+            }
+            BenchMethod::Fem(r) => {
+                let run = run_fem_beam(
+                    BeamTest::Bend,
+                    *r,
+                    config.steps,
+                    &config.cache_dir,
+                    progress,
+                )?;
+                let frames = run.frames_at(&vertices)?;
+                (
+                    "fem",
+                    format!("{} ({} DOFs)", r.label(), run.dofs),
+                    1e3 * run.seconds_per_step,
+                    0.0,
+                    frames,
+                )
+            }
+        };
+        let errors = trajectory_errors(&frames[1..], &truth_frames[1..], length)?;
+        progress.status(format!(
+            "{name} {label}: {ms:.2} ms/step, MSE {:.2e}",
+            errors.normalized_mse
+        ));
+        results.push(BenchResult {
+            method: name.into(),
+            knob: knob.clone(),
+            label,
+            ms_per_step: ms,
+            setup_seconds: setup,
+            normalized_mse: errors.normalized_mse,
+            normalized_max: errors.normalized_max,
+            pareto: false,
+        });
+    }
+    let points: Vec<(f64, f64)> = results
+        .iter()
+        .map(|r| (r.ms_per_step, r.normalized_mse))
+        .collect();
+    for i in pareto_front(&points) {
+        results[i].pareto = true;
+    }
+    Ok(results)
+}
+
+/// Writes `bench.csv` and `bench.md` under `dir`; returns the Markdown and the paths.
+///
+/// # Errors
+/// [`EvalError`] for a file that cannot be written.
+pub fn write_bench(
+    results: &[BenchResult],
+    config: &BenchConfig,
+    dir: &Path,
+) -> Result<(String, Vec<PathBuf>), EvalError> {
+    let mut csv = String::from(
+        "method,knob,label,ms_per_step,setup_seconds,normalized_mse,normalized_max,pareto\n",
+    );
+    let mut md = format!(
+        "## Error vs time, beam Bend ({} steps; ground truth FEM {}; {} threads)\n\n\
+         | method | knob | settings | ms/step | setup s | MSE | max | Pareto |\n|---|---|---|---|---|---|---|---|\n",
+        config.steps,
+        config.ground_truth.label(),
+        rayon::current_num_threads()
+    );
+    for r in results {
+        let _ = writeln!(
+            csv,
+            "{},{},\"{}\",{},{},{:e},{:e},{}",
+            r.method,
+            r.knob,
+            r.label,
+            r.ms_per_step,
+            r.setup_seconds,
+            r.normalized_mse,
+            r.normalized_max,
+            r.pareto
+        );
+        let _ = writeln!(
+            md,
+            "| {} | {} | {} | {:.2} | {:.1} | {:.2e} | {:.2e} | {} |",
+            r.method,
+            r.knob,
+            r.label,
+            r.ms_per_step,
+            r.setup_seconds,
+            r.normalized_mse,
+            r.normalized_max,
+            if r.pareto { "★" } else { "" }
+        );
+    }
+    let mut written = Vec::new();
+    for (name, text) in [("bench.csv", &csv), ("bench.md", &md)] {
+        let path = dir.join(name);
+        write_atomically(&path, text.as_bytes())?;
+        written.push(path);
+    }
+    Ok((md, written))
+}
+
+/// The headline figure: normalized MSE against ms per step, log-log, one colour per knob, the
+/// coarser FEM levels, and the Pareto front as a line. Draw it with
+/// [`crate::plot::write_plot`].
+pub fn bench_plot(results: &[BenchResult], config: &BenchConfig) -> PlotSpec {
+    let mut series: Vec<Series> = Vec::new();
+    for (i, knob) in ["m", "K", "points", "tolerance", "pin factor"]
+        .into_iter()
+        .enumerate()
+    {
+        let mut points: Vec<(f64, f64)> = results
+            .iter()
+            .filter(|r| r.method == "freeform" && r.knob == knob)
+            .map(|r| (r.ms_per_step, r.normalized_mse))
+            .collect();
+        if points.is_empty() {
+            continue;
+        }
+        points.sort_by(|a, b| a.0.total_cmp(&b.0));
+        series.push(Series {
+            label: format!("FreeForm, varying {knob}"),
+            points,
+            line: false,
+            color: i,
+        });
+    }
+    let fem: Vec<(f64, f64)> = results
+        .iter()
+        .filter(|r| r.method == "fem")
+        .map(|r| (r.ms_per_step, r.normalized_mse))
+        .collect();
+    if !fem.is_empty() {
+        series.push(Series {
+            label: "coarser FEM (P1/P2)".into(),
+            points: fem,
+            line: false,
+            color: 6,
+        });
+    }
+    let mut front: Vec<(f64, f64)> = results
+        .iter()
+        .filter(|r| r.pareto)
+        .map(|r| (r.ms_per_step, r.normalized_mse))
+        .collect();
+    front.sort_by(|a, b| a.0.total_cmp(&b.0));
+    // First, so the markers of every configuration are drawn over the front's line.
+    series.insert(
+        0,
+        Series {
+            label: "Pareto front".into(),
+            points: front,
+            line: true,
+            color: 5,
+        },
+    );
+    PlotSpec {
+        title: format!(
+            "Beam Bend: error vs time per step (truth: FEM {})",
+            config.ground_truth.label()
+        ),
+        x_label: "ms per 0.01 s step (this machine)".into(),
+        y_label: "normalized MSE vs FEM".into(),
+        log_log: true,
+        series,
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn pareto_front_keeps_exactly_the_undominated_points() {
+        let points = [
+            (1.0, 5.0),
+            (2.0, 3.0),
+            (3.0, 4.0),
+            (4.0, 1.0),
+            (2.0, 3.0),
+            (5.0, 1.0),
+        ];
+        // (3,4) is beaten by (2,3); (5,1) by (4,1); the duplicate (2,3) pair dominate nothing
+        // of each other.
+        assert_eq!(pareto_front(&points), vec![0, 1, 3, 4]);
+    }
+}

@@ -1,0 +1,156 @@
+//! The FEM ground truth of the beam tests (DESIGN 3.8): P2 tetrahedra at 6 elements per metre,
+//! the configuration the fem-ref convergence study chose (Bend tip within ≈ 0.3% of the
+//! Richardson limit at t = 1 s). Trajectories are cached on disk.
+
+use std::path::Path;
+
+use fem_ref::{
+    ElementOrder, FemMesh, FemModel, FemParams, FemSimulator, MassKind, PointInterpolation,
+    TetMesh, TrajectoryCache,
+};
+use hyperelastic::StableNeoHookean;
+use nalgebra::Vector3;
+use serde::{Deserialize, Serialize};
+
+use crate::EvalError;
+use crate::beam::{BEAM_MAX, BEAM_MIN, BEAM_TIME_STEP, BeamTest, beam_material};
+use crate::progress::Progress;
+
+/// Resolution and element order of a FEM beam run.
+#[derive(Clone, Copy, Debug, PartialEq, Serialize, Deserialize)]
+pub struct FemResolution {
+    /// P1 or P2.
+    pub order: ElementOrder,
+    /// Elements across the 1 m side (the mesh has 5r × r × r cubes of 6 tetrahedra).
+    pub cells_per_metre: usize,
+}
+
+impl FemResolution {
+    /// The ground truth: P2 at 6 cells per metre (27 378 DOFs).
+    pub const GROUND_TRUTH: FemResolution = FemResolution {
+        order: ElementOrder::Quadratic,
+        cells_per_metre: 6,
+    };
+
+    /// "P2 res 6".
+    pub fn label(&self) -> String {
+        let p = match self.order {
+            ElementOrder::Linear => 1,
+            ElementOrder::Quadratic => 2,
+        };
+        format!("P{p} res {}", self.cells_per_metre)
+    }
+}
+
+/// A FEM trajectory.
+#[derive(Clone, Debug)]
+pub struct FemBeamRun {
+    /// The element mesh; its tet mesh's vertices are where metrics are evaluated.
+    pub mesh: FemMesh,
+    /// Node positions per frame, frame 0 = rest (m).
+    pub frames: Vec<Vec<Vector3<f64>>>,
+    /// Seconds per step of the run that produced it (also when loaded from the cache).
+    pub seconds_per_step: f64,
+    /// Mean Newton iterations per step.
+    pub iterations_per_step: f64,
+    /// Steps whose Newton solve did not converge.
+    pub unconverged_steps: usize,
+    /// Free degrees of freedom.
+    pub dofs: usize,
+    /// Whether it came from the cache.
+    pub cached: bool,
+}
+
+/// Runs (or loads from `cache_dir`) `steps` steps of `test` at `resolution`.
+///
+/// # Errors
+/// [`EvalError`] for a failed step, an unusable cache or an empty region.
+pub fn run_fem_beam(
+    test: BeamTest,
+    resolution: FemResolution,
+    steps: usize,
+    cache_dir: &Path,
+    progress: &Progress,
+) -> Result<FemBeamRun, EvalError> {
+    let r = resolution.cells_per_metre;
+    let tets = TetMesh::cuboid(BEAM_MIN, BEAM_MAX, [5 * r, r, r])
+        .map_err(|e| EvalError::Setup(e.to_string()))?;
+    let elements = tets.tets().len();
+    let mesh = FemMesh::new(tets, resolution.order);
+    let model = FemModel::new(
+        mesh,
+        &vec![beam_material(); elements],
+        StableNeoHookean,
+        MassKind::Consistent,
+    )
+    .map_err(|e| EvalError::Setup(e.to_string()))?;
+    let scene = test.scene();
+    let fem_scene = scene.fem_scene(model.mesh().nodes(), 1e4)?;
+    let params = FemParams {
+        time_step: BEAM_TIME_STEP,
+        ..Default::default()
+    };
+    let mut sim =
+        FemSimulator::new(model, fem_scene, params).map_err(|e| EvalError::Setup(e.to_string()))?;
+    let dofs = sim.free_dofs();
+    let cache = TrajectoryCache::new(cache_dir.join("fem"));
+    let bar = progress.bar(
+        steps,
+        format!("FEM {} {} ({dofs} DOFs)", test.name(), resolution.label()),
+    );
+    let (trajectory, cached) = sim
+        .run_cached(steps, &scene.label(), &cache, |_| bar.inc(1))
+        .map_err(|e| EvalError::Fem(e.to_string()))?;
+    bar.finish_and_clear();
+    if cached {
+        progress.status(format!(
+            "FEM {} {}: loaded from the cache ({})",
+            test.name(),
+            resolution.label(),
+            cache.dir().display()
+        ));
+    }
+    let frames = trajectory
+        .frames
+        .iter()
+        .map(|f| f.iter().map(|p| Vector3::from(*p)).collect())
+        .collect();
+    Ok(FemBeamRun {
+        mesh: sim.model().mesh().clone(),
+        frames,
+        seconds_per_step: trajectory.seconds / steps.max(1) as f64,
+        iterations_per_step: trajectory.iterations.iter().sum::<usize>() as f64
+            / steps.max(1) as f64,
+        unconverged_steps: trajectory.converged.iter().filter(|c| !**c).count(),
+        dofs,
+        cached,
+    })
+}
+
+impl FemBeamRun {
+    /// Rest positions of the tet mesh's vertices (m).
+    pub fn vertices(&self) -> &[Vector3<f64>] {
+        self.mesh.tet_mesh().vertices()
+    }
+
+    /// Vertex positions per frame (frame 0 = rest).
+    pub fn vertex_frames(&self) -> Vec<Vec<Vector3<f64>>> {
+        let n = self.vertices().len();
+        self.frames.iter().map(|f| f[..n].to_vec()).collect()
+    }
+
+    /// Positions per frame of arbitrary rest points inside the mesh, interpolated from the
+    /// elements.
+    ///
+    /// # Errors
+    /// [`EvalError::Setup`] if a point lies outside the mesh.
+    pub fn frames_at(&self, points: &[Vector3<f64>]) -> Result<Vec<Vec<Vector3<f64>>>, EvalError> {
+        let interpolation = PointInterpolation::new(&self.mesh, points)
+            .map_err(|e| EvalError::Setup(e.to_string()))?;
+        Ok(self
+            .frames
+            .iter()
+            .map(|f| interpolation.interpolate(f))
+            .collect())
+    }
+}

@@ -1,0 +1,44 @@
+//! The paper's numbers that our tables print beside ours (DESIGN 4.4, from the CVPR text
+//! rendering `paper/001_...`). Never used in a computation.
+
+/// Table 1, normalized MSE against FEM: (test, m, Simplicits, FreeForm).
+pub const TABLE1: [(&str, usize, f64, f64); 8] = [
+    ("bend", 6, 1.20e-2, 7.80e-3),
+    ("bend", 9, 6.94e-3, 4.90e-3),
+    ("bend", 16, 1.53e-3, 4.10e-4),
+    ("bend", 32, 1.17e-4, 2.93e-6),
+    ("twist", 6, 2.54e-3, 1.56e-4),
+    ("twist", 9, 3.42e-4, 2.95e-5),
+    ("twist", 16, 1.30e-4, 3.46e-6),
+    ("twist", 32, 4.21e-5, 6.64e-6),
+];
+
+/// Table 1's MPM and SPH columns (m = 9 rows only): (test, MPM, SPH).
+pub const TABLE1_PARTICLE: [(&str, f64, f64); 2] =
+    [("bend", 1.42e-3, 6.57e-4), ("twist", 2.34e-5, 1.33e-4)];
+
+/// Table 5, ms per 0.01 s step on the beam Bend (GPU): (m, Simplicits, FreeForm).
+pub const TABLE5: [(usize, f64, f64); 4] = [
+    (6, 5.01, 3.01),
+    (9, 3.95, 3.71),
+    (16, 5.09, 5.42),
+    (32, 10.0, 10.7),
+];
+
+/// Table 5's full-order FEM step (ms).
+pub const TABLE5_FEM_MS: f64 = 427.2;
+
+/// The paper's Table 1 FreeForm MSE for (test, m), if it has one.
+pub fn table1_ours(test: &str, m: usize) -> Option<f64> {
+    TABLE1.iter().find(|r| r.0 == test && r.1 == m).map(|r| r.3)
+}
+
+/// The paper's Table 1 Simplicits MSE for (test, m), if it has one.
+pub fn table1_simplicits(test: &str, m: usize) -> Option<f64> {
+    TABLE1.iter().find(|r| r.0 == test && r.1 == m).map(|r| r.2)
+}
+
+/// The paper's Table 5 (Simplicits, FreeForm) ms for m, if it has one.
+pub fn table5(m: usize) -> Option<(f64, f64)> {
+    TABLE5.iter().find(|r| r.0 == m).map(|r| (r.1, r.2))
+}

@@ -1,0 +1,197 @@
+//! Line and scatter plots written as SVG, and as PNG when a TrueType font is found on the system
+//! (text in a bitmap needs one; SVG leaves text to the viewer).
+
+use std::path::{Path, PathBuf};
+
+use plotters::prelude::*;
+
+use crate::EvalError;
+
+/// One named series of (x, y) points.
+#[derive(Clone, Debug)]
+pub struct Series {
+    /// Legend label.
+    pub label: String,
+    /// Points in drawing order.
+    pub points: Vec<(f64, f64)>,
+    /// Draw lines between points (else markers only).
+    pub line: bool,
+    /// Palette index.
+    pub color: usize,
+}
+
+/// A plot to draw.
+#[derive(Clone, Debug)]
+pub struct PlotSpec {
+    /// Title.
+    pub title: String,
+    /// Axis labels.
+    pub x_label: String,
+    /// Axis labels.
+    pub y_label: String,
+    /// Logarithmic axes (both).
+    pub log_log: bool,
+    /// The data.
+    pub series: Vec<Series>,
+}
+
+/// Fonts tried, in order, for PNG output.
+const FONT_CANDIDATES: [&str; 4] = [
+    "/usr/share/fonts/truetype/dejavu/DejaVuSans.ttf",
+    "/usr/share/fonts/dejavu/DejaVuSans.ttf",
+    "/usr/share/fonts/TTF/DejaVuSans.ttf",
+    "/System/Library/Fonts/Supplemental/Arial.ttf",
+];
+
+fn register_font() -> bool {
+    use std::sync::OnceLock;
+    static REGISTERED: OnceLock<bool> = OnceLock::new();
+    *REGISTERED.get_or_init(|| {
+        for path in FONT_CANDIDATES {
+            if let Ok(bytes) = std::fs::read(path) {
+                let leaked: &'static [u8] = Box::leak(bytes.into_boxed_slice());
+                if plotters::style::register_font("sans-serif", FontStyle::Normal, leaked).is_ok() {
+                    return true;
+                }
+            }
+        }
+        false
+    })
+}
+
+fn draw<DB: DrawingBackend>(
+    root: DrawingArea<DB, plotters::coord::Shift>,
+    spec: &PlotSpec,
+) -> Result<(), String>
+where
+    DB::ErrorType: 'static,
+{
+    root.fill(&WHITE).map_err(|e| e.to_string())?;
+    let all: Vec<(f64, f64)> = spec
+        .series
+        .iter()
+        .flat_map(|s| s.points.iter().copied())
+        .collect();
+    let finite: Vec<(f64, f64)> = all
+        .into_iter()
+        .filter(|(x, y)| {
+            x.is_finite() && y.is_finite() && (!spec.log_log || (*x > 0.0 && *y > 0.0))
+        })
+        .collect();
+    if finite.is_empty() {
+        return Err("nothing to plot".into());
+    }
+    let (mut x0, mut x1, mut y0, mut y1) = finite.iter().fold(
+        (
+            f64::INFINITY,
+            f64::NEG_INFINITY,
+            f64::INFINITY,
+            f64::NEG_INFINITY,
+        ),
+        |(a, b, c, d), &(x, y)| (a.min(x), b.max(x), c.min(y), d.max(y)),
+    );
+    if spec.log_log {
+        (x0, x1, y0, y1) = (x0 / 1.5, x1 * 1.5, y0 / 2.0, y1 * 2.0);
+    } else {
+        let (px, py) = (0.05 * (x1 - x0).max(1e-12), 0.05 * (y1 - y0).max(1e-12));
+        (x0, x1, y0, y1) = (x0 - px, x1 + px, y0 - py, y1 + py);
+    }
+    let mut builder = ChartBuilder::on(&root);
+    builder
+        .caption(&spec.title, ("sans-serif", 22))
+        .margin(15)
+        .x_label_area_size(45)
+        .y_label_area_size(70);
+    macro_rules! body {
+        ($chart:expr) => {{
+            let mut chart = $chart;
+            chart
+                .configure_mesh()
+                .x_desc(spec.x_label.as_str())
+                .y_desc(spec.y_label.as_str())
+                .label_style(("sans-serif", 14))
+                .draw()
+                .map_err(|e| e.to_string())?;
+            for s in &spec.series {
+                let color = Palette99::pick(s.color).to_rgba();
+                let pts: Vec<(f64, f64)> = s
+                    .points
+                    .iter()
+                    .copied()
+                    .filter(|(x, y)| x.is_finite() && y.is_finite())
+                    .collect();
+                if s.line {
+                    chart
+                        .draw_series(LineSeries::new(pts.clone(), color.stroke_width(2)))
+                        .map_err(|e| e.to_string())?
+                        .label(s.label.as_str())
+                        .legend(move |(x, y)| {
+                            PathElement::new(vec![(x, y), (x + 18, y)], color.stroke_width(2))
+                        });
+                    chart
+                        .draw_series(pts.iter().map(|&p| Circle::new(p, 3, color.filled())))
+                        .map_err(|e| e.to_string())?;
+                } else {
+                    chart
+                        .draw_series(pts.iter().map(|&p| Circle::new(p, 4, color.filled())))
+                        .map_err(|e| e.to_string())?
+                        .label(s.label.as_str())
+                        .legend(move |(x, y)| Circle::new((x + 9, y), 4, color.filled()));
+                }
+            }
+            chart
+                .configure_series_labels()
+                .position(if spec.log_log {
+                    SeriesLabelPosition::LowerLeft
+                } else {
+                    SeriesLabelPosition::UpperRight
+                })
+                .background_style(WHITE.mix(0.85))
+                .border_style(BLACK)
+                .label_font(("sans-serif", 14))
+                .draw()
+                .map_err(|e| e.to_string())?;
+        }};
+    }
+    if spec.log_log {
+        body!(
+            builder
+                .build_cartesian_2d((x0..x1).log_scale(), (y0..y1).log_scale())
+                .map_err(|e| e.to_string())?
+        );
+    } else {
+        body!(
+            builder
+                .build_cartesian_2d(x0..x1, y0..y1)
+                .map_err(|e| e.to_string())?
+        );
+    }
+    root.present().map_err(|e| e.to_string())?;
+    Ok(())
+}
+
+/// Writes `<base>.svg`, and `<base>.png` when a font is available; returns the files written.
+///
+/// # Errors
+/// [`EvalError::Plot`] if drawing fails.
+pub fn write_plot(spec: &PlotSpec, base: &Path) -> Result<Vec<PathBuf>, EvalError> {
+    if let Some(dir) = base.parent() {
+        std::fs::create_dir_all(dir).map_err(|e| EvalError::io(dir, e))?;
+    }
+    let mut written = Vec::new();
+    let font = register_font();
+    let svg = base.with_extension("svg");
+    draw(SVGBackend::new(&svg, (960, 640)).into_drawing_area(), spec)
+        .map_err(|e| EvalError::Plot(format!("{}: {e}", svg.display())))?;
+    written.push(svg);
+    if font {
+        let png = base.with_extension("png");
+        draw(
+            BitMapBackend::new(&png, (960, 640)).into_drawing_area(),
+            spec,
+        )
+        .map_err(|e| EvalError::Plot(format!("{}: {e}", png.display())))?;
+        written.push(png);
+    }
+    Ok(written)
+}

@@ -1,0 +1,37 @@
+//! Progress bars on stderr for long work, silent with `--quiet` (or when stderr is not a
+//! terminal, indicatif hides them itself).
+
+use indicatif::{ProgressBar, ProgressDrawTarget, ProgressStyle};
+
+/// Makes progress bars, or none when quiet.
+#[derive(Clone, Copy, Debug, Default)]
+pub struct Progress {
+    /// No bars and no status lines.
+    pub quiet: bool,
+}
+
+impl Progress {
+    /// A bar of `len` steps labelled `label`.
+    pub fn bar(&self, len: usize, label: impl Into<String>) -> ProgressBar {
+        let bar = ProgressBar::new(len as u64);
+        if self.quiet {
+            bar.set_draw_target(ProgressDrawTarget::hidden());
+        }
+        bar.set_style(
+            ProgressStyle::with_template(
+                "{msg:>32} [{bar:30}] {pos}/{len} {elapsed_precise} (eta {eta})",
+            )
+            .unwrap_or_else(|_| ProgressStyle::default_bar())
+            .progress_chars("=> "),
+        );
+        bar.set_message(label.into());
+        bar
+    }
+
+    /// A status line on stderr (not on stdout, which holds results).
+    pub fn status(&self, line: impl AsRef<str>) {
+        if !self.quiet {
+            eprintln!("{}", line.as_ref());
+        }
+    }
+}
