@@ -8,9 +8,9 @@ use nalgebra::Vector3;
 use reduced_sim::{
     DeformationMap, NewtonParams, PenaltyParams, ReducedModel, SimulationParams, Simulator,
 };
-use rkpm_core::{KernelParams, sample_box_grid};
+use rkpm_core::sample_box_grid;
 use serde::{Deserialize, Serialize};
-use skin_eigen::{BasisParams, BasisReport, EigenParams, SkinningBasis, build_basis};
+use skin_eigen::{BasisParams, BasisReport, SkinningBasis, build_basis};
 
 use crate::EvalError;
 use crate::beam::{BEAM_MAX, BEAM_MIN, BEAM_TIME_STEP, BeamTest, beam_grid_spacing, beam_material};
@@ -51,21 +51,6 @@ impl Default for ReducedSettings {
     }
 }
 
-/// The basis builder's defaults with `modes` (m) and `kernels` (K) set.
-pub fn basis_params(modes: usize, kernels: usize) -> BasisParams {
-    BasisParams {
-        kernels: KernelParams {
-            count: kernels,
-            ..Default::default()
-        },
-        eigen: EigenParams {
-            modes,
-            ..Default::default()
-        },
-        ..Default::default()
-    }
-}
-
 /// A beam basis and what building it cost.
 pub struct BeamBasis {
     /// The basis.
@@ -90,7 +75,9 @@ pub fn build_beam_basis(settings: &ReducedSettings) -> Result<BeamBasis, EvalErr
     let (basis, report, _) = build_basis(
         &grid,
         &vec![lame; grid.len()],
-        &basis_params(settings.modes, settings.kernels),
+        &BasisParams::default()
+            .with_modes(settings.modes)
+            .with_kernels(settings.kernels),
     )
     .map_err(|e| EvalError::Basis(e.to_string()))?;
     Ok(BeamBasis {

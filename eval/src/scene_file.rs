@@ -41,13 +41,12 @@ use rkpm_core::{
     GridSamplingParams, MaterialSample, TriangleMesh, read_triangle_mesh, sample_grid,
 };
 use serde::{Deserialize, Serialize};
-use skin_eigen::build_basis;
+use skin_eigen::{BasisParams, build_basis};
 use thiserror::Error;
 
 use crate::EvalError;
 use crate::output::{triangle_mesh_ply, unstructured_grid_vtk, write_atomically};
 use crate::progress::Progress;
-use crate::reduced_beam::basis_params;
 use crate::scene_spec::SceneSpec;
 
 /// A scene file is unusable.
@@ -345,7 +344,9 @@ pub fn run_scene_file(
         },
     )
     .map_err(|e| EvalError::Basis(e.to_string()))?;
-    let params = basis_params(file.basis.modes, file.basis.kernels);
+    let params = BasisParams::default()
+        .with_modes(file.basis.modes)
+        .with_kernels(file.basis.kernels);
     let (basis, _, _) = build_basis(&basis_points, &vec![lame; basis_points.len()], &params)
         .map_err(|e| EvalError::Basis(e.to_string()))?;
     let basis_seconds = start.elapsed().as_secs_f64();

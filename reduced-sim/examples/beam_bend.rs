@@ -22,8 +22,8 @@ use reduced_sim::{
     DeformationMap, NewtonParams, PenaltyParams, PinTarget, PinnedRegion, ReducedModel, Scene,
     SimulationParams, Simulator, StepTimings,
 };
-use rkpm_core::{KernelParams, MaterialSample, sample_box_grid};
-use skin_eigen::{BasisParams, EigenParams, build_basis};
+use rkpm_core::{MaterialSample, sample_box_grid};
+use skin_eigen::{BasisParams, build_basis};
 
 fn value<T: std::str::FromStr>(args: &[String], name: &str, default: T) -> Result<T, String> {
     match args.iter().position(|a| a == name) {
@@ -68,17 +68,9 @@ fn run() -> Result<(), String> {
     let t = Instant::now();
     let basis_grid = sample_box_grid(BEAM_MIN, BEAM_MAX, spacing_for(basis_points))
         .map_err(|e| e.to_string())?;
-    let params = BasisParams {
-        kernels: KernelParams {
-            count: kernels,
-            ..Default::default()
-        },
-        eigen: EigenParams {
-            modes,
-            ..Default::default()
-        },
-        ..Default::default()
-    };
+    let params = BasisParams::default()
+        .with_modes(modes)
+        .with_kernels(kernels);
     let (basis, _, _) = build_basis(&basis_grid, &vec![lame; basis_grid.len()], &params)
         .map_err(|e| e.to_string())?;
     let basis_seconds = t.elapsed().as_secs_f64();

@@ -62,6 +62,20 @@ pub struct BasisParams {
     pub solver: EigenSolverChoice,
 }
 
+impl BasisParams {
+    /// The same options with `modes` skinning modes (m).
+    pub fn with_modes(mut self, modes: usize) -> Self {
+        self.eigen.modes = modes;
+        self
+    }
+
+    /// The same options with `kernels` RKPM kernels (K).
+    pub fn with_kernels(mut self, kernels: usize) -> Self {
+        self.kernels.count = kernels;
+        self
+    }
+}
+
 /// Seconds spent in each phase of basis construction.
 #[derive(Clone, Copy, Debug, Default, PartialEq, Serialize, Deserialize)]
 pub struct PhaseTimings {

@@ -6,9 +6,9 @@ use std::f64::consts::PI;
 use faer::{Mat, Side};
 use hyperelastic::LameParameters;
 use nalgebra::Vector3;
-use rkpm_core::{IntegrationPoints, KernelParams, sample_box_grid};
+use rkpm_core::{IntegrationPoints, sample_box_grid};
 use skin_eigen::{
-    AssembledMatrices, BasisFileError, BasisParams, EigenParams, EigenSolverChoice, SkinningBasis,
+    AssembledMatrices, BasisFileError, BasisParams, EigenSolverChoice, SkinningBasis,
     SubspaceParams, WeightSpaceMatrices, build_basis,
 };
 
@@ -23,17 +23,9 @@ fn lame() -> LameParameters {
 }
 
 fn params(kernels: usize, modes: usize) -> BasisParams {
-    BasisParams {
-        kernels: KernelParams {
-            count: kernels,
-            ..Default::default()
-        },
-        eigen: EigenParams {
-            modes,
-            ..Default::default()
-        },
-        ..Default::default()
-    }
+    BasisParams::default()
+        .with_modes(modes)
+        .with_kernels(kernels)
 }
 
 fn beam_basis(

@@ -24,7 +24,7 @@ use eval::metrics::trajectory_errors;
 use eval::output::{unstructured_grid_vtk, write_atomically};
 use eval::plot::{PlotSpec, Series, write_plot};
 use eval::progress::Progress;
-use eval::reduced_beam::{ReducedSettings, basis_params, build_beam_basis, run_reduced_beam};
+use eval::reduced_beam::{ReducedSettings, build_beam_basis, run_reduced_beam};
 use eval::scene_file::{SceneFile, run_scene_file};
 use eval::tables::{table1, table5, table6, write_table};
 use fem_ref::{
@@ -36,7 +36,7 @@ use rkpm_core::{
     GridSamplingParams, PointCloudSamplingParams, read_point_cloud, read_triangle_mesh,
     sample_grid, sample_point_cloud,
 };
-use skin_eigen::build_basis;
+use skin_eigen::{BasisParams, build_basis};
 
 #[derive(Parser)]
 #[command(
@@ -395,7 +395,9 @@ fn basis(geometry: &Path, o: BasisOptions, save: PathBuf, progress: &Progress) -
         o.kernels,
         o.modes
     ));
-    let params = basis_params(o.modes, o.kernels);
+    let params = BasisParams::default()
+        .with_modes(o.modes)
+        .with_kernels(o.kernels);
     let (basis, report, _) = build_basis(&points, &vec![lame; points.len()], &params)?;
     if let Some(dir) = save.parent()
         && !dir.as_os_str().is_empty()

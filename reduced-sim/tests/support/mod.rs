@@ -5,8 +5,8 @@
 use hyperelastic::{LameParameters, StableNeoHookean};
 use nalgebra::Vector3;
 use reduced_sim::ReducedModel;
-use rkpm_core::{IntegrationPoints, KernelParams, MaterialSample, sample_box_grid};
-use skin_eigen::{BasisParams, EigenParams, SkinningBasis, build_basis};
+use rkpm_core::{IntegrationPoints, MaterialSample, sample_box_grid};
+use skin_eigen::{BasisParams, SkinningBasis, build_basis};
 
 /// An RKPM skinning basis of the box [0, size] sampled on a grid of spacing `spacing`, with
 /// `kernels` kernels and `modes` modes, for a uniform material; returns the basis and its
@@ -21,17 +21,9 @@ pub fn box_basis(
     let points = sample_box_grid(Vector3::zeros(), size, spacing).expect("valid box");
     let lame = LameParameters::from_young_poisson(material.youngs_modulus, material.poisson_ratio)
         .expect("valid material");
-    let params = BasisParams {
-        kernels: KernelParams {
-            count: kernels,
-            ..Default::default()
-        },
-        eigen: EigenParams {
-            modes,
-            ..Default::default()
-        },
-        ..Default::default()
-    };
+    let params = BasisParams::default()
+        .with_modes(modes)
+        .with_kernels(kernels);
     let (basis, _, _) = build_basis(&points, &vec![lame; points.len()], &params).expect("basis");
     (basis, points)
 }
