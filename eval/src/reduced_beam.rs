@@ -92,7 +92,7 @@ pub fn build_beam_basis(settings: &ReducedSettings) -> Result<BeamBasis, EvalErr
 pub struct ReducedBeamRun {
     /// Output-point positions per frame, frame 0 = rest (m).
     pub frames: Vec<Vec<Vector3<f64>>>,
-    /// Wall time per step (ms), and its assembly part.
+    /// Wall time per step (ms).
     pub ms_per_step: f64,
     /// Hessian/gradient assembly per step (ms).
     pub ms_assembly_per_step: f64,

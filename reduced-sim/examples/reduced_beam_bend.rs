@@ -3,7 +3,7 @@
 //! (9.8 m/s² along -y), 100 steps of h = 0.01 s.
 //!
 //! ```sh
-//! cargo run --release -p reduced-sim --example beam_bend -- --modes 16 --json
+//! cargo run --release -p reduced-sim --example reduced_beam_bend -- --modes 16 --json
 //! ```
 //! Options: `--modes m` (default 16), `--kernels K` (default 1000), `--basis-points N` (grid
 //! points the basis is built on, default 20000), `--points N` (simulation points, default
