@@ -15,36 +15,47 @@
 #[path = "common/beam.rs"]
 mod beam;
 
-use beam::{BeamScene, run_beam};
+use beam::{BeamScene, TangentArg, run_beam};
 use fem_ref::ElementOrder;
-use hyperelastic::Tangent;
 
-fn value<T: std::str::FromStr>(args: &[String], name: &str, default: T) -> Result<T, String> {
-    match args.iter().position(|a| a == name) {
-        None => Ok(default),
-        Some(i) => args
-            .get(i + 1)
-            .and_then(|v| v.parse().ok())
-            .ok_or_else(|| format!("{name} needs a valid value")),
-    }
+/// Command-line options.
+#[derive(clap::Parser)]
+struct Args {
+    /// Machine-readable output.
+    #[arg(long)]
+    json: bool,
+    /// Element order.
+    #[arg(long, default_value_t = 2, value_parser = clap::value_parser!(u32).range(1..=2))]
+    order: u32,
+    /// Elements across the 1 m side.
+    #[arg(long, default_value_t = 4)]
+    res: usize,
+    /// Steps of 0.01 s.
+    #[arg(long, default_value_t = 100)]
+    steps: usize,
+    /// Newton tolerance.
+    #[arg(long, default_value_t = 1e-6)]
+    tolerance: f64,
+    /// Element tangent.
+    #[arg(long, value_enum, default_value_t = TangentArg::Psd)]
+    tangent: TangentArg,
 }
 
 fn run() -> Result<(), String> {
-    let args: Vec<String> = std::env::args().skip(1).collect();
-    let json = args.iter().any(|a| a == "--json");
-    let order = match value(&args, "--order", 2u32)? {
-        1 => ElementOrder::Linear,
-        2 => ElementOrder::Quadratic,
-        other => return Err(format!("--order must be 1 or 2, not {other}")),
+    let args: Args = clap::Parser::parse();
+    let Args {
+        json,
+        res,
+        steps,
+        tolerance,
+        ..
+    } = args;
+    let order = if args.order == 1 {
+        ElementOrder::Linear
+    } else {
+        ElementOrder::Quadratic
     };
-    let res = value(&args, "--res", 4usize)?;
-    let steps = value(&args, "--steps", 100usize)?;
-    let tolerance = value(&args, "--tolerance", 1e-6f64)?;
-    let tangent = match value(&args, "--tangent", "psd".to_string())?.as_str() {
-        "psd" => Tangent::ProjectedPsd,
-        "exact" => Tangent::Exact,
-        other => return Err(format!("--tangent must be psd or exact, not {other}")),
-    };
+    let tangent = args.tangent.into();
     if res == 0 || steps == 0 {
         return Err("--res and --steps must be positive".into());
     }

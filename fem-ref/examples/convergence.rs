@@ -12,43 +12,44 @@
 #[path = "common/beam.rs"]
 mod beam;
 
-use beam::{BeamScene, run_beam};
+use beam::{BeamScene, TangentArg, run_beam};
 use fem_ref::ElementOrder;
 use hyperelastic::Tangent;
 
-fn list(args: &[String], name: &str, default: &[usize]) -> Result<Vec<usize>, String> {
-    match args.iter().position(|a| a == name) {
-        None => Ok(default.to_vec()),
-        Some(i) => args
-            .get(i + 1)
-            .ok_or_else(|| format!("{name} needs a list"))?
-            .split(',')
-            .filter(|s| !s.is_empty())
-            .map(|s| s.parse().map_err(|_| format!("{name}: bad resolution {s}")))
-            .collect(),
-    }
+/// Which scenes to run.
+#[derive(Clone, Copy, clap::ValueEnum)]
+enum Scenes {
+    Bend,
+    Twist,
+    Both,
+}
+
+/// Command-line options.
+#[derive(clap::Parser)]
+struct Args {
+    /// P1 resolutions (elements across the 1 m side), comma-separated.
+    #[arg(long, value_delimiter = ',', default_values_t = [2, 4, 8])]
+    p1: Vec<usize>,
+    /// P2 resolutions, comma-separated.
+    #[arg(long, value_delimiter = ',', default_values_t = [2, 4, 6])]
+    p2: Vec<usize>,
+    /// Scenes.
+    #[arg(long, value_enum, default_value_t = Scenes::Both)]
+    scene: Scenes,
+    /// Element tangent.
+    #[arg(long, value_enum, default_value_t = TangentArg::Psd)]
+    tangent: TangentArg,
 }
 
 fn run() -> Result<(), String> {
-    let args: Vec<String> = std::env::args().skip(1).collect();
-    let p1 = list(&args, "--p1", &[2, 4, 8])?;
-    let p2 = list(&args, "--p2", &[2, 4, 6])?;
-    let scenes = match args
-        .iter()
-        .position(|a| a == "--scene")
-        .and_then(|i| args.get(i + 1))
-        .map(String::as_str)
-    {
-        None | Some("both") => vec![BeamScene::Bend, BeamScene::Twist],
-        Some("bend") => vec![BeamScene::Bend],
-        Some("twist") => vec![BeamScene::Twist],
-        Some(other) => return Err(format!("--scene must be bend, twist or both, not {other}")),
+    let args: Args = clap::Parser::parse();
+    let (p1, p2) = (args.p1, args.p2);
+    let scenes = match args.scene {
+        Scenes::Both => vec![BeamScene::Bend, BeamScene::Twist],
+        Scenes::Bend => vec![BeamScene::Bend],
+        Scenes::Twist => vec![BeamScene::Twist],
     };
-    let tangent = if args.iter().any(|a| a == "exact") {
-        Tangent::Exact
-    } else {
-        Tangent::ProjectedPsd
-    };
+    let tangent: Tangent = args.tangent.into();
     for scene in scenes {
         let (steps, at, what) = match scene {
             BeamScene::Bend => (100, [50, 100], "tip y (m)"),

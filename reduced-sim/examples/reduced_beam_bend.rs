@@ -25,14 +25,33 @@ use reduced_sim::{
 use rkpm_core::{MaterialSample, sample_box_grid};
 use skin_eigen::{BasisParams, build_basis};
 
-fn value<T: std::str::FromStr>(args: &[String], name: &str, default: T) -> Result<T, String> {
-    match args.iter().position(|a| a == name) {
-        None => Ok(default),
-        Some(i) => args
-            .get(i + 1)
-            .and_then(|v| v.parse().ok())
-            .ok_or_else(|| format!("{name} needs a valid value")),
-    }
+/// Command-line options.
+#[derive(clap::Parser)]
+struct Args {
+    /// Machine-readable output.
+    #[arg(long)]
+    json: bool,
+    /// Modes m.
+    #[arg(long, default_value_t = 16)]
+    modes: usize,
+    /// Kernels K.
+    #[arg(long, default_value_t = 1000)]
+    kernels: usize,
+    /// Grid points the basis is built on.
+    #[arg(long, default_value_t = 20_000)]
+    basis_points: usize,
+    /// Simulation points.
+    #[arg(long = "points", default_value_t = 5000)]
+    sim_points: usize,
+    /// Steps of 0.01 s.
+    #[arg(long, default_value_t = 100)]
+    steps: usize,
+    /// Newton tolerance.
+    #[arg(long, default_value_t = NewtonParams::default().tolerance)]
+    tolerance: f64,
+    /// Pin penalty factor.
+    #[arg(long, default_value_t = PenaltyParams::default().pin_factor)]
+    pin_factor: f64,
 }
 
 const BEAM_MIN: Vector3<f64> = Vector3::new(0.0, 0.0, 0.0);
@@ -44,15 +63,16 @@ fn spacing_for(n: usize) -> f64 {
 }
 
 fn run() -> Result<(), String> {
-    let args: Vec<String> = std::env::args().skip(1).collect();
-    let json = args.iter().any(|a| a == "--json");
-    let modes = value(&args, "--modes", 16usize)?;
-    let kernels = value(&args, "--kernels", 1000usize)?;
-    let basis_points = value(&args, "--basis-points", 20_000usize)?;
-    let sim_points = value(&args, "--points", 5000usize)?;
-    let steps = value(&args, "--steps", 100usize)?;
-    let tolerance = value(&args, "--tolerance", NewtonParams::default().tolerance)?;
-    let pin_factor = value(&args, "--pin-factor", PenaltyParams::default().pin_factor)?;
+    let Args {
+        json,
+        modes,
+        kernels,
+        basis_points,
+        sim_points,
+        steps,
+        tolerance,
+        pin_factor,
+    } = clap::Parser::parse();
     if modes == 0 || kernels == 0 || basis_points == 0 || sim_points == 0 {
         return Err("--modes, --kernels, --basis-points and --points must be positive".into());
     }

@@ -24,23 +24,30 @@ fn main() {
     }
 }
 
-fn arg<T: std::str::FromStr>(args: &[String], name: &str, default: T) -> Result<T, String> {
-    match args.iter().position(|a| a == name) {
-        None => Ok(default),
-        Some(i) => args
-            .get(i + 1)
-            .and_then(|v| v.parse().ok())
-            .ok_or_else(|| format!("{name} needs a valid value")),
-    }
+/// Command-line options.
+#[derive(clap::Parser)]
+struct Args {
+    /// Integration points.
+    #[arg(long = "points", default_value_t = 30_000)]
+    target_points: usize,
+    /// Kernels K.
+    #[arg(long = "kernels", default_value_t = 1000)]
+    count: usize,
+    /// Kernel support in radii.
+    #[arg(long, default_value_t = 4.0)]
+    cutoff: f64,
+    /// A closed mesh instead of the beam.
+    #[arg(long = "mesh")]
+    mesh_path: Option<String>,
 }
 
 fn run() -> Result<(), String> {
-    let args: Vec<String> = std::env::args().skip(1).collect();
-    let target_points: usize = arg(&args, "--points", 30_000)?;
-    let count: usize = arg(&args, "--kernels", 1000)?;
-    let cutoff: f64 = arg(&args, "--cutoff", 4.0)?;
-    let mesh_path: Option<String> =
-        arg(&args, "--mesh", String::new()).map(|s| Some(s).filter(|s| !s.is_empty()))?;
+    let Args {
+        target_points,
+        count,
+        cutoff,
+        mesh_path,
+    } = clap::Parser::parse();
 
     let t = Instant::now();
     let (mesh, label) = match &mesh_path {

@@ -15,14 +15,18 @@ use nalgebra::Vector3;
 use rkpm_core::{GridSamplingParams, KernelParams, TriangleMesh, sample_grid};
 use skin_eigen::{BasisParams, EigenParams, build_basis};
 
-fn arg(args: &[String], name: &str, default: usize) -> Result<usize, String> {
-    match args.iter().position(|a| a == name) {
-        None => Ok(default),
-        Some(i) => args
-            .get(i + 1)
-            .and_then(|v| v.parse().ok())
-            .ok_or_else(|| format!("{name} needs a positive integer")),
-    }
+/// Command-line options.
+#[derive(clap::Parser)]
+struct Args {
+    /// Machine-readable output.
+    #[arg(long)]
+    json: bool,
+    /// Integration points.
+    #[arg(long = "points", default_value_t = 30_000)]
+    target_points: usize,
+    /// Kernels K.
+    #[arg(long = "kernels", default_value_t = 1000)]
+    count: usize,
 }
 
 /// The smallest `count` nonzero Neumann eigenvalues of the box, ascending.
@@ -56,10 +60,11 @@ fn list(values: &[f64]) -> String {
 }
 
 fn run() -> Result<(), String> {
-    let args: Vec<String> = std::env::args().skip(1).collect();
-    let json = args.iter().any(|a| a == "--json");
-    let target_points = arg(&args, "--points", 30_000)?;
-    let count = arg(&args, "--kernels", 1000)?;
+    let Args {
+        json,
+        target_points,
+        count,
+    } = clap::Parser::parse();
     let sides = [5.0, 1.0, 1.0];
     let beam = TriangleMesh::cuboid(Vector3::zeros(), Vector3::from(sides));
 

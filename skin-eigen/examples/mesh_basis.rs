@@ -15,34 +15,57 @@ use nalgebra::Vector3;
 use rkpm_core::{GridSamplingParams, KernelParams, TriangleMesh, read_triangle_mesh, sample_grid};
 use skin_eigen::{BasisParams, EigenParams, EigenSolverChoice, SubspaceParams, build_basis};
 
-fn value<T: std::str::FromStr>(args: &[String], name: &str) -> Result<Option<T>, String> {
-    match args.iter().position(|a| a == name) {
-        None => Ok(None),
-        Some(i) => args
-            .get(i + 1)
-            .and_then(|v| v.parse().ok())
-            .map(Some)
-            .ok_or_else(|| format!("{name} needs a valid value")),
-    }
+/// Eigen solver choice on the command line.
+#[derive(Clone, Copy, clap::ValueEnum)]
+enum Solver {
+    /// Dense up to K = 3000, iterative above.
+    Auto,
+    /// Dense generalized eigen solve.
+    Dense,
+    /// Sparse shift-invert subspace iteration.
+    Iterative,
+}
+
+/// Command-line options.
+#[derive(clap::Parser)]
+struct Args {
+    /// A closed mesh (default: the 5×1×1 m beam).
+    #[arg(long = "mesh")]
+    mesh_path: Option<String>,
+    /// Integration points.
+    #[arg(long = "points", default_value_t = 30_000)]
+    target_points: usize,
+    /// Kernels K.
+    #[arg(long = "kernels", default_value_t = 1000)]
+    count: usize,
+    /// Modes m.
+    #[arg(long, default_value_t = 32)]
+    modes: usize,
+    /// Young's modulus (Pa).
+    #[arg(long, default_value_t = 1e5)]
+    young: f64,
+    /// Where to save the basis.
+    #[arg(long)]
+    save: Option<String>,
+    /// Eigen solver.
+    #[arg(long, value_enum, default_value_t = Solver::Auto)]
+    solver: Solver,
 }
 
 fn run() -> Result<(), String> {
-    let args: Vec<String> = std::env::args().skip(1).collect();
-    let mesh_path: Option<String> = value(&args, "--mesh")?;
-    let target_points = value(&args, "--points")?.unwrap_or(30_000);
-    let count = value(&args, "--kernels")?.unwrap_or(1000);
-    let modes = value(&args, "--modes")?.unwrap_or(32);
-    let young = value(&args, "--young")?.unwrap_or(1e5);
-    let save: Option<String> = value(&args, "--save")?;
-    let solver = match value::<String>(&args, "--solver")?.as_deref() {
-        None | Some("auto") => EigenSolverChoice::Auto,
-        Some("dense") => EigenSolverChoice::Dense,
-        Some("iterative") => EigenSolverChoice::Iterative(SubspaceParams::default()),
-        Some(other) => {
-            return Err(format!(
-                "--solver must be auto, dense or iterative, not {other}"
-            ));
-        }
+    let Args {
+        mesh_path,
+        target_points,
+        count,
+        modes,
+        young,
+        save,
+        solver,
+    } = clap::Parser::parse();
+    let solver = match solver {
+        Solver::Auto => EigenSolverChoice::Auto,
+        Solver::Dense => EigenSolverChoice::Dense,
+        Solver::Iterative => EigenSolverChoice::Iterative(SubspaceParams::default()),
     };
 
     let t = Instant::now();

@@ -12,6 +12,24 @@ use hyperelastic::{StableNeoHookean, Tangent};
 use nalgebra::{Rotation3, Vector3};
 use rkpm_core::MaterialSample;
 
+/// Element tangent on the command line.
+#[derive(Clone, Copy, Debug, clap::ValueEnum)]
+pub enum TangentArg {
+    /// PSD-projected element tangents.
+    Psd,
+    /// Exact element tangents.
+    Exact,
+}
+
+impl From<TangentArg> for Tangent {
+    fn from(t: TangentArg) -> Tangent {
+        match t {
+            TangentArg::Psd => Tangent::ProjectedPsd,
+            TangentArg::Exact => Tangent::Exact,
+        }
+    }
+}
+
 /// Bend or Twist.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub enum BeamScene {
