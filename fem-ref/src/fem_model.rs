@@ -299,14 +299,17 @@ impl<M: HyperelasticMaterial> FemModel<M> {
     /// Elastic energy `Σ_e Σ_q w_q Ψ(F_q)` (J) of node positions x (flat, m).
     pub fn elastic_energy(&self, x: &[f64]) -> f64 {
         let nq = self.quadrature_points();
-        (0..self.mesh.element_count() * nq)
+        // Per-point terms in parallel, summed in index order, so the result does not depend on
+        // how rayon split the work.
+        let terms: Vec<f64> = (0..self.mesh.element_count() * nq)
             .into_par_iter()
             .map(|k| {
                 let e = k / nq;
                 let f = self.deformation_gradient(e, k % nq, x);
                 self.qp_weights[k] * self.material.energy_density(&self.lame[e], &f)
             })
-            .sum()
+            .collect();
+        terms.iter().sum()
     }
 
     /// Element e's Hessian (`(3·npe)²`, row-major, N/m, node-major DOFs `3a + i`) at node

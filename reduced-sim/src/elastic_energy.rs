@@ -26,11 +26,15 @@ impl<M: HyperelasticMaterial> ReducedModel<M> {
     pub(crate) fn elastic_energy_at(&self, f: &[Matrix3<f64>]) -> f64 {
         let lame = self.lame_parameters();
         let material = self.material();
-        f.par_iter()
+        // Per-point terms in parallel, summed in index order: a parallel `sum` would associate
+        // differently from run to run and make trajectories differ in the last bits.
+        let terms: Vec<f64> = f
+            .par_iter()
             .zip(lame.par_iter())
             .zip(self.volumes().par_iter())
             .map(|((f, p), v)| v * material.energy_density(p, f))
-            .sum()
+            .collect();
+        terms.iter().sum()
     }
 
     /// Gradient `∂E_el/∂z` (J per unit z, length 12(m + 1), z's layout):

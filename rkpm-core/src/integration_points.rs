@@ -105,7 +105,8 @@ pub(crate) fn mean_nearest_neighbor_distance(points: &[Vector3<f64>]) -> f64 {
         return 0.0;
     }
     let index = SpatialIndex::new(points);
-    let total: f64 = points
+    // Distances in parallel, summed in index order (a parallel sum is not reproducible).
+    let distances: Vec<f64> = points
         .par_iter()
         .map(|p| {
             index
@@ -114,7 +115,8 @@ pub(crate) fn mean_nearest_neighbor_distance(points: &[Vector3<f64>]) -> f64 {
                 .map(|&(_, d)| d)
                 .fold(0.0, f64::max)
         })
-        .sum();
+        .collect();
+    let total: f64 = distances.iter().sum();
     total / points.len() as f64
 }
 
