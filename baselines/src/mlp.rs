@@ -184,6 +184,48 @@ impl Mlp {
         (current, Tape { inputs })
     }
 
+    /// Outputs and their derivatives with respect to each input coordinate (forward mode): the
+    /// outputs `Y` (`B × outputs`) and `∂Y/∂x_d` (`B × outputs`) for `d = 0..inputs`.
+    ///
+    /// # Panics
+    /// If `x` does not have `inputs` columns.
+    pub fn forward_with_input_derivatives(&self, x: MatRef<'_, f64>) -> (Mat<f64>, Vec<Mat<f64>>) {
+        assert_eq!(x.ncols(), self.shape.inputs, "input width");
+        let layers = self.layers();
+        let last = layers.len() - 1;
+        let mut current = x.to_owned();
+        let mut tangents: Vec<Mat<f64>> = (0..self.shape.inputs)
+            .map(|d| Mat::from_fn(x.nrows(), x.ncols(), |_, j| if j == d { 1.0 } else { 0.0 }))
+            .collect();
+        for (l, (w, b)) in layers.iter().enumerate() {
+            let mut y = &current * w.transpose();
+            for j in 0..y.ncols() {
+                for i in 0..y.nrows() {
+                    y[(i, j)] += b[j];
+                }
+            }
+            for t in &mut tangents {
+                *t = &*t * w.transpose();
+            }
+            current = y;
+            if l < last {
+                for t in &mut tangents {
+                    *t = Mat::from_fn(t.nrows(), t.ncols(), |i, j| {
+                        let pre = current[(i, j)];
+                        t[(i, j)] * if pre > 0.0 { 1.0 } else { pre.exp() }
+                    });
+                }
+                current =
+                    Mat::from_fn(
+                        current.nrows(),
+                        current.ncols(),
+                        |i, j| elu(current[(i, j)]),
+                    );
+            }
+        }
+        (current, tangents)
+    }
+
     /// Gradient of a scalar loss with respect to every parameter (same layout as
     /// [`Mlp::parameters`]), given `d_output = ∂loss/∂outputs` (`B × outputs`) and the tape of
     /// the forward pass that produced those outputs.
@@ -340,6 +382,31 @@ mod tests {
             worst = worst.max((fd - analytic).abs() / (1.0 + fd.abs()));
         }
         assert!(worst < 1e-7, "worst relative gradient error {worst:e}");
+    }
+
+    #[test]
+    fn input_derivatives_match_central_differences() {
+        let mlp = small();
+        let x = batch(6, 4);
+        let (y, tangents) = mlp.forward_with_input_derivatives(x.as_ref());
+        assert_eq!(y, mlp.forward(x.as_ref()));
+        let h = 1e-6;
+        for (d, tangent) in tangents.iter().enumerate() {
+            let shifted = |s: f64| {
+                let mut xs = x.clone();
+                for i in 0..xs.nrows() {
+                    xs[(i, d)] += s;
+                }
+                mlp.forward(xs.as_ref())
+            };
+            let (up, down) = (shifted(h), shifted(-h));
+            for i in 0..6 {
+                for j in 0..4 {
+                    let fd = (up[(i, j)] - down[(i, j)]) / (2.0 * h);
+                    assert!((fd - tangent[(i, j)]).abs() < 1e-7 * (1.0 + fd.abs()));
+                }
+            }
+        }
     }
 
     #[test]
