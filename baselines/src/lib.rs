@@ -12,11 +12,13 @@
 
 pub mod adam;
 pub mod mlp;
+pub mod model_file;
 pub mod simplicits;
 
 pub use adam::{Adam, AdamParams};
-pub use mlp::{MLP_FORMAT_VERSION, Mlp, MlpFileError, MlpShape, Tape};
+pub use mlp::{MLP_FORMAT_VERSION, Mlp, MlpShape, Tape};
+pub use model_file::ModelFileError;
 pub use simplicits::{
-    SimplicitsError, SimplicitsField, SimplicitsParams, StepLosses, TrainingReport, ortho_loss,
-    train_simplicits,
+    SIMPLICITS_FORMAT_VERSION, SimplicitsError, SimplicitsField, SimplicitsParams, StepLosses,
+    TrainedSimplicits, TrainingReport, ortho_loss, train_simplicits,
 };

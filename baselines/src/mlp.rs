@@ -12,7 +12,8 @@ use faer::{Mat, MatRef};
 use rand::{Rng, SeedableRng};
 use rand_chacha::ChaCha8Rng;
 use serde::{Deserialize, Serialize};
-use thiserror::Error;
+
+use crate::model_file::{self, ModelFileError};
 
 /// Sizes of an [`Mlp`].
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, Deserialize)]
@@ -53,27 +54,6 @@ impl MlpShape {
     pub fn parameter_count(&self) -> usize {
         self.layer_sizes().iter().map(|(i, o)| o * i + o).sum()
     }
-}
-
-/// A saved network is unusable.
-#[derive(Debug, Error)]
-pub enum MlpFileError {
-    /// Reading or writing failed.
-    #[error("{path}: {source}")]
-    Io {
-        /// The file.
-        path: String,
-        /// Why.
-        source: std::io::Error,
-    },
-    /// Not a network file of this version, or damaged.
-    #[error("{path}: not a FreeForm MLP file of format version {MLP_FORMAT_VERSION} ({reason})")]
-    Format {
-        /// The file.
-        path: String,
-        /// What did not match.
-        reason: String,
-    },
 }
 
 /// Version written into saved networks.
@@ -278,56 +258,30 @@ impl Mlp {
     /// Saves the network (magic, format version, bincode), atomically.
     ///
     /// # Errors
-    /// [`MlpFileError::Io`] naming the path.
-    pub fn save(&self, path: impl AsRef<Path>) -> Result<(), MlpFileError> {
-        let path = path.as_ref();
-        let io = |source| MlpFileError::Io {
-            path: path.display().to_string(),
-            source,
-        };
-        let mut bytes = MAGIC.to_vec();
-        bytes.extend(MLP_FORMAT_VERSION.to_le_bytes());
-        bytes.extend(
-            bincode::serde::encode_to_vec(self, bincode::config::standard())
-                .map_err(|e| io(std::io::Error::other(e)))?,
-        );
-        let tmp = path.with_extension("partial");
-        std::fs::write(&tmp, bytes).map_err(io)?;
-        std::fs::rename(&tmp, path).map_err(io)
+    /// [`ModelFileError::Io`] naming the path.
+    pub fn save(&self, path: impl AsRef<Path>) -> Result<(), ModelFileError> {
+        model_file::save(path.as_ref(), MAGIC, MLP_FORMAT_VERSION, self)
     }
 
     /// Loads a network saved by [`Mlp::save`].
     ///
     /// # Errors
-    /// [`MlpFileError`]: unreadable, wrong magic or version, damaged, or parameters that do
+    /// [`ModelFileError`]: unreadable, wrong magic or version, damaged, or parameters that do
     /// not match the stored shape.
-    pub fn load(path: impl AsRef<Path>) -> Result<Self, MlpFileError> {
+    pub fn load(path: impl AsRef<Path>) -> Result<Self, ModelFileError> {
         let path = path.as_ref();
-        let display = path.display().to_string();
-        let bytes = std::fs::read(path).map_err(|source| MlpFileError::Io {
-            path: display.clone(),
-            source,
-        })?;
-        let format = |reason: String| MlpFileError::Format {
-            path: display.clone(),
-            reason,
-        };
-        if bytes.len() < 12 || &bytes[..8] != MAGIC {
-            return Err(format("missing magic".into()));
-        }
-        let version = u32::from_le_bytes([bytes[8], bytes[9], bytes[10], bytes[11]]);
-        if version != MLP_FORMAT_VERSION {
-            return Err(format(format!("file has version {version}")));
-        }
-        let (mlp, _): (Mlp, usize) =
-            bincode::serde::decode_from_slice(&bytes[12..], bincode::config::standard())
-                .map_err(|e| format(e.to_string()))?;
+        let mlp: Mlp = model_file::load(path, MAGIC, MLP_FORMAT_VERSION, "MLP")?;
         if mlp.parameters.len() != mlp.shape.parameter_count() {
-            return Err(format(format!(
-                "{} parameters for a shape that needs {}",
-                mlp.parameters.len(),
-                mlp.shape.parameter_count()
-            )));
+            return Err(ModelFileError::Format {
+                path: path.display().to_string(),
+                what: "MLP",
+                version: MLP_FORMAT_VERSION,
+                reason: format!(
+                    "{} parameters for a shape that needs {}",
+                    mlp.parameters.len(),
+                    mlp.shape.parameter_count()
+                ),
+            });
         }
         Ok(mlp)
     }

@@ -14,6 +14,7 @@
 //! The network sees the point mapped to the unit cube by the bounding box of the integration
 //! points; the constant handle is prepended at simulation time ([`SimplicitsField`]).
 
+use std::path::Path;
 use std::time::Instant;
 
 use faer::Mat;
@@ -30,6 +31,7 @@ use thiserror::Error;
 
 use crate::adam::{Adam, AdamParams};
 use crate::mlp::{Mlp, MlpShape};
+use crate::model_file::{self, ModelFileError};
 
 /// Training options; defaults are DESIGN 3.9's.
 #[derive(Clone, Copy, Debug, PartialEq, Serialize, Deserialize)]
@@ -115,6 +117,44 @@ pub struct TrainingReport {
     pub first: StepLosses,
     /// Losses of the last step.
     pub last: StepLosses,
+}
+
+/// Version written into saved Simplicits models.
+pub const SIMPLICITS_FORMAT_VERSION: u32 = 1;
+const MAGIC: &[u8; 8] = b"FFSIMPL\0";
+
+/// A trained field with what produced it, as saved and cached.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+pub struct TrainedSimplicits {
+    /// The field.
+    pub field: SimplicitsField,
+    /// The options it was trained with.
+    pub params: SimplicitsParams,
+    /// What training measured.
+    pub report: TrainingReport,
+}
+
+impl TrainedSimplicits {
+    /// Saves (magic, format version, bincode), atomically.
+    ///
+    /// # Errors
+    /// [`ModelFileError::Io`] naming the path.
+    pub fn save(&self, path: impl AsRef<Path>) -> Result<(), ModelFileError> {
+        model_file::save(path.as_ref(), MAGIC, SIMPLICITS_FORMAT_VERSION, self)
+    }
+
+    /// Loads what [`TrainedSimplicits::save`] wrote.
+    ///
+    /// # Errors
+    /// [`ModelFileError`]: unreadable, wrong magic or version, or damaged.
+    pub fn load(path: impl AsRef<Path>) -> Result<Self, ModelFileError> {
+        model_file::load(
+            path.as_ref(),
+            MAGIC,
+            SIMPLICITS_FORMAT_VERSION,
+            "Simplicits model",
+        )
+    }
 }
 
 /// A trained network as a skinning field: `W(X) = [1, mlp((X − min) / extent)]`.

@@ -2,7 +2,10 @@
 //! a short deterministic training run, and the trained field inside the reduced simulator.
 
 use baselines::simplicits::{Batch, Problem, central_difference_deformation_gradient};
-use baselines::{Mlp, MlpShape, SimplicitsField, SimplicitsParams, ortho_loss, train_simplicits};
+use baselines::{
+    Mlp, MlpShape, SimplicitsField, SimplicitsParams, StepLosses, TrainedSimplicits,
+    TrainingReport, ortho_loss, train_simplicits,
+};
 use faer::Mat;
 use hyperelastic::{LameParameters, StableNeoHookean};
 use nalgebra::{Matrix3, Vector3};
@@ -158,6 +161,34 @@ fn short_training_lowers_the_loss_deterministically_and_the_field_simulates() {
     assert!(late < 0.5 * early, "loss {early:e} → {late:e}");
     let (again, _) = short_training();
     assert_eq!(field, again, "same seed, same network");
+
+    // Saved and reloaded: the same weights.
+    let path =
+        std::env::temp_dir().join(format!("freeform-simplicits-{}.simp", std::process::id()));
+    let trained = TrainedSimplicits {
+        field: field.clone(),
+        params: SimplicitsParams::default(),
+        report: TrainingReport {
+            seconds: 1.0,
+            first: StepLosses {
+                elastic: 1.0,
+                ortho: 1.0,
+                total: 2.0,
+            },
+            last: StepLosses {
+                elastic: 0.5,
+                ortho: 0.5,
+                total: 1.0,
+            },
+        },
+    };
+    trained.save(&path).unwrap();
+    let back = TrainedSimplicits::load(&path).unwrap();
+    let probe = [Vector3::new(0.3, 0.1, 0.2)];
+    assert_eq!(
+        back.field.evaluate(&probe).unwrap().weights,
+        field.evaluate(&probe).unwrap().weights
+    );
 
     // The field's weight gradients are the derivatives of its weights.
     let x = vec![Vector3::new(0.7, 0.2, 0.31), Vector3::new(1.9, 0.45, 0.05)];

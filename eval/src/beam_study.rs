@@ -3,15 +3,17 @@
 
 use std::path::PathBuf;
 
-use reduced_sim::DeformationMap;
+use baselines::SimplicitsParams;
+use reduced_sim::{DeformationMap, SkinningField};
 use serde::{Deserialize, Serialize};
 
 use crate::EvalError;
 use crate::beam::{BEAM_MAX, BEAM_MIN, BeamTest};
 use crate::fem_reference::{FemBeamRun, FemResolution, run_fem_beam};
-use crate::metrics::{basis_fitting_residual, trajectory_errors};
+use crate::metrics::{TrajectoryErrors, basis_fitting_residual, trajectory_errors};
 use crate::progress::Progress;
-use crate::reduced_beam::{ReducedSettings, build_beam_basis, run_reduced_beam};
+use crate::reduced_beam::{ReducedBeamRun, ReducedSettings, build_beam_basis, run_reduced_beam};
+use crate::simplicits_beam::train_beam_simplicits;
 
 /// What the study runs.
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
@@ -26,7 +28,10 @@ pub struct BeamStudyConfig {
     pub steps: Option<usize>,
     /// The FEM ground truth.
     pub fem: FemResolution,
-    /// Cache folder (FEM trajectories under `fem/`).
+    /// The Simplicits baseline's training options (its `modes` is set per m), or `None` to
+    /// leave it out.
+    pub simplicits: Option<SimplicitsParams>,
+    /// Cache folder (FEM trajectories under `fem/`, networks under `simplicits/`).
     pub cache_dir: PathBuf,
 }
 
@@ -40,12 +45,13 @@ impl BeamStudyConfig {
             settings: ReducedSettings::default(),
             steps: None,
             fem: FemResolution::GROUND_TRUTH,
+            simplicits: Some(SimplicitsParams::default()),
             cache_dir,
         }
     }
 
     /// A few-minute version: m ∈ {6, 16}, K = 500 on 10k basis points, 100 Bend steps (Twist
-    /// keeps its 34), FEM P2 res 4.
+    /// keeps its 34), FEM P2 res 4, Simplicits trained for 500 steps instead of 10 000.
     pub fn quick(cache_dir: PathBuf) -> Self {
         BeamStudyConfig {
             modes: vec![6, 16],
@@ -59,6 +65,10 @@ impl BeamStudyConfig {
                 cells_per_metre: 4,
                 ..FemResolution::GROUND_TRUTH
             },
+            simplicits: Some(SimplicitsParams {
+                steps: 500,
+                ..SimplicitsParams::default()
+            }),
             ..BeamStudyConfig::full(cache_dir)
         }
     }
@@ -92,6 +102,25 @@ pub struct BeamRow {
     pub max_pin_deviation: f64,
     /// Basis build time (s).
     pub basis_seconds: f64,
+    /// The Simplicits baseline at the same m, if it was run.
+    pub simplicits: Option<BaselineRow>,
+}
+
+/// A baseline's result for one (test, m).
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+pub struct BaselineRow {
+    /// Normalized MSE against FEM.
+    pub mse: f64,
+    /// Normalized max error against FEM.
+    pub max: f64,
+    /// Basis fitting residual.
+    pub fitting_residual: f64,
+    /// Wall time per step (ms).
+    pub ms_per_step: f64,
+    /// Training time of the run that produced the network (s).
+    pub training_seconds: f64,
+    /// Steps that did not converge.
+    pub unconverged_steps: usize,
 }
 
 /// The FEM side of a test.
@@ -159,7 +188,6 @@ pub fn run_beam_study(
         });
         references.push((test, run));
     }
-    let length = beam_length_scale();
     let mut rows = Vec::new();
     for &m in &config.modes {
         let settings = ReducedSettings {
@@ -168,26 +196,54 @@ pub fn run_beam_study(
         };
         progress.status(format!("basis m = {m}, K = {}", settings.kernels));
         let basis = build_beam_basis(&settings)?;
+        let simplicits = match &config.simplicits {
+            Some(params) => Some(train_beam_simplicits(
+                &SimplicitsParams {
+                    modes: m,
+                    ..*params
+                },
+                settings.basis_points,
+                &config.cache_dir,
+                progress,
+            )?),
+            None => None,
+        };
         for (test, reference) in &references {
             let steps = config.steps_of(*test);
-            let vertices = reference.vertices();
-            let run = run_reduced_beam(*test, &basis.basis, &settings, vertices, steps, progress)?;
-            let fem_frames = reference.vertex_frames();
-            let errors = trajectory_errors(&run.frames[1..], &fem_frames[1..], length)?;
-            let map = DeformationMap::new(&basis.basis, vertices)
-                .map_err(|e| EvalError::Setup(e.to_string()))?;
-            let fitting_residual = basis_fitting_residual(&map, &fem_frames[1..], length)?;
+            let ours = evaluate_field(*test, &basis.basis, &settings, reference, steps, progress)?;
+            let simplicits = match &simplicits {
+                Some(net) => {
+                    let e = evaluate_field(
+                        *test,
+                        &net.trained.field,
+                        &settings,
+                        reference,
+                        steps,
+                        progress,
+                    )?;
+                    Some(BaselineRow {
+                        mse: e.errors.normalized_mse,
+                        max: e.errors.normalized_max,
+                        fitting_residual: e.fitting_residual,
+                        ms_per_step: e.run.ms_per_step,
+                        training_seconds: net.trained.report.seconds,
+                        unconverged_steps: e.run.unconverged_steps,
+                    })
+                }
+                None => None,
+            };
             rows.push(BeamRow {
                 test: *test,
                 m,
-                ours_mse: errors.normalized_mse,
-                ours_max: errors.normalized_max,
-                fitting_residual,
-                ms_per_step: run.ms_per_step,
-                iterations_per_step: run.iterations_per_step,
-                unconverged_steps: run.unconverged_steps,
-                max_pin_deviation: run.max_pin_deviation,
+                ours_mse: ours.errors.normalized_mse,
+                ours_max: ours.errors.normalized_max,
+                fitting_residual: ours.fitting_residual,
+                ms_per_step: ours.run.ms_per_step,
+                iterations_per_step: ours.run.iterations_per_step,
+                unconverged_steps: ours.run.unconverged_steps,
+                max_pin_deviation: ours.run.max_pin_deviation,
                 basis_seconds: basis.seconds,
+                simplicits,
             });
         }
     }
@@ -196,5 +252,35 @@ pub fn run_beam_study(
         config: config.clone(),
         rows,
         fem,
+    })
+}
+
+/// A skinning field's run of one test, scored against the FEM reference.
+struct FieldEvaluation {
+    run: ReducedBeamRun,
+    errors: TrajectoryErrors,
+    fitting_residual: f64,
+}
+
+/// Simulates `test` with `field` and scores it at the reference's vertices.
+fn evaluate_field<B: SkinningField + ?Sized>(
+    test: BeamTest,
+    field: &B,
+    settings: &ReducedSettings,
+    reference: &FemBeamRun,
+    steps: usize,
+    progress: &Progress,
+) -> Result<FieldEvaluation, EvalError> {
+    let length = beam_length_scale();
+    let vertices = reference.vertices();
+    let fem_frames = reference.vertex_frames();
+    let run = run_reduced_beam(test, field, settings, vertices, steps, progress)?;
+    let errors = trajectory_errors(&run.frames[1..], &fem_frames[1..], length)?;
+    let map = DeformationMap::new(field, vertices).map_err(|e| EvalError::Setup(e.to_string()))?;
+    let fitting_residual = basis_fitting_residual(&map, &fem_frames[1..], length)?;
+    Ok(FieldEvaluation {
+        run,
+        errors,
+        fitting_residual,
     })
 }

@@ -6,6 +6,7 @@
 //! - [`beam`]: the beam Bend and Twist of DESIGN 4.1.
 //! - [`metrics`]: normalized MSE, max error, basis fitting residual (DESIGN 4.3).
 //! - [`fem_reference`], [`reduced_beam`]: the two solvers on the beam.
+//! - [`simplicits_beam`]: the Simplicits baseline trained on the beam, cached.
 //! - [`beam_study`], [`tables`]: Tables 1, 5, 6. [`bench`]: the error-vs-time study.
 //! - [`scene_file`]: user scenes in TOML/JSON for `freeform simulate`.
 //! - [`output`], [`plot`], [`progress`]: files, figures, progress bars.
@@ -29,6 +30,7 @@ pub mod progress;
 pub mod reduced_beam;
 pub mod scene_file;
 pub mod scene_spec;
+pub mod simplicits_beam;
 pub mod tables;
 
 pub use scene_spec::SceneSpec;

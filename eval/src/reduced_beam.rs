@@ -7,8 +7,9 @@ use hyperelastic::{LameParameters, StableNeoHookean};
 use nalgebra::Vector3;
 use reduced_sim::{
     DeformationMap, NewtonParams, PenaltyParams, ReducedModel, SimulationParams, Simulator,
+    SkinningField,
 };
-use rkpm_core::sample_box_grid;
+use rkpm_core::{IntegrationPoints, sample_box_grid};
 use serde::{Deserialize, Serialize};
 use skin_eigen::{BasisParams, BasisReport, SkinningBasis, build_basis};
 
@@ -61,20 +62,33 @@ pub struct BeamBasis {
     pub seconds: f64,
 }
 
+/// The grid of about `points` cells the beam's basis (or a baseline) is built on, with the
+/// beam's Lamé parameters at every point.
+///
+/// # Errors
+/// [`EvalError::Basis`] for an invalid count or material.
+pub fn beam_basis_grid(
+    points: usize,
+) -> Result<(IntegrationPoints, Vec<LameParameters>), EvalError> {
+    let grid = sample_box_grid(BEAM_MIN, BEAM_MAX, beam_grid_spacing(points))
+        .map_err(|e| EvalError::Basis(e.to_string()))?;
+    let material = beam_material();
+    let lame = LameParameters::from_young_poisson(material.youngs_modulus, material.poisson_ratio)
+        .map_err(|e| EvalError::Basis(e.to_string()))?;
+    let lame = vec![lame; grid.len()];
+    Ok((grid, lame))
+}
+
 /// Builds the beam's skinning basis for `settings` (modes, kernels, basis points).
 ///
 /// # Errors
 /// [`EvalError::Basis`] from the builder (e.g. m ≥ K).
 pub fn build_beam_basis(settings: &ReducedSettings) -> Result<BeamBasis, EvalError> {
     let start = Instant::now();
-    let grid = sample_box_grid(BEAM_MIN, BEAM_MAX, beam_grid_spacing(settings.basis_points))
-        .map_err(|e| EvalError::Basis(e.to_string()))?;
-    let material = beam_material();
-    let lame = LameParameters::from_young_poisson(material.youngs_modulus, material.poisson_ratio)
-        .map_err(|e| EvalError::Basis(e.to_string()))?;
+    let (grid, lame) = beam_basis_grid(settings.basis_points)?;
     let (basis, report, _) = build_basis(
         &grid,
-        &vec![lame; grid.len()],
+        &lame,
         &BasisParams::default()
             .with_modes(settings.modes)
             .with_kernels(settings.kernels),
@@ -108,14 +122,14 @@ pub struct ReducedBeamRun {
     pub simulation_points: usize,
 }
 
-/// Simulates `steps` steps of `test` with `basis` on `settings.simulation_points` grid points,
+/// Simulates `steps` steps of `test` with `basis` (ours, or any other skinning field) on `settings.simulation_points` grid points,
 /// recording positions at `output_points` (rest positions, m) every step.
 ///
 /// # Errors
 /// [`EvalError`] for a failed setup or step.
-pub fn run_reduced_beam(
+pub fn run_reduced_beam<B: SkinningField + ?Sized>(
     test: BeamTest,
-    basis: &SkinningBasis,
+    basis: &B,
     settings: &ReducedSettings,
     output_points: &[Vector3<f64>],
     steps: usize,

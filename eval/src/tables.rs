@@ -61,13 +61,51 @@ fn sci(v: Option<f64>) -> String {
     v.map_or("—".into(), |v| format!("{v:.2e}"))
 }
 
+fn not_run_or(v: Option<f64>) -> String {
+    v.map_or("not run".into(), |v| format!("{v:.2e}"))
+}
+
+fn optional(v: Option<f64>) -> String {
+    v.map_or(String::new(), |v| format!("{v:e}"))
+}
+
+/// How the Simplicits column was produced (or that it was not).
+fn simplicits_line(study: &BeamStudy) -> String {
+    match &study.config.simplicits {
+        None => "\nSimplicits (ours) was not run (`--skip-simplicits`).\n".into(),
+        Some(p) => {
+            let seconds: Vec<String> = study
+                .rows
+                .iter()
+                .filter(|r| r.test.name() == "bend")
+                .filter_map(|r| {
+                    r.simplicits
+                        .as_ref()
+                        .map(|s| format!("m={}: {:.0} s", r.m, s.training_seconds))
+                })
+                .collect();
+            format!(
+                "\nSimplicits (ours): the baseline of DESIGN 3.9 trained on the same grid as our basis \
+                 ({} Adam steps of {} points × {} transforms; training time {}), simulated by the same \
+                 reduced simulator and scene.\n",
+                p.steps,
+                p.points_per_step,
+                p.transforms_per_step,
+                seconds.join(", ")
+            )
+        }
+    }
+}
+
 /// Table 1: normalized MSE of ours against FEM for each (test, m), beside the paper's columns.
 pub fn table1(study: &BeamStudy) -> RenderedTable {
     let mut md = String::from("## Table 1: normalized MSE against FEM (beam)\n\n");
     md += &settings_lines(study);
     md += "\n| test | m | ours MSE | ours max | pin drift (mm) | paper FreeForm | paper Simplicits | Simplicits (ours) | MPM (paper) | SPH (paper) |\n";
     md += "|---|---|---|---|---|---|---|---|---|---|\n";
-    let mut csv = String::from("test,m,ours_mse,ours_max,paper_ours_mse,paper_simplicits_mse\n");
+    let mut csv = String::from(
+        "test,m,ours_mse,ours_max,simplicits_mse,simplicits_max,paper_ours_mse,paper_simplicits_mse\n",
+    );
     let mut rows = Vec::new();
     for r in &study.rows {
         let name = r.test.name();
@@ -78,22 +116,25 @@ pub fn table1(study: &BeamStudy) -> RenderedTable {
             .find(|p| p.0 == name && r.m == 9);
         let _ = writeln!(
             md,
-            "| {name} | {} | {:.2e} | {:.2e} | {:.1} | {} | {} | not yet run | {} | {} |",
+            "| {name} | {} | {:.2e} | {:.2e} | {:.1} | {} | {} | {} | {} | {} |",
             r.m,
             r.ours_mse,
             r.ours_max,
             1e3 * r.max_pin_deviation,
             sci(paper_ours),
             sci(paper_simplicits),
+            not_run_or(r.simplicits.as_ref().map(|s| s.mse)),
             sci(particle.map(|p| p.1)),
             sci(particle.map(|p| p.2)),
         );
         let _ = writeln!(
             csv,
-            "{name},{},{:e},{:e},{},{}",
+            "{name},{},{:e},{:e},{},{},{},{}",
             r.m,
             r.ours_mse,
             r.ours_max,
+            optional(r.simplicits.as_ref().map(|s| s.mse)),
+            optional(r.simplicits.as_ref().map(|s| s.max)),
             paper_ours.map_or(String::new(), |v| format!("{v:e}")),
             paper_simplicits.map_or(String::new(), |v| format!("{v:e}"))
         );
@@ -104,12 +145,16 @@ pub fn table1(study: &BeamStudy) -> RenderedTable {
             "ours_max": r.ours_max,
             "paper_ours_mse": paper_ours,
             "paper_simplicits_mse": paper_simplicits,
-            "simplicits_mse": Value::Null,
+            "simplicits_mse": r.simplicits.as_ref().map(|s| s.mse),
+            "simplicits_max": r.simplicits.as_ref().map(|s| s.max),
+            "simplicits_training_seconds": r.simplicits.as_ref().map(|s| s.training_seconds),
             "unconverged_steps": r.unconverged_steps,
             "max_pin_deviation": r.max_pin_deviation,
         }));
     }
-    md += "\nSimplicits, MPM and SPH have not been run here yet (their issues are open); the paper's values are shown.\n";
+    md += &simplicits_line(study);
+    md +=
+        "MPM and SPH have not been run here (their issue is open); the paper's values are shown.\n";
     RenderedTable {
         number: 1,
         markdown: md,
@@ -128,7 +173,7 @@ pub fn table5(study: &BeamStudy) -> RenderedTable {
         "This machine: {} CPU threads (rayon). The paper's numbers are on a GPU.\n",
         rayon::current_num_threads()
     );
-    md += "\n| m | ours ms/step | Newton it./step | FEM/ours | paper FreeForm | paper Simplicits |\n|---|---|---|---|---|---|\n";
+    md += "\n| m | ours ms/step | Newton it./step | FEM/ours | Simplicits ms/step | paper FreeForm | paper Simplicits |\n|---|---|---|---|---|---|---|\n";
     let mut csv = String::from(
         "m,ours_ms_per_step,fem_ms_per_step,ratio,paper_ours_ms,paper_simplicits_ms\n",
     );
@@ -138,11 +183,14 @@ pub fn table5(study: &BeamStudy) -> RenderedTable {
         let p = paper::table5(r.m);
         let _ = writeln!(
             md,
-            "| {} | {:.2} | {:.2} | {} | {} | {} |",
+            "| {} | {:.2} | {:.2} | {} | {} | {} | {} |",
             r.m,
             r.ms_per_step,
             r.iterations_per_step,
             ratio.map_or("—".into(), |v| format!("{v:.0}×")),
+            r.simplicits
+                .as_ref()
+                .map_or("not run".into(), |s| format!("{:.2}", s.ms_per_step)),
             p.map_or("—".into(), |p| format!("{:.2}", p.1)),
             p.map_or("—".into(), |p| format!("{:.2}", p.0)),
         );
@@ -158,12 +206,13 @@ pub fn table5(study: &BeamStudy) -> RenderedTable {
         );
         rows.push(
             json!({"m": r.m, "ours_ms_per_step": r.ms_per_step, "fem_over_ours": ratio,
+            "simplicits_ms_per_step": r.simplicits.as_ref().map(|s| s.ms_per_step),
             "paper_ours_ms": p.map(|p| p.1), "paper_simplicits_ms": p.map(|p| p.0)}),
         );
     }
     let _ = writeln!(
         md,
-        "| FEM ({}) | {} | | | {:.1} (paper FEM) | |",
+        "| FEM ({}) | {} | | | | {:.1} (paper FEM) | |",
         fem.map_or("—".into(), |f| f.resolution.clone()),
         fem_ms.map_or("—".into(), |v| format!("{v:.1}")),
         paper::TABLE5_FEM_MS
@@ -182,21 +231,30 @@ pub fn table6(study: &BeamStudy) -> RenderedTable {
     let mut md = String::from("## Table 6: basis fitting residual (beam)\n\n");
     md += &settings_lines(study);
     md += "The paper's Table 6 values did not survive either text rendering, so none are shown.\n";
+    md += &simplicits_line(study);
     md += "\n| test | m | ours residual | Simplicits (ours) |\n|---|---|---|---|\n";
-    let mut csv = String::from("test,m,ours_fitting_residual\n");
+    let mut csv = String::from("test,m,ours_fitting_residual,simplicits_fitting_residual\n");
     let mut rows = Vec::new();
     for r in &study.rows {
         let _ = writeln!(
             md,
-            "| {} | {} | {:.2e} | not yet run |",
+            "| {} | {} | {:.2e} | {} |",
             r.test.name(),
             r.m,
-            r.fitting_residual
+            r.fitting_residual,
+            not_run_or(r.simplicits.as_ref().map(|s| s.fitting_residual))
         );
-        let _ = writeln!(csv, "{},{},{:e}", r.test.name(), r.m, r.fitting_residual);
-        rows.push(
-            json!({"test": r.test.name(), "m": r.m, "ours_fitting_residual": r.fitting_residual}),
+        let simplicits = r.simplicits.as_ref().map(|s| s.fitting_residual);
+        let _ = writeln!(
+            csv,
+            "{},{},{:e},{}",
+            r.test.name(),
+            r.m,
+            r.fitting_residual,
+            optional(simplicits)
         );
+        rows.push(json!({"test": r.test.name(), "m": r.m,
+            "ours_fitting_residual": r.fitting_residual, "simplicits_fitting_residual": simplicits}));
     }
     RenderedTable {
         number: 6,

@@ -1,6 +1,7 @@
 //! The beam tables on a tiny study: the JSON rows carry the fields the CLI promises, the paper's
 //! numbers sit beside ours, and Table 5's ratio is FEM time over ours.
 
+use baselines::SimplicitsParams;
 use eval::beam::BeamTest;
 use eval::beam_study::{BeamStudyConfig, run_beam_study};
 use eval::fem_reference::FemResolution;
@@ -26,6 +27,12 @@ fn tiny_study_fills_tables_1_5_6_with_paper_columns_and_consistent_json() {
             order: ElementOrder::Quadratic,
             cells_per_metre: 2,
         },
+        simplicits: Some(SimplicitsParams {
+            steps: 30,
+            points_per_step: 100,
+            transforms_per_step: 2,
+            ..SimplicitsParams::default()
+        }),
         cache_dir: dir.join("cache"),
     };
     let study = run_beam_study(&config, &Progress { quiet: true }).unwrap();
@@ -43,6 +50,11 @@ fn tiny_study_fills_tables_1_5_6_with_paper_columns_and_consistent_json() {
         assert!(mse > 0.0 && max * max >= mse && max.is_finite(), "{row}");
     }
     assert_eq!(rows[0]["paper_ours_mse"].as_f64(), Some(7.80e-3));
+    // The baseline ran through the same pipeline (a 30-step network: only finiteness matters).
+    for row in rows {
+        let mse = row["simplicits_mse"].as_f64().unwrap();
+        assert!(mse.is_finite() && mse > 0.0, "{row}");
+    }
     assert_eq!(rows[1]["paper_ours_mse"].as_f64(), Some(1.56e-4));
     assert!(t1.markdown.contains("| bend | 6 |") && t1.markdown.contains("7.80e-3"));
     assert!(
@@ -66,6 +78,12 @@ fn tiny_study_fills_tables_1_5_6_with_paper_columns_and_consistent_json() {
     let files = write_table(&t1, &dir.join("out")).unwrap();
     assert_eq!(files.len(), 3);
     let csv = std::fs::read_to_string(&files[2]).unwrap();
-    assert!(csv.starts_with("test,m,ours_mse,ours_max,paper_ours_mse"));
+    assert!(
+        csv.starts_with("test,m,ours_mse,ours_max,simplicits_mse,simplicits_max,paper_ours_mse")
+    );
     assert_eq!(csv.lines().count(), 3);
+
+    // A second study loads the network from the cache: the same Simplicits numbers.
+    let again = run_beam_study(&config, &Progress { quiet: true }).unwrap();
+    assert_eq!(table1(&again).json["rows"], t1.json["rows"]);
 }

@@ -125,6 +125,13 @@ enum Command {
         /// Print JSON instead of Markdown.
         #[arg(long)]
         json: bool,
+        /// Leave out the Simplicits baseline (its training takes about 16 min per m on 2 cores
+        /// the first time; networks are cached).
+        #[arg(long)]
+        skip_simplicits: bool,
+        /// Only these modes (comma-separated), instead of the paper's 6, 9, 16, 32.
+        #[arg(long, value_delimiter = ',')]
+        modes: Option<Vec<usize>>,
     },
     /// Error-vs-time sweep on the beam Bend; writes CSV and a log-log plot with the Pareto front.
     Bench {
@@ -213,7 +220,20 @@ fn run(cli: Cli) -> Result<()> {
             numbers,
             quick,
             json,
-        } => table(&numbers, quick, json, &cli.out, &cache, &progress),
+            skip_simplicits,
+            modes,
+        } => table(
+            &numbers,
+            TableOptions {
+                quick,
+                json,
+                skip_simplicits,
+                modes,
+            },
+            &cli.out,
+            &cache,
+            &progress,
+        ),
         Command::Bench { quick } => {
             let config = if quick {
                 BenchConfig::quick(cache)
@@ -232,10 +252,21 @@ fn run(cli: Cli) -> Result<()> {
     }
 }
 
-fn table(
-    numbers: &[u32],
+struct TableOptions {
     quick: bool,
     json: bool,
+    skip_simplicits: bool,
+    modes: Option<Vec<usize>>,
+}
+
+fn table(
+    numbers: &[u32],
+    TableOptions {
+        quick,
+        json,
+        skip_simplicits,
+        modes,
+    }: TableOptions,
     out: &Path,
     cache: &Path,
     progress: &Progress,
@@ -254,6 +285,15 @@ fn table(
     if numbers.iter().all(|&n| n == 5) {
         // Timing only needs the Bend.
         config.tests = vec![BeamTest::Bend];
+    }
+    if skip_simplicits {
+        config.simplicits = None;
+    }
+    if let Some(modes) = modes {
+        if modes.contains(&0) {
+            bail!("--modes: every m must be at least 1");
+        }
+        config.modes = modes;
     }
     let study = run_beam_study(&config, progress)?;
     let mut rendered_json = Vec::new();
