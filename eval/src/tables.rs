@@ -236,15 +236,15 @@ pub fn table6(study: &BeamStudy) -> RenderedTable {
     let mut csv = String::from("test,m,ours_fitting_residual,simplicits_fitting_residual\n");
     let mut rows = Vec::new();
     for r in &study.rows {
+        let simplicits = r.simplicits.as_ref().map(|s| s.fitting_residual);
         let _ = writeln!(
             md,
             "| {} | {} | {:.2e} | {} |",
             r.test.name(),
             r.m,
             r.fitting_residual,
-            not_run_or(r.simplicits.as_ref().map(|s| s.fitting_residual))
+            not_run_or(simplicits)
         );
-        let simplicits = r.simplicits.as_ref().map(|s| s.fitting_residual);
         let _ = writeln!(
             csv,
             "{},{},{:e},{}",
