@@ -72,6 +72,17 @@ pub struct Tape {
     inputs: Vec<Mat<f64>>,
 }
 
+/// `X Wᵀ + 1 bᵀ`: one linear layer on a batch (`B × in` → `B × out`).
+fn affine(x: MatRef<'_, f64>, w: MatRef<'_, f64>, b: &[f64]) -> Mat<f64> {
+    let mut y = x * w.transpose();
+    for (j, bias) in b.iter().enumerate() {
+        for i in 0..y.nrows() {
+            y[(i, j)] += bias;
+        }
+    }
+    y
+}
+
 /// `ELU(x) = x` for `x > 0`, `eˣ − 1` otherwise.
 fn elu(x: f64) -> f64 {
     if x > 0.0 { x } else { x.exp_m1() }
@@ -142,12 +153,7 @@ impl Mlp {
         let mut inputs = Vec::with_capacity(layers.len());
         let mut current = x.to_owned();
         for (l, (w, b)) in layers.iter().enumerate() {
-            let mut y = &current * w.transpose();
-            for j in 0..y.ncols() {
-                for i in 0..y.nrows() {
-                    y[(i, j)] += b[j];
-                }
-            }
+            let y = affine(current.as_ref(), *w, b);
             inputs.push(current);
             current = y;
             if l < last {
@@ -178,12 +184,7 @@ impl Mlp {
             .map(|d| Mat::from_fn(x.nrows(), x.ncols(), |_, j| if j == d { 1.0 } else { 0.0 }))
             .collect();
         for (l, (w, b)) in layers.iter().enumerate() {
-            let mut y = &current * w.transpose();
-            for j in 0..y.ncols() {
-                for i in 0..y.nrows() {
-                    y[(i, j)] += b[j];
-                }
-            }
+            let y = affine(current.as_ref(), *w, b);
             for t in &mut tangents {
                 *t = &*t * w.transpose();
             }

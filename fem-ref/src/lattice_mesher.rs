@@ -171,10 +171,13 @@ pub fn tetrahedralize_to_volume(
             "volume target needs growth > 1 and a positive error, got {target:?}"
         )));
     }
+    // The surface queries do not depend on the lattice: build them once for every try.
+    let queries = SurfaceQueries::new(surface);
     let mut cells_across = params.cells_across;
     loop {
-        let attempt = tetrahedralize(
+        let attempt = tetrahedralize_with(
             surface,
+            &queries,
             &LatticeMesherParams {
                 cells_across,
                 ..*params
@@ -208,9 +211,32 @@ pub fn tetrahedralize_to_volume(
 /// # Errors
 /// [`LatticeMesherError::InvalidParams`] for `cells_across = 0` or a snap fraction outside
 /// `[0, 0.5)`; [`LatticeMesherError::NothingInside`] when the lattice misses the solid.
-#[allow(non_snake_case)]
 pub fn tetrahedralize(
     surface: &TriangleMesh,
+    params: &LatticeMesherParams,
+) -> Result<(TetMesh, LatticeMesherReport), LatticeMesherError> {
+    tetrahedralize_with(surface, &SurfaceQueries::new(surface), params)
+}
+
+/// Inside/outside and distance queries on the surface being meshed.
+struct SurfaceQueries {
+    inside: InsideTest,
+    distance: SurfaceDistance,
+}
+
+impl SurfaceQueries {
+    fn new(surface: &TriangleMesh) -> Self {
+        SurfaceQueries {
+            inside: InsideTest::new(surface),
+            distance: SurfaceDistance::new(surface),
+        }
+    }
+}
+
+/// [`tetrahedralize`] with the surface queries already built.
+fn tetrahedralize_with(
+    surface: &TriangleMesh,
+    queries: &SurfaceQueries,
     params: &LatticeMesherParams,
 ) -> Result<(TetMesh, LatticeMesherReport), LatticeMesherError> {
     let start = Instant::now();
@@ -250,8 +276,7 @@ pub fn tetrahedralize(
         .collect();
 
     // 2. Signed distance, clamped and snapped.
-    let inside = InsideTest::new(surface);
-    let distance = SurfaceDistance::new(surface);
+    let SurfaceQueries { inside, distance } = queries;
     let snap = params.snap_fraction * h;
     let phi: Vec<f64> = positions
         .par_iter()
@@ -290,7 +315,7 @@ pub fn tetrahedralize(
                     continue;
                 }
                 for offsets in KUHN_CUBE_TETS {
-                    builder.add_inside_part(offsets.map(corner), &inside);
+                    builder.add_inside_part(offsets.map(corner), inside);
                 }
             }
         }
