@@ -288,18 +288,31 @@ fn parse_stl(bytes: &[u8], path: &Path) -> Result<Soup, GeometryReadError> {
 
 /// One PLY vertex row: coordinates plus the optional 3DGS attributes. Properties not named
 /// here are skipped by serde.
+///
+/// `#[serde(default)]` on every optional field is load-bearing: for binary files serde-ply
+/// serves the fields as a sequence with absent properties as missing elements, which serde
+/// only accepts for fields with a default (without it, every binary PLY lacking one of the
+/// 3DGS attributes failed with "invalid length 3, expected struct PlyVertexRow").
 #[derive(Deserialize)]
 struct PlyVertexRow {
     x: f64,
     y: f64,
     z: f64,
+    #[serde(default)]
     opacity: Option<f64>,
+    #[serde(default)]
     scale_0: Option<f64>,
+    #[serde(default)]
     scale_1: Option<f64>,
+    #[serde(default)]
     scale_2: Option<f64>,
+    #[serde(default)]
     rot_0: Option<f64>,
+    #[serde(default)]
     rot_1: Option<f64>,
+    #[serde(default)]
     rot_2: Option<f64>,
+    #[serde(default)]
     rot_3: Option<f64>,
 }
 
@@ -423,7 +436,11 @@ fn parse_ply_mesh(bytes: &[u8], path: &Path) -> Result<Soup, GeometryReadError> 
     Ok((vertices, triangles))
 }
 
-fn parse_point_cloud(bytes: &[u8], path: &Path) -> Result<PointCloud, GeometryReadError> {
+/// Parses a PLY point cloud from in-memory bytes (`path` is used in error messages).
+///
+/// # Errors
+/// As [`read_point_cloud`].
+pub fn parse_point_cloud(bytes: &[u8], path: &Path) -> Result<PointCloud, GeometryReadError> {
     let rows = parse_ply(bytes, path)?.vertices;
     if rows.is_empty() {
         return Err(GeometryReadError::NoData {

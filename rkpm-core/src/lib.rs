@@ -35,7 +35,8 @@ pub mod triangle_mesh;
 
 pub use aabb::Aabb;
 pub use geometry_io::{
-    GeometryFormat, GeometryReadError, parse_triangle_mesh, read_point_cloud, read_triangle_mesh,
+    GeometryFormat, GeometryReadError, parse_point_cloud, parse_triangle_mesh, read_point_cloud,
+    read_triangle_mesh,
 };
 pub use inside_test::InsideTest;
 pub use integration_points::{

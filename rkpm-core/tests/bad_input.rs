@@ -151,3 +151,55 @@ fn garbage_bytes_never_panic() {
         let _ = read_point_cloud(write(&format!("garbage{len}b.ply"), &ply));
     }
 }
+
+#[test]
+fn binary_ply_without_splat_attributes_reads() {
+    // Regression (found by the reader fuzzing's seed check): binary PLY files whose vertices
+    // lacked any of the 3DGS attributes failed with "invalid length 3, expected struct
+    // PlyVertexRow with 11 elements" — every binary scan or binary mesh, and clouds with
+    // normals in between the coordinates.
+    let header = |props: &[&str], faces: usize| {
+        let mut h = "ply\nformat binary_little_endian 1.0\nelement vertex 4\n".to_string();
+        for p in props {
+            h += &format!("property float {p}\n");
+        }
+        if faces > 0 {
+            h += &format!("element face {faces}\nproperty list uchar int vertex_indices\n");
+        }
+        h + "end_header\n"
+    };
+    let corners = [
+        [0.0f32, 0.0, 0.0],
+        [1.0, 0.0, 0.0],
+        [0.0, 1.0, 0.0],
+        [0.0, 0.0, 1.0],
+    ];
+    let mut cloud = header(&["x", "nx", "y", "z", "opacity"], 0).into_bytes();
+    for (i, c) in corners.iter().enumerate() {
+        for v in [c[0], 9.0, c[1], c[2], i as f32] {
+            cloud.extend(v.to_le_bytes());
+        }
+    }
+    let read = read_point_cloud(write("binary_cloud.ply", &cloud)).unwrap();
+    assert_eq!(read.len(), 4);
+    assert_eq!(read.positions()[1], nalgebra::Vector3::new(1.0, 0.0, 0.0));
+    assert!(
+        read.splats().is_none(),
+        "a partial attribute set is not a splat"
+    );
+
+    let mut mesh = header(&["x", "y", "z"], 4).into_bytes();
+    for c in corners {
+        for v in c {
+            mesh.extend(v.to_le_bytes());
+        }
+    }
+    for f in [[0i32, 2, 1], [0, 1, 3], [0, 3, 2], [1, 2, 3]] {
+        mesh.push(3);
+        for i in f {
+            mesh.extend(i.to_le_bytes());
+        }
+    }
+    let read = read_triangle_mesh(write("binary_mesh.ply", &mesh)).unwrap();
+    assert!((read.volume() - 1.0 / 6.0).abs() < 1e-7);
+}
