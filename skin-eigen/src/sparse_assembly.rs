@@ -20,7 +20,7 @@ pub struct SparseWeightSpaceMatrices {
 /// Assembles 𝓜 and H_w sparsely. The pattern holds the kernel pairs whose supports can overlap
 /// (`|p_a - p_b| < cutoff (r_a + r_b)`, a superset of the pairs any point couples), upper
 /// triangle, rows sorted; each point adds its pairs by binary search in its rows. Parallel over
-/// points with one value array per thread.
+/// rows, bit-identical for any thread count.
 ///
 /// # Errors
 /// [`AssemblyError::LengthMismatch`] as for the dense assembly.
@@ -55,12 +55,11 @@ pub fn assemble_sparse_weight_space_matrices(
     }
     let columns: Vec<u32> = rows.into_iter().flatten().collect();
     let nnz = columns.len();
-    let (mass, hessian) = accumulate_kernel_pairs(shape, volumes, materials, nnz, |a, b| {
+    let (mass, hessian) = accumulate_kernel_pairs(shape, volumes, materials, &offsets, |a, b| {
         let (start, end) = (offsets[a as usize], offsets[a as usize + 1]);
-        start
-            + columns[start..end]
-                .binary_search(&b)
-                .expect("pattern holds every overlapping pair")
+        columns[start..end]
+            .binary_search(&b)
+            .expect("pattern holds every overlapping pair")
     })?;
     let symmetric = |values: &[f64]| {
         let mut triplets = Vec::with_capacity(2 * nnz);

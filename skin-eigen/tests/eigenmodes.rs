@@ -9,7 +9,7 @@ use nalgebra::Vector3;
 use rkpm_core::{IntegrationPoints, sample_box_grid};
 use skin_eigen::{
     AssembledMatrices, BasisFileError, BasisParams, EigenSolverChoice, SkinningBasis,
-    SubspaceParams, WeightSpaceMatrices, build_basis,
+    SubspaceParams, WeightSpaceMatrices, assemble_weight_space_matrices, build_basis,
 };
 
 const BEAM: [f64; 3] = [5.0, 1.0, 1.0];
@@ -275,4 +275,45 @@ fn iterative_solver_matches_dense_solver() {
             "mode {mode}: {diff:e}"
         );
     }
+}
+
+#[test]
+fn weight_space_assembly_is_bit_identical_on_one_and_three_threads() {
+    // Each entry of 𝓜 and H_w is summed over points in index order, whatever the thread count.
+    let points = beam_points(0.2);
+    let materials = vec![lame(); points.len()];
+    let kernels = rkpm_core::place_kernels(
+        points.positions(),
+        &rkpm_core::KernelParams {
+            count: 150,
+            ..Default::default()
+        },
+    )
+    .unwrap();
+    let cutoff = rkpm_core::ShapeFunctionParams::default();
+    let shape = rkpm_core::evaluate_shape_functions(&kernels, points.positions(), &cutoff).unwrap();
+    let assemble = |threads: usize| {
+        rayon::ThreadPoolBuilder::new()
+            .num_threads(threads)
+            .build()
+            .unwrap()
+            .install(|| {
+                let dense =
+                    assemble_weight_space_matrices(&shape, points.volumes(), &materials).unwrap();
+                let sparse = skin_eigen::assemble_sparse_weight_space_matrices(
+                    &shape,
+                    &kernels,
+                    cutoff.cutoff,
+                    points.volumes(),
+                    &materials,
+                )
+                .unwrap();
+                (dense, sparse.mass.to_dense(), sparse.hessian.to_dense())
+            })
+    };
+    let (one, three) = (assemble(1), assemble(3));
+    assert!(one.0.mass == three.0.mass && one.0.hessian == three.0.hessian);
+    assert!(one.1 == three.1 && one.2 == three.2);
+    // Dense and sparse agree (same sums, different storage).
+    assert!(one.0.mass == one.1 && one.0.hessian == one.2);
 }
