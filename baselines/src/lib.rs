@@ -5,17 +5,25 @@
 //!   initialization, f64, reverse-mode parameter gradients, forward-mode input derivatives,
 //!   save/load), and [`Adam`];
 //! - [`train_simplicits`]: the Simplicits losses and training loop of DESIGN 3.9, giving a
-//!   [`SimplicitsField`] that the reduced simulator runs through `reduced_sim::SkinningField`.
+//!   [`SimplicitsField`] that the reduced simulator runs through `reduced_sim::SkinningField`;
+//! - [`train_coefficients`]: the Table 3 optimization ablations, our RKPM coefficients c found
+//!   by Adam on the Simplicits loss or on the penalized Hessian objective, on random or grid
+//!   points, giving an ordinary `skin_eigen::SkinningBasis`.
 //!
-//! Still to come (the baselines issue): caching trained networks, the Table 3 optimization
-//! ablations on the RKPM coefficients, and the eval tables; later MPM and SPH.
+//! Still to come: MPM and SPH.
 
 pub mod adam;
+pub mod coefficient_training;
 pub mod mlp;
 pub mod model_file;
 pub mod simplicits;
 
 pub use adam::{Adam, AdamParams};
+pub use coefficient_training::{
+    COEFFICIENTS_FORMAT_VERSION, CoefficientLoss, CoefficientTrainingError,
+    CoefficientTrainingParams, CoefficientTrainingReport, QuadratureBatch, TrainedCoefficients,
+    TrainingPoints, random_handle_loss, sample_in_cells, train_coefficients, weight_hessian_loss,
+};
 pub use mlp::{MLP_FORMAT_VERSION, Mlp, MlpShape, Tape};
 pub use model_file::ModelFileError;
 pub use simplicits::{

@@ -247,6 +247,23 @@ fn standard_normal(rng: &mut ChaCha8Rng) -> f64 {
     (-2.0 * u1.ln()).sqrt() * (std::f64::consts::TAU * u2).cos()
 }
 
+/// `sets` random handle sets of `modes` transforms each, every entry of each row-major `3 × 4`
+/// `Z_j` drawn from `N(0, std²)` (one step's draws, shared with the coefficient ablations).
+pub(crate) fn random_handle_transforms(
+    rng: &mut ChaCha8Rng,
+    sets: usize,
+    modes: usize,
+    std: f64,
+) -> Vec<Vec<[f64; 12]>> {
+    (0..sets)
+        .map(|_| {
+            (0..modes)
+                .map(|_| std::array::from_fn(|_| std * standard_normal(rng)))
+                .collect()
+        })
+        .collect()
+}
+
 /// Central-difference deformation gradient of the displacement field `u`: column k is
 /// `(u(X + h_k e_k) − u(X − h_k e_k)) / (2 h_k)`, plus the identity. `plus[k]`, `minus[k]` are
 /// the displacements at the shifted points.
@@ -466,15 +483,7 @@ pub fn train_simplicits(
         let sample: Vec<usize> = (0..b)
             .map(|_| rng.random_range(0..positions.len()))
             .collect();
-        let transforms: Vec<Vec<[f64; 12]>> = (0..t)
-            .map(|_| {
-                (0..m)
-                    .map(|_| {
-                        std::array::from_fn(|_| params.transform_std * standard_normal(&mut rng))
-                    })
-                    .collect()
-            })
-            .collect();
+        let transforms = random_handle_transforms(&mut rng, t, m, params.transform_std);
         let batch = Batch {
             sample,
             transforms,
