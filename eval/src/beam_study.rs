@@ -170,24 +170,7 @@ pub fn run_beam_study(
     config: &BeamStudyConfig,
     progress: &Progress,
 ) -> Result<BeamStudy, EvalError> {
-    let mut references: Vec<(BeamTest, FemBeamRun)> = Vec::new();
-    let mut fem = Vec::new();
-    for &test in &config.tests {
-        let steps = config.steps_of(test);
-        let run = run_fem_beam(test, config.fem, steps, &config.cache_dir, progress)?;
-        fem.push(FemSummary {
-            test,
-            resolution: config.fem.label(),
-            steps,
-            dofs: run.dofs,
-            vertices: run.vertices().len(),
-            seconds_per_step: run.seconds_per_step,
-            iterations_per_step: run.iterations_per_step,
-            unconverged_steps: run.unconverged_steps,
-            cached: run.cached,
-        });
-        references.push((test, run));
-    }
+    let (references, fem) = fem_references(config, progress)?;
     let mut rows = Vec::new();
     for &m in &config.modes {
         let settings = ReducedSettings {
@@ -255,15 +238,47 @@ pub fn run_beam_study(
     })
 }
 
+/// A test and its FEM ground-truth run.
+pub(crate) type FemReference = (BeamTest, FemBeamRun);
+
+/// The FEM reference of every test of `config` (run or loaded from the cache) with its summary.
+///
+/// # Errors
+/// [`EvalError::Fem`] from a failed run.
+pub(crate) fn fem_references(
+    config: &BeamStudyConfig,
+    progress: &Progress,
+) -> Result<(Vec<FemReference>, Vec<FemSummary>), EvalError> {
+    let mut references = Vec::new();
+    let mut fem = Vec::new();
+    for &test in &config.tests {
+        let steps = config.steps_of(test);
+        let run = run_fem_beam(test, config.fem, steps, &config.cache_dir, progress)?;
+        fem.push(FemSummary {
+            test,
+            resolution: config.fem.label(),
+            steps,
+            dofs: run.dofs,
+            vertices: run.vertices().len(),
+            seconds_per_step: run.seconds_per_step,
+            iterations_per_step: run.iterations_per_step,
+            unconverged_steps: run.unconverged_steps,
+            cached: run.cached,
+        });
+        references.push((test, run));
+    }
+    Ok((references, fem))
+}
+
 /// A skinning field's run of one test, scored against the FEM reference.
-struct FieldEvaluation {
-    run: ReducedBeamRun,
-    errors: TrajectoryErrors,
-    fitting_residual: f64,
+pub(crate) struct FieldEvaluation {
+    pub(crate) run: ReducedBeamRun,
+    pub(crate) errors: TrajectoryErrors,
+    pub(crate) fitting_residual: f64,
 }
 
 /// Simulates `test` with `field` and scores it at the reference's vertices.
-fn evaluate_field<B: SkinningField + ?Sized>(
+pub(crate) fn evaluate_field<B: SkinningField + ?Sized>(
     test: BeamTest,
     field: &B,
     settings: &ReducedSettings,

@@ -5,6 +5,7 @@
 use std::fmt::Write as _;
 use std::path::{Path, PathBuf};
 
+use baselines::SimplicitsParams;
 use fem_ref::ElementOrder;
 use serde::{Deserialize, Serialize};
 
@@ -17,6 +18,7 @@ use crate::output::write_atomically;
 use crate::plot::{PlotSpec, Series};
 use crate::progress::Progress;
 use crate::reduced_beam::{ReducedSettings, build_beam_basis, run_reduced_beam};
+use crate::simplicits_beam::train_beam_simplicits;
 
 /// One configuration to time.
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
@@ -25,6 +27,9 @@ pub enum BenchMethod {
     FreeForm(ReducedSettings),
     /// The FEM at a coarser resolution than the ground truth.
     Fem(FemResolution),
+    /// The Simplicits baseline (network trained on the basis grid of the settings, cached),
+    /// simulated with these settings.
+    Simplicits(ReducedSettings, SimplicitsParams),
 }
 
 /// What to sweep.
@@ -41,7 +46,9 @@ pub struct BenchConfig {
 }
 
 impl BenchConfig {
-    /// The full sweep around the default (m = 16, K = 1000, 5000 points, tolerance 1e-6).
+    /// The full sweep around the default (m = 16, K = 1000, 5000 points, tolerance 1e-6), the
+    /// Simplicits baseline at the four m of Table 1 (trained once, about 10 min per m on 2
+    /// cores, then cached), and five coarser FEM levels.
     pub fn full(cache_dir: PathBuf) -> Self {
         let base = ReducedSettings::default();
         let mut runs = Vec::new();
@@ -79,6 +86,18 @@ impl BenchConfig {
             runs.push((
                 "pin factor".into(),
                 BenchMethod::FreeForm(ReducedSettings { pin_factor, ..base }),
+            ));
+        }
+        for m in [6, 9, 16, 32] {
+            runs.push((
+                "m".into(),
+                BenchMethod::Simplicits(
+                    ReducedSettings { modes: m, ..base },
+                    SimplicitsParams {
+                        modes: m,
+                        ..SimplicitsParams::default()
+                    },
+                ),
             ));
         }
         for (order, r) in [
@@ -152,7 +171,7 @@ impl BenchConfig {
 /// One timed configuration.
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
 pub struct BenchResult {
-    /// "freeform" or "fem".
+    /// "freeform", "simplicits" or "fem".
     pub method: String,
     /// The knob varied ("m", "K", "points", "tolerance", "pin factor", "FEM").
     pub knob: String,
@@ -160,7 +179,8 @@ pub struct BenchResult {
     pub label: String,
     /// Wall time per step (ms).
     pub ms_per_step: f64,
-    /// One-off cost before stepping: basis build for FreeForm (s); 0 for FEM.
+    /// One-off cost before stepping: basis build for FreeForm, training for Simplicits (from
+    /// the run that produced the cached network) (s); 0 for FEM.
     pub setup_seconds: f64,
     /// Normalized MSE against the ground truth.
     pub normalized_mse: f64,
@@ -220,6 +240,28 @@ pub fn run_bench(config: &BenchConfig, progress: &Progress) -> Result<Vec<BenchR
                     ),
                     run.ms_per_step,
                     basis.seconds,
+                    run.frames,
+                )
+            }
+            BenchMethod::Simplicits(s, params) => {
+                let net =
+                    train_beam_simplicits(params, s.basis_points, &config.cache_dir, progress)?;
+                let run = run_reduced_beam(
+                    BeamTest::Bend,
+                    &net.trained.field,
+                    s,
+                    &vertices,
+                    config.steps,
+                    progress,
+                )?;
+                (
+                    "simplicits",
+                    format!(
+                        "m={} pts={} ({} training steps)",
+                        s.modes, run.simulation_points, params.steps
+                    ),
+                    run.ms_per_step,
+                    net.trained.report.seconds,
                     run.frames,
                 )
             }
@@ -344,6 +386,20 @@ pub fn bench_plot(results: &[BenchResult], config: &BenchConfig) -> PlotSpec {
             points,
             line: false,
             color: i,
+        });
+    }
+    let mut simplicits: Vec<(f64, f64)> = results
+        .iter()
+        .filter(|r| r.method == "simplicits")
+        .map(|r| (r.ms_per_step, r.normalized_mse))
+        .collect();
+    if !simplicits.is_empty() {
+        simplicits.sort_by(|a, b| a.0.total_cmp(&b.0));
+        series.push(Series {
+            label: "Simplicits, varying m".into(),
+            points: simplicits,
+            line: false,
+            color: 7,
         });
     }
     let fem: Vec<(f64, f64)> = results

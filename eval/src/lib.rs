@@ -6,9 +6,12 @@
 //! - [`beam`]: the beam Bend and Twist of DESIGN 4.1.
 //! - [`metrics`]: normalized MSE, max error, basis fitting residual (DESIGN 4.3).
 //! - [`fem_reference`], [`reduced_beam`]: the two solvers on the beam.
-//! - [`simplicits_beam`]: the Simplicits baseline trained on the beam, cached.
-//! - [`beam_study`], [`tables`]: Tables 1, 5, 6. [`bench`]: the error-vs-time study.
+//! - [`simplicits_beam`], [`coefficient_beam`]: the Simplicits baseline and the Table 3
+//!   coefficient ablations trained on the beam, cached through [`model_cache`].
+//! - [`beam_study`], [`ablation_study`], [`tables`]: Tables 1, 3, 4, 5, 6. [`bench`]: the
+//!   error-vs-time study.
 //! - [`scene_file`]: user scenes in TOML/JSON for `freeform simulate`.
+//! - [`stress`]: the numerical stress suite (`freeform stress`).
 //! - [`output`], [`plot`], [`progress`]: files, figures, progress bars.
 //!
 //! Caches (FEM trajectories, bases) live under one folder (default `freeform-cache/`, or
@@ -18,11 +21,15 @@ use std::path::Path;
 
 use thiserror::Error;
 
+pub mod ablation_study;
+pub mod ablation_tables;
 pub mod beam;
 pub mod beam_study;
 pub mod bench;
+pub mod coefficient_beam;
 pub mod fem_reference;
 pub mod metrics;
+pub mod model_cache;
 pub mod output;
 pub mod paper;
 pub mod plot;
@@ -31,6 +38,7 @@ pub mod reduced_beam;
 pub mod scene_file;
 pub mod scene_spec;
 pub mod simplicits_beam;
+pub mod stress;
 pub mod tables;
 
 pub use scene_spec::SceneSpec;

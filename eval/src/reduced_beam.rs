@@ -9,7 +9,9 @@ use reduced_sim::{
     DeformationMap, NewtonParams, PenaltyParams, ReducedModel, SimulationParams, Simulator,
     SkinningField,
 };
-use rkpm_core::{IntegrationPoints, sample_box_grid};
+use rkpm_core::{
+    IntegrationPoints, RandomSamplingParams, TriangleMesh, sample_box_grid, sample_random,
+};
 use serde::{Deserialize, Serialize};
 use skin_eigen::{BasisParams, BasisReport, SkinningBasis, build_basis};
 
@@ -37,6 +39,54 @@ pub struct ReducedSettings {
     /// stiffly that the global basis locks; 1e3 lets pinned points drift about a centimetre on
     /// the 5 m beam (reported as `max_pin_deviation`).
     pub pin_factor: f64,
+    /// Where the simulation integrates (default the grid; random points are Table 4's
+    /// ablation).
+    #[serde(default)]
+    pub simulation_sampling: SimulationSampling,
+}
+
+/// How the simulation's integration points are placed.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Serialize, Deserialize)]
+pub enum SimulationSampling {
+    /// A uniform grid of about `simulation_points` cells, `v_i = h³` (default).
+    #[default]
+    Grid,
+    /// As many uniform random points in the beam as the grid has, `v_i = V / N`, seeded
+    /// (DESIGN 3.1, Table 4).
+    Random {
+        /// The random seed.
+        seed: u64,
+    },
+}
+
+impl SimulationSampling {
+    /// "grid" or "random".
+    pub fn name(&self) -> &'static str {
+        match self {
+            SimulationSampling::Grid => "grid",
+            SimulationSampling::Random { .. } => "random",
+        }
+    }
+
+    /// The beam's integration points for about `points` points.
+    ///
+    /// # Errors
+    /// [`EvalError::Setup`] for a count the samplers reject.
+    pub fn beam_points(&self, points: usize) -> Result<IntegrationPoints, EvalError> {
+        let grid = sample_box_grid(BEAM_MIN, BEAM_MAX, beam_grid_spacing(points))
+            .map_err(|e| EvalError::Setup(e.to_string()))?;
+        match *self {
+            SimulationSampling::Grid => Ok(grid),
+            SimulationSampling::Random { seed } => sample_random(
+                &TriangleMesh::cuboid(BEAM_MIN, BEAM_MAX),
+                &RandomSamplingParams {
+                    points: grid.len(),
+                    seed,
+                },
+            )
+            .map_err(|e| EvalError::Setup(e.to_string())),
+        }
+    }
 }
 
 impl Default for ReducedSettings {
@@ -48,6 +98,7 @@ impl Default for ReducedSettings {
             simulation_points: 5000,
             tolerance: NewtonParams::default().tolerance,
             pin_factor: 1e3,
+            simulation_sampling: SimulationSampling::Grid,
         }
     }
 }
@@ -122,8 +173,8 @@ pub struct ReducedBeamRun {
     pub simulation_points: usize,
 }
 
-/// Simulates `steps` steps of `test` with `basis` (ours, or any other skinning field) on `settings.simulation_points` grid points,
-/// recording positions at `output_points` (rest positions, m) every step.
+/// Simulates `steps` steps of `test` with `basis` (ours, or any other skinning field) on about
+/// `settings.simulation_points` points placed by `settings.simulation_sampling`, recording positions at `output_points` (rest positions, m) every step.
 ///
 /// # Errors
 /// [`EvalError`] for a failed setup or step.
@@ -136,12 +187,9 @@ pub fn run_reduced_beam<B: SkinningField + ?Sized>(
     progress: &Progress,
 ) -> Result<ReducedBeamRun, EvalError> {
     let start = Instant::now();
-    let points = sample_box_grid(
-        BEAM_MIN,
-        BEAM_MAX,
-        beam_grid_spacing(settings.simulation_points),
-    )
-    .map_err(|e| EvalError::Setup(e.to_string()))?;
+    let points = settings
+        .simulation_sampling
+        .beam_points(settings.simulation_points)?;
     let model = ReducedModel::new(
         basis,
         &points,

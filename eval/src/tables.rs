@@ -1,4 +1,4 @@
-//! The beam tables (1, 5, 6) as Markdown (ours beside the paper's), JSON and CSV.
+//! The beam tables (1, 5, 6; 3 and 4 in [`crate::ablation_tables`]) as Markdown (ours beside the paper's), JSON and CSV.
 
 use std::fmt::Write as _;
 use std::path::{Path, PathBuf};
@@ -6,13 +6,13 @@ use std::path::{Path, PathBuf};
 use serde_json::{Value, json};
 
 use crate::EvalError;
-use crate::beam_study::{BeamStudy, beam_length_scale};
+use crate::beam_study::{BeamStudy, BeamStudyConfig, FemSummary, beam_length_scale};
 use crate::paper;
 
 /// A rendered table.
 #[derive(Clone, Debug)]
 pub struct RenderedTable {
-    /// Table number (1, 5, 6).
+    /// Table number (1, 3, 4, 5, 6).
     pub number: u32,
     /// Markdown with a settings preamble.
     pub markdown: String,
@@ -22,9 +22,9 @@ pub struct RenderedTable {
     pub csv: String,
 }
 
-fn settings_lines(study: &BeamStudy) -> String {
-    let c = &study.config;
-    let s = &c.settings;
+/// The settings preamble of a beam table: the reduced settings and each FEM reference.
+pub(crate) fn settings_lines(config: &BeamStudyConfig, fem: &[FemSummary]) -> String {
+    let s = &config.settings;
     let mut out = format!(
         "Settings: beam 5×1×1 m, E = 5 MPa, ν = 0.45, ρ = 1000 kg/m³, h = 0.01 s; K = {} kernels, \
          basis on ≈{} grid points, simulation on ≈{} grid points, Newton tolerance {:e}, pin \
@@ -32,7 +32,7 @@ fn settings_lines(study: &BeamStudy) -> String {
          `ReducedSettings::pin_factor`).\n",
         s.kernels, s.basis_points, s.simulation_points, s.tolerance, s.pin_factor
     );
-    for f in &study.fem {
+    for f in fem {
         let _ = writeln!(
             out,
             "FEM ground truth ({}): {}, {} steps, {} DOFs, {} vertices, {:.3} s/step, {:.1} Newton \
@@ -57,11 +57,11 @@ fn settings_lines(study: &BeamStudy) -> String {
     out
 }
 
-fn sci(v: Option<f64>) -> String {
+pub(crate) fn sci(v: Option<f64>) -> String {
     v.map_or("—".into(), |v| format!("{v:.2e}"))
 }
 
-fn not_run_or(v: Option<f64>) -> String {
+pub(crate) fn not_run_or(v: Option<f64>) -> String {
     v.map_or("not run".into(), |v| format!("{v:.2e}"))
 }
 
@@ -100,7 +100,7 @@ fn simplicits_line(study: &BeamStudy) -> String {
 /// Table 1: normalized MSE of ours against FEM for each (test, m), beside the paper's columns.
 pub fn table1(study: &BeamStudy) -> RenderedTable {
     let mut md = String::from("## Table 1: normalized MSE against FEM (beam)\n\n");
-    md += &settings_lines(study);
+    md += &settings_lines(&study.config, &study.fem);
     md += "\n| test | m | ours MSE | ours max | pin drift (mm) | paper FreeForm | paper Simplicits | Simplicits (ours) | MPM (paper) | SPH (paper) |\n";
     md += "|---|---|---|---|---|---|---|---|---|---|\n";
     let mut csv = String::from(
@@ -168,7 +168,7 @@ pub fn table5(study: &BeamStudy) -> RenderedTable {
     let fem = study.fem.iter().find(|f| f.test.name() == "bend");
     let fem_ms = fem.map(|f| 1e3 * f.seconds_per_step);
     let mut md = String::from("## Table 5: ms per 0.01 s step, beam Bend\n\n");
-    md += &settings_lines(study);
+    md += &settings_lines(&study.config, &study.fem);
     md += &format!(
         "This machine: {} CPU threads (rayon). The paper's numbers are on a GPU.\n",
         rayon::current_num_threads()
@@ -229,7 +229,7 @@ pub fn table5(study: &BeamStudy) -> RenderedTable {
 /// Table 6: basis fitting residual of our basis for each (test, m).
 pub fn table6(study: &BeamStudy) -> RenderedTable {
     let mut md = String::from("## Table 6: basis fitting residual (beam)\n\n");
-    md += &settings_lines(study);
+    md += &settings_lines(&study.config, &study.fem);
     md += "The paper's Table 6 values did not survive either text rendering, so none are shown.\n";
     md += &simplicits_line(study);
     md += "\n| test | m | ours residual | Simplicits (ours) |\n|---|---|---|---|\n";

@@ -163,3 +163,61 @@ fn malformed_scene_files_fail_with_an_error_naming_the_field() {
     assert!(!missing.status.success());
     assert!(String::from_utf8_lossy(&missing.stderr).contains("nope.toml"));
 }
+
+#[test]
+fn stress_quick_finishes_every_case_finite_and_reports_failures_by_name() {
+    let dir = scratch("stress");
+    let run = freeform(&["stress", "--quick", "--json"], &dir);
+    assert!(
+        run.status.success(),
+        "{}",
+        String::from_utf8_lossy(&run.stderr)
+    );
+    let outcomes: serde_json::Value = serde_json::from_slice(&run.stdout).unwrap();
+    let outcomes = outcomes.as_array().unwrap();
+    assert_eq!(outcomes.len(), 9);
+    let case = |name: &str| {
+        outcomes
+            .iter()
+            .find(|o| o["case"]["name"] == name)
+            .unwrap_or_else(|| panic!("no case {name}"))
+    };
+    for o in outcomes {
+        assert_eq!(o["all_finite"], true, "{o}");
+        assert!(o["status"].get("Panicked").is_none(), "{o}");
+    }
+    // A plate one point thick cannot carry linear RKPM: a named error, not a crash.
+    let plate = &case("plate one point thick")["status"]["Error"];
+    assert!(
+        plate
+            .as_str()
+            .unwrap()
+            .contains("singular RKPM moment matrix"),
+        "{plate}"
+    );
+    // The fast twist inverts material and the diagnostic sees it.
+    let twist = case("Twist 4× faster (8640°/s)");
+    assert!(twist["min_det_f"].as_f64().unwrap() < 0.0, "{twist}");
+    // Gravity and floor only: backward Euler must not create energy.
+    for name in [
+        "Bend ν = 0.499",
+        "Bend dt = 0.1",
+        "cube at 10 m/s onto a floor",
+        "layered sphere, contrast 1e4",
+    ] {
+        let o = case(name);
+        assert_eq!(o["status"], "Finished", "{o}");
+        let growth = o["max_energy_growth"].as_f64().unwrap();
+        assert!(growth < 1e-3, "{name}: energy grew by {growth}");
+    }
+    // The impact and the sphere reach the floor and compress (det F < 1).
+    for name in [
+        "cube at 10 m/s onto a floor",
+        "layered sphere, contrast 1e4",
+    ] {
+        let det = case(name)["min_det_f"].as_f64().unwrap();
+        assert!(det < 0.999, "{name}: min det F {det}");
+    }
+    assert!(dir.join("out/stress/stress.md").is_file());
+    let _ = std::fs::remove_dir_all(&dir);
+}

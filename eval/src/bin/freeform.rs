@@ -2,7 +2,7 @@
 //!
 //! ```sh
 //! cargo run --release -- demo               # beam Bend vs the FEM ground truth, in minutes
-//! cargo run --release -- table 1 --quick    # a paper table (1, 5, 6), reduced configuration
+//! cargo run --release -- table 1 --quick    # a paper table (1, 3, 4, 5, 6), reduced configuration
 //! cargo run --release -- bench              # error-vs-time sweep and its plot
 //! cargo run --release -- basis bunny.obj --modes 16
 //! cargo run --release -- simulate scene.toml
@@ -16,6 +16,8 @@ use std::time::Instant;
 
 use anyhow::{Context, Result, bail};
 use clap::{Parser, Subcommand};
+use eval::ablation_study::{AblationStudyConfig, run_ablation_study};
+use eval::ablation_tables::{table3, table4};
 use eval::beam::{BEAM_MAX, BeamTest};
 use eval::beam_study::{BeamStudyConfig, beam_length_scale, run_beam_study};
 use eval::bench::{BenchConfig, bench_plot, run_bench, write_bench};
@@ -26,6 +28,7 @@ use eval::plot::{PlotSpec, Series, write_plot};
 use eval::progress::Progress;
 use eval::reduced_beam::{ReducedSettings, build_beam_basis, run_reduced_beam};
 use eval::scene_file::{SceneFile, run_scene_file};
+use eval::stress::{StressConfig, run_stress, stress_markdown};
 use eval::tables::{table1, table5, table6, write_table};
 use fem_ref::{
     ElementOrder, LatticeMesherParams, VolumeTarget, tetrahedralize, tetrahedralize_to_volume,
@@ -113,8 +116,9 @@ enum Command {
         /// The scene file.
         scene: PathBuf,
     },
-    /// Reproduce paper tables: 1 (MSE vs FEM), 5 (ms per step), 6 (basis fitting residual);
-    /// several numbers share one run (`table 1 5 6`).
+    /// Reproduce paper tables: 1 (MSE vs FEM), 3 (training ablations), 4 (grid vs random
+    /// simulation points), 5 (ms per step), 6 (basis fitting residual); tables 1, 5, 6 share one
+    /// run, as do 3 and 4 (`table 1 5 6`).
     Table {
         /// Table numbers.
         #[arg(required = true, num_args = 1..)]
@@ -129,9 +133,21 @@ enum Command {
         /// the first time; networks are cached).
         #[arg(long)]
         skip_simplicits: bool,
-        /// Only these modes (comma-separated), instead of the paper's 6, 9, 16, 32.
+        /// Only these modes (comma-separated), instead of the paper's 6, 9, 16, 32 (tables 3
+        /// and 4: one m, default 16).
         #[arg(long, value_delimiter = ',')]
         modes: Option<Vec<usize>>,
+    },
+    /// Numerical stress suite: extreme ν, stiffness contrast, large dt, fast twists, a 10 m/s
+    /// impact, extreme m and K, degenerate sampling. Exits non-zero if any case produces a
+    /// non-finite value or panics.
+    Stress {
+        /// A subset that runs in under a minute.
+        #[arg(long)]
+        quick: bool,
+        /// Print JSON instead of Markdown.
+        #[arg(long)]
+        json: bool,
     },
     /// Error-vs-time sweep on the beam Bend; writes CSV and a log-log plot with the Pareto front.
     Bench {
@@ -234,6 +250,46 @@ fn run(cli: Cli) -> Result<()> {
             &cache,
             &progress,
         ),
+        Command::Stress { quick, json } => {
+            let config = if quick {
+                StressConfig::quick()
+            } else {
+                StressConfig::full()
+            };
+            let bar = progress.bar(config.cases.len(), "stress cases");
+            let outcomes = run_stress(&config, |o| {
+                bar.inc(1);
+                bar.set_message(o.case.name.clone());
+            });
+            bar.finish_and_clear();
+            let md = stress_markdown(&outcomes);
+            let value = serde_json::to_value(&outcomes)?;
+            let dir = cli.out.join("stress");
+            std::fs::create_dir_all(&dir)?;
+            eval::output::write_atomically(&dir.join("stress.md"), md.as_bytes())?;
+            eval::output::write_atomically(
+                &dir.join("stress.json"),
+                serde_json::to_string_pretty(&value)?.as_bytes(),
+            )?;
+            if json {
+                println!("{}", serde_json::to_string_pretty(&value)?);
+            } else {
+                println!("{md}\nwrote {}", dir.display());
+            }
+            let bad: Vec<&str> = outcomes
+                .iter()
+                .filter(|o| !o.acceptable())
+                .map(|o| o.case.name.as_str())
+                .collect();
+            if !bad.is_empty() {
+                bail!(
+                    "{} stress case(s) produced non-finite values or panicked: {}",
+                    bad.len(),
+                    bad.join(", ")
+                );
+            }
+            Ok(())
+        }
         Command::Bench { quick } => {
             let config = if quick {
                 BenchConfig::quick(cache)
@@ -271,10 +327,10 @@ fn table(
     cache: &Path,
     progress: &Progress,
 ) -> Result<()> {
-    if let Some(n) = numbers.iter().find(|n| !matches!(n, 1 | 5 | 6)) {
+    if let Some(n) = numbers.iter().find(|n| !matches!(n, 1 | 3 | 4 | 5 | 6)) {
         bail!(
-            "table {n} is not available yet: tables 1, 5 and 6 are (2, 3, 4 and 7 arrive with \
-             the baselines and shapes work)"
+            "table {n} is not available yet: tables 1, 3, 4, 5 and 6 are (2 and 7 arrive with the \
+             shapes work)"
         );
     }
     let mut config = if quick {
@@ -286,28 +342,60 @@ fn table(
         // Timing only needs the Bend.
         config.tests = vec![BeamTest::Bend];
     }
-    if skip_simplicits {
-        config.simplicits = None;
-    }
-    if let Some(modes) = modes {
+    if let Some(modes) = &modes {
         if modes.contains(&0) {
             bail!("--modes: every m must be at least 1");
         }
-        config.modes = modes;
+        config.modes = modes.clone();
     }
-    let study = run_beam_study(&config, progress)?;
-    let mut rendered_json = Vec::new();
-    for &number in numbers {
-        let rendered = match number {
-            1 => table1(&study),
-            5 => table5(&study),
-            _ => table6(&study),
+    let wants = |group: &[u32]| numbers.iter().any(|n| group.contains(n));
+    let mut rendered = Vec::new();
+    if wants(&[3, 4]) {
+        if skip_simplicits {
+            bail!("tables 3 and 4 compare against Simplicits; drop --skip-simplicits for them");
+        }
+        let m = match modes.as_deref() {
+            None => 16,
+            Some([m]) => *m,
+            Some(_) => bail!("tables 3 and 4 study one m: give --modes a single value"),
         };
-        let files = write_table(&rendered, out)?;
+        let ablation = AblationStudyConfig {
+            coefficient_ablations: wants(&[3]),
+            sampling_ablation: wants(&[4]),
+            ..AblationStudyConfig::full(BeamStudyConfig {
+                modes: vec![m],
+                ..config.clone()
+            })
+        };
+        let study = run_ablation_study(&ablation, progress)?;
+        for &number in numbers.iter().filter(|n| matches!(n, 3 | 4)) {
+            rendered.push(if number == 3 {
+                table3(&study)
+            } else {
+                table4(&study)
+            });
+        }
+    }
+    if wants(&[1, 5, 6]) {
+        if skip_simplicits {
+            config.simplicits = None;
+        }
+        let study = run_beam_study(&config, progress)?;
+        for &number in numbers.iter().filter(|n| matches!(n, 1 | 5 | 6)) {
+            rendered.push(match number {
+                1 => table1(&study),
+                5 => table5(&study),
+                _ => table6(&study),
+            });
+        }
+    }
+    let mut rendered_json = Vec::new();
+    for table in rendered {
+        let files = write_table(&table, out)?;
         if json {
-            rendered_json.push(rendered.json);
+            rendered_json.push(table.json);
         } else {
-            println!("{}", rendered.markdown);
+            println!("{}", table.markdown);
             for f in files {
                 println!("wrote {}", f.display());
             }

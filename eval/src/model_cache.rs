@@ -1,0 +1,76 @@
+//! Trained models of the beam (Simplicits networks, the Table 3 coefficient ablations) cached
+//! on disk: training takes minutes, and the key is a hash of the grid, the material and every
+//! training option, so a cached model is only reused for identical inputs.
+
+use std::path::{Path, PathBuf};
+
+use baselines::ModelFileError;
+use fem_ref::TrajectoryKeyBuilder;
+
+use crate::EvalError;
+use crate::beam::beam_material;
+use crate::progress::Progress;
+use crate::reduced_beam::beam_basis_grid;
+
+/// `<cache>/<folder>/<folder>-<hash>.model` for a model of the beam grid of about
+/// `basis_points` points, trained with `options` (their `Debug` form) by a file format of
+/// `format_version`.
+///
+/// # Errors
+/// [`EvalError::Basis`] when the grid cannot be built.
+pub fn beam_model_path(
+    cache_dir: &Path,
+    folder: &str,
+    format_version: u32,
+    options: &str,
+    basis_points: usize,
+) -> Result<PathBuf, EvalError> {
+    let (grid, _) = beam_basis_grid(basis_points)?;
+    let material = beam_material();
+    let mut key = TrajectoryKeyBuilder::default();
+    // "simplicits beam", … (the key of the networks cached before this module existed).
+    key.str(&format!("{folder} beam"))
+        .u64(format_version as u64)
+        .u64(grid.len() as u64)
+        .f64s(&[material.youngs_modulus, material.poisson_ratio])
+        .str(options);
+    for p in grid.positions() {
+        key.f64s(p.as_slice());
+    }
+    Ok(cache_dir
+        .join(folder)
+        .join(format!("{folder}-{}.model", key.finish().hex())))
+}
+
+/// Loads `path` if it holds a valid model, else trains one and saves it there (a save that
+/// fails is a warning: the model is still returned). Returns the model and whether it came
+/// from the cache.
+///
+/// # Errors
+/// Whatever `train` returns.
+pub fn load_or_train<T>(
+    path: &Path,
+    label: &str,
+    progress: &Progress,
+    load: impl FnOnce(&Path) -> Result<T, ModelFileError>,
+    train: impl FnOnce() -> Result<T, EvalError>,
+    save: impl FnOnce(&T, &Path) -> Result<(), ModelFileError>,
+) -> Result<(T, bool), EvalError> {
+    if path.is_file() {
+        match load(path) {
+            Ok(model) => {
+                progress.status(format!(
+                    "{label}: loaded from the cache ({})",
+                    path.display()
+                ));
+                return Ok((model, true));
+            }
+            Err(e) => progress.status(format!("ignoring a damaged cache entry: {e}")),
+        }
+    }
+    let model = train()?;
+    if let Err(e) = save(&model, path) {
+        progress.status(format!("warning: {label} not cached: {e}"));
+    }
+    Ok((model, false))
+}
