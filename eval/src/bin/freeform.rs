@@ -36,8 +36,8 @@ use fem_ref::{
 use hyperelastic::LameParameters;
 use nalgebra::Vector3;
 use rkpm_core::{
-    GridSamplingParams, PointCloudSamplingParams, read_point_cloud, read_triangle_mesh,
-    sample_grid, sample_point_cloud,
+    GeometryReadError, GridSamplingParams, PointCloudSamplingParams, read_point_cloud,
+    read_triangle_mesh, sample_grid, sample_point_cloud,
 };
 use skin_eigen::{BasisParams, build_basis};
 
@@ -501,7 +501,9 @@ fn basis(geometry: &Path, o: BasisOptions, save: PathBuf, progress: &Progress) -
                 target_points: o.points,
             },
         )?,
-        Err(mesh_error) => {
+        // Only a file without faces is a point cloud: an open or broken mesh is an error, not
+        // a cloud of its vertices.
+        Err(mesh_error @ GeometryReadError::NoData { .. }) => {
             let cloud = read_point_cloud(geometry).with_context(|| {
                 format!("not a closed triangle mesh ({mesh_error}) and not a point cloud")
             })?;
@@ -513,6 +515,7 @@ fn basis(geometry: &Path, o: BasisOptions, save: PathBuf, progress: &Progress) -
                 },
             )?
         }
+        Err(mesh_error) => return Err(mesh_error.into()),
     };
     let lame = LameParameters::from_young_poisson(o.young, o.poisson)
         .with_context(|| format!("--young {} --poisson {}", o.young, o.poisson))?;
