@@ -142,6 +142,18 @@ fn malformed_scene_files_fail_with_an_error_naming_the_field() {
             BOX_SCENE.replace("time_step = 0.01", "time_step = \"fast\""),
             "time_step",
         ),
+        (
+            BOX_SCENE.replace("steps = 6\n", "steps = 0\n"),
+            "simulation.steps",
+        ),
+        (
+            BOX_SCENE.replace("youngs_modulus = 1e5", "youngs_modulus = -1e5"),
+            "material",
+        ),
+        (
+            BOX_SCENE.replace("time_step = 0.01", "time_step = nan"),
+            "time_step",
+        ),
     ];
     for (i, (text, field)) in cases.iter().enumerate() {
         let scene = dir.join(format!("bad{i}.toml"));
