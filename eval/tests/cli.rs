@@ -207,6 +207,13 @@ fn stress_quick_finishes_every_case_finite_and_reports_failures_by_name() {
             .contains("singular RKPM moment matrix"),
         "{plate}"
     );
+    assert!(
+        plate
+            .as_str()
+            .unwrap()
+            .contains("thinner than the point spacing"),
+        "{plate}"
+    );
     // The fast twist inverts material and the diagnostic sees it.
     let twist = case("Twist 4× faster (8640°/s)");
     assert!(twist["min_det_f"].as_f64().unwrap() < 0.0, "{twist}");

@@ -69,7 +69,9 @@ pub enum ShapeFunctionError {
     /// non-coplanar kernels reach it (a thin part, a sparse cloud, or a point outside the object).
     #[error(
         "singular RKPM moment matrix at query point {point} {position:?}: {kernels_in_reach} \
-         kernels reach it, reciprocal condition estimate {reciprocal_condition:e}"
+         kernels reach it, reciprocal condition estimate {reciprocal_condition:e} (linear RKPM \
+         needs kernels around a point in all three directions: is a part thinner than the \
+         point spacing, the cloud too sparse, or the point outside the object?)"
     )]
     SingularMomentMatrix {
         /// Index of the query point.
