@@ -187,7 +187,7 @@ fn stress_quick_finishes_every_case_finite_and_reports_failures_by_name() {
     );
     let outcomes: serde_json::Value = serde_json::from_slice(&run.stdout).unwrap();
     let outcomes = outcomes.as_array().unwrap();
-    assert_eq!(outcomes.len(), 9);
+    assert_eq!(outcomes.len(), 10);
     let case = |name: &str| {
         outcomes
             .iter()
@@ -229,6 +229,13 @@ fn stress_quick_finishes_every_case_finite_and_reports_failures_by_name() {
         let growth = o["max_energy_growth"].as_f64().unwrap();
         assert!(growth < 1e-3, "{name}: energy grew by {growth}");
     }
+    // The FEM reference at ν = 0.499 runs too (no energy balance for it).
+    let fem = case("FEM Bend ν = 0.499");
+    assert_eq!(fem["status"], "Finished", "{fem}");
+    assert_eq!(fem["unconverged_steps"], 0, "{fem}");
+    let det = fem["min_det_f"].as_f64().unwrap();
+    // Nearly incompressible: volume kept to 2% while the beam sags.
+    assert!((det - 1.0).abs() < 0.02, "{fem}");
     // The impact and the sphere reach the floor and compress (det F < 1).
     for name in [
         "cube at 10 m/s onto a floor",
