@@ -108,7 +108,14 @@ fn check_mesh(bytes: &[u8], format: GeometryFormat) {
 }
 
 proptest! {
-    #![proptest_config(ProptestConfig { cases: 256, ..ProptestConfig::default() })]
+    // 256 cases per property unless `PROPTEST_CASES` asks for a longer run.
+    #![proptest_config(ProptestConfig {
+        cases: std::env::var("PROPTEST_CASES")
+            .ok()
+            .and_then(|v| v.parse().ok())
+            .unwrap_or(256),
+        ..ProptestConfig::default()
+    })]
 
     #[test]
     fn edited_obj_files_never_panic(e in edits()) {
