@@ -228,19 +228,23 @@ pub struct QuadratureBatch<'a> {
 }
 
 impl QuadratureBatch<'_> {
-    /// `W_i` (m) and `∇W_i` (m × 3, per mode) at row `r` for row-major `c` (K × m).
-    fn weights_at(&self, r: usize, c: &[f64], m: usize) -> (Vec<f64>, Vec<Vector3<f64>>) {
+    /// `(k, ϕ_k, ∇ϕ_k)` of the kernels reaching the point of batch row `r`.
+    fn entries(&self, r: usize) -> impl Iterator<Item = (usize, f64, &Vector3<f64>)> {
         let row = self.rows[r];
-        let mut w = vec![0.0; m];
-        let mut grad = vec![Vector3::zeros(); m];
-        for ((&k, &phi), dphi) in self
-            .shape
+        self.shape
             .kernels(row)
             .iter()
             .zip(self.shape.values(row))
             .zip(self.shape.gradients(row))
-        {
-            let ck = &c[k as usize * m..(k as usize + 1) * m];
+            .map(|((&k, &phi), dphi)| (k as usize, phi, dphi))
+    }
+
+    /// `W_i` (m) and `∇W_i` (m × 3, per mode) at row `r` for row-major `c` (K × m).
+    fn weights_at(&self, r: usize, c: &[f64], m: usize) -> (Vec<f64>, Vec<Vector3<f64>>) {
+        let mut w = vec![0.0; m];
+        let mut grad = vec![Vector3::zeros(); m];
+        for (k, phi, dphi) in self.entries(r) {
+            let ck = &c[k * m..(k + 1) * m];
             for j in 0..m {
                 w[j] += phi * ck[j];
                 grad[j] += dphi * ck[j];
@@ -253,15 +257,8 @@ impl QuadratureBatch<'_> {
     /// in order (so the sum is deterministic).
     fn scatter(&self, per_row: &[(Vec<f64>, Vec<Vector3<f64>>)], m: usize, gradient: &mut [f64]) {
         for (r, (d_w, d_grad)) in per_row.iter().enumerate() {
-            let row = self.rows[r];
-            for ((&k, &phi), dphi) in self
-                .shape
-                .kernels(row)
-                .iter()
-                .zip(self.shape.values(row))
-                .zip(self.shape.gradients(row))
-            {
-                let g = &mut gradient[k as usize * m..(k as usize + 1) * m];
+            for (k, phi, dphi) in self.entries(r) {
+                let g = &mut gradient[k * m..(k + 1) * m];
                 for j in 0..m {
                     g[j] += phi * d_w[j] + dphi.dot(&d_grad[j]);
                 }
@@ -288,15 +285,8 @@ impl QuadratureBatch<'_> {
         let mut mass = vec![0.0; k * m];
         let mut hessian = vec![0.0; k * m];
         for (r, (vw, sg)) in per_row.iter().enumerate() {
-            let row = self.rows[r];
-            for ((&kk, &phi), dphi) in self
-                .shape
-                .kernels(row)
-                .iter()
-                .zip(self.shape.values(row))
-                .zip(self.shape.gradients(row))
-            {
-                let base = kk as usize * m;
+            for (k, phi, dphi) in self.entries(r) {
+                let base = k * m;
                 for j in 0..m {
                     mass[base + j] += phi * vw[j];
                     hessian[base + j] += dphi.dot(&sg[j]);

@@ -164,6 +164,20 @@ pub struct StressOutcome {
 }
 
 impl StressOutcome {
+    /// The outcome of `case` before it runs: finished, nothing run, nothing measured.
+    fn not_run(case: &StressCase) -> Self {
+        StressOutcome {
+            case: case.clone(),
+            status: CaseStatus::Finished,
+            steps_run: 0,
+            unconverged_steps: 0,
+            all_finite: true,
+            max_energy_growth: f64::NAN,
+            min_det_f: f64::NAN,
+            seconds: 0.0,
+        }
+    }
+
     /// Acceptable: finished or stopped with a named error, and never a non-finite value.
     pub fn acceptable(&self) -> bool {
         self.all_finite && !matches!(self.status, CaseStatus::Panicked(_))
@@ -367,14 +381,8 @@ pub fn run_stress(
                         .or_else(|| panic.downcast_ref::<&str>().map(|s| s.to_string()))
                         .unwrap_or_else(|| "unknown panic".into());
                     StressOutcome {
-                        case: case.clone(),
                         status: CaseStatus::Panicked(message),
-                        steps_run: 0,
-                        unconverged_steps: 0,
-                        all_finite: true,
-                        max_energy_growth: f64::NAN,
-                        min_det_f: f64::NAN,
-                        seconds: 0.0,
+                        ..StressOutcome::not_run(case)
                     }
                 }
             };
@@ -594,16 +602,7 @@ fn run_case(case: &StressCase) -> StressOutcome {
     if case.solver == StressSolver::Fem {
         return run_fem_case(case);
     }
-    let mut outcome = StressOutcome {
-        case: case.clone(),
-        status: CaseStatus::Finished,
-        steps_run: 0,
-        unconverged_steps: 0,
-        all_finite: true,
-        max_energy_growth: f64::NAN,
-        min_det_f: f64::NAN,
-        seconds: 0.0,
-    };
+    let mut outcome = StressOutcome::not_run(case);
     let fail = |mut outcome: StressOutcome, message: String| {
         outcome.status = CaseStatus::Error(message);
         outcome
@@ -847,14 +846,8 @@ fn run_fem_case(case: &StressCase) -> StressOutcome {
     use fem_ref::{ElementOrder, FemMesh, FemModel, FemParams, FemSimulator, MassKind, TetMesh};
 
     let mut outcome = StressOutcome {
-        case: case.clone(),
-        status: CaseStatus::Finished,
-        steps_run: 0,
-        unconverged_steps: 0,
-        all_finite: true,
-        max_energy_growth: f64::NAN,
         min_det_f: f64::INFINITY,
-        seconds: 0.0,
+        ..StressOutcome::not_run(case)
     };
     let object = match case_object(case) {
         Ok(object) => object,
