@@ -12,8 +12,8 @@ use nalgebra::{DMatrix, DVector, Vector3};
 use rand::{Rng, SeedableRng};
 use rand_chacha::ChaCha8Rng;
 use rkpm_core::{
-    IntegrationPoints, KernelParams, ShapeFunctionParams, evaluate_shape_functions, place_kernels,
-    sample_box_grid,
+    IntegrationPoints, KernelParams, Kernels, ShapeFunctionParams, evaluate_shape_functions,
+    place_kernels, sample_box_grid,
 };
 use skin_eigen::{BasisParams, assemble_weight_space_matrices, build_basis};
 use test_support::finite_difference;
@@ -24,6 +24,18 @@ fn box_grid() -> (IntegrationPoints, Vec<LameParameters>) {
     let grid = sample_box_grid(Vector3::zeros(), Vector3::new(1.0, 0.6, 0.4), 0.1).unwrap();
     let lame = vec![LameParameters::from_young_poisson(1e5, 0.3).unwrap(); grid.len()];
     (grid, lame)
+}
+
+/// 20 kernels placed on the grid as ours are.
+fn twenty_kernels(grid: &IntegrationPoints) -> Kernels {
+    place_kernels(
+        grid.positions(),
+        &KernelParams {
+            count: 20,
+            ..KernelParams::default()
+        },
+    )
+    .unwrap()
 }
 
 fn small_params(loss: CoefficientLoss, points: TrainingPoints) -> CoefficientTrainingParams {
@@ -43,14 +55,7 @@ fn small_params(loss: CoefficientLoss, points: TrainingPoints) -> CoefficientTra
 #[test]
 fn random_handle_loss_gradient_matches_central_differences() {
     let (grid, lame) = box_grid();
-    let kernels = place_kernels(
-        grid.positions(),
-        &KernelParams {
-            count: 20,
-            ..KernelParams::default()
-        },
-    )
-    .unwrap();
+    let kernels = twenty_kernels(&grid);
     let mut rng = ChaCha8Rng::seed_from_u64(3);
     let (positions, sources) = sample_in_cells(&grid, 15, &mut rng);
     let shape =
@@ -97,14 +102,7 @@ fn random_handle_loss_gradient_matches_central_differences() {
 #[test]
 fn weight_hessian_loss_gradient_matches_central_differences() {
     let (grid, lame) = box_grid();
-    let kernels = place_kernels(
-        grid.positions(),
-        &KernelParams {
-            count: 20,
-            ..KernelParams::default()
-        },
-    )
-    .unwrap();
+    let kernels = twenty_kernels(&grid);
     let shape =
         evaluate_shape_functions(&kernels, grid.positions(), &ShapeFunctionParams::default())
             .unwrap();

@@ -26,6 +26,7 @@ use rkpm_core::{IntegrationPoints, MaterialSample, sample_box_grid};
 use serde::{Deserialize, Serialize};
 use skin_eigen::{BasisParams, build_basis};
 
+use crate::beam::{BEAM_MAX, BEAM_MIN, BeamTest, beam_material};
 use crate::scene_spec::{Constraint, FloorSpec, Motion, Region, SceneSpec};
 
 /// The object and what happens to it.
@@ -431,11 +432,36 @@ fn pinned_below(axis: usize, value: f64) -> Constraint {
     }
 }
 
-fn floor() -> Option<FloorSpec> {
-    Some(FloorSpec {
-        normal: Vector3::y(),
-        offset: 0.0,
-    })
+/// Gravity and the floor y = 0, nothing pinned.
+fn floor_drop_scene() -> SceneSpec {
+    SceneSpec {
+        gravity: gravity(),
+        constraints: Vec::new(),
+        floor: Some(FloorSpec {
+            normal: Vector3::y(),
+            offset: 0.0,
+        }),
+    }
+}
+
+/// The beam scenes of DESIGN 4.1 ([`BeamTest::scene`]), the twist at its own rate.
+fn beam_scene(scene: StressScene) -> SceneSpec {
+    match scene {
+        StressScene::BeamTwist { degrees_per_second } => {
+            let mut spec = BeamTest::Twist.scene();
+            for constraint in &mut spec.constraints {
+                if let Motion::Rotate {
+                    rate_degrees_per_second,
+                    ..
+                } = &mut constraint.motion
+                {
+                    *rate_degrees_per_second = degrees_per_second;
+                }
+            }
+            spec
+        }
+        _ => BeamTest::Bend.scene(),
+    }
 }
 
 /// Builds the object and scene of `case`.
@@ -450,34 +476,14 @@ fn case_object(case: &StressCase) -> Result<CaseObject, String> {
     };
     match case.scene {
         StressScene::BeamBend | StressScene::BeamTwist { .. } => {
-            let (basis, simulation) = two_grids(Vector3::zeros(), Vector3::new(5.0, 1.0, 1.0))?;
-            let mut constraints = vec![pinned_below(0, 0.5)];
-            let mut scene_gravity = gravity();
-            if let StressScene::BeamTwist { degrees_per_second } = case.scene {
-                scene_gravity = None;
-                constraints.push(Constraint {
-                    region: Region::Above {
-                        axis: 0,
-                        value: 4.5,
-                    },
-                    motion: Motion::Rotate {
-                        center: Vector3::new(4.75, 0.5, 0.5),
-                        axis: Vector3::x(),
-                        rate_degrees_per_second: degrees_per_second,
-                        max_angle_degrees: 720.0,
-                    },
-                });
-            }
+            let (basis, simulation) = two_grids(BEAM_MIN, BEAM_MAX)?;
+            let e = beam_material().youngs_modulus;
             Ok(CaseObject {
-                basis_materials: uniform(&basis, 5e6),
-                simulation_materials: uniform(&simulation, 5e6),
+                basis_materials: uniform(&basis, e),
+                simulation_materials: uniform(&simulation, e),
                 basis_points: basis,
                 simulation_points: simulation,
-                scene: SceneSpec {
-                    gravity: scene_gravity,
-                    constraints,
-                    floor: None,
-                },
+                scene: beam_scene(case.scene),
                 velocity: Vector3::zeros(),
             })
         }
@@ -489,11 +495,7 @@ fn case_object(case: &StressCase) -> Result<CaseObject, String> {
                 simulation_materials: uniform(&simulation, 1e5),
                 basis_points: basis,
                 simulation_points: simulation,
-                scene: SceneSpec {
-                    gravity: gravity(),
-                    constraints: Vec::new(),
-                    floor: floor(),
-                },
+                scene: floor_drop_scene(),
                 velocity: Vector3::new(0.0, -speed, 0.0),
             })
         }
@@ -532,11 +534,7 @@ fn case_object(case: &StressCase) -> Result<CaseObject, String> {
                 simulation_materials: layered(&simulation),
                 basis_points: basis,
                 simulation_points: simulation,
-                scene: SceneSpec {
-                    gravity: gravity(),
-                    constraints: Vec::new(),
-                    floor: floor(),
-                },
+                scene: floor_drop_scene(),
                 velocity: Vector3::zeros(),
             })
         }
@@ -865,12 +863,11 @@ fn run_fem_case(case: &StressCase) -> StressOutcome {
         ) {
             return Err("the FEM stress cases are beam scenes".into());
         }
-        let tets = TetMesh::cuboid(Vector3::zeros(), Vector3::new(5.0, 1.0, 1.0), [10, 2, 2])
-            .map_err(|e| e.to_string())?;
+        let tets = TetMesh::cuboid(BEAM_MIN, BEAM_MAX, [10, 2, 2]).map_err(|e| e.to_string())?;
         let elements = tets.tets().len();
         let model = FemModel::new(
             FemMesh::new(tets, ElementOrder::Quadratic),
-            &vec![material(5e6, case.poisson_ratio); elements],
+            &vec![material(beam_material().youngs_modulus, case.poisson_ratio); elements],
             StableNeoHookean,
             MassKind::Consistent,
         )
