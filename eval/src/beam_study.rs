@@ -4,15 +4,16 @@
 use std::path::PathBuf;
 
 use baselines::SimplicitsParams;
-use reduced_sim::{DeformationMap, SkinningField};
+use reduced_sim::SkinningField;
 use serde::{Deserialize, Serialize};
 
 use crate::EvalError;
 use crate::beam::{BEAM_MAX, BEAM_MIN, BeamTest};
-use crate::fem_reference::{FemBeamRun, FemResolution, run_fem_beam};
-use crate::metrics::{TrajectoryErrors, basis_fitting_residual, trajectory_errors};
+use crate::fem_reference::{FemResolution, FemRun, run_fem_beam};
+use crate::metrics::TrajectoryErrors;
 use crate::progress::Progress;
-use crate::reduced_beam::{ReducedBeamRun, ReducedSettings, build_beam_basis, run_reduced_beam};
+use crate::reduced_beam::{ReducedSettings, build_beam_basis, run_reduced_beam};
+use crate::reduced_run::ReducedRun;
 use crate::simplicits_beam::train_beam_simplicits;
 
 /// What the study runs.
@@ -239,7 +240,7 @@ pub fn run_beam_study(
 }
 
 /// A test and its FEM ground-truth run.
-pub(crate) type FemReference = (BeamTest, FemBeamRun);
+pub(crate) type FemReference = (BeamTest, FemRun);
 
 /// The FEM reference of every test of `config` (run or loaded from the cache) with its summary.
 ///
@@ -272,7 +273,7 @@ pub(crate) fn fem_references(
 
 /// A skinning field's run of one test, scored against the FEM reference.
 pub(crate) struct FieldEvaluation {
-    pub(crate) run: ReducedBeamRun,
+    pub(crate) run: ReducedRun,
     pub(crate) errors: TrajectoryErrors,
     pub(crate) fitting_residual: f64,
 }
@@ -282,20 +283,15 @@ pub(crate) fn evaluate_field<B: SkinningField + ?Sized>(
     test: BeamTest,
     field: &B,
     settings: &ReducedSettings,
-    reference: &FemBeamRun,
+    reference: &FemRun,
     steps: usize,
     progress: &Progress,
 ) -> Result<FieldEvaluation, EvalError> {
-    let length = beam_length_scale();
-    let vertices = reference.vertices();
-    let fem_frames = reference.vertex_frames();
-    let run = run_reduced_beam(test, field, settings, vertices, steps, progress)?;
-    let errors = trajectory_errors(&run.frames[1..], &fem_frames[1..], length)?;
-    let map = DeformationMap::new(field, vertices).map_err(|e| EvalError::Setup(e.to_string()))?;
-    let fitting_residual = basis_fitting_residual(&map, &fem_frames[1..], length)?;
+    let run = run_reduced_beam(test, field, settings, reference.vertices(), steps, progress)?;
+    let scores = reference.score(field, &run.frames, beam_length_scale())?;
     Ok(FieldEvaluation {
         run,
-        errors,
-        fitting_residual,
+        errors: scores.errors,
+        fitting_residual: scores.fitting_residual,
     })
 }

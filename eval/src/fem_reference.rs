@@ -1,6 +1,6 @@
-//! The FEM ground truth of the beam tests (DESIGN 3.8): P2 tetrahedra at 6 elements per metre,
-//! the configuration the fem-ref convergence study chose (Bend tip within ≈ 0.3% of the
-//! Richardson limit at t = 1 s). Trajectories are cached on disk.
+//! The FEM ground truth (DESIGN 3.8): one cached FEM run of any tetrahedral mesh and scene
+//! ([`run_fem`]), and the beam's: P2 tetrahedra at 6 elements per metre, the configuration the
+//! fem-ref convergence study chose (Bend tip within ≈ 0.3% of the Richardson limit at t = 1 s).
 
 use std::path::Path;
 
@@ -12,9 +12,15 @@ use hyperelastic::StableNeoHookean;
 use nalgebra::Vector3;
 use serde::{Deserialize, Serialize};
 
+use rkpm_core::MaterialSample;
+
+use reduced_sim::{DeformationMap, SkinningField};
+
 use crate::EvalError;
 use crate::beam::{BEAM_MAX, BEAM_MIN, BEAM_TIME_STEP, BeamTest, beam_material};
+use crate::metrics::{TrajectoryErrors, basis_fitting_residual, trajectory_errors};
 use crate::progress::Progress;
+use crate::scene_spec::SceneSpec;
 
 /// Resolution and element order of a FEM beam run.
 #[derive(Clone, Copy, Debug, PartialEq, Serialize, Deserialize)]
@@ -44,7 +50,7 @@ impl FemResolution {
 
 /// A FEM trajectory.
 #[derive(Clone, Debug)]
-pub struct FemBeamRun {
+pub struct FemRun {
     /// The element mesh; its tet mesh's vertices are where metrics are evaluated.
     pub mesh: FemMesh,
     /// Node positions per frame, frame 0 = rest (m).
@@ -71,42 +77,80 @@ pub fn run_fem_beam(
     steps: usize,
     cache_dir: &Path,
     progress: &Progress,
-) -> Result<FemBeamRun, EvalError> {
+) -> Result<FemRun, EvalError> {
     let r = resolution.cells_per_metre;
     let tets = TetMesh::cuboid(BEAM_MIN, BEAM_MAX, [5 * r, r, r])
         .map_err(|e| EvalError::Setup(e.to_string()))?;
-    let elements = tets.tets().len();
-    let mesh = FemMesh::new(tets, resolution.order);
+    run_fem(
+        &FemProblem {
+            tets,
+            order: resolution.order,
+            material: beam_material(),
+            scene: &test.scene(),
+            time_step: BEAM_TIME_STEP,
+            steps,
+        },
+        &format!("{} {}", test.name(), resolution.label()),
+        cache_dir,
+        progress,
+    )
+}
+
+/// Everything one FEM reference run needs.
+pub struct FemProblem<'a> {
+    /// The tetrahedral mesh (m).
+    pub tets: TetMesh,
+    /// P1 or P2 elements on it.
+    pub order: ElementOrder,
+    /// One homogeneous material.
+    pub material: MaterialSample,
+    /// What acts on the object (Dirichlet on the nodes in each region).
+    pub scene: &'a SceneSpec,
+    /// Backward Euler step (s).
+    pub time_step: f64,
+    /// Steps to run.
+    pub steps: usize,
+}
+
+/// Runs (or loads from `<cache_dir>/fem/`, keyed by the mesh, material, scene and options)
+/// `problem`, showing a bar labelled `FEM <label>`.
+///
+/// # Errors
+/// [`EvalError::Setup`] for a model that cannot be built or a region that selects no node,
+/// [`EvalError::Fem`] for a failed step or an unusable cache.
+pub fn run_fem(
+    problem: &FemProblem<'_>,
+    label: &str,
+    cache_dir: &Path,
+    progress: &Progress,
+) -> Result<FemRun, EvalError> {
+    let elements = problem.tets.tets().len();
+    let mesh = FemMesh::new(problem.tets.clone(), problem.order);
     let model = FemModel::new(
         mesh,
-        &vec![beam_material(); elements],
+        &vec![problem.material; elements],
         StableNeoHookean,
         MassKind::Consistent,
     )
     .map_err(|e| EvalError::Setup(e.to_string()))?;
-    let scene = test.scene();
-    let fem_scene = scene.fem_scene(model.mesh().nodes(), 1e4)?;
+    let fem_scene = problem.scene.fem_scene(model.mesh().nodes(), 1e4)?;
     let params = FemParams {
-        time_step: BEAM_TIME_STEP,
+        time_step: problem.time_step,
         ..Default::default()
     };
     let mut sim =
         FemSimulator::new(model, fem_scene, params).map_err(|e| EvalError::Setup(e.to_string()))?;
     let dofs = sim.free_dofs();
     let cache = TrajectoryCache::new(cache_dir.join("fem"));
-    let bar = progress.bar(
-        steps,
-        format!("FEM {} {} ({dofs} DOFs)", test.name(), resolution.label()),
-    );
+    let steps = problem.steps;
+    let bar = progress.bar(steps, format!("FEM {label} ({dofs} DOFs)"));
     let (trajectory, cached) = sim
-        .run_cached(steps, &scene.label(), &cache, |_| bar.inc(1))
+        .run_cached(steps, &problem.scene.label(), &cache, |_| bar.inc(1))
         .map_err(|e| EvalError::Fem(e.to_string()))?;
     bar.finish_and_clear();
     if cached {
         progress.status(format!(
-            "FEM {} {}: loaded from the cache ({})",
-            test.name(),
-            resolution.label(),
+            "FEM {label}: loaded from the cache ({})",
             cache.dir().display()
         ));
     }
@@ -115,7 +159,7 @@ pub fn run_fem_beam(
         .iter()
         .map(|f| f.iter().map(|p| Vector3::from(*p)).collect())
         .collect();
-    Ok(FemBeamRun {
+    Ok(FemRun {
         mesh: sim.model().mesh().clone(),
         frames,
         seconds_per_step: trajectory.seconds / steps.max(1) as f64,
@@ -127,7 +171,16 @@ pub fn run_fem_beam(
     })
 }
 
-impl FemBeamRun {
+/// How well a method's trajectory matches a FEM run (DESIGN 4.3).
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct FieldScores {
+    /// Normalized MSE and max error.
+    pub errors: TrajectoryErrors,
+    /// Basis fitting residual of the FEM trajectory through the method's deformation map.
+    pub fitting_residual: f64,
+}
+
+impl FemRun {
     /// Rest positions of the tet mesh's vertices (m).
     pub fn vertices(&self) -> &[Vector3<f64>] {
         self.mesh.tet_mesh().vertices()
@@ -137,6 +190,31 @@ impl FemBeamRun {
     pub fn vertex_frames(&self) -> Vec<Vec<Vector3<f64>>> {
         let n = self.vertices().len();
         self.frames.iter().map(|f| f[..n].to_vec()).collect()
+    }
+
+    /// Scores `frames` (positions at this run's vertices, frame 0 = rest, as many frames as this
+    /// run) of a method whose deformation map is `field`, over frames 1..T with length scale
+    /// `length` (DESIGN 4.3): normalized MSE and max error, and the basis fitting residual of
+    /// this trajectory through `field`.
+    ///
+    /// # Errors
+    /// [`EvalError::Metrics`] for mismatched or non-finite frames or a singular fit,
+    /// [`EvalError::Setup`] if `field` cannot be evaluated at the vertices.
+    pub fn score<B: SkinningField + ?Sized>(
+        &self,
+        field: &B,
+        frames: &[Vec<Vector3<f64>>],
+        length: f64,
+    ) -> Result<FieldScores, EvalError> {
+        let reference = self.vertex_frames();
+        let errors = trajectory_errors(&frames[1..], &reference[1..], length)?;
+        let map = DeformationMap::new(field, self.vertices())
+            .map_err(|e| EvalError::Setup(e.to_string()))?;
+        let fitting_residual = basis_fitting_residual(&map, &reference[1..], length)?;
+        Ok(FieldScores {
+            errors,
+            fitting_residual,
+        })
     }
 
     /// Positions per frame of arbitrary rest points inside the mesh, interpolated from the

@@ -5,7 +5,8 @@
 //! - [`scene_spec`]: one solver-independent scene ([`SceneSpec`]) → reduced and FEM inputs.
 //! - [`beam`]: the beam Bend and Twist of DESIGN 4.1.
 //! - [`metrics`]: normalized MSE, max error, basis fitting residual (DESIGN 4.3).
-//! - [`fem_reference`], [`reduced_beam`]: the two solvers on the beam.
+//! - [`fem_reference`], [`reduced_run`]: the FEM reference and one reduced run on any scene;
+//!   [`reduced_beam`]: the beam's basis and integration points.
 //! - [`simplicits_beam`], [`coefficient_beam`]: the Simplicits baseline and the Table 3
 //!   coefficient ablations trained on the beam, cached through [`model_cache`].
 //! - [`beam_study`], [`ablation_study`], [`tables`]: Tables 1, 3, 4, 5, 6. [`bench`]: the
@@ -35,8 +36,13 @@ pub mod paper;
 pub mod plot;
 pub mod progress;
 pub mod reduced_beam;
+pub mod reduced_run;
 pub mod scene_file;
 pub mod scene_spec;
+pub mod shape_boundary;
+pub mod shape_catalog;
+pub mod shape_study;
+pub mod shape_tables;
 pub mod simplicits_beam;
 pub mod stress;
 pub mod tables;

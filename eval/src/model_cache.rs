@@ -1,11 +1,12 @@
-//! Trained models of the beam (Simplicits networks, the Table 3 coefficient ablations) cached
-//! on disk: training takes minutes, and the key is a hash of the grid, the material and every
-//! training option, so a cached model is only reused for identical inputs.
+//! Trained models (Simplicits networks of the beam and the shapes, the Table 3 coefficient
+//! ablations) cached on disk: training takes minutes, and the key is a hash of the grid, the
+//! material and every training option, so a cached model is only reused for identical inputs.
 
 use std::path::{Path, PathBuf};
 
 use baselines::ModelFileError;
 use fem_ref::TrajectoryKeyBuilder;
+use rkpm_core::{IntegrationPoints, MaterialSample};
 
 use crate::EvalError;
 use crate::beam::beam_material;
@@ -26,20 +27,42 @@ pub fn beam_model_path(
     basis_points: usize,
 ) -> Result<PathBuf, EvalError> {
     let (grid, _) = beam_basis_grid(basis_points)?;
-    let material = beam_material();
-    let mut key = TrajectoryKeyBuilder::default();
     // "simplicits beam", … (the key of the networks cached before this module existed).
-    key.str(&format!("{folder} beam"))
+    Ok(model_path(
+        cache_dir,
+        folder,
+        &format!("{folder} beam"),
+        format_version,
+        options,
+        &grid,
+        &beam_material(),
+    ))
+}
+
+/// `<cache>/<folder>/<folder>-<hash>.model` for a model trained on `points` (every position
+/// enters the key) of `material`, with `options` (their `Debug` form) by a file format of
+/// `format_version`; `subject` names what is modelled ("simplicits beam", "simplicits shape").
+pub fn model_path(
+    cache_dir: &Path,
+    folder: &str,
+    subject: &str,
+    format_version: u32,
+    options: &str,
+    points: &IntegrationPoints,
+    material: &MaterialSample,
+) -> PathBuf {
+    let mut key = TrajectoryKeyBuilder::default();
+    key.str(subject)
         .u64(format_version as u64)
-        .u64(grid.len() as u64)
+        .u64(points.len() as u64)
         .f64s(&[material.youngs_modulus, material.poisson_ratio])
         .str(options);
-    for p in grid.positions() {
+    for p in points.positions() {
         key.f64s(p.as_slice());
     }
-    Ok(cache_dir
+    cache_dir
         .join(folder)
-        .join(format!("{folder}-{}.model", key.finish().hex())))
+        .join(format!("{folder}-{}.model", key.finish().hex()))
 }
 
 /// Loads `path` if it holds a valid model, else trains one and saves it there (a save that

@@ -3,12 +3,9 @@
 
 use std::time::Instant;
 
-use hyperelastic::{LameParameters, StableNeoHookean};
+use hyperelastic::LameParameters;
 use nalgebra::Vector3;
-use reduced_sim::{
-    DeformationMap, NewtonParams, PenaltyParams, ReducedModel, SimulationParams, Simulator,
-    SkinningField,
-};
+use reduced_sim::{NewtonParams, PenaltyParams, SimulationParams, SkinningField};
 use rkpm_core::{
     IntegrationPoints, RandomSamplingParams, TriangleMesh, sample_box_grid, sample_random,
 };
@@ -18,6 +15,7 @@ use skin_eigen::{BasisParams, BasisReport, SkinningBasis, build_basis};
 use crate::EvalError;
 use crate::beam::{BEAM_MAX, BEAM_MIN, BEAM_TIME_STEP, BeamTest, beam_grid_spacing, beam_material};
 use crate::progress::Progress;
+use crate::reduced_run::{ReducedProblem, ReducedRun, run_reduced};
 
 /// The knobs of a reduced beam run.
 #[derive(Clone, Copy, Debug, PartialEq, Serialize, Deserialize)]
@@ -89,6 +87,31 @@ impl SimulationSampling {
     }
 }
 
+impl ReducedSettings {
+    /// The basis builder's options for these settings: `modes` and `kernels`, the rest default.
+    pub fn basis_params(&self) -> BasisParams {
+        BasisParams::default()
+            .with_modes(self.modes)
+            .with_kernels(self.kernels)
+    }
+
+    /// The simulator's options for these settings at time step `time_step` (s): Newton
+    /// tolerance and pin penalty from here, everything else default.
+    pub fn simulation_params(&self, time_step: f64) -> SimulationParams {
+        SimulationParams {
+            time_step,
+            newton: NewtonParams {
+                tolerance: self.tolerance,
+                ..Default::default()
+            },
+            penalty: PenaltyParams {
+                pin_factor: self.pin_factor,
+                ..Default::default()
+            },
+        }
+    }
+}
+
 impl Default for ReducedSettings {
     fn default() -> Self {
         ReducedSettings {
@@ -137,14 +160,8 @@ pub fn beam_basis_grid(
 pub fn build_beam_basis(settings: &ReducedSettings) -> Result<BeamBasis, EvalError> {
     let start = Instant::now();
     let (grid, lame) = beam_basis_grid(settings.basis_points)?;
-    let (basis, report, _) = build_basis(
-        &grid,
-        &lame,
-        &BasisParams::default()
-            .with_modes(settings.modes)
-            .with_kernels(settings.kernels),
-    )
-    .map_err(|e| EvalError::Basis(e.to_string()))?;
+    let (basis, report, _) = build_basis(&grid, &lame, &settings.basis_params())
+        .map_err(|e| EvalError::Basis(e.to_string()))?;
     Ok(BeamBasis {
         basis,
         report,
@@ -152,29 +169,9 @@ pub fn build_beam_basis(settings: &ReducedSettings) -> Result<BeamBasis, EvalErr
     })
 }
 
-/// A reduced trajectory at the output points, with timings.
-#[derive(Clone, Debug)]
-pub struct ReducedBeamRun {
-    /// Output-point positions per frame, frame 0 = rest (m).
-    pub frames: Vec<Vec<Vector3<f64>>>,
-    /// Wall time per step (ms).
-    pub ms_per_step: f64,
-    /// Hessian/gradient assembly per step (ms).
-    pub ms_assembly_per_step: f64,
-    /// Mean Newton iterations per step.
-    pub iterations_per_step: f64,
-    /// Steps whose Newton solve did not converge.
-    pub unconverged_steps: usize,
-    /// Largest distance of a pinned point from its target over the run (m).
-    pub max_pin_deviation: f64,
-    /// Model and scene setup (s).
-    pub setup_seconds: f64,
-    /// Integration points simulated.
-    pub simulation_points: usize,
-}
-
 /// Simulates `steps` steps of `test` with `basis` (ours, or any other skinning field) on about
-/// `settings.simulation_points` points placed by `settings.simulation_sampling`, recording positions at `output_points` (rest positions, m) every step.
+/// `settings.simulation_points` points placed by `settings.simulation_sampling`, recording
+/// positions at `output_points` (rest positions, m) every step.
 ///
 /// # Errors
 /// [`EvalError`] for a failed setup or step.
@@ -185,68 +182,21 @@ pub fn run_reduced_beam<B: SkinningField + ?Sized>(
     output_points: &[Vector3<f64>],
     steps: usize,
     progress: &Progress,
-) -> Result<ReducedBeamRun, EvalError> {
-    let start = Instant::now();
+) -> Result<ReducedRun, EvalError> {
     let points = settings
         .simulation_sampling
         .beam_points(settings.simulation_points)?;
-    let model = ReducedModel::new(
-        basis,
-        &points,
-        &vec![beam_material(); points.len()],
-        StableNeoHookean,
+    run_reduced(
+        &ReducedProblem {
+            field: basis,
+            points: &points,
+            material: beam_material(),
+            scene: &test.scene(),
+            params: settings.simulation_params(BEAM_TIME_STEP),
+            output_points,
+            steps,
+        },
+        &format!("FreeForm {} m={}", test.name(), settings.modes),
+        progress,
     )
-    .map_err(|e| EvalError::Setup(e.to_string()))?;
-    let scene = test.scene().reduced_scene(model.rest_positions())?;
-    let params = SimulationParams {
-        time_step: BEAM_TIME_STEP,
-        newton: NewtonParams {
-            tolerance: settings.tolerance,
-            ..Default::default()
-        },
-        penalty: PenaltyParams {
-            pin_factor: settings.pin_factor,
-            ..Default::default()
-        },
-    };
-    let mut sim =
-        Simulator::new(model, &scene, params).map_err(|e| EvalError::Setup(e.to_string()))?;
-    let output =
-        DeformationMap::new(basis, output_points).map_err(|e| EvalError::Setup(e.to_string()))?;
-    let setup_seconds = start.elapsed().as_secs_f64();
-
-    let bar = progress.bar(
-        steps,
-        format!("FreeForm {} m={}", test.name(), settings.modes),
-    );
-    let mut frames = Vec::with_capacity(steps + 1);
-    frames.push(output.positions(&sim.state().z));
-    let (mut iterations, mut unconverged) = (0usize, 0usize);
-    let (mut stepping, mut assembly) = (0.0, 0.0);
-    let mut max_pin_deviation: f64 = 0.0;
-    for step in 1..=steps {
-        let t = Instant::now();
-        let report = sim
-            .step()
-            .map_err(|e| EvalError::Reduced(format!("step {step}: {e}")))?;
-        stepping += t.elapsed().as_secs_f64();
-        assembly += report.timings.assembly;
-        iterations += report.iterations;
-        unconverged += usize::from(!report.converged());
-        max_pin_deviation = max_pin_deviation.max(sim.max_pin_deviation().unwrap_or(0.0));
-        frames.push(output.positions(&sim.state().z));
-        bar.inc(1);
-    }
-    bar.finish_and_clear();
-    let n = steps.max(1) as f64;
-    Ok(ReducedBeamRun {
-        frames,
-        ms_per_step: 1e3 * stepping / n,
-        ms_assembly_per_step: 1e3 * assembly / n,
-        iterations_per_step: iterations as f64 / n,
-        unconverged_steps: unconverged,
-        max_pin_deviation,
-        setup_seconds,
-        simulation_points: points.len(),
-    })
 }

@@ -27,8 +27,11 @@
 //! [scene]
 //! gravity = [0, -9.8, 0]
 //! [[scene.constraints]]
-//! region = { below = { axis = 1, value = -0.45 } }
+//! region = { below = { axis = 1, value = 0.05 } }
 //! motion = "rest"
+//! [[scene.constraints]]          # regions: below, above (a half-space), ball
+//! region = { ball = { center = [0.5, 0.5, 0.4], radius = 0.1 } }
+//! motion = { translate = { velocity = [0, 0.2, 0] } }
 //! ```
 
 use std::path::{Path, PathBuf};

@@ -36,6 +36,13 @@ pub enum Region {
         /// Plane position (m).
         value: f64,
     },
+    /// `|x − center| ≤ radius` (plus [`REGION_TOLERANCE`]).
+    Ball {
+        /// Centre (m).
+        center: Vector3<f64>,
+        /// Radius (m), positive.
+        radius: f64,
+    },
 }
 
 impl Region {
@@ -44,12 +51,29 @@ impl Region {
         match *self {
             Region::Below { axis, value } => x[axis] <= value + REGION_TOLERANCE,
             Region::Above { axis, value } => x[axis] >= value - REGION_TOLERANCE,
+            Region::Ball { center, radius } => (x - center).norm() <= radius + REGION_TOLERANCE,
         }
     }
 
-    fn axis(&self) -> usize {
+    /// Why the region is malformed (an axis above 2, a non-finite plane, a ball that is not
+    /// finite or not of positive radius), if it is.
+    fn defect(&self) -> Option<String> {
         match *self {
-            Region::Below { axis, .. } | Region::Above { axis, .. } => axis,
+            Region::Below { axis, value } | Region::Above { axis, value } => {
+                if axis > 2 {
+                    Some(format!("axis is {axis}, must be 0, 1 or 2"))
+                } else if !value.is_finite() {
+                    Some(format!("plane position {value} is not finite"))
+                } else {
+                    None
+                }
+            }
+            Region::Ball { center, radius } => (!(radius > 0.0
+                && radius.is_finite()
+                && center.iter().all(|c| c.is_finite())))
+            .then(|| {
+                format!("ball about {center:?} of radius {radius} is not finite and positive")
+            }),
         }
     }
 }
@@ -181,10 +205,9 @@ impl SceneSpec {
             )));
         }
         for (i, c) in self.constraints.iter().enumerate() {
-            if c.region.axis() > 2 {
+            if let Some(defect) = c.region.defect() {
                 return Err(SceneSpecError::Invalid(format!(
-                    "constraints[{i}].region.axis is {}, must be 0, 1 or 2",
-                    c.region.axis()
+                    "constraints[{i}].region: {defect}"
                 )));
             }
             if let Motion::Rotate { axis, center, .. } = &c.motion

@@ -1,17 +1,20 @@
-//! The Simplicits baseline on the beam: trained on the same grid as our basis, cached on disk
-//! (see [`crate::model_cache`]).
+//! The Simplicits baseline trained on the same integration points as our basis (the beam grid,
+//! or a shape's), cached on disk (see [`crate::model_cache`]).
 
 use std::path::Path;
 
 use baselines::{SIMPLICITS_FORMAT_VERSION, SimplicitsParams, TrainedSimplicits, train_simplicits};
+
+use hyperelastic::LameParameters;
+use rkpm_core::IntegrationPoints;
 
 use crate::EvalError;
 use crate::model_cache::{beam_model_path, load_or_train};
 use crate::progress::Progress;
 use crate::reduced_beam::beam_basis_grid;
 
-/// A trained beam network and whether it came from the cache.
-pub struct BeamSimplicits {
+/// A trained network and whether it came from the cache.
+pub struct CachedSimplicits {
     /// The network, its options and its training report.
     pub trained: TrainedSimplicits,
     /// Loaded from the cache.
@@ -28,7 +31,7 @@ pub fn train_beam_simplicits(
     basis_points: usize,
     cache_dir: &Path,
     progress: &Progress,
-) -> Result<BeamSimplicits, EvalError> {
+) -> Result<CachedSimplicits, EvalError> {
     let path = beam_model_path(
         cache_dir,
         "simplicits",
@@ -36,18 +39,33 @@ pub fn train_beam_simplicits(
         &format!("{params:?}"),
         basis_points,
     )?;
+    let (grid, lame) = beam_basis_grid(basis_points)?;
+    train_cached_simplicits(&grid, &lame, params, &path, progress)
+}
+
+/// Trains (or loads from `path`) the Simplicits network of `params` on `points` with Lamé
+/// parameters `lame` (one per point), showing a bar with the loss every 100 steps.
+///
+/// # Errors
+/// [`EvalError::Basis`] if training fails (a cache that cannot be written is a warning).
+pub fn train_cached_simplicits(
+    points: &IntegrationPoints,
+    lame: &[LameParameters],
+    params: &SimplicitsParams,
+    path: &Path,
+    progress: &Progress,
+) -> Result<CachedSimplicits, EvalError> {
     let (trained, cached) = load_or_train(
-        &path,
+        path,
         &format!("Simplicits m = {}", params.modes),
         progress,
         |path| TrainedSimplicits::load(path),
         || {
-            let (grid, lame) = beam_basis_grid(basis_points)?;
             let bar = progress.bar(
                 params.steps,
                 format!("Simplicits training m={}", params.modes),
             );
-            let (field, report) = train_simplicits(&grid, &lame, params, |step, losses| {
+            let (field, report) = train_simplicits(points, lame, params, |step, losses| {
                 bar.inc(1);
                 if step % 100 == 0 {
                     bar.set_message(format!(
@@ -66,5 +84,5 @@ pub fn train_beam_simplicits(
         },
         |model, path| model.save(path),
     )?;
-    Ok(BeamSimplicits { trained, cached })
+    Ok(CachedSimplicits { trained, cached })
 }

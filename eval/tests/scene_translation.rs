@@ -82,5 +82,32 @@ fn a_region_that_selects_nothing_is_an_error_naming_it() {
     )
     .unwrap();
     let message = bad.validate().unwrap_err().to_string();
-    assert!(message.contains("constraints[0].region.axis"), "{message}");
+    assert!(
+        message.contains("constraints[0].region: axis is 3"),
+        "{message}"
+    );
+}
+
+#[test]
+fn a_ball_region_holds_the_points_within_its_radius_and_a_degenerate_ball_is_named() {
+    let ball: SceneSpec = serde_json::from_str(
+        r#"{"constraints": [{"region": {"ball": {"center": [1.0, 0.0, 0.0], "radius": 0.5}}, "motion": "rest"}]}"#,
+    )
+    .unwrap();
+    let points = [
+        Vector3::new(1.0, 0.0, 0.0),
+        Vector3::new(1.5, 0.0, 0.0),
+        Vector3::new(1.0, 0.3, 0.4),
+        Vector3::new(1.0, 0.3, 0.41),
+        Vector3::new(0.0, 0.0, 0.0),
+    ];
+    assert_eq!(ball.select(&points, "points").unwrap(), vec![vec![0, 1, 2]]);
+    for radius in ["0.0", "-1.0"] {
+        let bad: SceneSpec = serde_json::from_str(&format!(
+            r#"{{"constraints": [{{"region": {{"ball": {{"center": [0, 0, 0], "radius": {radius}}}}}, "motion": "rest"}}]}}"#
+        ))
+        .unwrap();
+        let message = bad.validate().unwrap_err().to_string();
+        assert!(message.contains("constraints[0].region: ball"), "{message}");
+    }
 }

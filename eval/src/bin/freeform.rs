@@ -28,6 +28,8 @@ use eval::plot::{PlotSpec, Series, write_plot};
 use eval::progress::Progress;
 use eval::reduced_beam::{ReducedSettings, build_beam_basis, run_reduced_beam};
 use eval::scene_file::{SceneFile, run_scene_file};
+use eval::shape_study::{ShapeStudyConfig, mesh_files, run_shape_study};
+use eval::shape_tables::{table2, table7};
 use eval::stress::{StressConfig, run_stress, stress_markdown};
 use eval::tables::{table1, table5, table6, write_table};
 use fem_ref::{
@@ -117,8 +119,9 @@ enum Command {
         scene: PathBuf,
     },
     /// Reproduce paper tables: 1 (MSE vs FEM), 3 (training ablations), 4 (grid vs random
-    /// simulation points), 5 (ms per step), 6 (basis fitting residual); tables 1, 5, 6 share one
-    /// run, as do 3 and 4 (`table 1 5 6`).
+    /// simulation points), 5 (ms per step), 6 (basis fitting residual) on the beam; 2 (MSE and
+    /// max error) and 7 (basis fitting residual) on the meshes in --meshes. Tables 1, 5, 6 share
+    /// one run, as do 3 and 4, and 2 and 7 (`table 2 7 --meshes DIR`).
     Table {
         /// Table numbers.
         #[arg(required = true, num_args = 1..)]
@@ -137,6 +140,23 @@ enum Command {
         /// and 4: one m, default 16).
         #[arg(long, value_delimiter = ',')]
         modes: Option<Vec<usize>>,
+        /// Tables 2 and 7: the folder of closed meshes (OBJ/STL/PLY), e.g. the shared
+        /// `data/meshes`.
+        #[arg(long)]
+        meshes: Option<PathBuf>,
+        /// Tables 2 and 7: only the mesh with this file name or stem.
+        #[arg(long)]
+        only: Option<String>,
+        /// Tables 2 and 7: Young's modulus (Pa) of a mesh not in the shared-mesh catalog.
+        #[arg(long, default_value_t = eval::shape_catalog::DEFAULT_SHAPE_YOUNGS_MODULUS)]
+        young: f64,
+        /// Tables 2 and 7: shapes run at the same time.
+        #[arg(long, default_value_t = 1)]
+        jobs: usize,
+        /// Train Simplicits for this many Adam steps instead of the configuration's (the
+        /// paper's 10 000 in a full run): networks are cached per step count.
+        #[arg(long)]
+        simplicits_steps: Option<usize>,
     },
     /// Numerical stress suite: extreme ν, stiffness contrast, large dt, fast twists, a 10 m/s
     /// impact, extreme m and K, degenerate sampling. Exits non-zero if any case produces a
@@ -238,6 +258,11 @@ fn run(cli: Cli) -> Result<()> {
             json,
             skip_simplicits,
             modes,
+            meshes,
+            only,
+            young,
+            jobs,
+            simplicits_steps,
         } => table(
             &numbers,
             TableOptions {
@@ -245,6 +270,11 @@ fn run(cli: Cli) -> Result<()> {
                 json,
                 skip_simplicits,
                 modes,
+                meshes,
+                only,
+                young,
+                jobs,
+                simplicits_steps,
             },
             &cli.out,
             &cache,
@@ -313,6 +343,11 @@ struct TableOptions {
     json: bool,
     skip_simplicits: bool,
     modes: Option<Vec<usize>>,
+    meshes: Option<PathBuf>,
+    only: Option<String>,
+    young: f64,
+    jobs: usize,
+    simplicits_steps: Option<usize>,
 }
 
 fn table(
@@ -322,16 +357,21 @@ fn table(
         json,
         skip_simplicits,
         modes,
+        meshes,
+        only,
+        young,
+        jobs,
+        simplicits_steps,
     }: TableOptions,
     out: &Path,
     cache: &Path,
     progress: &Progress,
 ) -> Result<()> {
-    if let Some(n) = numbers.iter().find(|n| !matches!(n, 1 | 3 | 4 | 5 | 6)) {
-        bail!(
-            "table {n} is not available yet: tables 1, 3, 4, 5 and 6 are (2 and 7 arrive with the \
-             shapes work)"
-        );
+    if let Some(n) = numbers.iter().find(|n| !matches!(n, 1..=7)) {
+        bail!("there is no table {n}: the paper's tables are 1 to 7");
+    }
+    if simplicits_steps == Some(0) {
+        bail!("--simplicits-steps must be at least 1");
     }
     let mut config = if quick {
         BeamStudyConfig::quick(cache.to_path_buf())
@@ -349,7 +389,54 @@ fn table(
         config.modes = modes.clone();
     }
     let wants = |group: &[u32]| numbers.iter().any(|n| group.contains(n));
+    if let Some(steps) = simplicits_steps
+        && let Some(params) = &mut config.simplicits
+    {
+        params.steps = steps;
+    }
     let mut rendered = Vec::new();
+    if wants(&[2, 7]) {
+        let Some(dir) = &meshes else {
+            bail!("tables 2 and 7 need --meshes DIR (e.g. the shared data/meshes folder)");
+        };
+        if !(young > 0.0 && young.is_finite()) {
+            bail!("--young must be a positive number of pascals, got {young}");
+        }
+        let files = mesh_files(dir, only.as_deref())?;
+        let mut shapes = if quick {
+            ShapeStudyConfig::quick(files, cache.to_path_buf())
+        } else {
+            ShapeStudyConfig::full(files, cache.to_path_buf())
+        };
+        shapes.default_youngs_modulus = young;
+        shapes.jobs = jobs;
+        if let Some(modes) = &modes {
+            match modes.as_slice() {
+                [m] => shapes.settings.modes = *m,
+                _ => bail!("tables 2 and 7 use one m: give --modes a single value"),
+            }
+        }
+        match (skip_simplicits, &mut shapes.simplicits, simplicits_steps) {
+            (true, simplicits, _) => *simplicits = None,
+            (false, Some(params), Some(steps)) => params.steps = steps,
+            _ => {}
+        }
+        let total = shapes.meshes.len();
+        let bar = progress.bar(total, "shapes");
+        let study = run_shape_study(&shapes, progress, |_| bar.inc(1))?;
+        bar.finish_and_clear();
+        progress.status(format!(
+            "shape study: {total} shape(s) in {:.0} s",
+            study.seconds
+        ));
+        for &number in numbers.iter().filter(|n| matches!(n, 2 | 7)) {
+            rendered.push(if number == 2 {
+                table2(&study)
+            } else {
+                table7(&study)
+            });
+        }
+    }
     if wants(&[3, 4]) {
         if skip_simplicits {
             bail!("tables 3 and 4 compare against Simplicits; drop --skip-simplicits for them");

@@ -1,0 +1,617 @@
+//! The shapes study behind Tables 2 and 7 (DESIGN 4.2): for every closed mesh, normalized so its
+//! largest bounding-box side is L = 1 m, our basis and the Simplicits network (m = 32) on the
+//! same grid of integration points, a tetrahedralization for the FEM reference, and the three
+//! boundary conditions of [`crate::shape_boundary`] run by all three solvers. Reduced runs are
+//! scored at the FEM mesh's vertices.
+//!
+//! A shape that cannot be read, sampled, meshed or given a basis is reported with the reason,
+//! as is a boundary condition that fails on a shape (e.g. a region that selects no FEM node);
+//! the study goes on. FEM trajectories and trained networks are cached, so a rerun (or a run
+//! after an interruption) only computes what is missing.
+
+use std::path::{Path, PathBuf};
+use std::sync::Mutex;
+use std::sync::atomic::{AtomicUsize, Ordering};
+use std::time::Instant;
+
+use baselines::{SIMPLICITS_FORMAT_VERSION, SimplicitsParams};
+use fem_ref::{
+    ElementOrder, LatticeMesherError, LatticeMesherParams, LatticeMesherReport, TetMesh,
+    VolumeTarget, tetrahedralize, tetrahedralize_to_volume,
+};
+use hyperelastic::LameParameters;
+use reduced_sim::{SimulationParams, SkinningField};
+use rkpm_core::{
+    GridSamplingParams, IntegrationPoints, MaterialSample, TriangleMesh, read_triangle_mesh,
+    sample_grid,
+};
+use serde::{Deserialize, Serialize};
+use skin_eigen::build_basis;
+
+use crate::EvalError;
+use crate::fem_reference::{FemProblem, FemRun, run_fem};
+use crate::model_cache::model_path;
+use crate::progress::Progress;
+use crate::reduced_beam::ReducedSettings;
+use crate::reduced_run::{ReducedProblem, run_reduced};
+use crate::scene_spec::SceneSpec;
+use crate::shape_boundary::{ShapeBoundary, ShapeBoundaryParams};
+use crate::shape_catalog::{
+    DEFAULT_SHAPE_YOUNGS_MODULUS, MaterialClass, SHAPE_DENSITY, SHAPE_POISSON_RATIO,
+    ShapeCollection, catalog_entry,
+};
+use crate::simplicits_beam::train_cached_simplicits;
+
+/// How the FEM reference of a shape is meshed.
+#[derive(Clone, Copy, Debug, PartialEq, Serialize, Deserialize)]
+pub struct ShapeFemParams {
+    /// P1 or P2 (default P2: ν = 0.45 locks P1).
+    pub order: ElementOrder,
+    /// Lattice cells across L of the first try (default 10).
+    pub first_cells_across: usize,
+    /// Finest lattice tried (default 16). A shape whose volume is still off by more than
+    /// `volume_tolerance` there is meshed at this lattice anyway, and its volume error is
+    /// reported. Coarse on purpose: on 2 cores a P2 run of 50 steps takes 27-73 s on the
+    /// bunny at 15 cells (26k DOFs, 2-4 Newton iterations per step), which over 72 runs is
+    /// an hour.
+    pub max_cells_across: usize,
+    /// Accepted |relative volume error| of the tetrahedral mesh (default 0.05).
+    pub volume_tolerance: f64,
+}
+
+impl Default for ShapeFemParams {
+    fn default() -> Self {
+        ShapeFemParams {
+            order: ElementOrder::Quadratic,
+            first_cells_across: 10,
+            max_cells_across: 16,
+            volume_tolerance: 0.05,
+        }
+    }
+}
+
+/// What the study runs.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+pub struct ShapeStudyConfig {
+    /// Surface files (OBJ/STL/PLY), in table order.
+    pub meshes: Vec<PathBuf>,
+    /// Modes, kernels, basis and simulation points, Newton tolerance, pin penalty (default
+    /// m = 32, K = 1000, 20 000 basis points, 5000 simulation points).
+    pub settings: ReducedSettings,
+    /// The boundary conditions' sizes, speeds and step count.
+    pub boundary: ShapeBoundaryParams,
+    /// The FEM reference's mesh.
+    pub fem: ShapeFemParams,
+    /// The Simplicits baseline's training options (`modes` is set from `settings`), or `None`
+    /// to leave it out.
+    pub simplicits: Option<SimplicitsParams>,
+    /// Young's modulus of a file not in [`crate::shape_catalog`] (Pa, default 10⁵).
+    pub default_youngs_modulus: f64,
+    /// Shapes run at the same time (default 1). Each holds one FEM system (≤ 1 GB at the
+    /// default resolution); the solvers already use every core, so more jobs mainly fill the
+    /// serial phases.
+    pub jobs: usize,
+    /// Cache folder (FEM trajectories under `fem/`, networks under `simplicits/`).
+    pub cache_dir: PathBuf,
+}
+
+impl ShapeStudyConfig {
+    /// The paper's configuration (DESIGN 4.2): m = 32, K = 1000, Simplicits trained for 10 000
+    /// steps, FEM P2.
+    pub fn full(meshes: Vec<PathBuf>, cache_dir: PathBuf) -> Self {
+        ShapeStudyConfig {
+            meshes,
+            settings: ReducedSettings {
+                modes: 32,
+                ..ReducedSettings::default()
+            },
+            boundary: ShapeBoundaryParams::default(),
+            fem: ShapeFemParams::default(),
+            simplicits: Some(SimplicitsParams::default()),
+            default_youngs_modulus: DEFAULT_SHAPE_YOUNGS_MODULUS,
+            jobs: 1,
+            cache_dir,
+        }
+    }
+
+    /// A seconds-per-shape version: m = 6, K = 120 on 3000 basis points, 1000 simulation
+    /// points, 10 steps, FEM P2 on a 6-cell lattice, Simplicits trained for 30 steps.
+    pub fn quick(meshes: Vec<PathBuf>, cache_dir: PathBuf) -> Self {
+        let full = ShapeStudyConfig::full(meshes, cache_dir);
+        ShapeStudyConfig {
+            settings: ReducedSettings {
+                modes: 6,
+                kernels: 120,
+                basis_points: 3000,
+                simulation_points: 1000,
+                ..full.settings
+            },
+            boundary: ShapeBoundaryParams {
+                steps: 10,
+                ..full.boundary
+            },
+            fem: ShapeFemParams {
+                first_cells_across: 6,
+                max_cells_across: 6,
+                ..full.fem
+            },
+            simplicits: Some(SimplicitsParams {
+                steps: 30,
+                ..SimplicitsParams::default()
+            }),
+            ..full
+        }
+    }
+}
+
+/// A method's scores on one (shape, boundary condition).
+#[derive(Clone, Copy, Debug, PartialEq, Serialize, Deserialize)]
+pub struct MethodScores {
+    /// Normalized MSE against the FEM (DESIGN 4.3).
+    pub mse: f64,
+    /// Normalized max error.
+    pub max: f64,
+    /// Basis fitting residual of the FEM trajectory (Table 7).
+    pub fitting_residual: f64,
+    /// Wall time per step (ms).
+    pub ms_per_step: f64,
+    /// Steps whose Newton solve did not converge.
+    pub unconverged_steps: usize,
+}
+
+/// The FEM run of one (shape, boundary condition).
+#[derive(Clone, Copy, Debug, PartialEq, Serialize, Deserialize)]
+pub struct FemRunSummary {
+    /// Free DOFs.
+    pub dofs: usize,
+    /// Seconds per step of the run that produced the trajectory.
+    pub seconds_per_step: f64,
+    /// Newton iterations per step.
+    pub iterations_per_step: f64,
+    /// Unconverged steps.
+    pub unconverged_steps: usize,
+    /// Loaded from the cache.
+    pub cached: bool,
+}
+
+/// One (shape, boundary condition).
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+pub struct ShapeRow {
+    /// Which condition.
+    pub boundary: ShapeBoundary,
+    /// The FEM reference, if it ran.
+    pub fem: Option<FemRunSummary>,
+    /// Our scores, if the run finished.
+    pub ours: Option<MethodScores>,
+    /// Simplicits' scores, if it was trained and the run finished.
+    pub simplicits: Option<MethodScores>,
+    /// Why something is missing.
+    pub error: Option<String>,
+}
+
+/// The tetrahedral mesh of the FEM reference.
+#[derive(Clone, Copy, Debug, PartialEq, Serialize, Deserialize)]
+pub struct FemMeshSummary {
+    /// Lattice cells across L.
+    pub cells_across: usize,
+    /// Tetrahedral mesh vertices (where methods are scored).
+    pub vertices: usize,
+    /// Tetrahedra.
+    pub tets: usize,
+    /// (mesh volume − surface volume) / surface volume.
+    pub relative_volume_error: f64,
+}
+
+/// Everything measured on one shape.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+pub struct ShapeResult {
+    /// File name.
+    pub name: String,
+    /// What it depicts (catalog) or the file stem.
+    pub title: String,
+    /// Its collection.
+    pub collection: ShapeCollection,
+    /// Its material class (`None`: not catalogued, `default_youngs_modulus` used).
+    pub class: Option<MaterialClass>,
+    /// Young's modulus used (Pa).
+    pub youngs_modulus: f64,
+    /// Grid points the bases were built on.
+    pub basis_points: usize,
+    /// Our basis build time, sampling included (s).
+    pub basis_seconds: Option<f64>,
+    /// Simplicits training time of the run that produced the network (s).
+    pub training_seconds: Option<f64>,
+    /// The FEM reference's mesh.
+    pub fem_mesh: Option<FemMeshSummary>,
+    /// Wall time of the three FEM runs that produced the trajectories (s).
+    pub fem_seconds: Option<f64>,
+    /// One row per boundary condition that was attempted.
+    pub rows: Vec<ShapeRow>,
+    /// Why the shape could not be run at all.
+    pub error: Option<String>,
+}
+
+/// Everything Tables 2 and 7 print.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+pub struct ShapeStudy {
+    /// What was run.
+    pub config: ShapeStudyConfig,
+    /// One result per mesh, in the order of `config.meshes`.
+    pub shapes: Vec<ShapeResult>,
+    /// Wall time of the whole study (s).
+    pub seconds: f64,
+}
+
+/// The closed meshes (`.obj`, `.stl`, `.ply`) directly in `dir`, sorted by name; with `only`,
+/// just the one whose file name or stem is `only`.
+///
+/// # Errors
+/// [`EvalError::Io`] if `dir` cannot be read; [`EvalError::Setup`] if it holds no mesh or
+/// nothing matches `only`.
+pub fn mesh_files(dir: &Path, only: Option<&str>) -> Result<Vec<PathBuf>, EvalError> {
+    let entries = std::fs::read_dir(dir).map_err(|e| EvalError::io(dir, e))?;
+    let mut files: Vec<PathBuf> = entries
+        .filter_map(|e| e.ok().map(|e| e.path()))
+        .filter(|p| {
+            p.is_file()
+                && p.extension().is_some_and(|x| {
+                    matches!(x.to_ascii_lowercase().to_str(), Some("obj" | "stl" | "ply"))
+                })
+        })
+        .collect();
+    files.sort();
+    if files.is_empty() {
+        return Err(EvalError::Setup(format!(
+            "{}: no .obj, .stl or .ply file in this folder",
+            dir.display()
+        )));
+    }
+    let Some(only) = only else {
+        return Ok(files);
+    };
+    let matching: Vec<PathBuf> = files
+        .iter()
+        .filter(|p| {
+            p.file_name().is_some_and(|n| n == only) || p.file_stem().is_some_and(|s| s == only)
+        })
+        .cloned()
+        .collect();
+    if matching.is_empty() {
+        let names: Vec<String> = files
+            .iter()
+            .filter_map(|p| p.file_name().map(|n| n.to_string_lossy().into_owned()))
+            .collect();
+        return Err(EvalError::Setup(format!(
+            "--only {only}: no such mesh in {} (there are: {})",
+            dir.display(),
+            names.join(", ")
+        )));
+    }
+    Ok(matching)
+}
+
+/// Runs the study, `config.jobs` shapes at a time; `on_shape` sees each shape as it finishes.
+///
+/// # Errors
+/// None from a shape (those are reported in its [`ShapeResult`]); [`EvalError::Setup`] for
+/// `jobs = 0` or no meshes.
+pub fn run_shape_study(
+    config: &ShapeStudyConfig,
+    progress: &Progress,
+    on_shape: impl Fn(&ShapeResult) + Sync,
+) -> Result<ShapeStudy, EvalError> {
+    if config.jobs == 0 || config.meshes.is_empty() {
+        return Err(EvalError::Setup(format!(
+            "the shape study needs at least one job and one mesh (jobs = {}, {} meshes)",
+            config.jobs,
+            config.meshes.len()
+        )));
+    }
+    let start = Instant::now();
+    let next = AtomicUsize::new(0);
+    let results: Vec<Mutex<Option<ShapeResult>>> =
+        config.meshes.iter().map(|_| Mutex::new(None)).collect();
+    std::thread::scope(|scope| {
+        for _ in 0..config.jobs.min(config.meshes.len()) {
+            scope.spawn(|| {
+                loop {
+                    let i = next.fetch_add(1, Ordering::Relaxed);
+                    let Some(path) = config.meshes.get(i) else {
+                        break;
+                    };
+                    let result = run_shape(path, config, progress);
+                    on_shape(&result);
+                    if let Ok(mut slot) = results[i].lock() {
+                        *slot = Some(result);
+                    }
+                }
+            });
+        }
+    });
+    let shapes = results
+        .into_iter()
+        .zip(&config.meshes)
+        .map(|(slot, path)| {
+            slot.into_inner().ok().flatten().unwrap_or_else(|| {
+                let mut r = ShapeResult::new(path, config);
+                r.error = Some("the worker running this shape stopped (a bug)".into());
+                r
+            })
+        })
+        .collect();
+    Ok(ShapeStudy {
+        config: config.clone(),
+        shapes,
+        seconds: start.elapsed().as_secs_f64(),
+    })
+}
+
+impl ShapeResult {
+    /// An empty result for `path`: name, collection and material from the catalog.
+    fn new(path: &Path, config: &ShapeStudyConfig) -> Self {
+        let name = path.file_name().map_or_else(
+            || path.display().to_string(),
+            |n| n.to_string_lossy().into(),
+        );
+        let entry = catalog_entry(&name);
+        ShapeResult {
+            title: entry.map_or_else(
+                || {
+                    path.file_stem()
+                        .map_or(name.clone(), |s| s.to_string_lossy().into())
+                },
+                |e| e.title.into(),
+            ),
+            collection: entry.map_or(ShapeCollection::Other, |e| e.collection),
+            class: entry.map(|e| e.class),
+            youngs_modulus: entry
+                .map_or(config.default_youngs_modulus, |e| e.class.youngs_modulus()),
+            name,
+            basis_points: 0,
+            basis_seconds: None,
+            training_seconds: None,
+            fem_mesh: None,
+            fem_seconds: None,
+            rows: Vec::new(),
+            error: None,
+        }
+    }
+
+    /// The shape's material.
+    pub fn material(&self) -> MaterialSample {
+        MaterialSample {
+            youngs_modulus: self.youngs_modulus,
+            poisson_ratio: SHAPE_POISSON_RATIO,
+            density: SHAPE_DENSITY,
+        }
+    }
+}
+
+/// Runs one shape; every failure ends up in the result.
+fn run_shape(path: &Path, config: &ShapeStudyConfig, progress: &Progress) -> ShapeResult {
+    let mut result = ShapeResult::new(path, config);
+    let start = Instant::now();
+    progress.status(format!(
+        "{}: E = {:e} Pa ({})",
+        result.name,
+        result.youngs_modulus,
+        result.class.map_or("not catalogued", MaterialClass::name)
+    ));
+    if let Err(e) = run_shape_into(path, config, progress, &mut result) {
+        result.error = Some(e.to_string());
+    }
+    progress.status(format!(
+        "{}: done in {:.1} s{}",
+        result.name,
+        start.elapsed().as_secs_f64(),
+        result
+            .error
+            .as_ref()
+            .map_or(String::new(), |e| format!(" ({e})"))
+    ));
+    result
+}
+
+/// The body of [`run_shape`], filling `result` as it goes so that what was measured before a
+/// failure stays.
+fn run_shape_into(
+    path: &Path,
+    config: &ShapeStudyConfig,
+    progress: &Progress,
+    result: &mut ShapeResult,
+) -> Result<(), EvalError> {
+    let surface = read_triangle_mesh(path)
+        .map_err(|e| EvalError::Setup(e.to_string()))?
+        .normalized()
+        .0;
+    let length = surface.bounding_box().largest_side();
+    let material = result.material();
+    let lame = LameParameters::from_young_poisson(material.youngs_modulus, material.poisson_ratio)
+        .map_err(|e| EvalError::Setup(e.to_string()))?;
+    let settings = &config.settings;
+
+    let basis_start = Instant::now();
+    let basis_points = sample_on(&surface, settings.basis_points, "basis")?;
+    let lames = vec![lame; basis_points.len()];
+    let (ours, _, _) = build_basis(&basis_points, &lames, &settings.basis_params())
+        .map_err(|e| EvalError::Basis(e.to_string()))?;
+    result.basis_points = basis_points.len();
+    result.basis_seconds = Some(basis_start.elapsed().as_secs_f64());
+
+    let simplicits = match &config.simplicits {
+        Some(params) => {
+            let params = SimplicitsParams {
+                modes: settings.modes,
+                ..*params
+            };
+            let model = model_path(
+                &config.cache_dir,
+                "simplicits",
+                "simplicits shape",
+                SIMPLICITS_FORMAT_VERSION,
+                &format!("{params:?}"),
+                &basis_points,
+                &material,
+            );
+            let net = train_cached_simplicits(&basis_points, &lames, &params, &model, progress)?;
+            result.training_seconds = Some(net.trained.report.seconds);
+            Some(net.trained.field)
+        }
+        None => None,
+    };
+
+    let (tets, report) = mesh_for_fem(&surface, &config.fem)?;
+    result.fem_mesh = Some(FemMeshSummary {
+        cells_across: (length / report.cell_size).round() as usize,
+        vertices: report.vertices,
+        tets: report.tets,
+        relative_volume_error: report.relative_volume_error,
+    });
+    let points = sample_on(&surface, settings.simulation_points, "simulation")?;
+
+    let mut fem_seconds = 0.0;
+    for boundary in ShapeBoundary::ALL {
+        let mut row = ShapeRow {
+            boundary,
+            fem: None,
+            ours: None,
+            simplicits: None,
+            error: None,
+        };
+        let scene = boundary.scene(&surface, tets.vertices(), &config.boundary);
+        let label = format!("{} {}", result.name, boundary.title());
+        let outcome = run_fem(
+            &FemProblem {
+                tets: tets.clone(),
+                order: config.fem.order,
+                material,
+                scene: &scene,
+                time_step: config.boundary.time_step,
+                steps: config.boundary.steps,
+            },
+            &label,
+            &config.cache_dir,
+            progress,
+        )
+        .and_then(|fem| {
+            fem_seconds += fem.seconds_per_step * config.boundary.steps as f64;
+            row.fem = Some(FemRunSummary {
+                dofs: fem.dofs,
+                seconds_per_step: fem.seconds_per_step,
+                iterations_per_step: fem.iterations_per_step,
+                unconverged_steps: fem.unconverged_steps,
+                cached: fem.cached,
+            });
+            let run = BoundaryRun {
+                points: &points,
+                material,
+                scene: &scene,
+                params: settings.simulation_params(config.boundary.time_step),
+                fem: &fem,
+                steps: config.boundary.steps,
+                length,
+                label: &label,
+                progress,
+            };
+            row.ours = Some(run.score(&ours, "FreeForm")?);
+            if let Some(net) = &simplicits {
+                row.simplicits = Some(run.score(net, "Simplicits")?);
+            }
+            Ok(())
+        });
+        if let Err(e) = outcome {
+            row.error = Some(e.to_string());
+        }
+        result.rows.push(row);
+    }
+    result.fem_seconds = Some(fem_seconds);
+    Ok(())
+}
+
+/// A grid of about `target` points inside `surface`.
+fn sample_on(
+    surface: &TriangleMesh,
+    target: usize,
+    what: &str,
+) -> Result<IntegrationPoints, EvalError> {
+    sample_grid(
+        surface,
+        &GridSamplingParams {
+            target_points: target,
+        },
+    )
+    .map_err(|e| EvalError::Setup(format!("sampling the {what} points: {e}")))
+}
+
+/// The FEM mesh of `surface`: the first lattice from `first_cells_across` up (×1.5) whose
+/// volume is within the tolerance, else the `max_cells_across` lattice as it is.
+fn mesh_for_fem(
+    surface: &TriangleMesh,
+    params: &ShapeFemParams,
+) -> Result<(TetMesh, LatticeMesherReport), EvalError> {
+    let lattice = LatticeMesherParams {
+        cells_across: params.first_cells_across,
+        ..Default::default()
+    };
+    let target = VolumeTarget {
+        max_relative_error: params.volume_tolerance,
+        max_cells_across: params.max_cells_across.max(params.first_cells_across),
+        growth: 1.5,
+    };
+    match tetrahedralize_to_volume(surface, &lattice, &target) {
+        Ok(mesh) => Ok(mesh),
+        Err(LatticeMesherError::VolumeNotReached { cells_across, .. }) => tetrahedralize(
+            surface,
+            &LatticeMesherParams {
+                cells_across,
+                ..lattice
+            },
+        ),
+        Err(e) => Err(e),
+    }
+    .map_err(|e| EvalError::Setup(format!("tetrahedralizing for the FEM reference: {e}")))
+}
+
+/// One boundary condition of one shape, ready to run any skinning field on.
+struct BoundaryRun<'a> {
+    points: &'a IntegrationPoints,
+    material: MaterialSample,
+    scene: &'a SceneSpec,
+    params: SimulationParams,
+    fem: &'a FemRun,
+    steps: usize,
+    length: f64,
+    label: &'a str,
+    progress: &'a Progress,
+}
+
+impl BoundaryRun<'_> {
+    /// Simulates `field` (labelled `method`) at the FEM vertices and scores it.
+    fn score<B: SkinningField + ?Sized>(
+        &self,
+        field: &B,
+        method: &str,
+    ) -> Result<MethodScores, EvalError> {
+        let run = run_reduced(
+            &ReducedProblem {
+                field,
+                points: self.points,
+                material: self.material,
+                scene: self.scene,
+                params: self.params,
+                output_points: self.fem.vertices(),
+                steps: self.steps,
+            },
+            &format!("{method} {}", self.label),
+            self.progress,
+        )?;
+        let scores = self.fem.score(field, &run.frames, self.length)?;
+        Ok(MethodScores {
+            mse: scores.errors.normalized_mse,
+            max: scores.errors.normalized_max,
+            fitting_residual: scores.fitting_residual,
+            ms_per_step: run.ms_per_step,
+            unconverged_steps: run.unconverged_steps,
+        })
+    }
+}

@@ -1,0 +1,505 @@
+//! Tables 2 (MSE and max error on the shapes, training time) and 7 (basis fitting residual on
+//! the shapes) as Markdown with the paper's averages beside ours, JSON (`"shapes"`: one row per
+//! (shape, boundary condition); `"averages"`) and CSV.
+//!
+//! Averages are means over the shapes where every method in the row finished the boundary
+//! condition (`n` says how many); "improvement" is `(S − F) / S` of those averages, and "wins"
+//! counts the shapes where our value is the lower one.
+
+use std::fmt::Write as _;
+
+use serde::Serialize;
+use serde_json::{Value, json};
+
+use crate::paper;
+use crate::shape_boundary::ShapeBoundary;
+use crate::shape_catalog::{SHAPE_DENSITY, SHAPE_POISSON_RATIO, ShapeCollection};
+use crate::shape_study::{MethodScores, ShapeResult, ShapeStudy};
+use crate::tables::{RenderedTable, not_run_or, sci};
+
+/// Which number of a method's scores a table reports.
+#[derive(Clone, Copy)]
+enum Measure {
+    Mse,
+    Max,
+    Fit,
+}
+
+impl Measure {
+    fn of(self, s: &MethodScores) -> f64 {
+        match self {
+            Measure::Mse => s.mse,
+            Measure::Max => s.max,
+            Measure::Fit => s.fitting_residual,
+        }
+    }
+}
+
+/// The average of one measure over one group of shapes and one boundary condition.
+#[derive(Clone, Debug, PartialEq, Serialize)]
+pub struct ShapeAverage {
+    /// "all", "Thingi10K", "classic", "other".
+    pub collection: String,
+    /// The boundary condition.
+    pub boundary: ShapeBoundary,
+    /// Shapes averaged (those where both methods finished, or ours alone without Simplicits).
+    pub shapes: usize,
+    /// Our mean.
+    pub ours: Option<f64>,
+    /// Simplicits' mean over the same shapes.
+    pub simplicits: Option<f64>,
+    /// `(S − F) / S` of the means, in percent.
+    pub improvement_percent: Option<f64>,
+    /// Shapes where ours is lower.
+    pub wins: usize,
+}
+
+/// Mean and standard deviation (population) of `values`, if any.
+fn mean_std(values: &[f64]) -> Option<(f64, f64)> {
+    if values.is_empty() {
+        return None;
+    }
+    let n = values.len() as f64;
+    let mean = values.iter().sum::<f64>() / n;
+    let var = values.iter().map(|v| (v - mean).powi(2)).sum::<f64>() / n;
+    Some((mean, var.sqrt()))
+}
+
+/// The groups a study's shapes fall in: "all", then each collection present.
+fn groups(study: &ShapeStudy) -> Vec<(String, Vec<&ShapeResult>)> {
+    let mut out = vec![("all".to_string(), study.shapes.iter().collect::<Vec<_>>())];
+    for c in [
+        ShapeCollection::Thingi10k,
+        ShapeCollection::Classic,
+        ShapeCollection::Other,
+    ] {
+        let members: Vec<&ShapeResult> =
+            study.shapes.iter().filter(|s| s.collection == c).collect();
+        if !members.is_empty() && members.len() < study.shapes.len() {
+            out.push((c.name().to_string(), members));
+        }
+    }
+    out
+}
+
+fn average(
+    collection: &str,
+    shapes: &[&ShapeResult],
+    boundary: ShapeBoundary,
+    measure: Measure,
+    with_simplicits: bool,
+) -> ShapeAverage {
+    let pairs: Vec<(f64, Option<f64>)> = shapes
+        .iter()
+        .flat_map(|s| s.rows.iter())
+        .filter(|r| r.boundary == boundary)
+        .filter_map(|r| {
+            let ours = measure.of(r.ours.as_ref()?);
+            let theirs = r.simplicits.as_ref().map(|s| measure.of(s));
+            (!with_simplicits || theirs.is_some()).then_some((ours, theirs))
+        })
+        .collect();
+    let n = pairs.len();
+    let ours = (n > 0).then(|| pairs.iter().map(|p| p.0).sum::<f64>() / n as f64);
+    let simplicits = (with_simplicits && n > 0)
+        .then(|| pairs.iter().filter_map(|p| p.1).sum::<f64>() / n as f64);
+    ShapeAverage {
+        collection: collection.into(),
+        boundary,
+        shapes: n,
+        ours,
+        simplicits,
+        improvement_percent: match (ours, simplicits) {
+            (Some(o), Some(s)) if s > 0.0 => Some(100.0 * (s - o) / s),
+            _ => None,
+        },
+        wins: pairs
+            .iter()
+            .filter(|(o, s)| s.is_some_and(|s| *o < s))
+            .count(),
+    }
+}
+
+/// The settings preamble shared by Tables 2 and 7.
+fn settings_lines(study: &ShapeStudy) -> String {
+    let c = &study.config;
+    let s = &c.settings;
+    let mut out = format!(
+        "Settings: every mesh scaled so its largest bounding-box side is L = 1 m; ν = {}, ρ = {} \
+         kg/m³, E per shape (10⁵ Pa organic, 10⁸ Pa manufactured; `eval::shape_catalog`, shown \
+         per shape below). m = {}, K = {} kernels; our basis and Simplicits on the same ≈{} grid \
+         points; simulation on ≈{} grid points; Newton tolerance {:e}; pin penalty factor {:e}.\n",
+        SHAPE_POISSON_RATIO,
+        SHAPE_DENSITY,
+        s.modes,
+        s.kernels,
+        s.basis_points,
+        s.simulation_points,
+        s.tolerance,
+        s.pin_factor
+    );
+    let _ = writeln!(out, "Boundary conditions: {}", c.boundary.describe());
+    let _ = writeln!(
+        out,
+        "FEM reference: {:?} tetrahedra on the lattice mesher's mesh, the first of {} cells \
+         across (×1.5, up to {}) whose volume is within {:.0}% of the surface's, else the \
+         finest; Dirichlet conditions on the nodes in each region.",
+        c.fem.order,
+        c.fem.first_cells_across,
+        c.fem.max_cells_across,
+        100.0 * c.fem.volume_tolerance
+    );
+    let _ = writeln!(
+        out,
+        "{}",
+        match &c.simplicits {
+            Some(p) => format!(
+                "Simplicits (ours): DESIGN 3.9's network trained for {} Adam steps{} of {} points × \
+                 {} transforms, simulated by the same reduced simulator and scene.",
+                p.steps,
+                if p.steps < baselines::SimplicitsParams::default().steps {
+                    " (fewer than the paper's 10 000)"
+                } else {
+                    ""
+                },
+                p.points_per_step,
+                p.transforms_per_step
+            ),
+            None => "Simplicits was not run (`--skip-simplicits`).".into(),
+        }
+    );
+    let _ = writeln!(
+        out,
+        "Metrics (DESIGN 4.3) at the FEM mesh's vertices over frames 1..T: MSE = mean |x − x*|² / \
+         L², max = max |x − x*| / L, fitting residual = mean |x(z*) − x*| / L. Wall time of the \
+         study: {:.0} s ({} job{}).",
+        study.seconds,
+        c.jobs,
+        if c.jobs == 1 { "" } else { "s" }
+    );
+    out
+}
+
+fn percent(v: Option<f64>) -> String {
+    v.map_or("—".into(), |v| format!("{v:+.1}%"))
+}
+
+/// The per-shape error text of a row, if any (the shape's own error first).
+fn row_error(shape: &ShapeResult, boundary: ShapeBoundary) -> Option<String> {
+    shape.error.clone().or_else(|| {
+        shape
+            .rows
+            .iter()
+            .find(|r| r.boundary == boundary)
+            .and_then(|r| r.error.clone())
+    })
+}
+
+/// Table 2: averages per boundary condition and collection, training times, per-shape rows.
+pub fn table2(study: &ShapeStudy) -> RenderedTable {
+    let with_simplicits = study.config.simplicits.is_some();
+    let mut md = String::from("## Table 2: shapes, normalized MSE and max error against FEM\n\n");
+    md += &settings_lines(study);
+    md += "\n### Averages\n\n| shapes | method | ";
+    for b in ShapeBoundary::ALL {
+        let _ = write!(md, "{0} MSE | {0} max | ", b.title());
+    }
+    md += "n per BC |\n|---|---|---|---|---|---|---|---|---|\n";
+    let mut averages = Vec::new();
+    for (collection, shapes) in groups(study) {
+        let mse: Vec<ShapeAverage> = ShapeBoundary::ALL
+            .iter()
+            .map(|&b| average(&collection, &shapes, b, Measure::Mse, with_simplicits))
+            .collect();
+        let max: Vec<ShapeAverage> = ShapeBoundary::ALL
+            .iter()
+            .map(|&b| average(&collection, &shapes, b, Measure::Max, with_simplicits))
+            .collect();
+        let counts: Vec<String> = mse.iter().map(|a| a.shapes.to_string()).collect();
+        let counts = counts.join("/");
+        let mut line = |method: &str, cell: &dyn Fn(&ShapeAverage) -> String| {
+            let cells: Vec<String> = mse
+                .iter()
+                .zip(&max)
+                .flat_map(|(a, b)| [cell(a), cell(b)])
+                .collect();
+            let _ = writeln!(
+                md,
+                "| {collection} | {method} | {} | {counts} |",
+                cells.join(" | ")
+            );
+        };
+        if with_simplicits {
+            line("Simplicits (ours)", &|a| sci(a.simplicits));
+        }
+        line("FreeForm (ours)", &|a| sci(a.ours));
+        if with_simplicits {
+            line("improvement", &|a| percent(a.improvement_percent));
+            line("wins", &|a| format!("{}/{}", a.wins, a.shapes));
+        }
+        for (m, x) in mse.into_iter().zip(max) {
+            averages.push(json!({
+                "collection": collection,
+                "bc": m.boundary.name(),
+                "shapes": m.shapes,
+                "ours_mse": m.ours,
+                "ours_max": x.ours,
+                "simplicits_mse": m.simplicits,
+                "simplicits_max": x.simplicits,
+                "improvement_mse_percent": m.improvement_percent,
+                "improvement_max_percent": x.improvement_percent,
+                "wins_mse": m.wins,
+                "wins_max": x.wins,
+            }));
+        }
+    }
+    for dataset in ["Thingi10K", "SimReady"] {
+        let rows: Vec<&paper::Table2Row> = paper::TABLE2
+            .iter()
+            .filter(|r| r.dataset == dataset)
+            .collect();
+        let cells = |pick: fn(&paper::Table2Row) -> [f64; 2]| {
+            rows.iter()
+                .flat_map(|r| pick(r))
+                .map(|v| format!("{v:.2e}"))
+                .collect::<Vec<_>>()
+                .join(" | ")
+        };
+        let _ = writeln!(
+            md,
+            "| paper {dataset} | Simplicits | {} | |",
+            cells(|r| r.simplicits)
+        );
+        let _ = writeln!(
+            md,
+            "| paper {dataset} | FreeForm | {} | |",
+            cells(|r| r.ours)
+        );
+    }
+
+    let basis: Vec<f64> = study
+        .shapes
+        .iter()
+        .filter_map(|s| s.basis_seconds)
+        .collect();
+    let training: Vec<f64> = study
+        .shapes
+        .iter()
+        .filter_map(|s| s.training_seconds)
+        .collect();
+    let fem: Vec<f64> = study.shapes.iter().filter_map(|s| s.fem_seconds).collect();
+    let stat = |v: &[f64]| {
+        mean_std(v).map_or("—".into(), |(m, s)| {
+            format!("{m:.2} ± {s:.2} s (n = {})", v.len())
+        })
+    };
+    md += "\n### Training time per shape (this machine, 2 cores)\n\n";
+    let _ = writeln!(
+        md,
+        "- FreeForm basis (sampling + eigen solve): {}",
+        stat(&basis)
+    );
+    let _ = writeln!(md, "- Simplicits training: {}", stat(&training));
+    if let (Some((b, _)), Some((t, _))) = (mean_std(&basis), mean_std(&training)) {
+        let _ = writeln!(
+            md,
+            "- ratio of the means: {:.0}× (improvement {:.1}%)",
+            t / b,
+            100.0 * (1.0 - b / t)
+        );
+    }
+    let _ = writeln!(md, "- FEM reference, three runs: {}", stat(&fem));
+    for (dataset, sm, ss, fm, fs) in paper::TABLE2_TRAINING {
+        let _ = writeln!(
+            md,
+            "- paper {dataset} (GPU): Simplicits {sm:.2} ± {ss:.2} s, FreeForm {fm:.2} ± {fs:.2} s"
+        );
+    }
+
+    md += "\n### Per shape\n\n| shape | E (Pa) | FEM mesh | BC | FreeForm MSE | FreeForm max | Simplicits MSE | Simplicits max | lower MSE | basis s | training s | FEM s |\n|---|---|---|---|---|---|---|---|---|---|---|---|\n";
+    let mut csv = String::from(
+        "name,bc,ours_mse,ours_max,simplicits_mse,simplicits_max,ours_fit,simplicits_fit,error\n",
+    );
+    let mut rows = Vec::new();
+    for shape in &study.shapes {
+        let mesh = shape.fem_mesh.map_or("—".into(), |m| {
+            format!(
+                "{} cells, {} vertices, volume {:+.1}%",
+                m.cells_across,
+                m.vertices,
+                100.0 * m.relative_volume_error
+            )
+        });
+        for boundary in ShapeBoundary::ALL {
+            let row = shape.rows.iter().find(|r| r.boundary == boundary);
+            let ours = row.and_then(|r| r.ours);
+            let theirs = row.and_then(|r| r.simplicits);
+            let error = row_error(shape, boundary);
+            let lower = match (ours, theirs) {
+                (Some(o), Some(t)) if o.mse < t.mse => "FreeForm",
+                (Some(_), Some(_)) => "Simplicits",
+                _ => "—",
+            };
+            let _ = writeln!(
+                md,
+                "| {} ({}) | {:.0e} | {mesh} | {} | {} | {} | {} | {} | {lower} | {} | {} | {} |",
+                shape.name,
+                shape.title,
+                shape.youngs_modulus,
+                boundary.title(),
+                error
+                    .as_ref()
+                    .filter(|_| ours.is_none())
+                    .map_or_else(|| sci(ours.map(|s| s.mse)), |e| format!("failed: {e}")),
+                sci(ours.map(|s| s.max)),
+                not_run_or(theirs.map(|s| s.mse)),
+                not_run_or(theirs.map(|s| s.max)),
+                shape
+                    .basis_seconds
+                    .map_or("—".into(), |s| format!("{s:.1}")),
+                shape
+                    .training_seconds
+                    .map_or("—".into(), |s| format!("{s:.0}")),
+                shape.fem_seconds.map_or("—".into(), |s| format!("{s:.0}")),
+            );
+            let opt = |v: Option<f64>| v.map_or(String::new(), |v| format!("{v:e}"));
+            let _ = writeln!(
+                csv,
+                "{},{},{},{},{},{},{},{},\"{}\"",
+                shape.name,
+                boundary.name(),
+                opt(ours.map(|s| s.mse)),
+                opt(ours.map(|s| s.max)),
+                opt(theirs.map(|s| s.mse)),
+                opt(theirs.map(|s| s.max)),
+                opt(ours.map(|s| s.fitting_residual)),
+                opt(theirs.map(|s| s.fitting_residual)),
+                error.clone().unwrap_or_default().replace('"', "'"),
+            );
+            rows.push(json!({
+                "name": shape.name,
+                "bc": boundary.name(),
+                "youngs_modulus": shape.youngs_modulus,
+                "collection": shape.collection.name(),
+                "ours_mse": ours.map(|s| s.mse),
+                "ours_max": ours.map(|s| s.max),
+                "simplicits_mse": theirs.map(|s| s.mse),
+                "simplicits_max": theirs.map(|s| s.max),
+                "ours_fitting_residual": ours.map(|s| s.fitting_residual),
+                "simplicits_fitting_residual": theirs.map(|s| s.fitting_residual),
+                "ours_unconverged_steps": ours.map(|s| s.unconverged_steps),
+                "simplicits_unconverged_steps": theirs.map(|s| s.unconverged_steps),
+                "fem": row.and_then(|r| r.fem),
+                "basis_seconds": shape.basis_seconds,
+                "training_seconds": shape.training_seconds,
+                "fem_seconds": shape.fem_seconds,
+                "fem_mesh": shape.fem_mesh,
+                "error": error,
+            }));
+        }
+    }
+    md += "\nPaper rows: the paper's Table 2 (m = 32, GPU); its datasets are 20 Thingi10K shapes \
+           and 19 SimReady assets, ours the 24 shared meshes (`data/README.md`), so only the \
+           ordering and rough size compare.\n";
+    RenderedTable {
+        number: 2,
+        markdown: md,
+        json: json!({
+            "table": 2,
+            "shapes": rows,
+            "averages": averages,
+            "training_seconds": {
+                "ours": mean_std(&basis).map(|(m, s)| json!({"mean": m, "std": s, "n": basis.len()})),
+                "simplicits": mean_std(&training).map(|(m, s)| json!({"mean": m, "std": s, "n": training.len()})),
+            },
+            "paper": paper::TABLE2.iter().map(|r| json!({
+                "dataset": r.dataset, "bc": r.boundary,
+                "simplicits_mse": r.simplicits[0], "simplicits_max": r.simplicits[1],
+                "ours_mse": r.ours[0], "ours_max": r.ours[1],
+            })).collect::<Vec<Value>>(),
+            "wall_seconds": study.seconds,
+            "settings": serde_json::to_value(&study.config).unwrap_or(Value::Null),
+        }),
+        csv,
+    }
+}
+
+/// Table 7: the basis fitting residual of each FEM trajectory through each method's
+/// deformation map, averaged per boundary condition and per shape.
+pub fn table7(study: &ShapeStudy) -> RenderedTable {
+    let with_simplicits = study.config.simplicits.is_some();
+    let mut md =
+        String::from("## Table 7: shapes, basis fitting residual of the FEM trajectory\n\n");
+    md += &settings_lines(study);
+    md += "The paper's Table 7 values are not in either text rendering of the paper (only its \
+           caption: ours lower than Simplicits throughout), so none are printed.\n\n";
+    md += "| shapes | BC | FreeForm | Simplicits (ours) | improvement | wins | n |\n|---|---|---|---|---|---|---|\n";
+    let mut averages = Vec::new();
+    for (collection, shapes) in groups(study) {
+        for b in ShapeBoundary::ALL {
+            let a = average(&collection, &shapes, b, Measure::Fit, with_simplicits);
+            let _ = writeln!(
+                md,
+                "| {collection} | {} | {} | {} | {} | {}/{} | {} |",
+                b.title(),
+                sci(a.ours),
+                not_run_or(a.simplicits),
+                percent(a.improvement_percent),
+                a.wins,
+                a.shapes,
+                a.shapes
+            );
+            averages.push(a);
+        }
+    }
+    md += "\n| shape | BC | FreeForm | Simplicits (ours) |\n|---|---|---|---|\n";
+    let mut csv = String::from("name,bc,ours_fit,simplicits_fit\n");
+    let mut rows = Vec::new();
+    for shape in &study.shapes {
+        for boundary in ShapeBoundary::ALL {
+            let row = shape.rows.iter().find(|r| r.boundary == boundary);
+            let ours = row.and_then(|r| r.ours).map(|s| s.fitting_residual);
+            let theirs = row.and_then(|r| r.simplicits).map(|s| s.fitting_residual);
+            let error = row_error(shape, boundary);
+            let _ = writeln!(
+                md,
+                "| {} | {} | {} | {} |",
+                shape.name,
+                boundary.title(),
+                error
+                    .as_ref()
+                    .filter(|_| ours.is_none())
+                    .map_or_else(|| sci(ours), |e| format!("failed: {e}")),
+                not_run_or(theirs)
+            );
+            let opt = |v: Option<f64>| v.map_or(String::new(), |v| format!("{v:e}"));
+            let _ = writeln!(
+                csv,
+                "{},{},{},{}",
+                shape.name,
+                boundary.name(),
+                opt(ours),
+                opt(theirs)
+            );
+            rows.push(json!({
+                "name": shape.name,
+                "bc": boundary.name(),
+                "ours_fitting_residual": ours,
+                "simplicits_fitting_residual": theirs,
+                "error": error,
+            }));
+        }
+    }
+    RenderedTable {
+        number: 7,
+        markdown: md,
+        json: json!({
+            "table": 7,
+            "shapes": rows,
+            "averages": averages,
+            "wall_seconds": study.seconds,
+            "settings": serde_json::to_value(&study.config).unwrap_or(Value::Null),
+        }),
+        csv,
+    }
+}
