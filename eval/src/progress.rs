@@ -8,13 +8,16 @@ use indicatif::{ProgressBar, ProgressDrawTarget, ProgressStyle};
 pub struct Progress {
     /// No bars and no status lines.
     pub quiet: bool,
+    /// No bars, status lines still shown (work running in parallel, whose bars would draw over
+    /// each other).
+    pub hide_bars: bool,
 }
 
 impl Progress {
     /// A bar of `len` steps labelled `label`.
     pub fn bar(&self, len: usize, label: impl Into<String>) -> ProgressBar {
         let bar = ProgressBar::new(len as u64);
-        if self.quiet {
+        if self.quiet || self.hide_bars {
             bar.set_draw_target(ProgressDrawTarget::hidden());
         }
         bar.set_style(
@@ -26,6 +29,14 @@ impl Progress {
         );
         bar.set_message(label.into());
         bar
+    }
+
+    /// The same, without bars.
+    pub fn without_bars(self) -> Progress {
+        Progress {
+            hide_bars: true,
+            ..self
+        }
     }
 
     /// A status line on stderr (not on stdout, which holds results).

@@ -2,7 +2,11 @@
 //! and SimReady"), as solver-independent [`SceneSpec`]s of a surface. Every size, speed and
 //! step count is a field of [`ShapeBoundaryParams`] and printed with the tables.
 //!
-//! With L the largest side of the surface's bounding box (1 m after normalization):
+//! With L the largest side of the surface's bounding box (1 m after normalization) and the
+//! extremes `x_min`, `x_max` taken over candidate points of the solid (the shapes study passes
+//! its FEM mesh's vertices: a coarse tetrahedral mesh cuts off thin tips, and slabs measured
+//! from the surface's own extremes then hold no FEM node; the reduced model's points in the
+//! cut-off tip lie in the slab and are held too):
 //! - **Fix side**: the slab `x ≤ x_min + side_fraction · L` held at rest; gravity `g` along −y.
 //! - **Pull farthest**: `pull_points` points chosen by farthest point sampling among candidate
 //!   points (the first is the candidate farthest from the bounding-box centre c); the points
@@ -11,11 +15,12 @@
 //!   vertices, whose extreme points lie on the surface: sampling the surface's own vertices
 //!   picks tips (a bunny's ear) that a coarse tetrahedral mesh has cut off, and the patch then
 //!   holds no FEM node.
-//! - **Pull boundary**: along the box's longest axis a, the slabs `x_a ≤ min + side_fraction · L`
-//!   and `x_a ≥ max − side_fraction · L` move apart, each at `pull_speed · L/s`; no gravity.
+//! - **Pull boundary**: along the surface box's longest axis a, the slabs
+//!   `x_a ≤ min + side_fraction · L` and `x_a ≥ max − side_fraction · L` move apart, each at
+//!   `pull_speed · L/s`; no gravity.
 
 use nalgebra::Vector3;
-use rkpm_core::TriangleMesh;
+use rkpm_core::{Aabb, TriangleMesh};
 use serde::{Deserialize, Serialize};
 
 use crate::scene_spec::{Constraint, Motion, Region, SceneSpec};
@@ -70,10 +75,11 @@ impl ShapeBoundaryParams {
     pub fn describe(&self) -> String {
         format!(
             "Fix side: x ≤ x_min + {s}·L held, gravity {g} m/s² along −y. Pull farthest: {n} \
-             farthest-point-sampled surface vertices, the points within {r}·L of each moved \
+             points chosen by farthest point sampling, the points within {r}·L of each moved \
              outward (away from the bounding-box centre) at {v}·L/s, no gravity. Pull boundary: \
              the end slabs of thickness {s}·L along the longest axis moved apart at {v}·L/s each, \
-             no gravity. h = {h} s, {steps} steps ({t:.2} s).",
+             no gravity. Extremes and sampled points are the FEM mesh's vertices. h = {h} s, \
+             {steps} steps ({t:.2} s).",
             s = self.side_fraction,
             g = self.gravity,
             n = self.pull_points,
@@ -113,9 +119,10 @@ impl ShapeBoundary {
     }
 
     /// The scene of this condition on the solid bounded by `surface` (any units; sizes scale
-    /// with its largest bounding-box side L, speeds are in L per second), with Pull farthest's
-    /// patches centred on points of `candidates` (points of the solid, e.g. its FEM mesh's
-    /// vertices).
+    /// with its largest bounding-box side L, speeds are in L per second), with the slabs
+    /// measured from the extremes of `candidates` and Pull farthest's patches centred on
+    /// points of `candidates` (points of the solid, e.g. its FEM mesh's vertices; the
+    /// surface's vertices if empty).
     pub fn scene(
         self,
         surface: &TriangleMesh,
@@ -123,6 +130,12 @@ impl ShapeBoundary {
         params: &ShapeBoundaryParams,
     ) -> SceneSpec {
         let bbox = surface.bounding_box();
+        let candidates = if candidates.is_empty() {
+            surface.vertices()
+        } else {
+            candidates
+        };
+        let extremes = Aabb::from_points(candidates).unwrap_or(bbox);
         let length = bbox.largest_side();
         let slab = params.side_fraction * length;
         let speed = params.pull_speed * length;
@@ -132,7 +145,7 @@ impl ShapeBoundary {
                 constraints: vec![Constraint {
                     region: Region::Below {
                         axis: 0,
-                        value: bbox.min.x + slab,
+                        value: extremes.min.x + slab,
                     },
                     motion: Motion::Rest,
                 }],
@@ -173,7 +186,7 @@ impl ShapeBoundary {
                         Constraint {
                             region: Region::Below {
                                 axis,
-                                value: bbox.min[axis] + slab,
+                                value: extremes.min[axis] + slab,
                             },
                             motion: Motion::Translate {
                                 velocity: -direction * speed,
@@ -182,7 +195,7 @@ impl ShapeBoundary {
                         Constraint {
                             region: Region::Above {
                                 axis,
-                                value: bbox.max[axis] - slab,
+                                value: extremes.max[axis] - slab,
                             },
                             motion: Motion::Translate {
                                 velocity: direction * speed,

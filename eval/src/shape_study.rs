@@ -157,6 +157,9 @@ pub struct MethodScores {
     pub ms_per_step: f64,
     /// Steps whose Newton solve did not converge.
     pub unconverged_steps: usize,
+    /// Largest distance of a constrained integration point from its target (m): how far the
+    /// penalty lets held and pulled regions drift.
+    pub max_pin_deviation: f64,
 }
 
 /// The FEM run of one (shape, boundary condition).
@@ -308,6 +311,13 @@ pub fn run_shape_study(
         )));
     }
     let start = Instant::now();
+    // Parallel shapes print status lines only: their bars would draw over each other.
+    let progress = if config.jobs > 1 {
+        progress.without_bars()
+    } else {
+        *progress
+    };
+    let progress = &progress;
     let next = AtomicUsize::new(0);
     let results: Vec<Mutex<Option<ShapeResult>>> =
         config.meshes.iter().map(|_| Mutex::new(None)).collect();
@@ -612,6 +622,7 @@ impl BoundaryRun<'_> {
             fitting_residual: scores.fitting_residual,
             ms_per_step: run.ms_per_step,
             unconverged_steps: run.unconverged_steps,
+            max_pin_deviation: run.max_pin_deviation,
         })
     }
 }

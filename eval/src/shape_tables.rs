@@ -172,10 +172,16 @@ fn settings_lines(study: &ShapeStudy) -> String {
         out,
         "Metrics (DESIGN 4.3) at the FEM mesh's vertices over frames 1..T: MSE = mean |x − x*|² / \
          L², max = max |x − x*| / L, fitting residual = mean |x(z*) − x*| / L. Wall time of the \
-         study: {:.0} s ({} job{}).",
+         study: {:.0} s ({} job{}){}.",
         study.seconds,
         c.jobs,
-        if c.jobs == 1 { "" } else { "s" }
+        if c.jobs == 1 { "" } else { "s" },
+        if c.jobs > 1 {
+            "; shapes shared the cores, so per-shape times (basis, training, FEM) are inflated \
+             against a run of one shape at a time"
+        } else {
+            ""
+        }
     );
     out
 }
@@ -389,6 +395,8 @@ pub fn table2(study: &ShapeStudy) -> RenderedTable {
                 "simplicits_fitting_residual": theirs.map(|s| s.fitting_residual),
                 "ours_unconverged_steps": ours.map(|s| s.unconverged_steps),
                 "simplicits_unconverged_steps": theirs.map(|s| s.unconverged_steps),
+                "ours_max_pin_deviation": ours.map(|s| s.max_pin_deviation),
+                "simplicits_max_pin_deviation": theirs.map(|s| s.max_pin_deviation),
                 "fem": row.and_then(|r| r.fem),
                 "basis_seconds": shape.basis_seconds,
                 "training_seconds": shape.training_seconds,

@@ -42,7 +42,10 @@ fn tiny_config(cache: std::path::PathBuf) -> AblationStudyConfig {
 fn tiny_ablation_study_fills_tables_3_and_4_and_reloads_its_models_from_the_cache() {
     let dir = std::env::temp_dir().join(format!("freeform-ablation-{}", std::process::id()));
     let config = tiny_config(dir.join("cache"));
-    let quiet = Progress { quiet: true };
+    let quiet = Progress {
+        quiet: true,
+        ..Default::default()
+    };
     let study = run_ablation_study(&config, &quiet).unwrap();
 
     let methods: Vec<&str> = study.table3.iter().map(|r| r.method.as_str()).collect();

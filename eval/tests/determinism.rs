@@ -34,7 +34,10 @@ fn settings() -> ReducedSettings {
 
 #[test]
 fn basis_and_reduced_simulation_are_bit_identical_across_runs() {
-    let quiet = Progress { quiet: true };
+    let quiet = Progress {
+        quiet: true,
+        ..Default::default()
+    };
     let outputs: Vec<Vector3<f64>> = (0..=20)
         .map(|i| Vector3::new(0.25 * i as f64, 0.5, 0.5))
         .collect();
@@ -69,7 +72,10 @@ fn basis_and_reduced_simulation_are_bit_identical_across_runs() {
 
 #[test]
 fn fem_reference_is_bit_identical_on_one_and_three_threads() {
-    let quiet = Progress { quiet: true };
+    let quiet = Progress {
+        quiet: true,
+        ..Default::default()
+    };
     let dir = std::env::temp_dir().join(format!("freeform-determinism-{}", std::process::id()));
     let resolution = FemResolution {
         order: ElementOrder::Quadratic,

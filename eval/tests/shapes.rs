@@ -11,7 +11,7 @@ use nalgebra::Vector3;
 use rkpm_core::TriangleMesh;
 use test_support::fixtures::{scratch_dir, shared_mesh};
 
-/// Cell size of the test grid: 1/16, so no cell centre lies on a slab plane (0.1, 1.9).
+/// Cell size of the test grid: 1/16, so no cell centre lies on a slab plane (0.131, 1.869).
 const H: f64 = 0.0625;
 
 /// The 1 × 2 × 0.5 m box (y longest, L = 2) and the centres of its 16 × 32 × 8 cells.
@@ -40,10 +40,11 @@ fn fix_side_holds_the_min_x_slab_of_five_percent_of_the_largest_side_under_gravi
     let selected = scene.select(&points, "cell centres").unwrap();
     assert_eq!(selected.len(), 1);
     assert_eq!(scene.constraints[0].motion, Motion::Rest);
-    // x ≤ 0.05 · L = 0.1: the two cell layers at x = 0.031 and 0.094, 32 × 8 cells each.
+    // x ≤ x_min + 0.05 · L = 0.031 + 0.1, x_min the smallest candidate's: the two cell layers
+    // at x = 0.031 and 0.094, 32 × 8 cells each.
     assert_eq!(selected[0].len(), 2 * 32 * 8);
     for (i, p) in points.iter().enumerate() {
-        assert_eq!(selected[0].contains(&i), p.x < 0.1, "{p:?}");
+        assert_eq!(selected[0].contains(&i), p.x < 0.13, "{p:?}");
     }
 }
 
@@ -55,8 +56,9 @@ fn pull_boundary_moves_both_ends_of_the_longest_axis_apart() {
     assert_eq!(scene.gravity, None);
     let selected = scene.select(&points, "cell centres").unwrap();
     assert_eq!(selected.len(), 2);
-    // The longest axis is y (2 m): slabs y ≤ 0.1 and y ≥ 1.9, two layers of 16 × 8 cells each.
-    let ends: [fn(&Vector3<f64>) -> bool; 2] = [|p| p.y < 0.1, |p| p.y > 1.9];
+    // The longest axis is y (2 m): slabs 0.1 thick from the extreme candidates (y = 0.031 and
+    // 1.969), two layers of 16 × 8 cells each.
+    let ends: [fn(&Vector3<f64>) -> bool; 2] = [|p| p.y < 0.13, |p| p.y > 1.87];
     for (region, inside) in selected.iter().zip(ends) {
         assert_eq!(region.len(), 2 * 16 * 8);
         for (i, p) in points.iter().enumerate() {

@@ -35,7 +35,14 @@ fn tiny_study_fills_tables_1_5_6_with_paper_columns_and_consistent_json() {
         }),
         cache_dir: dir.join("cache"),
     };
-    let study = run_beam_study(&config, &Progress { quiet: true }).unwrap();
+    let study = run_beam_study(
+        &config,
+        &Progress {
+            quiet: true,
+            ..Default::default()
+        },
+    )
+    .unwrap();
     assert_eq!(study.rows.len(), 2);
 
     let t1 = table1(&study);
@@ -84,6 +91,13 @@ fn tiny_study_fills_tables_1_5_6_with_paper_columns_and_consistent_json() {
     assert_eq!(csv.lines().count(), 3);
 
     // A second study loads the network from the cache: the same Simplicits numbers.
-    let again = run_beam_study(&config, &Progress { quiet: true }).unwrap();
+    let again = run_beam_study(
+        &config,
+        &Progress {
+            quiet: true,
+            ..Default::default()
+        },
+    )
+    .unwrap();
     assert_eq!(table1(&again).json["rows"], t1.json["rows"]);
 }
