@@ -20,6 +20,7 @@ use fem_ref::{
     VolumeTarget, tetrahedralize, tetrahedralize_to_volume,
 };
 use hyperelastic::LameParameters;
+use nalgebra::Vector3;
 use reduced_sim::{SimulationParams, SkinningField};
 use rkpm_core::{
     GridSamplingParams, IntegrationPoints, MaterialSample, TriangleMesh, read_triangle_mesh,
@@ -163,8 +164,12 @@ pub struct MethodScores {
 }
 
 /// The FEM run of one (shape, boundary condition).
-#[derive(Clone, Copy, Debug, PartialEq, Serialize, Deserialize)]
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
 pub struct FemRunSummary {
+    /// FEM nodes in each constrained region (a region held by one or two nodes is a hinge).
+    pub region_nodes: Vec<usize>,
+    /// Largest vertex displacement over the run over L: the scale the errors compare with.
+    pub max_displacement: f64,
     /// Free DOFs.
     pub dofs: usize,
     /// Seconds per step of the run that produced the trajectory.
@@ -188,6 +193,8 @@ pub struct ShapeRow {
     pub ours: Option<MethodScores>,
     /// Simplicits' scores, if it was trained and the run finished.
     pub simplicits: Option<MethodScores>,
+    /// Reduced integration points in each constrained region.
+    pub region_points: Vec<usize>,
     /// Why something is missing.
     pub error: Option<String>,
 }
@@ -201,8 +208,12 @@ pub struct FemMeshSummary {
     pub vertices: usize,
     /// Tetrahedra.
     pub tets: usize,
-    /// (mesh volume − surface volume) / surface volume.
+    /// (mesh volume − surface volume) / surface volume, after dropping the islands.
     pub relative_volume_error: f64,
+    /// Pieces of the lattice mesh not face-connected to the largest one, dropped.
+    pub dropped_pieces: usize,
+    /// Their volume over the surface's.
+    pub dropped_volume_fraction: f64,
 }
 
 /// Everything measured on one shape.
@@ -470,12 +481,17 @@ fn run_shape_into(
         None => None,
     };
 
-    let (tets, report) = mesh_for_fem(&surface, &config.fem)?;
+    let (lattice_mesh, report) = mesh_for_fem(&surface, &config.fem)?;
+    // Islands the lattice cut off from the body would fall freely in the FEM reference.
+    let pieces = lattice_mesh.face_connected_components().len();
+    let (tets, dropped) = lattice_mesh.largest_component();
     result.fem_mesh = Some(FemMeshSummary {
         cells_across: (length / report.cell_size).round() as usize,
-        vertices: report.vertices,
-        tets: report.tets,
-        relative_volume_error: report.relative_volume_error,
+        vertices: tets.vertices().len(),
+        tets: tets.tets().len(),
+        relative_volume_error: (tets.volume() - report.surface_volume) / report.surface_volume,
+        dropped_pieces: pieces - 1,
+        dropped_volume_fraction: dropped / report.surface_volume,
     });
     let points = sample_on(&surface, settings.simulation_points, "simulation")?;
 
@@ -486,6 +502,7 @@ fn run_shape_into(
             fem: None,
             ours: None,
             simplicits: None,
+            region_points: Vec::new(),
             error: None,
         };
         let scene = boundary.scene(&surface, tets.vertices(), &config.boundary);
@@ -505,7 +522,11 @@ fn run_shape_into(
         )
         .and_then(|fem| {
             fem_seconds += fem.seconds_per_step * config.boundary.steps as f64;
+            let counts = |selected: Vec<Vec<usize>>| selected.iter().map(Vec::len).collect();
+            row.region_points = counts(scene.select(points.positions(), "integration points")?);
             row.fem = Some(FemRunSummary {
+                region_nodes: counts(scene.select(fem.mesh.nodes(), "FEM nodes")?),
+                max_displacement: max_displacement(&fem.vertex_frames()) / length,
                 dofs: fem.dofs,
                 seconds_per_step: fem.seconds_per_step,
                 iterations_per_step: fem.iterations_per_step,
@@ -538,6 +559,14 @@ fn run_shape_into(
     Ok(())
 }
 
+/// The largest `|x_t − x_0|` over frames and points (m).
+fn max_displacement(frames: &[Vec<Vector3<f64>>]) -> f64 {
+    frames
+        .iter()
+        .flat_map(|f| f.iter().zip(&frames[0]).map(|(x, x0)| (x - x0).norm()))
+        .fold(0.0, f64::max)
+}
+
 /// A grid of about `target` points inside `surface`.
 fn sample_on(
     surface: &TriangleMesh,
@@ -554,7 +583,8 @@ fn sample_on(
 }
 
 /// The FEM mesh of `surface`: the first lattice from `first_cells_across` up (×1.5) whose
-/// volume is within the tolerance, else the `max_cells_across` lattice as it is.
+/// volume is within the tolerance, else the `max_cells_across` lattice as it is (islands
+/// included; the caller drops them).
 fn mesh_for_fem(
     surface: &TriangleMesh,
     params: &ShapeFemParams,

@@ -143,7 +143,8 @@ fn settings_lines(study: &ShapeStudy) -> String {
         out,
         "FEM reference: {:?} tetrahedra on the lattice mesher's mesh, the first of {} cells \
          across (×1.5, up to {}) whose volume is within {:.0}% of the surface's, else the \
-         finest; Dirichlet conditions on the nodes in each region.",
+         finest; pieces the lattice cut off from the body dropped (they would fall freely); \
+         Dirichlet conditions on the nodes in each region.",
         c.fem.order,
         c.fem.first_cells_across,
         c.fem.max_cells_across,
@@ -322,7 +323,7 @@ pub fn table2(study: &ShapeStudy) -> RenderedTable {
         );
     }
 
-    md += "\n### Per shape\n\n| shape | E (Pa) | FEM mesh | BC | FreeForm MSE | FreeForm max | Simplicits MSE | Simplicits max | lower MSE | basis s | training s | FEM s |\n|---|---|---|---|---|---|---|---|---|---|---|---|\n";
+    md += "\n### Per shape\n\n| shape | E (Pa) | FEM mesh | BC | FreeForm MSE | FreeForm max | Simplicits MSE | Simplicits max | lower MSE | held FEM nodes / points | FEM max displ. / L | basis s | training s | FEM s |\n|---|---|---|---|---|---|---|---|---|---|---|---|---|---|\n";
     let mut csv = String::from(
         "name,bc,ours_mse,ours_max,simplicits_mse,simplicits_max,ours_fit,simplicits_fit,error\n",
     );
@@ -330,10 +331,19 @@ pub fn table2(study: &ShapeStudy) -> RenderedTable {
     for shape in &study.shapes {
         let mesh = shape.fem_mesh.map_or("—".into(), |m| {
             format!(
-                "{} cells, {} vertices, volume {:+.1}%",
+                "{} cells, {} vertices, volume {:+.1}%{}",
                 m.cells_across,
                 m.vertices,
-                100.0 * m.relative_volume_error
+                100.0 * m.relative_volume_error,
+                if m.dropped_pieces > 0 {
+                    format!(
+                        " ({} island(s) of {:.1}% dropped)",
+                        m.dropped_pieces,
+                        100.0 * m.dropped_volume_fraction
+                    )
+                } else {
+                    String::new()
+                }
             )
         });
         for boundary in ShapeBoundary::ALL {
@@ -341,6 +351,19 @@ pub fn table2(study: &ShapeStudy) -> RenderedTable {
             let ours = row.and_then(|r| r.ours);
             let theirs = row.and_then(|r| r.simplicits);
             let error = row_error(shape, boundary);
+            let join = |v: &[usize]| v.iter().map(usize::to_string).collect::<Vec<_>>().join("+");
+            let held = match row {
+                Some(r) if r.fem.is_some() && !r.region_points.is_empty() => format!(
+                    "{} / {}",
+                    join(
+                        &r.fem
+                            .as_ref()
+                            .map_or(Vec::new(), |f| f.region_nodes.clone())
+                    ),
+                    join(&r.region_points)
+                ),
+                _ => "—".into(),
+            };
             let lower = match (ours, theirs) {
                 (Some(o), Some(t)) if o.mse < t.mse => "FreeForm",
                 (Some(_), Some(_)) => "Simplicits",
@@ -348,7 +371,7 @@ pub fn table2(study: &ShapeStudy) -> RenderedTable {
             };
             let _ = writeln!(
                 md,
-                "| {} ({}) | {:.0e} | {mesh} | {} | {} | {} | {} | {} | {lower} | {} | {} | {} |",
+                "| {} ({}) | {:.0e} | {mesh} | {} | {} | {} | {} | {} | {lower} | {held} | {} | {} | {} | {} |",
                 shape.name,
                 shape.title,
                 shape.youngs_modulus,
@@ -360,6 +383,7 @@ pub fn table2(study: &ShapeStudy) -> RenderedTable {
                 sci(ours.map(|s| s.max)),
                 not_run_or(theirs.map(|s| s.mse)),
                 not_run_or(theirs.map(|s| s.max)),
+                sci(row.and_then(|r| r.fem.as_ref()).map(|f| f.max_displacement)),
                 shape
                     .basis_seconds
                     .map_or("—".into(), |s| format!("{s:.1}")),
@@ -397,7 +421,8 @@ pub fn table2(study: &ShapeStudy) -> RenderedTable {
                 "simplicits_unconverged_steps": theirs.map(|s| s.unconverged_steps),
                 "ours_max_pin_deviation": ours.map(|s| s.max_pin_deviation),
                 "simplicits_max_pin_deviation": theirs.map(|s| s.max_pin_deviation),
-                "fem": row.and_then(|r| r.fem),
+                "fem": row.and_then(|r| r.fem.clone()),
+                "region_points": row.map(|r| r.region_points.clone()),
                 "basis_seconds": shape.basis_seconds,
                 "training_seconds": shape.training_seconds,
                 "fem_seconds": shape.fem_seconds,

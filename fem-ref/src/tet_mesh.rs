@@ -132,6 +132,88 @@ impl TetMesh {
         (0..self.tets.len()).map(|t| self.tet_volume(t)).sum()
     }
 
+    /// The face-connected pieces of the mesh (tetrahedra sharing a triangle are in one piece),
+    /// as lists of tetrahedron indices, largest volume first.
+    pub fn face_connected_components(&self) -> Vec<Vec<usize>> {
+        let mut parent: Vec<usize> = (0..self.tets.len()).collect();
+        fn root(parent: &mut [usize], mut i: usize) -> usize {
+            while parent[i] != i {
+                parent[i] = parent[parent[i]];
+                i = parent[i];
+            }
+            i
+        }
+        let mut faces: std::collections::HashMap<[usize; 3], usize> =
+            std::collections::HashMap::with_capacity(2 * self.tets.len());
+        for (t, tet) in self.tets.iter().enumerate() {
+            for skip in 0..4 {
+                let mut face = [0; 3];
+                let mut k = 0;
+                for (j, &v) in tet.iter().enumerate() {
+                    if j != skip {
+                        face[k] = v;
+                        k += 1;
+                    }
+                }
+                face.sort_unstable();
+                if let Some(&other) = faces.get(&face) {
+                    let (a, b) = (root(&mut parent, t), root(&mut parent, other));
+                    parent[a.max(b)] = a.min(b);
+                } else {
+                    faces.insert(face, t);
+                }
+            }
+        }
+        let mut pieces: std::collections::BTreeMap<usize, Vec<usize>> = Default::default();
+        for t in 0..self.tets.len() {
+            let r = root(&mut parent, t);
+            pieces.entry(r).or_default().push(t);
+        }
+        let mut pieces: Vec<(f64, Vec<usize>)> = pieces
+            .into_values()
+            .map(|tets| (tets.iter().map(|&t| self.tet_volume(t)).sum(), tets))
+            .collect();
+        pieces.sort_by(|a, b| b.0.total_cmp(&a.0));
+        pieces.into_iter().map(|(_, tets)| tets).collect()
+    }
+
+    /// The mesh of the face-connected piece of largest volume, its vertices renumbered in their
+    /// original order, and the volume of everything dropped (m³). A lattice mesh of a surface
+    /// with parts thinner than its cells can hold islands the cutting separated from the body;
+    /// in a simulation they fall freely.
+    pub fn largest_component(&self) -> (TetMesh, f64) {
+        let pieces = self.face_connected_components();
+        let dropped: f64 = pieces[1..]
+            .iter()
+            .flatten()
+            .map(|&t| self.tet_volume(t))
+            .sum();
+        let mut keep = vec![false; self.tets.len()];
+        for &t in &pieces[0] {
+            keep[t] = true;
+        }
+        let mut used = vec![false; self.vertices.len()];
+        for (tet, _) in self.tets.iter().zip(&keep).filter(|(_, k)| **k) {
+            for &v in tet {
+                used[v] = true;
+            }
+        }
+        let mut new_index = vec![usize::MAX; self.vertices.len()];
+        let mut vertices = Vec::new();
+        for (v, _) in used.iter().enumerate().filter(|(_, u)| **u) {
+            new_index[v] = vertices.len();
+            vertices.push(self.vertices[v]);
+        }
+        let tets = self
+            .tets
+            .iter()
+            .zip(&keep)
+            .filter(|(_, k)| **k)
+            .map(|(tet, _)| tet.map(|v| new_index[v]))
+            .collect();
+        (TetMesh { vertices, tets }, dropped)
+    }
+
     /// Dihedral angles and volumes.
     pub fn quality(&self) -> TetQuality {
         let mut q = TetQuality {
@@ -267,6 +349,45 @@ pub fn dihedral_angle_range(p: &[Vector3<f64>; 4]) -> [f64; 2] {
 
 #[cfg(test)]
 mod tests {
+
+    #[test]
+    fn largest_component_drops_a_separate_island_and_renumbers_vertices() {
+        let body =
+            TetMesh::cuboid(Vector3::zeros(), Vector3::new(2.0, 1.0, 1.0), [2, 1, 1]).unwrap();
+        let island = TetMesh::cuboid(
+            Vector3::new(5.0, 0.0, 0.0),
+            Vector3::new(5.5, 0.5, 0.5),
+            [1, 1, 1],
+        )
+        .unwrap();
+        // The island first, so renumbering is exercised.
+        let offset = island.vertices().len();
+        let vertices: Vec<_> = island
+            .vertices()
+            .iter()
+            .chain(body.vertices())
+            .copied()
+            .collect();
+        let tets: Vec<_> = island
+            .tets()
+            .iter()
+            .copied()
+            .chain(body.tets().iter().map(|t| t.map(|v| v + offset)))
+            .collect();
+        let both = TetMesh::new(vertices, tets).unwrap();
+        let pieces = both.face_connected_components();
+        assert_eq!(pieces.len(), 2);
+        assert_eq!(pieces[0].len(), body.tets().len());
+        let (kept, dropped) = both.largest_component();
+        assert_eq!(kept.tets().len(), body.tets().len());
+        assert_eq!(kept.vertices(), body.vertices());
+        assert!((kept.volume() - 2.0).abs() < 1e-12);
+        assert!((dropped - 0.125).abs() < 1e-12);
+        // A connected mesh is one piece and comes back whole.
+        let (same, none) = body.largest_component();
+        assert_eq!(same, body);
+        assert_eq!(none, 0.0);
+    }
     use super::*;
 
     #[test]
