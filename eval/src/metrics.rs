@@ -107,10 +107,12 @@ pub fn trajectory_errors(
 /// The basis fitting residual: per frame the least-squares `z*` with `x_i(z*) = B_iᵀ z*` closest
 /// to the reference positions, then the mean distance over frames and points divided by
 /// `length`. `map` must be built at the reference's rest points (`N` points, `B` is
-/// `4(m+1) × N`).
+/// `4(m+1) × N`). If `B Bᵀ` is singular (a weight vanishes on every point) the normal
+/// equations get a ridge of `1e-10 · diag(B Bᵀ) + 1e-14 · max diag(B Bᵀ)`.
 ///
 /// # Errors
-/// [`MetricsError`] for mismatched shapes, a bad length, non-finite values or a singular fit.
+/// [`MetricsError`] for mismatched shapes, a bad length, non-finite values, or a fit that is
+/// singular even with the ridge.
 pub fn basis_fitting_residual(
     map: &DeformationMap,
     reference: &[Vec<Vector3<f64>>],
@@ -121,9 +123,25 @@ pub fn basis_fitting_residual(
     let b = map.position_matrix();
     let n = map.len();
     let normal = b * b.transpose();
-    let llt = normal
-        .llt(Side::Lower)
-        .map_err(|_| MetricsError::SingularFit)?;
+    // A weight that vanishes on every point (a mode living on a thin part the reference mesh
+    // lacks) leaves B Bᵀ singular; a ridge of 1e-10 · diag + 1e-14 · max diag then holds that
+    // coefficient at zero and changes the others by a relative 1e-10.
+    let llt = match normal.llt(Side::Lower) {
+        Ok(llt) => llt,
+        Err(_) => {
+            let floor = 1e-14
+                * (0..normal.nrows())
+                    .map(|i| normal[(i, i)])
+                    .fold(0.0, f64::max);
+            let regularized = Mat::<f64>::from_fn(normal.nrows(), normal.ncols(), |i, j| {
+                normal[(i, j)] * if i == j { 1.0 + 1e-10 } else { 1.0 }
+                    + if i == j { floor } else { 0.0 }
+            });
+            regularized
+                .llt(Side::Lower)
+                .map_err(|_| MetricsError::SingularFit)?
+        }
+    };
     let mut sum = 0.0;
     for frame in reference {
         let targets = Mat::<f64>::from_fn(n, 3, |i, c| frame[i][c]);

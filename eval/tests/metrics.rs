@@ -54,3 +54,63 @@ fn affine_motions_fit_exactly_and_a_bend_leaves_a_positive_residual() {
     let residual = basis_fitting_residual(&map, &kinked, 5.0).unwrap();
     assert!(residual > 1e-4, "kinked residual {residual}");
 }
+
+/// Weights `[1, x², 0]`: the last handle's weight vanishes everywhere, as a mode living on a
+/// part the reference mesh lacks vanishes on every reference vertex.
+struct FieldWithADeadWeight;
+
+impl reduced_sim::SkinningField for FieldWithADeadWeight {
+    type Error = std::convert::Infallible;
+
+    fn handles(&self) -> usize {
+        3
+    }
+
+    fn evaluate(
+        &self,
+        points: &[Vector3<f64>],
+    ) -> Result<skin_eigen::SkinningWeights, Self::Error> {
+        let n = points.len();
+        let mut w = nalgebra::DMatrix::zeros(n, 3);
+        let mut gx = nalgebra::DMatrix::zeros(n, 3);
+        for (i, p) in points.iter().enumerate() {
+            w[(i, 0)] = 1.0;
+            w[(i, 1)] = p.x * p.x;
+            gx[(i, 1)] = 2.0 * p.x;
+        }
+        Ok(skin_eigen::SkinningWeights {
+            weights: w,
+            gradients: [
+                gx,
+                nalgebra::DMatrix::zeros(n, 3),
+                nalgebra::DMatrix::zeros(n, 3),
+            ],
+        })
+    }
+}
+
+#[test]
+fn a_weight_that_vanishes_on_every_point_still_fits_affine_motions_exactly() {
+    let rest = probe_points();
+    let map = DeformationMap::new(&FieldWithADeadWeight, &rest).unwrap();
+    let shifted: Vec<Vec<Vector3<f64>>> = vec![
+        rest.iter()
+            .map(|x| x + Vector3::new(0.1, -0.2, 0.05) + 0.1 * Vector3::new(x.y, 0.0, 0.0))
+            .collect(),
+    ];
+    let residual = basis_fitting_residual(&map, &shifted, 5.0).unwrap();
+    assert!(residual < 1e-8, "affine residual {residual}");
+    // The x² handle is live: a quadratic stretch fits too, a kinked shear does not.
+    let quadratic: Vec<Vec<Vector3<f64>>> = vec![
+        rest.iter()
+            .map(|x| x + Vector3::new(0.01 * x.x * x.x, 0.0, 0.0))
+            .collect(),
+    ];
+    assert!(basis_fitting_residual(&map, &quadratic, 5.0).unwrap() < 1e-8);
+    let kinked: Vec<Vec<Vector3<f64>>> = vec![
+        rest.iter()
+            .map(|x| x + Vector3::new(0.0, 0.3 * (x.x - 2.5).abs() * (x.z - 0.5), 0.0))
+            .collect(),
+    ];
+    assert!(basis_fitting_residual(&map, &kinked, 5.0).unwrap() > 1e-4);
+}
