@@ -33,6 +33,7 @@ use thiserror::Error;
 
 use crate::tet_mesh::{
     KUHN_CUBE_TETS, TetMesh, TetMeshError, TetQuality, dihedral_angle_range, signed_volume,
+    sorted_faces,
 };
 
 /// A unit vector in no lattice or coordinate plane (see the sign query in [`tetrahedralize`]).
@@ -522,16 +523,7 @@ impl PieceBuilder<'_> {
 fn boundary_vertices(tets: &[[usize; 4]]) -> Vec<usize> {
     let mut faces: HashMap<[usize; 3], u32> = HashMap::with_capacity(2 * tets.len());
     for tet in tets {
-        for skip in 0..4 {
-            let mut face = [0; 3];
-            let mut n = 0;
-            for (i, &v) in tet.iter().enumerate() {
-                if i != skip {
-                    face[n] = v;
-                    n += 1;
-                }
-            }
-            face.sort_unstable();
+        for face in sorted_faces(tet) {
             *faces.entry(face).or_insert(0) += 1;
         }
     }

@@ -146,16 +146,7 @@ impl TetMesh {
         let mut faces: std::collections::HashMap<[usize; 3], usize> =
             std::collections::HashMap::with_capacity(2 * self.tets.len());
         for (t, tet) in self.tets.iter().enumerate() {
-            for skip in 0..4 {
-                let mut face = [0; 3];
-                let mut k = 0;
-                for (j, &v) in tet.iter().enumerate() {
-                    if j != skip {
-                        face[k] = v;
-                        k += 1;
-                    }
-                }
-                face.sort_unstable();
+            for face in sorted_faces(tet) {
                 if let Some(&other) = faces.get(&face) {
                     let (a, b) = (root(&mut parent, t), root(&mut parent, other));
                     parent[a.max(b)] = a.min(b);
@@ -315,6 +306,23 @@ pub(crate) const KUHN_CUBE_TETS: [[[usize; 3]; 4]; 6] = {
     }
     tets
 };
+
+/// The four triangles of a tetrahedron, each with its vertex indices sorted (a key shared by
+/// the two tetrahedra on either side of an interior face).
+pub fn sorted_faces(tet: &[usize; 4]) -> [[usize; 3]; 4] {
+    std::array::from_fn(|skip| {
+        let mut face = [0; 3];
+        let mut k = 0;
+        for (j, &v) in tet.iter().enumerate() {
+            if j != skip {
+                face[k] = v;
+                k += 1;
+            }
+        }
+        face.sort_unstable();
+        face
+    })
+}
 
 /// Signed volume `det[x1-x0, x2-x0, x3-x0] / 6` of a tetrahedron (m³).
 pub fn signed_volume([a, b, c, d]: &[Vector3<f64>; 4]) -> f64 {

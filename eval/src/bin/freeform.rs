@@ -126,41 +126,8 @@ enum Command {
         /// Table numbers.
         #[arg(required = true, num_args = 1..)]
         numbers: Vec<u32>,
-        /// Reduced configuration (minutes instead of tens of minutes).
-        #[arg(long)]
-        quick: bool,
-        /// Print JSON instead of Markdown.
-        #[arg(long)]
-        json: bool,
-        /// Leave out the Simplicits baseline (its training takes about 16 min per m on 2 cores
-        /// the first time; networks are cached).
-        #[arg(long)]
-        skip_simplicits: bool,
-        /// Only these modes (comma-separated), instead of the paper's 6, 9, 16, 32 (tables 3
-        /// and 4: one m, default 16).
-        #[arg(long, value_delimiter = ',')]
-        modes: Option<Vec<usize>>,
-        /// Tables 2 and 7: the folder of closed meshes (OBJ/STL/PLY), e.g. the shared
-        /// `data/meshes`.
-        #[arg(long)]
-        meshes: Option<PathBuf>,
-        /// Tables 2 and 7: only the mesh with this file name or stem.
-        #[arg(long)]
-        only: Option<String>,
-        /// Tables 2 and 7: Young's modulus (Pa) of a mesh not in the shared-mesh catalog.
-        #[arg(long, default_value_t = eval::shape_catalog::DEFAULT_SHAPE_YOUNGS_MODULUS)]
-        young: f64,
-        /// Tables 2 and 7: shapes run at the same time.
-        #[arg(long, default_value_t = 1)]
-        jobs: usize,
-        /// Tables 2 and 7: mesh the FEM reference on this lattice (cells across L) instead of
-        /// refining from 10 up to 16 cells until the volume is within 5%.
-        #[arg(long)]
-        fem_cells: Option<usize>,
-        /// Train Simplicits for this many Adam steps instead of the configuration's (the
-        /// paper's 10 000 in a full run): networks are cached per step count.
-        #[arg(long)]
-        simplicits_steps: Option<usize>,
+        #[command(flatten)]
+        options: TableOptions,
     },
     /// Numerical stress suite: extreme ν, stiffness contrast, large dt, fast twists, a 10 m/s
     /// impact, extreme m and K, degenerate sampling. Exits non-zero if any case produces a
@@ -259,36 +226,9 @@ fn run(cli: Cli) -> Result<()> {
             );
             Ok(())
         }
-        Command::Table {
-            numbers,
-            quick,
-            json,
-            skip_simplicits,
-            modes,
-            meshes,
-            only,
-            young,
-            jobs,
-            fem_cells,
-            simplicits_steps,
-        } => table(
-            &numbers,
-            TableOptions {
-                quick,
-                json,
-                skip_simplicits,
-                modes,
-                meshes,
-                only,
-                young,
-                jobs,
-                fem_cells,
-                simplicits_steps,
-            },
-            &cli.out,
-            &cache,
-            &progress,
-        ),
+        Command::Table { numbers, options } => {
+            table(&numbers, options, &cli.out, &cache, &progress)
+        }
         Command::Stress { quick, json } => {
             let config = if quick {
                 StressConfig::quick()
@@ -347,16 +287,43 @@ fn run(cli: Cli) -> Result<()> {
     }
 }
 
+/// Options of `freeform table`.
+#[derive(clap::Args)]
 struct TableOptions {
+    /// Reduced configuration (minutes instead of tens of minutes).
+    #[arg(long)]
     quick: bool,
+    /// Print JSON instead of Markdown.
+    #[arg(long)]
     json: bool,
+    /// Leave out the Simplicits baseline (its training takes about 16 min per m on 2 cores
+    /// the first time; networks are cached).
+    #[arg(long)]
     skip_simplicits: bool,
+    /// Only these modes (comma-separated), instead of the paper's 6, 9, 16, 32 (tables 3
+    /// and 4: one m, default 16).
+    #[arg(long, value_delimiter = ',')]
     modes: Option<Vec<usize>>,
+    /// Tables 2 and 7: the folder of closed meshes (OBJ/STL/PLY), e.g. the shared
+    /// `data/meshes`.
+    #[arg(long)]
     meshes: Option<PathBuf>,
+    /// Tables 2 and 7: only the mesh with this file name or stem.
+    #[arg(long)]
     only: Option<String>,
+    /// Tables 2 and 7: Young's modulus (Pa) of a mesh not in the shared-mesh catalog.
+    #[arg(long, default_value_t = eval::shape_catalog::DEFAULT_SHAPE_YOUNGS_MODULUS)]
     young: f64,
+    /// Tables 2 and 7: shapes run at the same time.
+    #[arg(long, default_value_t = 1)]
     jobs: usize,
+    /// Tables 2 and 7: mesh the FEM reference on this lattice (cells across L) instead of
+    /// refining from 10 up to 16 cells until the volume is within 5%.
+    #[arg(long)]
     fem_cells: Option<usize>,
+    /// Train Simplicits for this many Adam steps instead of the configuration's (the
+    /// paper's 10 000 in a full run): networks are cached per step count.
+    #[arg(long)]
     simplicits_steps: Option<usize>,
 }
 
