@@ -1,8 +1,11 @@
 //! The `freeform` binary end to end: the demo in its tiny configuration, `simulate` on a small
-//! scene file, and clear errors for malformed scene files.
+//! scene file, clear errors for malformed scene files, the stress suite's quick run, and the
+//! shapes tables (2 and 7) on a real mesh beside a broken one.
 
 use std::path::{Path, PathBuf};
 use std::process::{Command, Output};
+
+use test_support::fixtures::shared_mesh;
 
 fn scratch(name: &str) -> PathBuf {
     let dir = std::env::temp_dir().join(format!("freeform-cli-{name}-{}", std::process::id()));
@@ -246,4 +249,127 @@ fn stress_quick_finishes_every_case_finite_and_reports_failures_by_name() {
     }
     assert!(dir.join("out/stress/stress.md").is_file());
     let _ = std::fs::remove_dir_all(&dir);
+}
+
+fn table(tables: &serde_json::Value, number: u64) -> &serde_json::Value {
+    tables
+        .as_array()
+        .unwrap()
+        .iter()
+        .find(|t| t["table"] == number)
+        .unwrap()
+}
+
+#[test]
+fn a_quick_shape_run_fills_tables_2_and_7_reports_a_broken_mesh_and_reuses_its_caches() {
+    let dir = scratch("shape-quick");
+    let meshes: PathBuf = dir.join("meshes");
+    std::fs::create_dir_all(&meshes).unwrap();
+    std::fs::copy(shared_mesh("bunny.obj"), meshes.join("bunny.obj")).unwrap();
+    // An open surface: one triangle.
+    std::fs::write(
+        meshes.join("open.obj"),
+        "v 0 0 0\nv 1 0 0\nv 0 1 0\nf 1 2 3\n",
+    )
+    .unwrap();
+    let args = [
+        "table",
+        "2",
+        "7",
+        "--quick",
+        "--json",
+        "--meshes",
+        meshes.to_str().unwrap(),
+    ];
+    let first = freeform(&args, &dir);
+    assert!(
+        first.status.success(),
+        "{}",
+        String::from_utf8_lossy(&first.stderr)
+    );
+    let tables: serde_json::Value = serde_json::from_slice(&first.stdout).unwrap();
+    let t2 = table(&tables, 2);
+    let rows = t2["shapes"].as_array().unwrap();
+    assert_eq!(rows.len(), 6, "three conditions for each of the two files");
+    for row in rows.iter().filter(|r| r["name"] == "bunny.obj") {
+        assert!(row["error"].is_null(), "{row}");
+        assert_eq!(row["youngs_modulus"], 1e5, "the bunny is organic");
+        for key in ["ours_mse", "ours_max", "simplicits_mse", "simplicits_max"] {
+            let v = row[key].as_f64().unwrap_or(f64::NAN);
+            // Ten steps move the pulled regions by 0.02 L: errors are positive and far below L.
+            assert!(v > 0.0 && v < 0.1, "{key} = {v} in {row}");
+        }
+        assert_eq!(row["fem"]["cached"], false);
+    }
+    let broken: Vec<&serde_json::Value> = rows.iter().filter(|r| r["name"] == "open.obj").collect();
+    assert_eq!(broken.len(), 3);
+    for row in broken {
+        let error = row["error"].as_str().unwrap();
+        assert!(
+            error.contains("open") || error.contains("boundary"),
+            "{error}"
+        );
+        assert!(row["ours_mse"].is_null());
+    }
+    let averages = t2["averages"].as_array().unwrap();
+    let all: Vec<_> = averages
+        .iter()
+        .filter(|a| a["collection"] == "all")
+        .collect();
+    assert_eq!(all.len(), 3);
+    for a in &all {
+        assert_eq!(a["shapes"], 1, "only the bunny is averaged: {a}");
+    }
+    let t7 = table(&tables, 7);
+    let fits: Vec<f64> = t7["shapes"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .filter_map(|r| r["ours_fitting_residual"].as_f64())
+        .collect();
+    assert_eq!(fits.len(), 3);
+    assert!(fits.iter().all(|f| *f > 0.0 && *f < 0.1), "{fits:?}");
+
+    // Again: every FEM trajectory and the network come from the cache, the numbers are the same.
+    let second = freeform(&args, &dir);
+    assert!(second.status.success());
+    let again: serde_json::Value = serde_json::from_slice(&second.stdout).unwrap();
+    for (a, b) in rows
+        .iter()
+        .zip(table(&again, 2)["shapes"].as_array().unwrap())
+    {
+        for key in ["ours_mse", "ours_max", "simplicits_mse", "simplicits_max"] {
+            assert_eq!(a[key], b[key], "{key}");
+        }
+        if a["name"] == "bunny.obj" {
+            assert_eq!(b["fem"]["cached"], true);
+        }
+    }
+}
+
+#[test]
+fn an_unknown_only_name_is_an_error_listing_the_meshes() {
+    let dir = scratch("shape-only");
+    let meshes = shared_mesh("bunny.obj").parent().unwrap().to_path_buf();
+    let out = freeform(
+        &[
+            "table",
+            "2",
+            "--quick",
+            "--meshes",
+            meshes.to_str().unwrap(),
+            "--only",
+            "teapot",
+        ],
+        &dir,
+    );
+    assert!(!out.status.success());
+    let stderr = String::from_utf8_lossy(&out.stderr);
+    assert!(
+        stderr.contains("--only teapot") && stderr.contains("bunny.obj"),
+        "{stderr}"
+    );
+    let missing = freeform(&["table", "2", "--quick"], &dir);
+    assert!(!missing.status.success());
+    assert!(String::from_utf8_lossy(&missing.stderr).contains("--meshes"));
 }
