@@ -65,6 +65,9 @@ pub struct FemRun {
     pub dofs: usize,
     /// Whether it came from the cache.
     pub cached: bool,
+    /// Nodes held in each constrained region of the scene (a region held by one or two nodes
+    /// is a hinge).
+    pub region_nodes: Vec<usize>,
 }
 
 /// Runs (or loads from `cache_dir`) `steps` steps of `test` at `resolution`.
@@ -134,6 +137,7 @@ pub fn run_fem(
     )
     .map_err(|e| EvalError::Setup(e.to_string()))?;
     let fem_scene = problem.scene.fem_scene(model.mesh().nodes(), 1e4)?;
+    let region_nodes = fem_scene.dirichlet.iter().map(|r| r.nodes.len()).collect();
     let params = FemParams {
         time_step: problem.time_step,
         ..Default::default()
@@ -168,6 +172,7 @@ pub fn run_fem(
         unconverged_steps: trajectory.converged.iter().filter(|c| !**c).count(),
         dofs,
         cached,
+        region_nodes,
     })
 }
 
@@ -184,6 +189,20 @@ impl FemRun {
     /// Rest positions of the tet mesh's vertices (m).
     pub fn vertices(&self) -> &[Vector3<f64>] {
         self.mesh.tet_mesh().vertices()
+    }
+
+    /// The largest vertex displacement `|x_t − x_0|` over all frames (m).
+    pub fn max_vertex_displacement(&self) -> f64 {
+        let n = self.vertices().len();
+        self.frames
+            .iter()
+            .flat_map(|f| {
+                f[..n]
+                    .iter()
+                    .zip(&self.frames[0])
+                    .map(|(x, x0)| (x - x0).norm())
+            })
+            .fold(0.0, f64::max)
     }
 
     /// Vertex positions per frame (frame 0 = rest).

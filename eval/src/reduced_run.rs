@@ -49,6 +49,8 @@ pub struct ReducedRun {
     pub setup_seconds: f64,
     /// Integration points simulated.
     pub simulation_points: usize,
+    /// Integration points held in each constrained region of the scene.
+    pub region_points: Vec<usize>,
 }
 
 /// Simulates `problem.steps` steps, showing a bar labelled `label`.
@@ -71,6 +73,7 @@ pub fn run_reduced<B: SkinningField + ?Sized>(
     )
     .map_err(|e| EvalError::Setup(e.to_string()))?;
     let scene = problem.scene.reduced_scene(model.rest_positions())?;
+    let region_points = scene.pins.iter().map(|p| p.points.len()).collect();
     let mut sim = Simulator::new(model, &scene, problem.params)
         .map_err(|e| EvalError::Setup(e.to_string()))?;
     let output = DeformationMap::new(problem.field, problem.output_points)
@@ -108,5 +111,6 @@ pub fn run_reduced<B: SkinningField + ?Sized>(
         max_pin_deviation,
         setup_seconds,
         simulation_points: points.len(),
+        region_points,
     })
 }

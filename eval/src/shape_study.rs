@@ -20,7 +20,6 @@ use fem_ref::{
     VolumeTarget, tetrahedralize, tetrahedralize_to_volume,
 };
 use hyperelastic::LameParameters;
-use nalgebra::Vector3;
 use reduced_sim::{SimulationParams, SkinningField};
 use rkpm_core::{
     GridSamplingParams, IntegrationPoints, MaterialSample, TriangleMesh, read_triangle_mesh,
@@ -522,11 +521,9 @@ fn run_shape_into(
         )
         .and_then(|fem| {
             fem_seconds += fem.seconds_per_step * config.boundary.steps as f64;
-            let counts = |selected: Vec<Vec<usize>>| selected.iter().map(Vec::len).collect();
-            row.region_points = counts(scene.select(points.positions(), "integration points")?);
             row.fem = Some(FemRunSummary {
-                region_nodes: counts(scene.select(fem.mesh.nodes(), "FEM nodes")?),
-                max_displacement: max_displacement(&fem.vertex_frames()) / length,
+                region_nodes: fem.region_nodes.clone(),
+                max_displacement: fem.max_vertex_displacement() / length,
                 dofs: fem.dofs,
                 seconds_per_step: fem.seconds_per_step,
                 iterations_per_step: fem.iterations_per_step,
@@ -544,9 +541,11 @@ fn run_shape_into(
                 label: &label,
                 progress,
             };
-            row.ours = Some(run.score(&ours, "FreeForm")?);
+            let (scores, region_points) = run.score(&ours, "FreeForm")?;
+            row.ours = Some(scores);
+            row.region_points = region_points;
             if let Some(net) = &simplicits {
-                row.simplicits = Some(run.score(net, "Simplicits")?);
+                row.simplicits = Some(run.score(net, "Simplicits")?.0);
             }
             Ok(())
         });
@@ -557,14 +556,6 @@ fn run_shape_into(
     }
     result.fem_seconds = Some(fem_seconds);
     Ok(())
-}
-
-/// The largest `|x_t − x_0|` over frames and points (m).
-fn max_displacement(frames: &[Vec<Vector3<f64>>]) -> f64 {
-    frames
-        .iter()
-        .flat_map(|f| f.iter().zip(&frames[0]).map(|(x, x0)| (x - x0).norm()))
-        .fold(0.0, f64::max)
 }
 
 /// A grid of about `target` points inside `surface`.
@@ -626,12 +617,13 @@ struct BoundaryRun<'a> {
 }
 
 impl BoundaryRun<'_> {
-    /// Simulates `field` (labelled `method`) at the FEM vertices and scores it.
+    /// Simulates `field` (labelled `method`) at the FEM vertices and scores it; also returns
+    /// the integration points held in each constrained region.
     fn score<B: SkinningField + ?Sized>(
         &self,
         field: &B,
         method: &str,
-    ) -> Result<MethodScores, EvalError> {
+    ) -> Result<(MethodScores, Vec<usize>), EvalError> {
         let run = run_reduced(
             &ReducedProblem {
                 field,
@@ -646,13 +638,14 @@ impl BoundaryRun<'_> {
             self.progress,
         )?;
         let scores = self.fem.score(field, &run.frames, self.length)?;
-        Ok(MethodScores {
+        let scores = MethodScores {
             mse: scores.errors.normalized_mse,
             max: scores.errors.normalized_max,
             fitting_residual: scores.fitting_residual,
             ms_per_step: run.ms_per_step,
             unconverged_steps: run.unconverged_steps,
             max_pin_deviation: run.max_pin_deviation,
-        })
+        };
+        Ok((scores, run.region_points))
     }
 }
