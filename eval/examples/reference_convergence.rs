@@ -15,7 +15,7 @@ use eval::beam_study::beam_length_scale;
 use eval::fem_reference::{FemResolution, run_fem_beam};
 use eval::metrics::trajectory_errors;
 use eval::progress::Progress;
-use fem_ref::ElementOrder;
+use fem_ref::{ElementOrder, FemNewtonParams};
 
 #[derive(Parser)]
 struct Args {
@@ -43,8 +43,22 @@ fn main() -> anyhow::Result<()> {
         order: ElementOrder::Quadratic,
         cells_per_metre,
     };
-    let coarse = run_fem_beam(test, p2(args.coarse), steps, &cache, &progress)?;
-    let fine = run_fem_beam(test, p2(args.fine), steps, &cache, &progress)?;
+    let coarse = run_fem_beam(
+        test,
+        p2(args.coarse),
+        FemNewtonParams::default(),
+        steps,
+        &cache,
+        &progress,
+    )?;
+    let fine = run_fem_beam(
+        test,
+        p2(args.fine),
+        FemNewtonParams::default(),
+        steps,
+        &cache,
+        &progress,
+    )?;
     let fine_at_coarse = fine.frames_at(coarse.vertices())?;
     let errors = trajectory_errors(
         &coarse.vertex_frames()[1..],

@@ -8,7 +8,7 @@ use serde_json::json;
 use crate::ablation_study::AblationStudy;
 use crate::beam::BeamTest;
 use crate::paper;
-use crate::tables::{RenderedTable, not_run_or, sci, settings_lines};
+use crate::tables::{RenderedTable, sci, score_or_why, settings_lines};
 
 /// How the trained rows were trained.
 fn training_line(study: &AblationStudy) -> String {
@@ -53,8 +53,8 @@ pub fn table3(study: &AblationStudy) -> RenderedTable {
             md,
             "| {} | {} | {} | {:.1}{} | {} | {} | {} | {} |",
             r.method,
-            not_run_or(drop),
-            not_run_or(twist),
+            score_or_why(drop, &study.fem, BeamTest::Bend),
+            score_or_why(twist, &study.fem, BeamTest::Twist),
             r.training_seconds,
             if r.cached { " (cached)" } else { "" },
             r.loss

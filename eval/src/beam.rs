@@ -1,6 +1,7 @@
 //! The beam experiments of DESIGN 4.1: a 5 m × 1 m × 1 m beam, E = 5 MPa, ν = 0.45,
 //! ρ = 1000 kg/m³, h = 0.01 s; Bend (gravity, x ≤ 0.5 pinned, 300 steps) and Twist (x ≤ 0.5
-//! pinned, x ≥ 4.5 rotated about the beam axis by min(2160°/s · t, 720°), 34 steps).
+//! pinned, x ≥ 4.5 rotated about the beam axis by min(2160°/s · t, 720°), 30 steps: 648° at
+//! t = 0.30 s, before the twisted beam buckles).
 
 use nalgebra::Vector3;
 use rkpm_core::MaterialSample;
@@ -30,7 +31,8 @@ pub fn beam_material() -> MaterialSample {
 pub enum BeamTest {
     /// Gravity 9.8 m/s² along -y, x ≤ 0.5 pinned (Tables call it Bend or Drop).
     Bend,
-    /// No gravity, x ≤ 0.5 pinned, x ≥ 4.5 twisted to 720°.
+    /// No gravity, x ≤ 0.5 pinned, x ≥ 4.5 twisted at 2160°/s (to 648° in its 30 steps; the
+    /// motion itself stops at 720°).
     Twist,
 }
 
@@ -46,11 +48,15 @@ impl BeamTest {
         }
     }
 
-    /// Steps of DESIGN 4.1: 300 for Bend (3 s), 34 for Twist (the end reaches 720° at 1/3 s).
+    /// Steps of DESIGN 4.1: 300 for Bend (3 s), 30 for Twist (648° at t = 0.30 s, as the
+    /// authors' research code runs it). Not 34: from about 518° the twisted beam's stiffness is
+    /// indefinite, and at steps 33-34 both our FEM and an external one stop unconverged and
+    /// part by 0.1-0.6 m (it buckles), so those frames would measure the bifurcation rather than
+    /// the method. The longer twists live in the stress suite.
     pub fn steps(self) -> usize {
         match self {
             BeamTest::Bend => 300,
-            BeamTest::Twist => 34,
+            BeamTest::Twist => 30,
         }
     }
 

@@ -4,6 +4,7 @@
 use std::path::PathBuf;
 
 use baselines::SimplicitsParams;
+use fem_ref::FemNewtonParams;
 use reduced_sim::SkinningField;
 use serde::{Deserialize, Serialize};
 
@@ -25,10 +26,14 @@ pub struct BeamStudyConfig {
     pub tests: Vec<BeamTest>,
     /// Everything but m.
     pub settings: ReducedSettings,
-    /// Steps per test; `None` for DESIGN 4.1's (300 Bend, 34 Twist).
+    /// Steps per test; `None` for DESIGN 4.1's (300 Bend, 30 Twist).
     pub steps: Option<usize>,
     /// The FEM ground truth.
     pub fem: FemResolution,
+    /// The FEM's Newton options (default: 20 iterations, tolerance 1e-6). A reference any of
+    /// whose steps stops unconverged is not scored.
+    #[serde(default = "FemNewtonParams::default")]
+    pub fem_newton: FemNewtonParams,
     /// The Simplicits baseline's training options (its `modes` is set per m), or `None` to
     /// leave it out.
     pub simplicits: Option<SimplicitsParams>,
@@ -46,13 +51,14 @@ impl BeamStudyConfig {
             settings: ReducedSettings::default(),
             steps: None,
             fem: FemResolution::GROUND_TRUTH,
+            fem_newton: FemNewtonParams::default(),
             simplicits: Some(SimplicitsParams::default()),
             cache_dir,
         }
     }
 
     /// A few-minute version: m ∈ {6, 16}, K = 500 on 10k basis points, 100 Bend steps (Twist
-    /// keeps its 34), FEM P2 res 4, Simplicits trained for 500 steps instead of 10 000.
+    /// keeps its 30), FEM P2 res 4, Simplicits trained for 500 steps instead of 10 000.
     pub fn quick(cache_dir: PathBuf) -> Self {
         BeamStudyConfig {
             modes: vec![6, 16],
@@ -74,7 +80,7 @@ impl BeamStudyConfig {
         }
     }
 
-    /// Steps of `test` in this configuration (Twist never runs past its 34 steps).
+    /// Steps of `test` in this configuration (Twist never runs past its 30 steps).
     pub fn steps_of(&self, test: BeamTest) -> usize {
         self.steps.unwrap_or(test.steps()).min(test.steps())
     }
@@ -91,6 +97,8 @@ pub struct BeamRow {
     pub ours_mse: f64,
     /// Normalized max error against FEM.
     pub ours_max: f64,
+    /// Normalized MSE of each frame 1..T (their mean is `ours_mse`).
+    pub ours_per_frame_mse: Vec<f64>,
     /// Basis fitting residual of the FEM trajectory through our deformation map.
     pub fitting_residual: f64,
     /// Wall time per step (ms).
@@ -114,6 +122,8 @@ pub struct BaselineRow {
     pub mse: f64,
     /// Normalized max error against FEM.
     pub max: f64,
+    /// Normalized MSE of each frame 1..T (their mean is `mse`).
+    pub per_frame_mse: Vec<f64>,
     /// Basis fitting residual.
     pub fitting_residual: f64,
     /// Wall time per step (ms).
@@ -141,8 +151,13 @@ pub struct FemSummary {
     pub seconds_per_step: f64,
     /// Newton iterations per step.
     pub iterations_per_step: f64,
+    /// The largest Newton iteration count of any step.
+    pub max_iterations: usize,
     /// Unconverged steps.
     pub unconverged_steps: usize,
+    /// Why the reference is not scored (a step stopped unconverged), or `None` when every step
+    /// converged and the test's rows are scored against it.
+    pub not_scored: Option<String>,
     /// Loaded from the cache.
     pub cached: bool,
 }
@@ -208,6 +223,7 @@ pub fn run_beam_study(
                     Some(BaselineRow {
                         mse: e.errors.normalized_mse,
                         max: e.errors.normalized_max,
+                        per_frame_mse: e.per_frame_mse,
                         fitting_residual: e.fitting_residual,
                         ms_per_step: e.run.ms_per_step,
                         training_seconds: net.trained.report.seconds,
@@ -221,6 +237,7 @@ pub fn run_beam_study(
                 m,
                 ours_mse: ours.errors.normalized_mse,
                 ours_max: ours.errors.normalized_max,
+                ours_per_frame_mse: ours.per_frame_mse,
                 fitting_residual: ours.fitting_residual,
                 ms_per_step: ours.run.ms_per_step,
                 iterations_per_step: ours.run.iterations_per_step,
@@ -243,6 +260,8 @@ pub fn run_beam_study(
 pub(crate) type FemReference = (BeamTest, FemRun);
 
 /// The FEM reference of every test of `config` (run or loaded from the cache) with its summary.
+/// Only references whose every step converged are returned for scoring; the summary of one
+/// that did not says why it is not scored (and its test gets no rows).
 ///
 /// # Errors
 /// [`EvalError::Fem`] from a failed run.
@@ -254,7 +273,21 @@ pub(crate) fn fem_references(
     let mut fem = Vec::new();
     for &test in &config.tests {
         let steps = config.steps_of(test);
-        let run = run_fem_beam(test, config.fem, steps, &config.cache_dir, progress)?;
+        let run = run_fem_beam(
+            test,
+            config.fem,
+            config.fem_newton,
+            steps,
+            &config.cache_dir,
+            progress,
+        )?;
+        let not_scored = run
+            .check_converged(config.fem_newton.max_iterations)
+            .err()
+            .map(|e| e.to_string());
+        if let Some(why) = &not_scored {
+            progress.status(format!("{}: {why}", test.name()));
+        }
         fem.push(FemSummary {
             test,
             resolution: config.fem.label(),
@@ -263,10 +296,14 @@ pub(crate) fn fem_references(
             vertices: run.vertices().len(),
             seconds_per_step: run.seconds_per_step,
             iterations_per_step: run.iterations_per_step,
+            max_iterations: run.max_iterations(),
             unconverged_steps: run.unconverged_steps,
+            not_scored: not_scored.clone(),
             cached: run.cached,
         });
-        references.push((test, run));
+        if not_scored.is_none() {
+            references.push((test, run));
+        }
     }
     Ok((references, fem))
 }
@@ -275,6 +312,7 @@ pub(crate) fn fem_references(
 pub(crate) struct FieldEvaluation {
     pub(crate) run: ReducedRun,
     pub(crate) errors: TrajectoryErrors,
+    pub(crate) per_frame_mse: Vec<f64>,
     pub(crate) fitting_residual: f64,
 }
 
@@ -292,6 +330,7 @@ pub(crate) fn evaluate_field<B: SkinningField + ?Sized>(
     Ok(FieldEvaluation {
         run,
         errors: scores.errors,
+        per_frame_mse: scores.per_frame_mse,
         fitting_residual: scores.fitting_residual,
     })
 }

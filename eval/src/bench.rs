@@ -6,7 +6,7 @@ use std::fmt::Write as _;
 use std::path::{Path, PathBuf};
 
 use baselines::SimplicitsParams;
-use fem_ref::ElementOrder;
+use fem_ref::{ElementOrder, FemNewtonParams};
 use serde::{Deserialize, Serialize};
 
 use crate::EvalError;
@@ -15,7 +15,7 @@ use crate::beam_study::beam_length_scale;
 use crate::fem_reference::{FemResolution, run_fem_beam};
 use crate::metrics::trajectory_errors;
 use crate::output::write_atomically;
-use crate::plot::{PlotSpec, Series};
+use crate::plot::{AxisScale, PlotSpec, Series};
 use crate::progress::Progress;
 use crate::reduced_beam::{ReducedSettings, build_beam_basis, run_reduced_beam};
 use crate::simplicits_beam::train_beam_simplicits;
@@ -212,10 +212,12 @@ pub fn run_bench(config: &BenchConfig, progress: &Progress) -> Result<Vec<BenchR
     let truth = run_fem_beam(
         BeamTest::Bend,
         config.ground_truth,
+        FemNewtonParams::default(),
         config.steps,
         &config.cache_dir,
         progress,
     )?;
+    truth.check_converged(FemNewtonParams::default().max_iterations)?;
     let truth_frames = truth.vertex_frames();
     let vertices = truth.vertices().to_vec();
     let length = beam_length_scale();
@@ -269,6 +271,7 @@ pub fn run_bench(config: &BenchConfig, progress: &Progress) -> Result<Vec<BenchR
                 let run = run_fem_beam(
                     BeamTest::Bend,
                     *r,
+                    FemNewtonParams::default(),
                     config.steps,
                     &config.cache_dir,
                     progress,
@@ -438,7 +441,7 @@ pub fn bench_plot(results: &[BenchResult], config: &BenchConfig) -> PlotSpec {
         ),
         x_label: "ms per 0.01 s step (this machine)".into(),
         y_label: "normalized MSE vs FEM".into(),
-        log_log: true,
+        scale: AxisScale::LogLog,
         series,
     }
 }

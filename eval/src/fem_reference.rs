@@ -5,8 +5,8 @@
 use std::path::Path;
 
 use fem_ref::{
-    ElementOrder, FemMesh, FemModel, FemParams, FemSimulator, MassKind, PointInterpolation,
-    TetMesh, TrajectoryCache,
+    ElementOrder, FemMesh, FemModel, FemNewtonParams, FemParams, FemSimulator, MassKind,
+    PointInterpolation, TetMesh, TrajectoryCache,
 };
 use hyperelastic::StableNeoHookean;
 use nalgebra::Vector3;
@@ -18,7 +18,7 @@ use reduced_sim::{DeformationMap, SkinningField};
 
 use crate::EvalError;
 use crate::beam::{BEAM_MAX, BEAM_MIN, BEAM_TIME_STEP, BeamTest, beam_material};
-use crate::metrics::{TrajectoryErrors, basis_fitting_residual, trajectory_errors};
+use crate::metrics::{TrajectoryErrors, basis_fitting_residual, per_frame_mse, trajectory_errors};
 use crate::progress::Progress;
 use crate::scene_spec::SceneSpec;
 
@@ -61,6 +61,10 @@ pub struct FemRun {
     pub iterations_per_step: f64,
     /// Steps whose Newton solve did not converge.
     pub unconverged_steps: usize,
+    /// Newton iterations of each step (`step_iterations[t - 1]` produced frame t).
+    pub step_iterations: Vec<usize>,
+    /// Whether each step's Newton solve converged (`step_converged[t - 1]` for frame t).
+    pub step_converged: Vec<bool>,
     /// Free degrees of freedom.
     pub dofs: usize,
     /// Whether it came from the cache.
@@ -70,13 +74,15 @@ pub struct FemRun {
     pub region_nodes: Vec<usize>,
 }
 
-/// Runs (or loads from `cache_dir`) `steps` steps of `test` at `resolution`.
+/// Runs (or loads from `cache_dir`) `steps` steps of `test` at `resolution` with the Newton
+/// options `newton` (the defaults for the ground truth).
 ///
 /// # Errors
 /// [`EvalError`] for a failed step, an unusable cache or an empty region.
 pub fn run_fem_beam(
     test: BeamTest,
     resolution: FemResolution,
+    newton: FemNewtonParams,
     steps: usize,
     cache_dir: &Path,
     progress: &Progress,
@@ -91,6 +97,7 @@ pub fn run_fem_beam(
             material: beam_material(),
             scene: &test.scene(),
             time_step: BEAM_TIME_STEP,
+            newton,
             steps,
         },
         &format!("{} {}", test.name(), resolution.label()),
@@ -111,6 +118,8 @@ pub struct FemProblem<'a> {
     pub scene: &'a SceneSpec,
     /// Backward Euler step (s).
     pub time_step: f64,
+    /// Newton options (`FemNewtonParams::default()` for a reference).
+    pub newton: FemNewtonParams,
     /// Steps to run.
     pub steps: usize,
 }
@@ -140,7 +149,7 @@ pub fn run_fem(
     let region_nodes = fem_scene.dirichlet.iter().map(|r| r.nodes.len()).collect();
     let params = FemParams {
         time_step: problem.time_step,
-        ..Default::default()
+        newton: problem.newton,
     };
     let mut sim =
         FemSimulator::new(model, fem_scene, params).map_err(|e| EvalError::Setup(e.to_string()))?;
@@ -170,6 +179,8 @@ pub fn run_fem(
         iterations_per_step: trajectory.iterations.iter().sum::<usize>() as f64
             / steps.max(1) as f64,
         unconverged_steps: trajectory.converged.iter().filter(|c| !**c).count(),
+        step_iterations: trajectory.iterations.clone(),
+        step_converged: trajectory.converged.clone(),
         dofs,
         cached,
         region_nodes,
@@ -177,15 +188,75 @@ pub fn run_fem(
 }
 
 /// How well a method's trajectory matches a FEM run (DESIGN 4.3).
-#[derive(Clone, Copy, Debug, PartialEq)]
+#[derive(Clone, Debug, PartialEq)]
 pub struct FieldScores {
     /// Normalized MSE and max error.
     pub errors: TrajectoryErrors,
+    /// Normalized MSE of each frame 1..T (their mean is `errors.normalized_mse`).
+    pub per_frame_mse: Vec<f64>,
     /// Basis fitting residual of the FEM trajectory through the method's deformation map.
     pub fitting_residual: f64,
 }
 
+/// A FEM run some of whose Newton solves stopped unconverged: its frames are not a reference,
+/// and no table scores against it.
+#[derive(Clone, Debug, PartialEq, Eq, Serialize, Deserialize, thiserror::Error)]
+#[error(
+    "the FEM reference's Newton solve did not converge at frame(s) {} of {steps} (cap {iteration_cap} \
+     iterations): not a reference, not scored",
+    list(frames)
+)]
+pub struct UnconvergedReference {
+    /// The frames (= 1-based steps) whose Newton solve did not converge.
+    pub frames: Vec<usize>,
+    /// Steps in the run.
+    pub steps: usize,
+    /// The Newton iteration cap the run used.
+    pub iteration_cap: usize,
+}
+
+fn list(frames: &[usize]) -> String {
+    frames
+        .iter()
+        .map(usize::to_string)
+        .collect::<Vec<_>>()
+        .join(", ")
+}
+
 impl FemRun {
+    /// The largest Newton iteration count of any step (0 for a run of no steps).
+    pub fn max_iterations(&self) -> usize {
+        self.step_iterations.iter().copied().max().unwrap_or(0)
+    }
+
+    /// The frames (1-based steps) whose Newton solve did not converge.
+    pub fn unconverged_frames(&self) -> Vec<usize> {
+        self.step_converged
+            .iter()
+            .enumerate()
+            .filter(|(_, c)| !**c)
+            .map(|(i, _)| i + 1)
+            .collect()
+    }
+
+    /// `Ok` when every step converged, so the run may serve as a reference; otherwise which
+    /// frames did not (`iteration_cap` is the cap the run used, for the message).
+    ///
+    /// # Errors
+    /// [`UnconvergedReference`] naming the unconverged frames.
+    pub fn check_converged(&self, iteration_cap: usize) -> Result<(), UnconvergedReference> {
+        let frames = self.unconverged_frames();
+        if frames.is_empty() {
+            Ok(())
+        } else {
+            Err(UnconvergedReference {
+                frames,
+                steps: self.step_converged.len(),
+                iteration_cap,
+            })
+        }
+    }
+
     /// Rest positions of the tet mesh's vertices (m).
     pub fn vertices(&self) -> &[Vector3<f64>] {
         self.mesh.tet_mesh().vertices()
@@ -227,11 +298,13 @@ impl FemRun {
     ) -> Result<FieldScores, EvalError> {
         let reference = self.vertex_frames();
         let errors = trajectory_errors(&frames[1..], &reference[1..], length)?;
+        let per_frame_mse = per_frame_mse(&frames[1..], &reference[1..], length)?;
         let map = DeformationMap::new(field, self.vertices())
             .map_err(|e| EvalError::Setup(e.to_string()))?;
         let fitting_residual = basis_fitting_residual(&map, &reference[1..], length)?;
         Ok(FieldScores {
             errors,
+            per_frame_mse,
             fitting_residual,
         })
     }

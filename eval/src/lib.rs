@@ -81,6 +81,9 @@ pub enum EvalError {
         /// Why.
         source: std::io::Error,
     },
+    /// A FEM reference stopped unconverged at some step, so nothing is scored against it.
+    #[error(transparent)]
+    UnconvergedReference(#[from] fem_reference::UnconvergedReference),
     /// A plot could not be drawn.
     #[error("plot failed: {0}")]
     Plot(String),

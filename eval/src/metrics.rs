@@ -104,6 +104,28 @@ pub fn trajectory_errors(
     })
 }
 
+/// Normalized MSE of each frame of `ours` against `reference` (same layout and checks as
+/// [`trajectory_errors`]): `(1/N) Σ_i |x_it − x*_it|² / L²` for every t. With the same point
+/// count in every frame their mean is the trajectory's normalized MSE.
+///
+/// # Errors
+/// [`MetricsError`] for mismatched shapes, a bad length or non-finite values.
+pub fn per_frame_mse(
+    ours: &[Vec<Vector3<f64>>],
+    reference: &[Vec<Vector3<f64>>],
+    length: f64,
+) -> Result<Vec<f64>, MetricsError> {
+    check_shapes(ours, reference, length)?;
+    Ok(ours
+        .iter()
+        .zip(reference)
+        .map(|(a, b)| {
+            let sum: f64 = a.iter().zip(b).map(|(p, q)| (p - q).norm_squared()).sum();
+            sum / a.len() as f64 / (length * length)
+        })
+        .collect())
+}
+
 /// The basis fitting residual: per frame the least-squares `z*` with `x_i(z*) = B_iᵀ z*` closest
 /// to the reference positions, then the mean distance over frames and points divided by
 /// `length`. `map` must be built at the reference's rest points (`N` points, `B` is
@@ -181,6 +203,10 @@ mod tests {
         let same = trajectory_errors(&reference, &reference, 2.0).unwrap();
         assert_eq!(same.normalized_mse, 0.0);
         assert_eq!(same.normalized_max, 0.0);
+        // Per frame: (25 + 0) / 2 / 4 = 3.125 and (0 + 1) / 2 / 4 = 0.125; their mean is the MSE.
+        let frames = per_frame_mse(&ours, &reference, 2.0).unwrap();
+        assert_eq!(frames, vec![3.125, 0.125]);
+        assert!((0.5 * (frames[0] + frames[1]) - e.normalized_mse).abs() < 1e-15);
     }
 
     #[test]

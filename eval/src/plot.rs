@@ -20,6 +20,17 @@ pub struct Series {
     pub color: usize,
 }
 
+/// Which axes are logarithmic.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum AxisScale {
+    /// Both linear.
+    Linear,
+    /// Both logarithmic.
+    LogLog,
+    /// Linear x, logarithmic y.
+    LogY,
+}
+
 /// A plot to draw.
 #[derive(Clone, Debug)]
 pub struct PlotSpec {
@@ -29,8 +40,8 @@ pub struct PlotSpec {
     pub x_label: String,
     /// Axis labels.
     pub y_label: String,
-    /// Logarithmic axes (both).
-    pub log_log: bool,
+    /// Which axes are logarithmic.
+    pub scale: AxisScale,
     /// The data.
     pub series: Vec<Series>,
 }
@@ -75,7 +86,13 @@ where
     let finite: Vec<(f64, f64)> = all
         .into_iter()
         .filter(|(x, y)| {
-            x.is_finite() && y.is_finite() && (!spec.log_log || (*x > 0.0 && *y > 0.0))
+            x.is_finite()
+                && y.is_finite()
+                && match spec.scale {
+                    AxisScale::Linear => true,
+                    AxisScale::LogLog => *x > 0.0 && *y > 0.0,
+                    AxisScale::LogY => *y > 0.0,
+                }
         })
         .collect();
     if finite.is_empty() {
@@ -90,12 +107,15 @@ where
         ),
         |(a, b, c, d), &(x, y)| (a.min(x), b.max(x), c.min(y), d.max(y)),
     );
-    if spec.log_log {
-        (x0, x1, y0, y1) = (x0 / 1.5, x1 * 1.5, y0 / 2.0, y1 * 2.0);
-    } else {
-        let (px, py) = (0.05 * (x1 - x0).max(1e-12), 0.05 * (y1 - y0).max(1e-12));
-        (x0, x1, y0, y1) = (x0 - px, x1 + px, y0 - py, y1 + py);
-    }
+    let (px, py) = (0.05 * (x1 - x0).max(1e-12), 0.05 * (y1 - y0).max(1e-12));
+    (x0, x1) = match spec.scale {
+        AxisScale::LogLog => (x0 / 1.5, x1 * 1.5),
+        AxisScale::Linear | AxisScale::LogY => (x0 - px, x1 + px),
+    };
+    (y0, y1) = match spec.scale {
+        AxisScale::LogLog | AxisScale::LogY => (y0 / 2.0, y1 * 2.0),
+        AxisScale::Linear => (y0 - py, y1 + py),
+    };
     let mut builder = ChartBuilder::on(&root);
     builder
         .caption(&spec.title, ("sans-serif", 22))
@@ -141,10 +161,10 @@ where
             }
             chart
                 .configure_series_labels()
-                .position(if spec.log_log {
-                    SeriesLabelPosition::LowerLeft
-                } else {
-                    SeriesLabelPosition::UpperRight
+                .position(match spec.scale {
+                    AxisScale::LogLog => SeriesLabelPosition::LowerLeft,
+                    AxisScale::Linear => SeriesLabelPosition::UpperRight,
+                    AxisScale::LogY => SeriesLabelPosition::LowerRight,
                 })
                 .background_style(WHITE.mix(0.85))
                 .border_style(BLACK)
@@ -153,18 +173,22 @@ where
                 .map_err(|e| e.to_string())?;
         }};
     }
-    if spec.log_log {
-        body!(
+    match spec.scale {
+        AxisScale::LogLog => body!(
             builder
                 .build_cartesian_2d((x0..x1).log_scale(), (y0..y1).log_scale())
                 .map_err(|e| e.to_string())?
-        );
-    } else {
-        body!(
+        ),
+        AxisScale::LogY => body!(
+            builder
+                .build_cartesian_2d(x0..x1, (y0..y1).log_scale())
+                .map_err(|e| e.to_string())?
+        ),
+        AxisScale::Linear => body!(
             builder
                 .build_cartesian_2d(x0..x1, y0..y1)
                 .map_err(|e| e.to_string())?
-        );
+        ),
     }
     root.present().map_err(|e| e.to_string())?;
     Ok(())

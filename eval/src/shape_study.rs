@@ -16,8 +16,8 @@ use std::time::Instant;
 
 use baselines::{SIMPLICITS_FORMAT_VERSION, SimplicitsParams};
 use fem_ref::{
-    ElementOrder, LatticeMesherError, LatticeMesherParams, LatticeMesherReport, TetMesh,
-    VolumeTarget, tetrahedralize, tetrahedralize_to_volume,
+    ElementOrder, FemNewtonParams, LatticeMesherError, LatticeMesherParams, LatticeMesherReport,
+    TetMesh, VolumeTarget, tetrahedralize, tetrahedralize_to_volume,
 };
 use hyperelastic::LameParameters;
 use reduced_sim::{SimulationParams, SkinningField};
@@ -513,6 +513,7 @@ fn run_shape_into(
                 material,
                 scene: &scene,
                 time_step: config.boundary.time_step,
+                newton: FemNewtonParams::default(),
                 steps: config.boundary.steps,
             },
             &label,
@@ -530,6 +531,7 @@ fn run_shape_into(
                 unconverged_steps: fem.unconverged_steps,
                 cached: fem.cached,
             });
+            fem.check_converged(FemNewtonParams::default().max_iterations)?;
             let run = BoundaryRun {
                 points: &points,
                 material,

@@ -6,8 +6,10 @@ use std::path::{Path, PathBuf};
 use serde_json::{Value, json};
 
 use crate::EvalError;
+use crate::beam::{BEAM_TIME_STEP, BeamTest};
 use crate::beam_study::{BeamStudy, BeamStudyConfig, FemSummary, beam_length_scale};
 use crate::paper;
+use crate::plot::{AxisScale, PlotSpec, Series};
 
 /// A rendered table.
 #[derive(Clone, Debug)]
@@ -36,7 +38,7 @@ pub(crate) fn settings_lines(config: &BeamStudyConfig, fem: &[FemSummary]) -> St
         let _ = writeln!(
             out,
             "FEM ground truth ({}): {}, {} steps, {} DOFs, {} vertices, {:.3} s/step, {:.1} Newton \
-             it./step, {} unconverged steps{}.",
+             it./step (largest {}), {} unconverged steps{}.{}",
             f.test.name(),
             f.resolution,
             f.steps,
@@ -44,8 +46,13 @@ pub(crate) fn settings_lines(config: &BeamStudyConfig, fem: &[FemSummary]) -> St
             f.vertices,
             f.seconds_per_step,
             f.iterations_per_step,
+            f.max_iterations,
             f.unconverged_steps,
-            if f.cached { " (cached)" } else { "" }
+            if f.cached { " (cached)" } else { "" },
+            f.not_scored.as_ref().map_or(String::new(), |why| format!(
+                " **{} not scored**: {why}.",
+                f.test.name()
+            ))
         );
     }
     let _ = writeln!(
@@ -63,6 +70,16 @@ pub(crate) fn sci(v: Option<f64>) -> String {
 
 pub(crate) fn not_run_or(v: Option<f64>) -> String {
     v.map_or("not run".into(), |v| format!("{v:.2e}"))
+}
+
+/// A score, or "not scored" when `test`'s reference in `fem` was refused (a step stopped
+/// unconverged), or "not run".
+pub(crate) fn score_or_why(v: Option<f64>, fem: &[FemSummary], test: BeamTest) -> String {
+    match v {
+        Some(v) => format!("{v:.2e}"),
+        None if fem.iter().any(|f| f.test == test && f.not_scored.is_some()) => "not scored".into(),
+        None => "not run".into(),
+    }
 }
 
 fn optional(v: Option<f64>) -> String {
@@ -262,6 +279,48 @@ pub fn table6(study: &BeamStudy) -> RenderedTable {
         json: json!({"table": 6, "rows": rows, "settings": settings_json(study)}),
         csv,
     }
+}
+
+/// The Twist error frame by frame: normalized MSE of each frame against the FEM for ours and
+/// Simplicits at every m of the study (the paper's Twist rows are averages of these curves),
+/// with t = frame · h on the x axis. `None` when the study has no scored Twist row.
+pub fn twist_error_plot(study: &BeamStudy) -> Option<PlotSpec> {
+    let curve = |per_frame: &[f64]| -> Vec<(f64, f64)> {
+        per_frame
+            .iter()
+            .enumerate()
+            .map(|(i, &e)| ((i + 1) as f64 * BEAM_TIME_STEP, e))
+            .collect()
+    };
+    let mut series = Vec::new();
+    for (k, r) in study
+        .rows
+        .iter()
+        .filter(|r| r.test == BeamTest::Twist)
+        .enumerate()
+    {
+        series.push(Series {
+            label: format!("FreeForm m = {}", r.m),
+            points: curve(&r.ours_per_frame_mse),
+            line: true,
+            color: 2 * k,
+        });
+        if let Some(s) = &r.simplicits {
+            series.push(Series {
+                label: format!("Simplicits m = {}", r.m),
+                points: curve(&s.per_frame_mse),
+                line: true,
+                color: 2 * k + 1,
+            });
+        }
+    }
+    (!series.is_empty()).then(|| PlotSpec {
+        title: "Beam Twist: error per frame against the FEM".into(),
+        x_label: "t (s)".into(),
+        y_label: "normalized MSE of the frame".into(),
+        scale: AxisScale::LogY,
+        series,
+    })
 }
 
 fn settings_json(study: &BeamStudy) -> Value {

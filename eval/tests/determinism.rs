@@ -11,7 +11,7 @@ use eval::beam::BeamTest;
 use eval::fem_reference::{FemResolution, run_fem_beam};
 use eval::progress::Progress;
 use eval::reduced_beam::{ReducedSettings, build_beam_basis, run_reduced_beam};
-use fem_ref::ElementOrder;
+use fem_ref::{ElementOrder, FemNewtonParams};
 use nalgebra::Vector3;
 
 fn in_pool<T: Send>(threads: usize, f: impl FnOnce() -> T + Send) -> T {
@@ -87,6 +87,7 @@ fn fem_reference_is_bit_identical_on_one_and_three_threads() {
             run_fem_beam(
                 BeamTest::Twist,
                 resolution,
+                FemNewtonParams::default(),
                 6,
                 &dir.join(format!("cache{threads}")),
                 &quiet,

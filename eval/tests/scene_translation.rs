@@ -1,6 +1,6 @@
 //! One scene description gives both solvers the same constrained set and the same targets.
 
-use eval::beam::BeamTest;
+use eval::beam::{BEAM_TIME_STEP, BeamTest};
 use eval::scene_spec::{SceneSpec, SceneSpecError};
 use fem_ref::{ElementOrder, FemMesh, TetMesh};
 use nalgebra::Vector3;
@@ -67,6 +67,32 @@ fn twist_targets_rotate_the_end_about_the_beam_axis() {
         (quarter - Vector3::new(5.0, 1.0, 0.0)).norm() < 1e-12,
         "{quarter:?}"
     );
+}
+
+#[test]
+fn twist_runs_thirty_steps_to_648_degrees_and_both_solvers_see_the_same_thirty_targets() {
+    let test = BeamTest::Twist;
+    assert_eq!(test.steps(), 30);
+    let spec = test.scene();
+    let nodes = beam_nodes();
+    let reduced = spec.reduced_scene(&nodes).unwrap();
+    let fem = spec.fem_scene(&nodes, 1e4).unwrap();
+    let (pin, region) = (&reduced.pins[1], &fem.dirichlet[1]);
+    assert_eq!(pin.points, region.nodes);
+    let corner = Vector3::new(5.0, 0.0, 0.0);
+    for step in 1..=test.steps() {
+        let t = step as f64 * BEAM_TIME_STEP;
+        assert_eq!(pin.target.at(&corner, t), region.target.at(&corner, t));
+    }
+    // The last target: 2160°/s · 0.30 s = 648° = 720° − 72°, i.e. −72° about +x from the rest
+    // offset (y, z) − 0.5 = (−0.5, −0.5).
+    let last = region
+        .target
+        .at(&corner, test.steps() as f64 * BEAM_TIME_STEP);
+    let angle = (-72.0f64).to_radians();
+    let (c, s) = (angle.cos(), angle.sin());
+    let expected = Vector3::new(5.0, 0.5 + (-0.5 * c + 0.5 * s), 0.5 + (-0.5 * s - 0.5 * c));
+    assert!((last - expected).norm() < 1e-12, "{last:?} vs {expected:?}");
 }
 
 #[test]

@@ -7,8 +7,15 @@ use eval::beam_study::{BeamStudyConfig, run_beam_study};
 use eval::fem_reference::FemResolution;
 use eval::progress::Progress;
 use eval::reduced_beam::ReducedSettings;
-use eval::tables::{table1, table5, table6, write_table};
-use fem_ref::ElementOrder;
+use eval::tables::{table1, table5, table6, twist_error_plot, write_table};
+use fem_ref::{ElementOrder, FemNewtonParams};
+
+fn quiet() -> Progress {
+    Progress {
+        quiet: true,
+        ..Default::default()
+    }
+}
 
 #[test]
 fn tiny_study_fills_tables_1_5_6_with_paper_columns_and_consistent_json() {
@@ -27,6 +34,7 @@ fn tiny_study_fills_tables_1_5_6_with_paper_columns_and_consistent_json() {
             order: ElementOrder::Quadratic,
             cells_per_metre: 2,
         },
+        fem_newton: FemNewtonParams::default(),
         simplicits: Some(SimplicitsParams {
             steps: 30,
             points_per_step: 100,
@@ -35,14 +43,7 @@ fn tiny_study_fills_tables_1_5_6_with_paper_columns_and_consistent_json() {
         }),
         cache_dir: dir.join("cache"),
     };
-    let study = run_beam_study(
-        &config,
-        &Progress {
-            quiet: true,
-            ..Default::default()
-        },
-    )
-    .unwrap();
+    let study = run_beam_study(&config, &quiet()).unwrap();
     assert_eq!(study.rows.len(), 2);
 
     let t1 = table1(&study);
@@ -68,6 +69,28 @@ fn tiny_study_fills_tables_1_5_6_with_paper_columns_and_consistent_json() {
         t1.markdown.contains("P2 res 2"),
         "settings name the FEM resolution"
     );
+    // Per-frame errors: one per step, and their mean is the row's MSE.
+    for r in &study.rows {
+        let frames = &r.ours_per_frame_mse;
+        assert_eq!(frames.len(), 8);
+        let mean = frames.iter().sum::<f64>() / frames.len() as f64;
+        assert!(
+            (mean - r.ours_mse).abs() <= 1e-12 * r.ours_mse,
+            "{mean} vs {}",
+            r.ours_mse
+        );
+        let s = r.simplicits.as_ref().unwrap();
+        let mean = s.per_frame_mse.iter().sum::<f64>() / s.per_frame_mse.len() as f64;
+        assert!((mean - s.mse).abs() <= 1e-12 * s.mse);
+    }
+    let plot = twist_error_plot(&study).expect("a Twist row to plot");
+    let labels: Vec<&str> = plot.series.iter().map(|s| s.label.as_str()).collect();
+    assert_eq!(labels, ["FreeForm m = 6", "Simplicits m = 6"]);
+    assert_eq!(plot.series[0].points.len(), 8);
+    assert!(
+        (plot.series[0].points[7].0 - 0.08).abs() < 1e-12,
+        "x is t = frame · h"
+    );
 
     let t5 = table5(&study);
     let r = &t5.json["rows"][0];
@@ -91,13 +114,64 @@ fn tiny_study_fills_tables_1_5_6_with_paper_columns_and_consistent_json() {
     assert_eq!(csv.lines().count(), 3);
 
     // A second study loads the network from the cache: the same Simplicits numbers.
-    let again = run_beam_study(
-        &config,
-        &Progress {
-            quiet: true,
-            ..Default::default()
-        },
-    )
-    .unwrap();
+    let again = run_beam_study(&config, &quiet()).unwrap();
     assert_eq!(table1(&again).json["rows"], t1.json["rows"]);
+}
+
+#[test]
+fn a_reference_with_unconverged_frames_is_refused_by_the_tables_with_the_frames_named() {
+    let dir = std::env::temp_dir().join(format!("freeform-refused-{}", std::process::id()));
+    let config = BeamStudyConfig {
+        modes: vec![4],
+        tests: BeamTest::ALL.to_vec(),
+        settings: ReducedSettings {
+            kernels: 60,
+            basis_points: 1500,
+            simulation_points: 400,
+            ..ReducedSettings::default()
+        },
+        steps: Some(3),
+        fem: FemResolution {
+            order: ElementOrder::Linear,
+            cells_per_metre: 2,
+        },
+        // One Newton iteration per step cannot converge a step of the Twist from rest.
+        fem_newton: FemNewtonParams {
+            max_iterations: 1,
+            ..FemNewtonParams::default()
+        },
+        simplicits: None,
+        cache_dir: dir.join("cache"),
+    };
+    let study = run_beam_study(&config, &quiet()).unwrap();
+    let twist = study
+        .fem
+        .iter()
+        .find(|f| f.test == BeamTest::Twist)
+        .unwrap();
+    let why = twist
+        .not_scored
+        .as_deref()
+        .expect("the Twist reference is refused");
+    assert!(
+        why.contains("did not converge at frame(s) 1, 2, 3 of 3 (cap 1 iterations)"),
+        "{why}"
+    );
+    assert_eq!(twist.max_iterations, 1);
+    assert_eq!(twist.unconverged_steps, 3);
+    assert!(
+        study.rows.iter().all(|r| r.test != BeamTest::Twist),
+        "no Twist row is scored against it"
+    );
+    for table in [table1(&study), table6(&study)] {
+        assert!(
+            table.markdown.contains("**twist not scored**") && table.markdown.contains(why),
+            "{}",
+            table.markdown
+        );
+        let rows = table.json["rows"].as_array().unwrap();
+        assert!(rows.iter().all(|r| r["test"] != "twist"), "{rows:?}");
+    }
+    assert!(twist_error_plot(&study).is_none());
+    let _ = std::fs::remove_dir_all(&dir);
 }

@@ -53,7 +53,7 @@ fn run() -> Result<(), String> {
     for scene in scenes {
         let (steps, at, what) = match scene {
             BeamScene::Bend => (100, [50, 100], "tip y (m)"),
-            BeamScene::Twist => (34, [17, 34], "section RMS displacement (m)"),
+            BeamScene::Twist => (30, [15, 30], "section RMS displacement (m)"),
         };
         println!("\n## {scene:?}: {what}, {steps} steps of 0.01 s\n");
         println!(

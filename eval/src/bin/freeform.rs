@@ -24,16 +24,17 @@ use eval::bench::{BenchConfig, bench_plot, run_bench, write_bench};
 use eval::fem_reference::{FemResolution, run_fem_beam};
 use eval::metrics::trajectory_errors;
 use eval::output::{unstructured_grid_vtk, write_atomically};
-use eval::plot::{PlotSpec, Series, write_plot};
+use eval::plot::{AxisScale, PlotSpec, Series, write_plot};
 use eval::progress::Progress;
 use eval::reduced_beam::{ReducedSettings, build_beam_basis, run_reduced_beam};
 use eval::scene_file::{SceneFile, run_scene_file};
 use eval::shape_study::{ShapeStudyConfig, mesh_files, run_shape_study};
 use eval::shape_tables::{table2, table7};
 use eval::stress::{StressConfig, run_stress, stress_markdown};
-use eval::tables::{table1, table5, table6, write_table};
+use eval::tables::{table1, table5, table6, twist_error_plot, write_table};
 use fem_ref::{
-    ElementOrder, LatticeMesherParams, VolumeTarget, tetrahedralize, tetrahedralize_to_volume,
+    ElementOrder, FemNewtonParams, LatticeMesherParams, VolumeTarget, tetrahedralize,
+    tetrahedralize_to_volume,
 };
 use hyperelastic::LameParameters;
 use nalgebra::Vector3;
@@ -455,6 +456,13 @@ fn table(
             config.simplicits = None;
         }
         let study = run_beam_study(&config, progress)?;
+        if wants(&[1])
+            && let Some(spec) = twist_error_plot(&study)
+        {
+            for f in plot_or_warn(&spec, &out.join("twist_error_per_frame")) {
+                progress.status(format!("wrote {}", f.display()));
+            }
+        }
         for &number in numbers.iter().filter(|n| matches!(n, 1 | 5 | 6)) {
             rendered.push(match number {
                 1 => table1(&study),
@@ -651,7 +659,15 @@ fn demo(quick: bool, json: bool, out: &Path, cache: &Path, progress: &Progress) 
         (ReducedSettings::default(), 100, FemResolution::GROUND_TRUTH)
     };
     let test = BeamTest::Bend;
-    let reference = run_fem_beam(test, fem, steps, cache, progress)?;
+    let reference = run_fem_beam(
+        test,
+        fem,
+        FemNewtonParams::default(),
+        steps,
+        cache,
+        progress,
+    )?;
+    reference.check_converged(FemNewtonParams::default().max_iterations)?;
     progress.status(format!(
         "basis: m = {}, K = {}, ≈{} grid points",
         settings.modes, settings.kernels, settings.basis_points
@@ -724,7 +740,7 @@ fn demo(quick: bool, json: bool, out: &Path, cache: &Path, progress: &Progress) 
         ),
         x_label: "time (s)".into(),
         y_label: "mean y displacement of the x = 5 face (m)".into(),
-        log_log: false,
+        scale: AxisScale::Linear,
         series: vec![
             Series {
                 label: format!("FEM {} (ground truth)", fem.label()),
