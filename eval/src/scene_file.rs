@@ -4,7 +4,7 @@
 //!
 //! ```toml
 //! [geometry]
-//! mesh = "../shared/data/meshes/bunny.obj"   # OBJ/STL/PLY, relative to this file; or
+//! mesh = "../data/meshes/bunny.obj"           # OBJ/STL/PLY, relative to this file; or
 //! # box = { min = [0, 0, 0], max = [5, 1, 1] }
 //! normalize = true                            # scale so the largest side is 1 m (default true)
 //!

@@ -4,7 +4,7 @@
 //!
 //! ```sh
 //! cargo run --release -p rkpm-core --example beam_shape_functions
-//! cargo run --release -p rkpm-core --example beam_shape_functions -- --mesh ../shared/data/meshes/32770.stl --points 100000
+//! cargo run --release -p rkpm-core --example beam_shape_functions -- --mesh data/meshes/32770.stl --points 100000
 //! ```
 //! Options: `--points N` (integration points, default 30000), `--kernels K` (default 1000),
 //! `--cutoff C` (kernel support in radii, default 4).

@@ -2,7 +2,7 @@
 //! prints the per-phase timing report; optionally saves it.
 //!
 //! ```sh
-//! cargo run --release -p skin-eigen --example mesh_basis -- --mesh ../shared/data/meshes/32770.stl --kernels 1000 --modes 32
+//! cargo run --release -p skin-eigen --example mesh_basis -- --mesh data/meshes/32770.stl --kernels 1000 --modes 32
 //! ```
 //! Options: `--mesh PATH` (default: the 5×1×1 m beam), `--points N` (default 30000),
 //! `--kernels K` (default 1000), `--modes m` (default 32), `--young E` (Pa, default 1e5),

@@ -1,11 +1,12 @@
-//! Locations of the shared test data.
+//! Locations of the test data.
 //!
-//! The data lives beside the repository in `shared/data` (checked out next to the workspace, as
-//! in CI). `FREEFORM_SHARED_DATA` overrides the location.
+//! The data lives in the repository's `data/` folder (the 24 closed meshes and the 3DGS donut,
+//! with their licences and provenance in `data/README.md`), so a fresh clone tests on its own.
+//! `FREEFORM_SHARED_DATA` points the tests at another copy with the same layout.
 
 use std::path::{Path, PathBuf};
 
-/// The shared data folder (`<workspace>/../shared/data`, or `$FREEFORM_SHARED_DATA`).
+/// The test data folder (`<workspace>/data`, or `$FREEFORM_SHARED_DATA`).
 ///
 /// # Panics
 /// If the folder does not exist: the tests that call this need the real data and must not pass
@@ -13,11 +14,11 @@ use std::path::{Path, PathBuf};
 pub fn shared_data_dir() -> PathBuf {
     let dir = match std::env::var_os("FREEFORM_SHARED_DATA") {
         Some(dir) => PathBuf::from(dir),
-        None => Path::new(env!("CARGO_MANIFEST_DIR")).join("../../shared/data"),
+        None => Path::new(env!("CARGO_MANIFEST_DIR")).join("../data"),
     };
     assert!(
         dir.is_dir(),
-        "shared test data not found at {} (check out `shared/` beside the repository or set \
+        "test data not found at {} (the repository's `data/` folder, or set \
          FREEFORM_SHARED_DATA)",
         dir.display()
     );

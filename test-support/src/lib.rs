@@ -1,6 +1,6 @@
 //! Test helpers shared by the workspace's test suites (`publish = false`, dev-only).
 //!
-//! - [`fixtures`]: paths to the shared test data (`../shared/data`), resolved from
+//! - [`fixtures`]: paths to the test data (`data/` in the repository), resolved from
 //!   `CARGO_MANIFEST_DIR` so tests run from any working directory.
 //! - [`finite_difference`]: central-difference checkers for gradients and Jacobians.
 //! - [`strategies`]: proptest strategies for the workspace's common inputs.
