@@ -1,8 +1,10 @@
-//! Saved models: 8 magic bytes, a little-endian format version, then bincode; written to a
-//! temporary name and renamed, so an interrupted save never leaves a file that looks valid.
+//! Saved models: 8 magic bytes, a little-endian format version, then bincode
+//! ([`artifact`]'s framing); written atomically, so an interrupted save never leaves a file
+//! that looks valid.
 
 use std::path::Path;
 
+use artifact::ArtifactError;
 use serde::Serialize;
 use serde::de::DeserializeOwned;
 use thiserror::Error;
@@ -32,31 +34,25 @@ pub enum ModelFileError {
     },
 }
 
-/// Writes `value` to `path` with `magic` and `version`.
+/// Writes `value` to `path` with `magic` and `version` ([`artifact::save_framed`]: unique
+/// temporary file, fsync, rename).
 pub(crate) fn save<T: Serialize>(
     path: &Path,
     magic: &[u8; 8],
     version: u32,
     value: &T,
 ) -> Result<(), ModelFileError> {
-    let io = |source| ModelFileError::Io {
-        path: path.display().to_string(),
-        source,
-    };
-    let mut bytes = magic.to_vec();
-    bytes.extend(version.to_le_bytes());
-    bytes.extend(
-        bincode::serde::encode_to_vec(value, bincode::config::standard())
-            .map_err(|e| io(std::io::Error::other(e)))?,
-    );
-    if let Some(dir) = path.parent()
-        && !dir.as_os_str().is_empty()
-    {
-        std::fs::create_dir_all(dir).map_err(io)?;
-    }
-    let tmp = path.with_extension("partial");
-    std::fs::write(&tmp, bytes).map_err(io)?;
-    std::fs::rename(&tmp, path).map_err(io)
+    artifact::save_framed(path, magic, version, value).map_err(|e| match e {
+        ArtifactError::Io { path, source } => ModelFileError::Io {
+            path: path.display().to_string(),
+            source,
+        },
+        // A write reports only I/O errors.
+        ArtifactError::Format { path, source } => ModelFileError::Io {
+            path: path.display().to_string(),
+            source: std::io::Error::other(source),
+        },
+    })
 }
 
 /// Reads what [`save`] wrote with the same `magic` and `version`.
@@ -71,21 +67,10 @@ pub(crate) fn load<T: DeserializeOwned>(
         path: display.clone(),
         source,
     })?;
-    let format = |reason: String| ModelFileError::Format {
-        path: display.clone(),
+    artifact::decode_framed(&bytes, magic, version).map_err(|e| ModelFileError::Format {
+        path: display,
         what,
         version,
-        reason,
-    };
-    if bytes.len() < 12 || &bytes[..8] != magic {
-        return Err(format("missing magic".into()));
-    }
-    let found = u32::from_le_bytes([bytes[8], bytes[9], bytes[10], bytes[11]]);
-    if found != version {
-        return Err(format(format!("file has version {found}")));
-    }
-    let (value, _): (T, usize) =
-        bincode::serde::decode_from_slice(&bytes[12..], bincode::config::standard())
-            .map_err(|e| format(e.to_string()))?;
-    Ok(value)
+        reason: e.to_string(),
+    })
 }

@@ -7,6 +7,7 @@ use baselines::{
     TrainingReport, ortho_loss, train_simplicits,
 };
 use faer::Mat;
+use hyperelastic::MaterialSample;
 use hyperelastic::{LameParameters, StableNeoHookean};
 use nalgebra::{Matrix3, Vector3};
 use rand::{Rng, SeedableRng};
@@ -14,7 +15,7 @@ use rand_chacha::ChaCha8Rng;
 use reduced_sim::{
     PinTarget, PinnedRegion, ReducedModel, Scene, SimulationParams, Simulator, SkinningField,
 };
-use rkpm_core::{MaterialSample, sample_box_grid};
+use rkpm_core::sample_box_grid;
 
 const SIZE: Vector3<f64> = Vector3::new(2.0, 0.5, 0.5);
 

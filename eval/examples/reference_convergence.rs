@@ -15,7 +15,8 @@ use eval::beam_study::beam_length_scale;
 use eval::fem_reference::{FemResolution, run_fem_beam};
 use eval::metrics::trajectory_errors;
 use eval::progress::Progress;
-use fem_ref::{ElementOrder, FemNewtonParams};
+use fem_ref::ElementOrder;
+use optimize::NewtonParams;
 
 #[derive(Parser)]
 struct Args {
@@ -46,7 +47,7 @@ fn main() -> anyhow::Result<()> {
     let coarse = run_fem_beam(
         test,
         p2(args.coarse),
-        FemNewtonParams::default(),
+        NewtonParams::default(),
         steps,
         &cache,
         &progress,
@@ -54,7 +55,7 @@ fn main() -> anyhow::Result<()> {
     let fine = run_fem_beam(
         test,
         p2(args.fine),
-        FemNewtonParams::default(),
+        NewtonParams::default(),
         steps,
         &cache,
         &progress,

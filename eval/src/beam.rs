@@ -3,8 +3,8 @@
 //! pinned, x ≥ 4.5 rotated about the beam axis by min(2160°/s · t, 720°), 30 steps: 648° at
 //! t = 0.30 s, before the twisted beam buckles).
 
+use hyperelastic::MaterialSample;
 use nalgebra::Vector3;
-use rkpm_core::MaterialSample;
 use serde::{Deserialize, Serialize};
 
 use crate::scene_spec::{Constraint, Motion, Region, SceneSpec};

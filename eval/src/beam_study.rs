@@ -1,10 +1,10 @@
 //! The beam study behind Tables 1, 5 and 6: for each m, one basis; for each test, the FEM ground
 //! truth (cached) and a reduced run evaluated at the FEM vertices.
 
+use optimize::NewtonParams;
 use std::path::PathBuf;
 
 use baselines::SimplicitsParams;
-use fem_ref::FemNewtonParams;
 use reduced_sim::SkinningField;
 use serde::{Deserialize, Serialize};
 
@@ -32,8 +32,8 @@ pub struct BeamStudyConfig {
     pub fem: FemResolution,
     /// The FEM's Newton options (default: 20 iterations, tolerance 1e-6). A reference any of
     /// whose steps stops unconverged is not scored.
-    #[serde(default = "FemNewtonParams::default")]
-    pub fem_newton: FemNewtonParams,
+    #[serde(default = "NewtonParams::default")]
+    pub fem_newton: NewtonParams,
     /// The Simplicits baseline's training options (its `modes` is set per m), or `None` to
     /// leave it out.
     pub simplicits: Option<SimplicitsParams>,
@@ -51,7 +51,7 @@ impl BeamStudyConfig {
             settings: ReducedSettings::default(),
             steps: None,
             fem: FemResolution::GROUND_TRUTH,
-            fem_newton: FemNewtonParams::default(),
+            fem_newton: NewtonParams::default(),
             simplicits: Some(SimplicitsParams::default()),
             cache_dir,
         }

@@ -2,11 +2,12 @@
 //! error — modes m, kernels K, simulation points, Newton tolerance, and coarser FEM as its own
 //! method — and mark the Pareto front (no other configuration is both faster and more accurate).
 
+use optimize::NewtonParams;
 use std::fmt::Write as _;
 use std::path::{Path, PathBuf};
 
 use baselines::SimplicitsParams;
-use fem_ref::{ElementOrder, FemNewtonParams};
+use fem_ref::ElementOrder;
 use serde::{Deserialize, Serialize};
 
 use crate::EvalError;
@@ -212,12 +213,12 @@ pub fn run_bench(config: &BenchConfig, progress: &Progress) -> Result<Vec<BenchR
     let truth = run_fem_beam(
         BeamTest::Bend,
         config.ground_truth,
-        FemNewtonParams::default(),
+        NewtonParams::default(),
         config.steps,
         &config.cache_dir,
         progress,
     )?;
-    truth.check_converged(FemNewtonParams::default().max_iterations)?;
+    truth.check_converged(NewtonParams::default().max_iterations)?;
     let truth_frames = truth.vertex_frames();
     let vertices = truth.vertices().to_vec();
     let length = beam_length_scale();
@@ -271,7 +272,7 @@ pub fn run_bench(config: &BenchConfig, progress: &Progress) -> Result<Vec<BenchR
                 let run = run_fem_beam(
                     BeamTest::Bend,
                     *r,
-                    FemNewtonParams::default(),
+                    NewtonParams::default(),
                     config.steps,
                     &config.cache_dir,
                     progress,

@@ -2,17 +2,18 @@
 //! ([`run_fem`]), and the beam's: P2 tetrahedra at 6 elements per metre, the configuration the
 //! fem-ref convergence study chose (Bend tip within ≈ 0.3% of the Richardson limit at t = 1 s).
 
+use optimize::NewtonParams;
 use std::path::Path;
 
 use fem_ref::{
-    ElementOrder, FemMesh, FemModel, FemNewtonParams, FemParams, FemSimulator, MassKind,
-    PointInterpolation, TetMesh, TrajectoryCache,
+    ElementOrder, FemMesh, FemModel, FemParams, FemSimulator, MassKind, PointInterpolation,
+    TetMesh, TrajectoryCache,
 };
 use hyperelastic::StableNeoHookean;
 use nalgebra::Vector3;
 use serde::{Deserialize, Serialize};
 
-use rkpm_core::MaterialSample;
+use hyperelastic::MaterialSample;
 
 use reduced_sim::{DeformationMap, SkinningField};
 
@@ -82,7 +83,7 @@ pub struct FemRun {
 pub fn run_fem_beam(
     test: BeamTest,
     resolution: FemResolution,
-    newton: FemNewtonParams,
+    newton: NewtonParams,
     steps: usize,
     cache_dir: &Path,
     progress: &Progress,
@@ -118,8 +119,8 @@ pub struct FemProblem<'a> {
     pub scene: &'a SceneSpec,
     /// Backward Euler step (s).
     pub time_step: f64,
-    /// Newton options (`FemNewtonParams::default()` for a reference).
-    pub newton: FemNewtonParams,
+    /// Newton options (`NewtonParams::default()` for a reference).
+    pub newton: NewtonParams,
     /// Steps to run.
     pub steps: usize,
 }
@@ -150,6 +151,7 @@ pub fn run_fem(
     let params = FemParams {
         time_step: problem.time_step,
         newton: problem.newton,
+        ..FemParams::default()
     };
     let mut sim =
         FemSimulator::new(model, fem_scene, params).map_err(|e| EvalError::Setup(e.to_string()))?;

@@ -84,6 +84,9 @@ pub enum EvalError {
     /// A FEM reference stopped unconverged at some step, so nothing is scored against it.
     #[error(transparent)]
     UnconvergedReference(#[from] fem_reference::UnconvergedReference),
+    /// An output or cache file could not be written or read.
+    #[error(transparent)]
+    Artifact(#[from] artifact::ArtifactError),
     /// A plot could not be drawn.
     #[error("plot failed: {0}")]
     Plot(String),

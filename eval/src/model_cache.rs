@@ -2,11 +2,12 @@
 //! ablations) cached on disk: training takes minutes, and the key is a hash of the grid, the
 //! material and every training option, so a cached model is only reused for identical inputs.
 
+use hyperelastic::MaterialSample;
 use std::path::{Path, PathBuf};
 
 use baselines::ModelFileError;
-use fem_ref::TrajectoryKeyBuilder;
-use rkpm_core::{IntegrationPoints, MaterialSample};
+use fem_ref::trajectory_key_builder;
+use rkpm_core::IntegrationPoints;
 
 use crate::EvalError;
 use crate::beam::beam_material;
@@ -51,7 +52,9 @@ pub fn model_path(
     points: &IntegrationPoints,
     material: &MaterialSample,
 ) -> PathBuf {
-    let mut key = TrajectoryKeyBuilder::default();
+    // The trajectory cache's key domain, as since the first cached model: another domain
+    // would orphan every cached network.
+    let mut key = trajectory_key_builder();
     key.str(subject)
         .u64(format_version as u64)
         .u64(points.len() as u64)

@@ -9,19 +9,13 @@ use nalgebra::Vector3;
 
 use crate::EvalError;
 
-/// Writes `bytes` to `path` through a temporary file and a rename.
+/// Writes `bytes` to `path` atomically ([`artifact::write_atomically`]: unique temporary file,
+/// fsync, rename).
 ///
 /// # Errors
-/// [`EvalError::Io`] naming the path.
+/// [`EvalError::Artifact`] naming the path.
 pub fn write_atomically(path: &Path, bytes: &[u8]) -> Result<(), EvalError> {
-    if let Some(dir) = path.parent()
-        && !dir.as_os_str().is_empty()
-    {
-        std::fs::create_dir_all(dir).map_err(|e| EvalError::io(dir, e))?;
-    }
-    let tmp = path.with_extension("partial");
-    std::fs::write(&tmp, bytes).map_err(|e| EvalError::io(&tmp, e))?;
-    std::fs::rename(&tmp, path).map_err(|e| EvalError::io(path, e))
+    Ok(artifact::write_atomically(path, bytes)?)
 }
 
 /// ASCII PLY of a triangle mesh with the given vertex positions.

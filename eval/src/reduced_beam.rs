@@ -5,7 +5,8 @@ use std::time::Instant;
 
 use hyperelastic::LameParameters;
 use nalgebra::Vector3;
-use reduced_sim::{NewtonParams, PenaltyParams, SimulationParams, SkinningField};
+use optimize::NewtonParams;
+use reduced_sim::{PenaltyParams, SimulationParams, SkinningField};
 use rkpm_core::{
     IntegrationPoints, RandomSamplingParams, TriangleMesh, sample_box_grid, sample_random,
 };
@@ -108,6 +109,7 @@ impl ReducedSettings {
                 pin_factor: self.pin_factor,
                 ..Default::default()
             },
+            ..SimulationParams::default()
         }
     }
 }
@@ -147,7 +149,8 @@ pub fn beam_basis_grid(
     let grid = sample_box_grid(BEAM_MIN, BEAM_MAX, beam_grid_spacing(points))
         .map_err(|e| EvalError::Basis(e.to_string()))?;
     let material = beam_material();
-    let lame = LameParameters::from_young_poisson(material.youngs_modulus, material.poisson_ratio)
+    let lame = material
+        .lame_parameters()
         .map_err(|e| EvalError::Basis(e.to_string()))?;
     let lame = vec![lame; grid.len()];
     Ok((grid, lame))

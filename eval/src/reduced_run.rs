@@ -2,11 +2,12 @@
 //! beam tables, the shape tables and the benchmarks. It records positions at given output
 //! points (usually the FEM vertices) every step, with timings and convergence counts.
 
+use hyperelastic::MaterialSample;
 use std::time::Instant;
 
 use nalgebra::Vector3;
 use reduced_sim::{DeformationMap, ReducedModel, SimulationParams, Simulator, SkinningField};
-use rkpm_core::{IntegrationPoints, MaterialSample};
+use rkpm_core::IntegrationPoints;
 
 use crate::EvalError;
 use crate::progress::Progress;

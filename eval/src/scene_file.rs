@@ -34,15 +34,14 @@
 //! motion = { translate = { velocity = [0, 0.2, 0] } }
 //! ```
 
+use hyperelastic::MaterialSample;
 use std::path::{Path, PathBuf};
 use std::time::Instant;
 
-use hyperelastic::{LameParameters, StableNeoHookean};
+use hyperelastic::StableNeoHookean;
 use nalgebra::Vector3;
 use reduced_sim::{DeformationMap, ReducedModel, SimulationParams, Simulator};
-use rkpm_core::{
-    GridSamplingParams, MaterialSample, TriangleMesh, read_triangle_mesh, sample_grid,
-};
+use rkpm_core::{GridSamplingParams, TriangleMesh, read_triangle_mesh, sample_grid};
 use serde::{Deserialize, Serialize};
 use skin_eigen::{BasisParams, build_basis};
 use thiserror::Error;
@@ -239,7 +238,7 @@ impl SceneFile {
             _ => {}
         }
         let m = &self.material;
-        if let Err(e) = LameParameters::from_young_poisson(m.youngs_modulus, m.poisson_ratio) {
+        if let Err(e) = MaterialSample::from(*m).lame_parameters() {
             return bad("material", e.to_string());
         }
         if !(m.density > 0.0 && m.density.is_finite()) {
@@ -330,11 +329,9 @@ pub fn run_scene_file(
     progress: &Progress,
 ) -> Result<SimulateReport, EvalError> {
     let surface = file.surface()?;
-    let lame = LameParameters::from_young_poisson(
-        file.material.youngs_modulus,
-        file.material.poisson_ratio,
-    )
-    .map_err(|e| EvalError::Setup(e.to_string()))?;
+    let lame = MaterialSample::from(file.material)
+        .lame_parameters()
+        .map_err(|e| EvalError::Setup(e.to_string()))?;
     let start = Instant::now();
     progress.status(format!(
         "basis: m = {}, K = {}, ≈{} grid points",

@@ -9,6 +9,8 @@
 //! the study goes on. FEM trajectories and trained networks are cached, so a rerun (or a run
 //! after an interruption) only computes what is missing.
 
+use hyperelastic::MaterialSample;
+use optimize::NewtonParams;
 use std::path::{Path, PathBuf};
 use std::sync::Mutex;
 use std::sync::atomic::{AtomicUsize, Ordering};
@@ -16,14 +18,12 @@ use std::time::Instant;
 
 use baselines::{SIMPLICITS_FORMAT_VERSION, SimplicitsParams};
 use fem_ref::{
-    ElementOrder, FemNewtonParams, LatticeMesherError, LatticeMesherParams, LatticeMesherReport,
-    TetMesh, VolumeTarget, tetrahedralize, tetrahedralize_to_volume,
+    ElementOrder, LatticeMesherError, LatticeMesherParams, LatticeMesherReport, TetMesh,
+    VolumeTarget, tetrahedralize, tetrahedralize_to_volume,
 };
-use hyperelastic::LameParameters;
 use reduced_sim::{SimulationParams, SkinningField};
 use rkpm_core::{
-    GridSamplingParams, IntegrationPoints, MaterialSample, TriangleMesh, read_triangle_mesh,
-    sample_grid,
+    GridSamplingParams, IntegrationPoints, TriangleMesh, read_triangle_mesh, sample_grid,
 };
 use serde::{Deserialize, Serialize};
 use skin_eigen::build_basis;
@@ -446,7 +446,8 @@ fn run_shape_into(
         .0;
     let length = surface.bounding_box().largest_side();
     let material = result.material();
-    let lame = LameParameters::from_young_poisson(material.youngs_modulus, material.poisson_ratio)
+    let lame = material
+        .lame_parameters()
         .map_err(|e| EvalError::Setup(e.to_string()))?;
     let settings = &config.settings;
 
@@ -513,7 +514,7 @@ fn run_shape_into(
                 material,
                 scene: &scene,
                 time_step: config.boundary.time_step,
-                newton: FemNewtonParams::default(),
+                newton: NewtonParams::default(),
                 steps: config.boundary.steps,
             },
             &label,
@@ -531,7 +532,7 @@ fn run_shape_into(
                 unconverged_steps: fem.unconverged_steps,
                 cached: fem.cached,
             });
-            fem.check_converged(FemNewtonParams::default().max_iterations)?;
+            fem.check_converged(NewtonParams::default().max_iterations)?;
             let run = BoundaryRun {
                 points: &points,
                 material,

@@ -11,6 +11,7 @@
 //! exchanged (`max |W_t|`, `max |ΔU_gravity|`, the initial kinetic energy). Backward Euler only
 //! dissipates, so a growth above the Newton tolerance's noise means energy was created.
 
+use hyperelastic::MaterialSample;
 use std::panic::{AssertUnwindSafe, catch_unwind};
 use std::time::Instant;
 
@@ -18,11 +19,8 @@ use hyperelastic::{LameParameters, StableNeoHookean};
 use nalgebra::Vector3;
 use rand::{Rng, SeedableRng};
 use rand_chacha::ChaCha8Rng;
-use reduced_sim::{
-    NewtonParams, PenaltyParams, PinTarget, ReducedModel, ReducedState, Scene, SimulationParams,
-    Simulator,
-};
-use rkpm_core::{IntegrationPoints, MaterialSample, sample_box_grid};
+use reduced_sim::{PinTarget, ReducedModel, ReducedState, Scene, SimulationParams, Simulator};
+use rkpm_core::{IntegrationPoints, sample_box_grid};
 use serde::{Deserialize, Serialize};
 use skin_eigen::{BasisParams, build_basis};
 
@@ -612,7 +610,7 @@ fn run_case(case: &StressCase) -> StressOutcome {
     let lame: Result<Vec<LameParameters>, _> = object
         .basis_materials
         .iter()
-        .map(|m| LameParameters::from_young_poisson(m.youngs_modulus, m.poisson_ratio))
+        .map(|m| m.lame_parameters())
         .collect();
     let lame = match lame {
         Ok(lame) => lame,
@@ -640,8 +638,7 @@ fn run_case(case: &StressCase) -> StressOutcome {
     };
     let sim_params = SimulationParams {
         time_step: case.time_step,
-        newton: NewtonParams::default(),
-        penalty: PenaltyParams::default(),
+        ..SimulationParams::default()
     };
     let floor_stiffness = sim_params.penalty.floor_factor * model.max_p_wave_modulus()
         / model.bounds().extent().max().powi(2);
@@ -893,7 +890,7 @@ fn run_fem_case(case: &StressCase) -> StressOutcome {
         match sim.step() {
             Ok(report) => {
                 outcome.steps_run = step;
-                outcome.unconverged_steps += usize::from(!report.converged);
+                outcome.unconverged_steps += usize::from(!report.converged());
             }
             Err(e) => {
                 outcome.status = CaseStatus::Error(format!("FEM step {step}: {e}"));

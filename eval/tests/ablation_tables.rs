@@ -11,7 +11,8 @@ use eval::beam_study::BeamStudyConfig;
 use eval::fem_reference::FemResolution;
 use eval::progress::Progress;
 use eval::reduced_beam::{ReducedSettings, SimulationSampling};
-use fem_ref::{ElementOrder, FemNewtonParams};
+use fem_ref::ElementOrder;
+use optimize::NewtonParams;
 
 fn tiny_config(cache: std::path::PathBuf) -> AblationStudyConfig {
     AblationStudyConfig::full(BeamStudyConfig {
@@ -28,7 +29,7 @@ fn tiny_config(cache: std::path::PathBuf) -> AblationStudyConfig {
             order: ElementOrder::Quadratic,
             cells_per_metre: 2,
         },
-        fem_newton: FemNewtonParams::default(),
+        fem_newton: NewtonParams::default(),
         simplicits: Some(SimplicitsParams {
             steps: 20,
             points_per_step: 100,

@@ -11,8 +11,9 @@ use eval::beam::BeamTest;
 use eval::fem_reference::{FemResolution, run_fem_beam};
 use eval::progress::Progress;
 use eval::reduced_beam::{ReducedSettings, build_beam_basis, run_reduced_beam};
-use fem_ref::{ElementOrder, FemNewtonParams};
+use fem_ref::ElementOrder;
 use nalgebra::Vector3;
+use optimize::NewtonParams;
 
 fn in_pool<T: Send>(threads: usize, f: impl FnOnce() -> T + Send) -> T {
     rayon::ThreadPoolBuilder::new()
@@ -87,7 +88,7 @@ fn fem_reference_is_bit_identical_on_one_and_three_threads() {
             run_fem_beam(
                 BeamTest::Twist,
                 resolution,
-                FemNewtonParams::default(),
+                NewtonParams::default(),
                 6,
                 &dir.join(format!("cache{threads}")),
                 &quiet,

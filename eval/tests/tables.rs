@@ -8,7 +8,8 @@ use eval::fem_reference::FemResolution;
 use eval::progress::Progress;
 use eval::reduced_beam::ReducedSettings;
 use eval::tables::{table1, table5, table6, twist_error_plot, write_table};
-use fem_ref::{ElementOrder, FemNewtonParams};
+use fem_ref::ElementOrder;
+use optimize::NewtonParams;
 
 fn quiet() -> Progress {
     Progress {
@@ -34,7 +35,7 @@ fn tiny_study_fills_tables_1_5_6_with_paper_columns_and_consistent_json() {
             order: ElementOrder::Quadratic,
             cells_per_metre: 2,
         },
-        fem_newton: FemNewtonParams::default(),
+        fem_newton: NewtonParams::default(),
         simplicits: Some(SimplicitsParams {
             steps: 30,
             points_per_step: 100,
@@ -136,9 +137,9 @@ fn a_reference_with_unconverged_frames_is_refused_by_the_tables_with_the_frames_
             cells_per_metre: 2,
         },
         // One Newton iteration per step cannot converge a step of the Twist from rest.
-        fem_newton: FemNewtonParams {
+        fem_newton: NewtonParams {
             max_iterations: 1,
-            ..FemNewtonParams::default()
+            ..NewtonParams::default()
         },
         simplicits: None,
         cache_dir: dir.join("cache"),

@@ -1,12 +1,12 @@
 //! A finite-element model: mesh, per-element materials, precomputed shape-function gradients at
 //! quadrature points, mass matrix, and element energies, forces and tangents (DESIGN 3.8).
 
+use hyperelastic::MaterialSample;
 use hyperelastic::{
     HyperelasticMaterial, LameParameters, MaterialParameterError, Matrix9, Tangent,
 };
 use nalgebra::{Matrix3, Vector3};
 use rayon::prelude::*;
-use rkpm_core::MaterialSample;
 use serde::{Deserialize, Serialize};
 use thiserror::Error;
 
@@ -121,7 +121,7 @@ impl<M: HyperelasticMaterial> FemModel<M> {
         let mut densities = Vec::with_capacity(elements);
         for (element, s) in materials.iter().enumerate() {
             lame.push(
-                LameParameters::from_young_poisson(s.youngs_modulus, s.poisson_ratio)
+                s.lame_parameters()
                     .map_err(|source| FemModelError::Material { element, source })?,
             );
             if !(s.density > 0.0 && s.density.is_finite()) {

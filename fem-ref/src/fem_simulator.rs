@@ -8,6 +8,7 @@ use faer::linalg::solvers::Solve;
 use faer::sparse::linalg::solvers::Llt;
 use hyperelastic::{HyperelasticMaterial, Tangent};
 use nalgebra::Vector3;
+use optimize::{NewtonError, NewtonObjective, NewtonParams, NewtonReport, minimize};
 use rayon::prelude::*;
 use serde::{Deserialize, Serialize};
 use thiserror::Error;
@@ -16,82 +17,31 @@ use crate::fem_model::FemModel;
 use crate::scene::{FemFloor, FemScene};
 use crate::sparse_system::SparseSystem;
 use crate::trajectory_cache::{
-    Trajectory, TrajectoryCache, TrajectoryCacheError, TrajectoryKey, TrajectoryKeyBuilder,
+    Trajectory, TrajectoryCache, TrajectoryCacheError, TrajectoryKey, trajectory_key_builder,
 };
-
-/// Newton options of the FEM solve.
-#[derive(Clone, Copy, Debug, PartialEq, Serialize, Deserialize)]
-pub struct FemNewtonParams {
-    /// Iteration cap (default 20).
-    pub max_iterations: usize,
-    /// Converged when `sqrt(Δxᵀ M Δx / mass) / L < tolerance` (default 1e-6), L the largest
-    /// rest bounding-box side: the same scale-invariant test as the reduced simulator.
-    pub tolerance: f64,
-    /// Armijo constant (default 1e-4).
-    pub armijo: f64,
-    /// Line-search halvings per iteration (default 30).
-    pub max_line_search_cuts: usize,
-    /// Element tangent (default PSD-projected; `Exact` is only safe while the system stays
-    /// positive definite, and a failed factorization is then reported).
-    pub tangent: Tangent,
-}
-
-impl Default for FemNewtonParams {
-    fn default() -> Self {
-        FemNewtonParams {
-            max_iterations: 20,
-            tolerance: 1e-6,
-            armijo: 1e-4,
-            max_line_search_cuts: 30,
-            tangent: Tangent::ProjectedPsd,
-        }
-    }
-}
 
 /// Options of a FEM simulation.
 #[derive(Clone, Copy, Debug, PartialEq, Serialize, Deserialize)]
 pub struct FemParams {
     /// Time step h (s, default 0.01).
     pub time_step: f64,
-    /// Newton options.
-    pub newton: FemNewtonParams,
+    /// Newton options (the workspace's one solver, [`optimize::minimize`]); its convergence
+    /// test is `sqrt(Δxᵀ M Δx / mass) / L < tolerance`, L the largest rest bounding-box side:
+    /// the same scale-invariant test as the reduced simulator.
+    pub newton: NewtonParams,
+    /// Element tangent (default PSD-projected; `Exact` is only safe while the system stays
+    /// positive definite, and a failed factorization is then reported).
+    pub tangent: Tangent,
 }
 
 impl Default for FemParams {
     fn default() -> Self {
         FemParams {
             time_step: 0.01,
-            newton: FemNewtonParams::default(),
+            newton: NewtonParams::default(),
+            tangent: Tangent::ProjectedPsd,
         }
     }
-}
-
-/// Seconds per part of a step.
-#[derive(Clone, Copy, Debug, Default, PartialEq, Serialize, Deserialize)]
-pub struct FemStepTimings {
-    /// Element gradients and Hessians, scatter.
-    pub assembly: f64,
-    /// Numeric Cholesky and triangular solves.
-    pub factorization: f64,
-    /// Energy evaluations of the line search.
-    pub line_search: f64,
-}
-
-/// What one step did.
-#[derive(Clone, Copy, Debug, PartialEq, Serialize, Deserialize)]
-pub struct FemStepReport {
-    /// Newton iterations.
-    pub iterations: usize,
-    /// Hessians assembled and factored.
-    pub factorizations: usize,
-    /// Last convergence measure.
-    pub residual: f64,
-    /// Total line-search halvings.
-    pub line_search_cuts: usize,
-    /// Whether the tolerance was met.
-    pub converged: bool,
-    /// Time per part.
-    pub timings: FemStepTimings,
 }
 
 /// The scene does not fit the model, or the system cannot be set up.
@@ -121,25 +71,6 @@ pub enum FemSetupError {
     Symbolic(String),
 }
 
-/// A step failed; the state is unchanged.
-#[derive(Clone, Debug, Error, PartialEq)]
-pub enum FemStepError {
-    /// A NaN or infinity appeared.
-    #[error("non-finite {quantity} at Newton iteration {iteration}")]
-    NonFinite {
-        /// Iteration.
-        iteration: usize,
-        /// What.
-        quantity: &'static str,
-    },
-    /// The Newton system was not positive definite.
-    #[error("the Newton system is not positive definite at iteration {iteration}")]
-    NotPositiveDefinite {
-        /// Iteration.
-        iteration: usize,
-    },
-}
-
 /// A cached run failed.
 #[derive(Debug, Error)]
 pub enum FemRunError {
@@ -150,7 +81,7 @@ pub enum FemRunError {
         step: usize,
         /// Why.
         #[source]
-        source: FemStepError,
+        source: NewtonError,
     },
     /// The cache could not be read.
     #[error(transparent)]
@@ -306,7 +237,7 @@ impl<M: HyperelasticMaterial> FemSimulator<M> {
     /// cannot be hashed: `scene_label` must name them uniquely (e.g. "twist 2160 deg/s to 720
     /// deg about y = z = 0.5").
     pub fn trajectory_key(&self, scene_label: &str, steps: usize) -> TrajectoryKey {
-        let mut key = TrajectoryKeyBuilder::default();
+        let mut key = trajectory_key_builder();
         let mesh = self.model.mesh();
         let tets = mesh.tet_mesh();
         let vertices: Vec<f64> = tets
@@ -352,7 +283,7 @@ impl<M: HyperelasticMaterial> FemSimulator<M> {
         key.f64s(&[self.params.time_step, n.tolerance, n.armijo])
             .u64(n.max_iterations as u64)
             .u64(n.max_line_search_cuts as u64)
-            .str(&format!("{:?}", n.tangent))
+            .str(&format!("{:?}", self.params.tangent))
             .str(scene_label)
             .u64(steps as u64);
         key.finish()
@@ -397,7 +328,7 @@ impl<M: HyperelasticMaterial> FemSimulator<M> {
             trajectory.times.push(self.time);
             trajectory.frames.push(frame(self));
             trajectory.iterations.push(report.iterations);
-            trajectory.converged.push(report.converged);
+            trajectory.converged.push(report.converged());
             progress(step);
         }
         trajectory.seconds = start.elapsed().as_secs_f64();
@@ -424,8 +355,8 @@ impl<M: HyperelasticMaterial> FemSimulator<M> {
     /// One backward-Euler step of h.
     ///
     /// # Errors
-    /// [`FemStepError`]; the state is then unchanged.
-    pub fn step(&mut self) -> Result<FemStepReport, FemStepError> {
+    /// [`NewtonError`]; the state is then unchanged.
+    pub fn step(&mut self) -> Result<NewtonReport, NewtonError> {
         let h = self.params.time_step;
         let mut predicted: Vec<f64> = self.x.iter().zip(&self.v).map(|(x, v)| x + h * v).collect();
         self.apply_targets(&mut predicted, self.time + h);
@@ -434,7 +365,11 @@ impl<M: HyperelasticMaterial> FemSimulator<M> {
             predicted: Some(&predicted),
             inverse_step_squared: 1.0 / (h * h),
         };
-        let report = self.minimize(&problem, &mut x)?;
+        let report = minimize(
+            &StepObjective { sim: self, problem },
+            &mut x,
+            &self.params.newton,
+        )?;
         self.v = x.iter().zip(&self.x).map(|(a, b)| (a - b) / h).collect();
         self.x = x;
         self.time += h;
@@ -444,15 +379,19 @@ impl<M: HyperelasticMaterial> FemSimulator<M> {
     /// Static equilibrium with the Dirichlet targets at `time`; sets velocities to zero.
     ///
     /// # Errors
-    /// [`FemStepError`]; the state is then unchanged.
-    pub fn solve_static(&mut self, time: f64) -> Result<FemStepReport, FemStepError> {
+    /// [`NewtonError`]; the state is then unchanged.
+    pub fn solve_static(&mut self, time: f64) -> Result<NewtonReport, NewtonError> {
         let mut x = self.x.clone();
         self.apply_targets(&mut x, time);
         let problem = StepProblem {
             predicted: None,
             inverse_step_squared: 0.0,
         };
-        let report = self.minimize(&problem, &mut x)?;
+        let report = minimize(
+            &StepObjective { sim: self, problem },
+            &mut x,
+            &self.params.newton,
+        )?;
         self.x = x;
         self.v.fill(0.0);
         self.time = time;
@@ -527,7 +466,7 @@ impl<M: HyperelasticMaterial> FemSimulator<M> {
 
     /// Sparse Hessian values on the free DOFs (lower triangle).
     fn hessian(&self, problem: &StepProblem<'_>, x: &[f64]) -> Vec<f64> {
-        let tangent = self.params.newton.tangent;
+        let tangent = self.params.tangent;
         let locals: Vec<Vec<f64>> = (0..self.model.mesh().element_count())
             .into_par_iter()
             .map(|e| {
@@ -594,116 +533,52 @@ impl<M: HyperelasticMaterial> FemSimulator<M> {
                 .collect::<Vec<_>>(),
         )
     }
+}
 
-    fn minimize(
-        &self,
-        problem: &StepProblem<'_>,
-        x: &mut Vec<f64>,
-    ) -> Result<FemStepReport, FemStepError> {
-        let params = &self.params.newton;
-        let mut timings = FemStepTimings::default();
-        let mut energy = self.energy(problem, x);
-        if !energy.is_finite() {
-            return Err(FemStepError::NonFinite {
-                iteration: 0,
-                quantity: "energy",
-            });
-        }
-        let mut report = FemStepReport {
-            iterations: 0,
-            factorizations: 0,
-            residual: f64::INFINITY,
-            line_search_cuts: 0,
-            converged: false,
-            timings,
-        };
-        let mut factor: Option<Llt<usize, f64>> = None;
-        let apply = |x: &mut [f64], step: &[f64], alpha: f64| {
-            for (a, s) in x.iter_mut().zip(step) {
-                *a += alpha * s;
-            }
-        };
-        for iteration in 1..=params.max_iterations {
-            report.iterations = iteration;
-            let t = Instant::now();
-            let gradient = self.free_part(&self.gradient(problem, x));
-            timings.assembly += t.elapsed().as_secs_f64();
-            if !gradient.iter().all(|g| g.is_finite()) {
-                return Err(FemStepError::NonFinite {
-                    iteration,
-                    quantity: "gradient",
-                });
-            }
-            // Convergence test with the last factorization first (no new Hessian if it passes).
-            if let Some(llt) = &factor {
-                let t = Instant::now();
-                let step = self.solve(llt, &gradient);
-                timings.factorization += t.elapsed().as_secs_f64();
-                let residual = self.step_norm(&step);
-                if residual.is_finite() && residual < params.tolerance {
-                    report.residual = residual;
-                    apply(x, &step, 1.0);
-                    report.converged = true;
-                    break;
-                }
-            }
-            let t = Instant::now();
-            let values = self.hessian(problem, x);
-            timings.assembly += t.elapsed().as_secs_f64();
-            let t = Instant::now();
-            let llt = Llt::try_new_with_symbolic(
-                self.system.symbolic.clone(),
-                self.system.matrix(&values),
-                Side::Lower,
-            )
-            .map_err(|_| FemStepError::NotPositiveDefinite { iteration })?;
-            let step = self.solve(&llt, &gradient);
-            factor = Some(llt);
-            report.factorizations += 1;
-            timings.factorization += t.elapsed().as_secs_f64();
-            if !step.iter().all(|s| s.is_finite()) {
-                return Err(FemStepError::NonFinite {
-                    iteration,
-                    quantity: "Newton step",
-                });
-            }
-            let residual = self.step_norm(&step);
-            report.residual = residual;
-            if residual < params.tolerance {
-                apply(x, &step, 1.0);
-                report.converged = true;
-                break;
-            }
-            let t = Instant::now();
-            let slope: f64 = self
-                .free_part(&step)
-                .iter()
-                .zip(&gradient)
-                .map(|(s, g)| s * g)
-                .sum();
-            let mut alpha = 1.0;
-            let mut accepted = None;
-            for _ in 0..=params.max_line_search_cuts {
-                let mut trial = x.clone();
-                apply(&mut trial, &step, alpha);
-                let e = self.energy(problem, &trial);
-                if e.is_finite() && e <= energy + params.armijo * alpha * slope {
-                    accepted = Some((trial, e));
-                    break;
-                }
-                alpha *= 0.5;
-                report.line_search_cuts += 1;
-            }
-            timings.line_search += t.elapsed().as_secs_f64();
-            match accepted {
-                Some((trial, e)) => {
-                    *x = trial;
-                    energy = e;
-                }
-                None => break,
-            }
-        }
-        report.timings = timings;
-        Ok(report)
+/// One step's minimization problem for [`optimize::minimize`]: x holds every node (Dirichlet
+/// nodes at their targets), the gradient and the sparse Hessian only the free DOFs.
+struct StepObjective<'a, M: HyperelasticMaterial> {
+    sim: &'a FemSimulator<M>,
+    problem: StepProblem<'a>,
+}
+
+impl<M: HyperelasticMaterial> NewtonObjective for StepObjective<'_, M> {
+    type Hessian = Vec<f64>;
+    type Factor = Llt<usize, f64>;
+
+    fn energy(&self, x: &[f64]) -> f64 {
+        self.sim.energy(&self.problem, x)
+    }
+
+    fn gradient(&self, x: &[f64]) -> Vec<f64> {
+        self.sim.free_part(&self.sim.gradient(&self.problem, x))
+    }
+
+    fn gradient_and_hessian(&self, x: &[f64], gradient: Option<Vec<f64>>) -> (Vec<f64>, Vec<f64>) {
+        let gradient = gradient.unwrap_or_else(|| self.gradient(x));
+        (gradient, self.sim.hessian(&self.problem, x))
+    }
+
+    fn factor(&self, values: Vec<f64>) -> Option<Self::Factor> {
+        let system = &self.sim.system;
+        Llt::try_new_with_symbolic(system.symbolic.clone(), system.matrix(&values), Side::Lower)
+            .ok()
+    }
+
+    fn solve(&self, factor: &Self::Factor, gradient: &[f64]) -> Vec<f64> {
+        self.sim.solve(factor, gradient)
+    }
+
+    fn step_norm(&self, step: &[f64]) -> f64 {
+        self.sim.step_norm(step)
+    }
+
+    fn directional_derivative(&self, gradient: &[f64], step: &[f64]) -> f64 {
+        self.sim
+            .free_part(step)
+            .iter()
+            .zip(gradient)
+            .map(|(s, g)| s * g)
+            .sum()
     }
 }

@@ -27,10 +27,7 @@ pub mod trajectory_cache;
 
 pub use element::{ElementOrder, FemMesh};
 pub use fem_model::{FemModel, FemModelError, MassKind};
-pub use fem_simulator::{
-    FemNewtonParams, FemParams, FemRunError, FemSetupError, FemSimulator, FemStepError,
-    FemStepReport, FemStepTimings,
-};
+pub use fem_simulator::{FemParams, FemRunError, FemSetupError, FemSimulator};
 pub use lattice_mesher::{
     LatticeMesherError, LatticeMesherParams, LatticeMesherReport, VolumeTarget, tetrahedralize,
     tetrahedralize_to_volume,
@@ -40,5 +37,5 @@ pub use scene::{DirichletRegion, FemFloor, FemScene, NodeTarget, NodeTargetFunct
 pub use tet_mesh::{TetMesh, TetMeshError, TetQuality};
 pub use trajectory_cache::{
     TRAJECTORY_FORMAT_VERSION, Trajectory, TrajectoryCache, TrajectoryCacheError, TrajectoryKey,
-    TrajectoryKeyBuilder,
+    trajectory_key_builder,
 };

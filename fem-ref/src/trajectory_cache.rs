@@ -6,10 +6,9 @@
 //! targets) with 128-bit FNV-1a; the file is `<dir>/fem-<key>.traj`. Deleting the folder is
 //! always safe.
 
-use std::fs;
-use std::io::Write;
 use std::path::{Path, PathBuf};
 
+use artifact::{ArtifactError, ContentKey, ContentKeyBuilder, load_framed, save_framed};
 use serde::{Deserialize, Serialize};
 use thiserror::Error;
 
@@ -17,65 +16,13 @@ use thiserror::Error;
 pub const TRAJECTORY_FORMAT_VERSION: u32 = 1;
 const MAGIC: &[u8; 6] = b"FFTRAJ";
 
-/// A 128-bit content hash naming a cached trajectory.
-#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
-pub struct TrajectoryKey(u128);
+/// The content hash naming a cached trajectory.
+pub type TrajectoryKey = ContentKey;
 
-impl TrajectoryKey {
-    /// The key as 32 hex digits.
-    pub fn hex(&self) -> String {
-        format!("{:032x}", self.0)
-    }
-}
-
-/// Builds a [`TrajectoryKey`] from typed parts (FNV-1a 128 over tagged little-endian bytes).
-#[derive(Clone, Debug)]
-pub struct TrajectoryKeyBuilder(u128);
-
-impl Default for TrajectoryKeyBuilder {
-    fn default() -> Self {
-        let mut b = TrajectoryKeyBuilder(0x6c62_272e_07bb_0142_62b8_2175_6295_c58d);
-        b.bytes(MAGIC);
-        b.u64(u64::from(TRAJECTORY_FORMAT_VERSION));
-        b
-    }
-}
-
-impl TrajectoryKeyBuilder {
-    fn bytes(&mut self, bytes: &[u8]) {
-        const PRIME: u128 = 0x0000_0000_0100_0000_0000_0000_0000_013b;
-        for &b in bytes {
-            self.0 ^= u128::from(b);
-            self.0 = self.0.wrapping_mul(PRIME);
-        }
-    }
-
-    /// Adds an integer.
-    pub fn u64(&mut self, v: u64) -> &mut Self {
-        self.bytes(&v.to_le_bytes());
-        self
-    }
-
-    /// Adds floats by their exact bits.
-    pub fn f64s(&mut self, values: &[f64]) -> &mut Self {
-        self.u64(values.len() as u64);
-        for v in values {
-            self.bytes(&v.to_bits().to_le_bytes());
-        }
-        self
-    }
-
-    /// Adds a string (length-prefixed).
-    pub fn str(&mut self, s: &str) -> &mut Self {
-        self.u64(s.len() as u64);
-        self.bytes(s.as_bytes());
-        self
-    }
-
-    /// The key.
-    pub fn finish(&self) -> TrajectoryKey {
-        TrajectoryKey(self.0)
-    }
+/// A builder for [`TrajectoryKey`]s: a [`ContentKeyBuilder`] in the trajectory domain (the file
+/// magic and [`TRAJECTORY_FORMAT_VERSION`]).
+pub fn trajectory_key_builder() -> ContentKeyBuilder {
+    ContentKeyBuilder::new(MAGIC, u64::from(TRAJECTORY_FORMAT_VERSION))
 }
 
 /// Node positions per frame and what each step reported.
@@ -142,30 +89,11 @@ impl TrajectoryCache {
     /// # Errors
     /// [`TrajectoryCacheError`] when the file exists but cannot be read or decoded.
     pub fn load(&self, key: TrajectoryKey) -> Result<Option<Trajectory>, TrajectoryCacheError> {
-        let path = self.path(key);
-        let bytes = match fs::read(&path) {
-            Ok(b) => b,
-            Err(e) if e.kind() == std::io::ErrorKind::NotFound => return Ok(None),
-            Err(source) => return Err(TrajectoryCacheError::Io { path, source }),
-        };
-        let format = |reason: &str| TrajectoryCacheError::Format {
-            path: path.clone(),
-            reason: reason.into(),
-        };
-        if bytes.len() < 10 || &bytes[..6] != MAGIC {
-            return Err(format("missing magic bytes"));
-        }
-        let version = u32::from_le_bytes(bytes[6..10].try_into().expect("4 bytes"));
-        if version != TRAJECTORY_FORMAT_VERSION {
-            return Err(format(&format!("file has version {version}")));
-        }
-        let (trajectory, _) =
-            bincode::serde::decode_from_slice(&bytes[10..], bincode::config::standard())
-                .map_err(|e| format(&e.to_string()))?;
-        Ok(Some(trajectory))
+        load_framed(&self.path(key), MAGIC, TRAJECTORY_FORMAT_VERSION).map_err(Into::into)
     }
 
-    /// Stores a trajectory atomically (temporary file, then rename); returns its path.
+    /// Stores a trajectory atomically ([`artifact::write_atomically`]: unique temporary file,
+    /// fsync, rename); returns its path.
     ///
     /// # Errors
     /// [`TrajectoryCacheError::Io`].
@@ -174,23 +102,20 @@ impl TrajectoryCache {
         key: TrajectoryKey,
         trajectory: &Trajectory,
     ) -> Result<PathBuf, TrajectoryCacheError> {
-        let io = |path: &Path| {
-            let path = path.to_path_buf();
-            move |source| TrajectoryCacheError::Io { path, source }
-        };
-        fs::create_dir_all(&self.dir).map_err(io(&self.dir))?;
         let path = self.path(key);
-        let tmp = path.with_extension("partial");
-        let mut bytes = MAGIC.to_vec();
-        bytes.extend(TRAJECTORY_FORMAT_VERSION.to_le_bytes());
-        bytes.extend(
-            bincode::serde::encode_to_vec(trajectory, bincode::config::standard())
-                .expect("a trajectory always encodes"),
-        );
-        let mut file = fs::File::create(&tmp).map_err(io(&tmp))?;
-        file.write_all(&bytes).map_err(io(&tmp))?;
-        file.sync_all().map_err(io(&tmp))?;
-        fs::rename(&tmp, &path).map_err(io(&path))?;
+        save_framed(&path, MAGIC, TRAJECTORY_FORMAT_VERSION, trajectory)?;
         Ok(path)
+    }
+}
+
+impl From<ArtifactError> for TrajectoryCacheError {
+    fn from(e: ArtifactError) -> Self {
+        match e {
+            ArtifactError::Io { path, source } => TrajectoryCacheError::Io { path, source },
+            ArtifactError::Format { path, source } => TrajectoryCacheError::Format {
+                path,
+                reason: source.to_string(),
+            },
+        }
     }
 }

@@ -8,6 +8,7 @@
 //! `n4 × 3N × n4` GEMM timed alone, so the ratio shows what the per-point tangents, the
 //! `T^{rq}` construction and the scatter into the 12(m+1) matrix cost on top of the products.
 
+use hyperelastic::MaterialSample;
 use std::hint::black_box;
 use std::time::Instant;
 
@@ -15,7 +16,7 @@ use faer::{Accum, Mat, Par};
 use hyperelastic::{LameParameters, StableNeoHookean, Tangent};
 use nalgebra::Vector3;
 use reduced_sim::ReducedModel;
-use rkpm_core::{KernelParams, MaterialSample, sample_box_grid};
+use rkpm_core::{KernelParams, sample_box_grid};
 use skin_eigen::{BasisParams, EigenParams, build_basis};
 
 fn best_of<T>(runs: usize, mut f: impl FnMut() -> T) -> f64 {

@@ -14,15 +14,17 @@
 //! averaged over an 11 × 11 lattice of points on it — plus ms per step (and its split into
 //! assembly / solve / line search) and mean Newton iterations.
 
+use hyperelastic::MaterialSample;
 use std::time::Instant;
 
 use hyperelastic::{LameParameters, StableNeoHookean};
 use nalgebra::Vector3;
+use optimize::{NewtonParams, NewtonTimings};
 use reduced_sim::{
-    DeformationMap, NewtonParams, PenaltyParams, PinTarget, PinnedRegion, ReducedModel, Scene,
-    SimulationParams, Simulator, StepTimings,
+    DeformationMap, PenaltyParams, PinTarget, PinnedRegion, ReducedModel, Scene, SimulationParams,
+    Simulator,
 };
-use rkpm_core::{MaterialSample, sample_box_grid};
+use rkpm_core::sample_box_grid;
 use skin_eigen::{BasisParams, build_basis};
 
 /// Command-line options.
@@ -124,6 +126,7 @@ fn run() -> Result<(), String> {
             pin_factor,
             ..Default::default()
         },
+        ..SimulationParams::default()
     };
     let mut sim = Simulator::new(model, &scene, sim_params).map_err(|e| e.to_string())?;
     let lattice: Vec<Vector3<f64>> = (0..11)
@@ -132,7 +135,7 @@ fn run() -> Result<(), String> {
     let tip = DeformationMap::new(&basis, &lattice).map_err(|e| e.to_string())?;
     let setup_seconds = t.elapsed().as_secs_f64();
 
-    let mut timings = StepTimings::default();
+    let mut timings = NewtonTimings::default();
     let mut iterations = 0usize;
     let mut unconverged = 0usize;
     let mut tip_y = Vec::new();

@@ -1,11 +1,12 @@
 //! A closed-form skinning field for unit tests: the simulator must not depend on how a basis
 //! was made, and exact derivatives make finite-difference checks sharp.
 
+use hyperelastic::MaterialSample;
 use std::convert::Infallible;
 
 use hyperelastic::StableNeoHookean;
 use nalgebra::{DMatrix, Vector3};
-use rkpm_core::{IntegrationPoints, MaterialSample, sample_box_grid};
+use rkpm_core::{IntegrationPoints, sample_box_grid};
 use skin_eigen::SkinningWeights;
 
 use crate::reduced_model::ReducedModel;

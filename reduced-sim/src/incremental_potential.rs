@@ -6,8 +6,10 @@
 //!
 //! with `ẑ = z_t + h ż_t`. Without the inertia term it is the static equilibrium problem.
 
-use faer::Mat;
+use faer::linalg::solvers::{Llt, Solve};
+use faer::{Mat, Side};
 use hyperelastic::{HyperelasticMaterial, Tangent};
+use optimize::NewtonObjective;
 
 use crate::reduced_model::ReducedModel;
 use crate::scene_terms::{PinTargets, SceneTerms};
@@ -90,6 +92,43 @@ impl<M: HyperelasticMaterial> IncrementalPotential<'_, M> {
                 }
             }
         }
+    }
+}
+
+/// The step's minimization problem for [`optimize::minimize`]: dense Hessian (12(m+1) square),
+/// dense Cholesky, and the step norm `sqrt(Δzᵀ M_z Δz / mass) / L` (L the largest side of the
+/// rest bounding box).
+impl<M: HyperelasticMaterial> NewtonObjective for IncrementalPotential<'_, M> {
+    type Hessian = Mat<f64>;
+    type Factor = Llt<f64>;
+
+    fn energy(&self, z: &[f64]) -> f64 {
+        IncrementalPotential::energy(self, z)
+    }
+
+    fn gradient(&self, z: &[f64]) -> Vec<f64> {
+        IncrementalPotential::gradient(self, z)
+    }
+
+    /// One pass computes F once for both; a gradient already known is recomputed with the
+    /// Hessian (bit-identical: `derivatives` and `gradient` sum in the same order).
+    fn gradient_and_hessian(&self, z: &[f64], _gradient: Option<Vec<f64>>) -> (Vec<f64>, Mat<f64>) {
+        self.derivatives(z)
+    }
+
+    fn factor(&self, hessian: Mat<f64>) -> Option<Llt<f64>> {
+        hessian.llt(Side::Lower).ok()
+    }
+
+    fn solve(&self, factor: &Llt<f64>, gradient: &[f64]) -> Vec<f64> {
+        let mut step = Mat::<f64>::from_fn(gradient.len(), 1, |i, _| -gradient[i]);
+        factor.solve_in_place(step.as_mut());
+        (0..gradient.len()).map(|i| step[(i, 0)]).collect()
+    }
+
+    fn step_norm(&self, dz: &[f64]) -> f64 {
+        (mass_inner(self.model, dz, dz).max(0.0) / self.model.total_mass()).sqrt()
+            / self.model.bounds().largest_side()
     }
 }
 

@@ -7,7 +7,8 @@
 //! - [`ReducedModel`]: integration points with volumes and materials, and the constant reduced
 //!   mass matrix; [`ReducedModel::elastic_energy`] with its gradient and Hessian.
 //! - [`Scene`]: gravity, pinned/moving regions, a floor; [`PenaltyParams`] for their stiffness.
-//! - [`Simulator`]: backward Euler with Newton and a line search; one [`StepReport`] per step.
+//! - [`Simulator`]: backward Euler, each step minimized by the workspace's one Newton solver
+//!   ([`optimize::minimize`]); one [`optimize::NewtonReport`] per step.
 //!
 //! Units: SI throughout (m, s, kg, Pa, J). z is dimensionless (its translation entries are m).
 //!
@@ -17,7 +18,7 @@
 //! use nalgebra::Vector3;
 //! use reduced_sim::{PinTarget, PinnedRegion, ReducedModel, Scene, SimulationParams, Simulator};
 //! # let (basis, points, materials): (skin_eigen::SkinningBasis, rkpm_core::IntegrationPoints,
-//! #     Vec<rkpm_core::MaterialSample>) = todo!();
+//! #     Vec<hyperelastic::MaterialSample>) = todo!();
 //! let model = ReducedModel::new(&basis, &points, &materials, StableNeoHookean)?;
 //! let pinned = model.points_where(|x| x.x <= 0.5);
 //! let scene = Scene {
@@ -38,7 +39,6 @@ mod analytic_field;
 pub mod deformation_map;
 pub mod elastic_energy;
 mod incremental_potential;
-pub mod newton;
 pub mod reduced_coordinates;
 pub mod reduced_model;
 pub mod scene;
@@ -47,10 +47,9 @@ pub mod simulator;
 pub mod skinning_field;
 
 pub use deformation_map::{DeformationMap, DeformationMapError};
-pub use newton::{NewtonParams, NewtonStop, StepError, StepReport, StepTimings};
 pub use reduced_coordinates::ReducedLayout;
 pub use reduced_model::{ReducedModel, ReducedModelError};
 pub use scene::{Floor, PenaltyParams, PinTarget, PinnedRegion, Scene, TargetFunction};
 pub use scene_terms::SceneError;
-pub use simulator::{ReducedState, SimulationParams, Simulator, StateError};
+pub use simulator::{ReducedState, SimulationParams, Simulator, StateError, StepError};
 pub use skinning_field::SkinningField;

@@ -2,9 +2,10 @@
 //! deformation map, and the constant reduced mass matrix (DESIGN 3.7).
 
 use faer::{Accum, Mat, Par, Side};
+use hyperelastic::MaterialSample;
 use hyperelastic::{HyperelasticMaterial, LameParameters, MaterialParameterError};
 use nalgebra::Vector3;
-use rkpm_core::{Aabb, IntegrationPoints, MaterialSample};
+use rkpm_core::{Aabb, IntegrationPoints};
 use thiserror::Error;
 
 use crate::deformation_map::{DeformationMap, DeformationMapError};
@@ -105,7 +106,7 @@ impl<M: HyperelasticMaterial> ReducedModel<M> {
         let mut densities = Vec::with_capacity(points.len());
         for (point, s) in materials.iter().enumerate() {
             lame.push(
-                LameParameters::from_young_poisson(s.youngs_modulus, s.poisson_ratio)
+                s.lame_parameters()
                     .map_err(|source| ReducedModelError::Material { point, source })?,
             );
             if !(s.density > 0.0 && s.density.is_finite()) {

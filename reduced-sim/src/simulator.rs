@@ -1,12 +1,12 @@
 //! The time stepper: a model, a scene, and the reduced state advanced by backward Euler
 //! (DESIGN 3.7, paper Eqs. 1-2).
 
-use hyperelastic::HyperelasticMaterial;
+use hyperelastic::{HyperelasticMaterial, Tangent};
+use optimize::{NewtonError, NewtonParams, NewtonReport, minimize};
 use serde::{Deserialize, Serialize};
 use thiserror::Error;
 
-use crate::incremental_potential::{IncrementalPotential, Inertia, mass_inner};
-use crate::newton::{NewtonParams, StepError, StepReport, minimize};
+use crate::incremental_potential::{IncrementalPotential, Inertia};
 use crate::reduced_model::ReducedModel;
 use crate::scene::{PenaltyParams, Scene};
 use crate::scene_terms::{SceneError, SceneTerms};
@@ -16,8 +16,12 @@ use crate::scene_terms::{SceneError, SceneTerms};
 pub struct SimulationParams {
     /// Time step h (s, default 0.01).
     pub time_step: f64,
-    /// Newton options.
+    /// Newton options (the workspace's one solver, [`optimize::minimize`]).
     pub newton: NewtonParams,
+    /// Material tangent in the Hessian (default PSD-projected, which keeps the Newton system
+    /// positive definite; `Exact` is only safe while it stays so, and a failed factorization is
+    /// then reported).
+    pub tangent: Tangent,
     /// Penalty stiffness rules for pins and floor.
     pub penalty: PenaltyParams,
 }
@@ -27,9 +31,21 @@ impl Default for SimulationParams {
         SimulationParams {
             time_step: 0.01,
             newton: NewtonParams::default(),
+            tangent: Tangent::ProjectedPsd,
             penalty: PenaltyParams::default(),
         }
     }
+}
+
+/// A step failed; the simulator's state is left as it was before the step.
+#[derive(Clone, Debug, Error, PartialEq)]
+pub enum StepError {
+    /// The Newton solve hit a non-finite value or a Hessian it could not factor.
+    #[error(transparent)]
+    Newton(#[from] NewtonError),
+    /// The time step is not finite and positive.
+    #[error("the time step must be finite and positive, got {0} s")]
+    InvalidTimeStep(f64),
 }
 
 /// The reduced state: coordinates z, velocities ż (both length 12(m + 1), see
@@ -151,7 +167,7 @@ impl<M: HyperelasticMaterial> Simulator<M> {
     ///
     /// # Errors
     /// [`StepError`] on a non-finite value or a singular system; the state is then unchanged.
-    pub fn step(&mut self) -> Result<StepReport, StepError> {
+    pub fn step(&mut self) -> Result<NewtonReport, StepError> {
         let h = self.params.time_step;
         if !(h > 0.0 && h.is_finite()) {
             return Err(StepError::InvalidTimeStep(h));
@@ -172,12 +188,10 @@ impl<M: HyperelasticMaterial> Simulator<M> {
                 predicted: &predicted,
                 inverse_step_squared: 1.0 / (h * h),
             }),
-            tangent: self.params.newton.tangent,
+            tangent: self.params.tangent,
         };
         let mut z = predicted.clone();
-        let report = minimize(&potential, &mut z, &self.params.newton, |dz| {
-            self.step_norm(dz)
-        })?;
+        let report = minimize(&potential, &mut z, &self.params.newton)?;
         let velocity = z
             .iter()
             .zip(&self.state.z)
@@ -198,18 +212,16 @@ impl<M: HyperelasticMaterial> Simulator<M> {
     ///
     /// # Errors
     /// [`StepError`]; the state is then unchanged.
-    pub fn solve_static(&mut self, time: f64) -> Result<StepReport, StepError> {
+    pub fn solve_static(&mut self, time: f64) -> Result<NewtonReport, StepError> {
         let potential = IncrementalPotential {
             model: &self.model,
             terms: &self.terms,
             targets: self.terms.pin_targets(time),
             inertia: None,
-            tangent: self.params.newton.tangent,
+            tangent: self.params.tangent,
         };
         let mut z = self.state.z.clone();
-        let report = minimize(&potential, &mut z, &self.params.newton, |dz| {
-            self.step_norm(dz)
-        })?;
+        let report = minimize(&potential, &mut z, &self.params.newton)?;
         let layout = self.model.deformation_map().layout();
         self.state = ReducedState {
             z,
@@ -217,11 +229,5 @@ impl<M: HyperelasticMaterial> Simulator<M> {
             time,
         };
         Ok(report)
-    }
-
-    /// `sqrt(Δzᵀ M_z Δz / mass) / L`.
-    fn step_norm(&self, dz: &[f64]) -> f64 {
-        (mass_inner(&self.model, dz, dz).max(0.0) / self.model.total_mass()).sqrt()
-            / self.model.bounds().largest_side()
     }
 }

@@ -2,9 +2,9 @@
 
 mod support;
 
+use hyperelastic::MaterialSample;
 use nalgebra::Vector3;
 use reduced_sim::{DeformationMap, PinTarget, PinnedRegion, Scene, SimulationParams, Simulator};
-use rkpm_core::MaterialSample;
 
 /// Tip deflection of the reduced model of an `length × 1 × 1` m beam clamped on x ≤ 0.5 under
 /// gravity g (m/s²), at the centroid line of the end face.

@@ -3,16 +3,18 @@
 
 mod support;
 
+use hyperelastic::MaterialSample;
 use std::sync::Arc;
 
 use hyperelastic::StableNeoHookean;
 use nalgebra::Vector3;
+use optimize::{NewtonError, NewtonParams, NewtonStop};
 use reduced_sim::{
-    DeformationMap, DeformationMapError, NewtonParams, NewtonStop, PenaltyParams, PinTarget,
-    PinnedRegion, ReducedModel, ReducedModelError, ReducedState, Scene, SceneError,
-    SimulationParams, Simulator, StateError, StepError,
+    DeformationMap, DeformationMapError, PenaltyParams, PinTarget, PinnedRegion, ReducedModel,
+    ReducedModelError, ReducedState, Scene, SceneError, SimulationParams, Simulator, StateError,
+    StepError,
 };
-use rkpm_core::{IntegrationPoints, MaterialSample};
+use rkpm_core::IntegrationPoints;
 use support::BEAM_MATERIAL;
 
 fn setup() -> (skin_eigen::SkinningBasis, IntegrationPoints) {
@@ -78,10 +80,10 @@ fn non_finite_pin_target_stops_the_step_and_keeps_the_state() {
     assert!(
         matches!(
             err,
-            StepError::NonFinite {
+            StepError::Newton(NewtonError::NonFinite {
                 quantity: "energy",
                 ..
-            }
+            })
         ),
         "{err}"
     );

@@ -26,7 +26,6 @@ pub mod geometry_io;
 pub mod inside_test;
 pub mod integration_points;
 pub mod kernels;
-pub mod material_field;
 pub mod point_cloud;
 pub mod shape_functions;
 pub mod spatial_index;
@@ -45,7 +44,6 @@ pub use integration_points::{
     sample_random,
 };
 pub use kernels::{KernelError, KernelParams, Kernels, farthest_point_sampling, place_kernels};
-pub use material_field::{MaterialField, MaterialFunction, MaterialSample};
 pub use point_cloud::{GaussianSplatAttributes, PointCloud};
 pub use shape_functions::{
     ReproducingErrors, ShapeFunctionError, ShapeFunctionParams, ShapeFunctions,

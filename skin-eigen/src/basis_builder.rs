@@ -3,11 +3,11 @@
 
 use std::time::Instant;
 
-use hyperelastic::{LameParameters, MaterialParameterError};
+use hyperelastic::LameParameters;
 use nalgebra::DMatrix;
 use rkpm_core::{
-    IntegrationPoints, KernelError, KernelParams, MaterialSample, ShapeFunctionError,
-    ShapeFunctionParams, evaluate_shape_functions, place_kernels,
+    IntegrationPoints, KernelError, KernelParams, ShapeFunctionError, ShapeFunctionParams,
+    evaluate_shape_functions, place_kernels,
 };
 use serde::{Deserialize, Serialize};
 
@@ -132,23 +132,6 @@ pub enum BasisError {
     /// Eigen solve.
     #[error("eigen solve: {0}")]
     Eigen(#[from] EigenError),
-}
-
-/// Lamé parameters of per-point material samples (e.g. from `rkpm_core::MaterialField::sample`).
-///
-/// # Errors
-/// The first invalid sample's [`MaterialParameterError`], with its index.
-pub fn lame_parameters_of(
-    samples: &[MaterialSample],
-) -> Result<Vec<LameParameters>, (usize, MaterialParameterError)> {
-    samples
-        .iter()
-        .enumerate()
-        .map(|(i, s)| {
-            LameParameters::from_young_poisson(s.youngs_modulus, s.poisson_ratio)
-                .map_err(|e| (i, e))
-        })
-        .collect()
 }
 
 /// Builds the skinning basis of an object given by integration points and per-point Lamé

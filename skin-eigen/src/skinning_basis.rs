@@ -3,6 +3,7 @@
 
 use std::path::Path;
 
+use artifact::{ArtifactError, FrameError, decode_framed, encode_framed};
 use nalgebra::{DMatrix, Vector3};
 use rkpm_core::{Kernels, ShapeFunctionError, ShapeFunctionParams, evaluate_shape_functions};
 use serde::{Deserialize, Serialize};
@@ -183,26 +184,24 @@ impl SkinningBasis {
         Ok(SkinningWeights { weights, gradients })
     }
 
-    /// Writes the basis (magic, format version, bincode payload).
+    /// Writes the basis (magic, format version, bincode payload) atomically
+    /// ([`artifact::write_atomically`]).
     ///
     /// # Errors
     /// [`BasisFileError::Io`].
     pub fn save(&self, path: impl AsRef<Path>) -> Result<(), BasisFileError> {
         let path = path.as_ref();
-        let mut bytes = MAGIC.to_vec();
-        bytes.extend(BASIS_FORMAT_VERSION.to_le_bytes());
-        bytes.extend(
-            bincode::serde::encode_to_vec(self, bincode::config::standard())
-                .expect("a basis always encodes"),
-        );
-        // Write to a temporary file first so a failed write never leaves a partial basis.
-        let tmp = path.with_extension("partial");
-        let io = |source| BasisFileError::Io {
-            path: path.display().to_string(),
-            source,
-        };
-        std::fs::write(&tmp, bytes).map_err(io)?;
-        std::fs::rename(&tmp, path).map_err(io)
+        artifact::write_atomically(path, &encode_framed(&MAGIC, BASIS_FORMAT_VERSION, self))
+            .map_err(|e| match e {
+                ArtifactError::Io { path, source } => BasisFileError::Io {
+                    path: path.display().to_string(),
+                    source,
+                },
+                ArtifactError::Format { path, source } => BasisFileError::Corrupt {
+                    path: path.display().to_string(),
+                    message: source.to_string(),
+                },
+            })
     }
 
     /// Reads a basis written by [`SkinningBasis::save`].
@@ -217,24 +216,23 @@ impl SkinningBasis {
             path: name.clone(),
             source,
         })?;
-        if bytes.len() < 12 || bytes[..8] != MAGIC {
-            return Err(BasisFileError::NotABasisFile { path: name });
-        }
-        let found = u32::from_le_bytes(bytes[8..12].try_into().expect("4 bytes"));
-        if found != BASIS_FORMAT_VERSION {
-            return Err(BasisFileError::IncompatibleVersion {
-                path: name,
-                found,
-                expected: BASIS_FORMAT_VERSION,
-            });
-        }
-        let (basis, _): (SkinningBasis, usize) =
-            bincode::serde::decode_from_slice(&bytes[12..], bincode::config::standard()).map_err(
-                |e| BasisFileError::Corrupt {
+        let basis: SkinningBasis =
+            decode_framed(&bytes, &MAGIC, BASIS_FORMAT_VERSION).map_err(|e| match e {
+                FrameError::WrongMagic { .. } => {
+                    BasisFileError::NotABasisFile { path: name.clone() }
+                }
+                FrameError::WrongVersion { found, expected } => {
+                    BasisFileError::IncompatibleVersion {
+                        path: name.clone(),
+                        found,
+                        expected,
+                    }
+                }
+                FrameError::Corrupt(message) => BasisFileError::Corrupt {
                     path: name.clone(),
-                    message: e.to_string(),
+                    message,
                 },
-            )?;
+            })?;
         if basis.coefficients.nrows() != basis.kernels.len()
             || basis.coefficients.ncols() != basis.eigenvalues.len()
         {

@@ -11,6 +11,7 @@
 //! Results go under `--out` (default `freeform-out/`), caches under `--cache` (default
 //! `freeform-cache/` or `$FREEFORM_CACHE`; safe to delete).
 
+use optimize::NewtonParams;
 use std::path::{Path, PathBuf};
 use std::time::Instant;
 
@@ -33,8 +34,7 @@ use eval::shape_tables::{table2, table7};
 use eval::stress::{StressConfig, run_stress, stress_markdown};
 use eval::tables::{table1, table5, table6, twist_error_plot, write_table};
 use fem_ref::{
-    ElementOrder, FemNewtonParams, LatticeMesherParams, VolumeTarget, tetrahedralize,
-    tetrahedralize_to_volume,
+    ElementOrder, LatticeMesherParams, VolumeTarget, tetrahedralize, tetrahedralize_to_volume,
 };
 use hyperelastic::LameParameters;
 use nalgebra::Vector3;
@@ -659,15 +659,8 @@ fn demo(quick: bool, json: bool, out: &Path, cache: &Path, progress: &Progress) 
         (ReducedSettings::default(), 100, FemResolution::GROUND_TRUTH)
     };
     let test = BeamTest::Bend;
-    let reference = run_fem_beam(
-        test,
-        fem,
-        FemNewtonParams::default(),
-        steps,
-        cache,
-        progress,
-    )?;
-    reference.check_converged(FemNewtonParams::default().max_iterations)?;
+    let reference = run_fem_beam(test, fem, NewtonParams::default(), steps, cache, progress)?;
+    reference.check_converged(NewtonParams::default().max_iterations)?;
     progress.status(format!(
         "basis: m = {}, K = {}, ≈{} grid points",
         settings.modes, settings.kernels, settings.basis_points

@@ -5,12 +5,13 @@ use std::sync::Arc;
 use std::time::Instant;
 
 use fem_ref::{
-    DirichletRegion, ElementOrder, FemMesh, FemModel, FemNewtonParams, FemParams, FemScene,
-    FemSimulator, MassKind, NodeTarget, PointInterpolation, TetMesh,
+    DirichletRegion, ElementOrder, FemMesh, FemModel, FemParams, FemScene, FemSimulator, MassKind,
+    NodeTarget, PointInterpolation, TetMesh,
 };
+use hyperelastic::MaterialSample;
 use hyperelastic::{StableNeoHookean, Tangent};
 use nalgebra::{Rotation3, Vector3};
-use rkpm_core::MaterialSample;
+use optimize::NewtonParams;
 
 /// Element tangent on the command line.
 #[derive(Clone, Copy, Debug, clap::ValueEnum)]
@@ -127,11 +128,11 @@ pub fn run_beam(
     let probe = PointInterpolation::new(model.mesh(), &probe_points).map_err(|e| e.to_string())?;
     let params = FemParams {
         time_step: 0.01,
-        newton: FemNewtonParams {
-            tangent,
+        newton: NewtonParams {
             tolerance,
             ..Default::default()
         },
+        tangent,
     };
     let mut sim = FemSimulator::new(model, fem_scene, params).map_err(|e| e.to_string())?;
     let (dofs, nonzeros) = (sim.free_dofs(), sim.matrix_nonzeros());
@@ -142,10 +143,10 @@ pub fn run_beam(
     for step in 1..=steps {
         let report = sim.step().map_err(|e| format!("step {step}: {e}"))?;
         iterations += report.iterations;
-        factorizations += report.factorizations;
-        unconverged += usize::from(!report.converged);
+        factorizations += report.hessian_assemblies;
+        unconverged += usize::from(!report.converged());
         assembly += report.timings.assembly;
-        factorization += report.timings.factorization;
+        factorization += report.timings.solve;
         if report_at.contains(&step) {
             let x = probe.interpolate(&sim.positions());
             let value = match scene {

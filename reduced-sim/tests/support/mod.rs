@@ -2,10 +2,11 @@
 
 #![allow(dead_code)]
 
+use hyperelastic::MaterialSample;
 use hyperelastic::{LameParameters, StableNeoHookean};
 use nalgebra::Vector3;
 use reduced_sim::ReducedModel;
-use rkpm_core::{IntegrationPoints, MaterialSample, sample_box_grid};
+use rkpm_core::{IntegrationPoints, sample_box_grid};
 use skin_eigen::{BasisParams, SkinningBasis, build_basis};
 
 /// An RKPM skinning basis of the box [0, size] sampled on a grid of spacing `spacing`, with

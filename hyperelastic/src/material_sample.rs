@@ -1,14 +1,15 @@
-//! Material values attached to integration points: constant or a function of rest position
-//! (heterogeneous objects such as the layered sphere of Sec. 9.2).
-//!
-//! This crate only carries the values; the `hyperelastic` crate validates them and converts
-//! them to Lamé parameters.
+//! Material values attached to points: Young's modulus, Poisson ratio and density, constant or
+//! a function of rest position (heterogeneous objects such as the layered sphere of Sec. 9.2),
+//! and their one conversion to Lamé parameters ([`MaterialSample::lame_parameters`]) that the
+//! basis builder, the reduced model, the FEM and the baselines all use.
 
 use std::fmt;
 use std::sync::Arc;
 
 use nalgebra::Vector3;
 use serde::{Deserialize, Serialize};
+
+use crate::lame_parameters::{LameParameters, MaterialParameterError};
 
 /// Elastic and inertial parameters at one point.
 #[derive(Clone, Copy, Debug, PartialEq, Serialize, Deserialize)]
@@ -19,6 +20,31 @@ pub struct MaterialSample {
     pub poisson_ratio: f64,
     /// Mass density ρ (kg/m³).
     pub density: f64,
+}
+
+impl MaterialSample {
+    /// The Lamé parameters λ = Eν / ((1 + ν)(1 − 2ν)), μ = E / (2(1 + ν)) (Pa), the one place
+    /// E and ν are converted.
+    ///
+    /// # Errors
+    /// [`MaterialParameterError`] for E not positive and finite or ν outside (−1, 0.5).
+    pub fn lame_parameters(&self) -> Result<LameParameters, MaterialParameterError> {
+        LameParameters::from_young_poisson(self.youngs_modulus, self.poisson_ratio)
+    }
+}
+
+/// Lamé parameters of per-point material samples (e.g. from [`MaterialField::sample`]).
+///
+/// # Errors
+/// The first invalid sample's [`MaterialParameterError`], with its index.
+pub fn lame_parameters_of(
+    samples: &[MaterialSample],
+) -> Result<Vec<LameParameters>, (usize, MaterialParameterError)> {
+    samples
+        .iter()
+        .enumerate()
+        .map(|(i, s)| s.lame_parameters().map_err(|e| (i, e)))
+        .collect()
 }
 
 /// A material as a function of rest position X (m).

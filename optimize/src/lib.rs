@@ -1,0 +1,18 @@
+//! One Newton solver for the workspace (DESIGN 2, 3.7, 3.8): minimizes any objective that
+//! owns its energy, gradient, Hessian assembly, factorization and solve, with an Armijo
+//! backtracking line search and a convergence test that first tries the last factorization
+//! (a lagged-Hessian step: gradient only, no assembly).
+//!
+//! Both simulators use it: `reduced-sim` for the reduced backward-Euler step (dense Cholesky
+//! of a 12(m+1)-square Hessian) and `fem-ref` for the FEM reference (sparse Cholesky on the
+//! free DOFs). A user's own solver plugs in by implementing [`NewtonObjective`].
+//!
+//! - [`NewtonObjective`]: what an objective provides.
+//! - [`minimize`]: the solver; [`NewtonParams`] in, [`NewtonReport`] out, [`NewtonError`]
+//!   when it cannot go on.
+
+pub mod newton;
+
+pub use newton::{
+    NewtonError, NewtonObjective, NewtonParams, NewtonReport, NewtonStop, NewtonTimings, minimize,
+};

@@ -1,0 +1,293 @@
+//! Newton's method with an Armijo backtracking line search and a lagged-factor convergence
+//! check.
+//!
+//! Each iteration k (x the unknowns, g the gradient, H the Hessian, ‖·‖ the objective's
+//! scale-invariant step norm):
+//!
+//! 1. With the factorization of the last H: `Δx = −H_{k−1}⁻¹ g(x)`; if `‖Δx‖ < tol`, take the
+//!    full step and stop (converged without assembling a new Hessian).
+//! 2. Assemble and factor `H(x)`, `Δx = −H⁻¹ g`; if `‖Δx‖ < tol`, take the full step and stop.
+//! 3. Halve α from 1 until `E(x + αΔx) ≤ E(x) + c α gᵀΔx` (Armijo); if no α within the cut
+//!    budget decreases E, stop with [`NewtonStop::LineSearchStalled`].
+//!
+//! Reaching the iteration cap stops with [`NewtonStop::IterationLimit`]; the last iterate is
+//! kept either way, and the report says why it stopped.
+
+use std::time::Instant;
+
+use serde::{Deserialize, Serialize};
+use thiserror::Error;
+
+/// What [`minimize`] needs from an objective E(x).
+///
+/// The gradient may live in a smaller space than x (e.g. only the free DOFs of a FEM with
+/// Dirichlet nodes): the solver only hands it back to the objective ([`Self::solve`],
+/// [`Self::directional_derivative`]); steps always live in x's space.
+pub trait NewtonObjective {
+    /// The assembled Hessian (dense matrix, sparse values, …).
+    type Hessian;
+    /// Its factorization (e.g. a Cholesky factor).
+    type Factor;
+
+    /// E(x); may be non-finite, which the line search rejects.
+    fn energy(&self, x: &[f64]) -> f64;
+
+    /// ∇E(x).
+    fn gradient(&self, x: &[f64]) -> Vec<f64>;
+
+    /// The Hessian at x with the gradient at x. `gradient` is the gradient at x when the solver
+    /// already has it (return it, or recompute it: the values must be the same); `None` asks
+    /// for it (an objective may compute both in one pass).
+    fn gradient_and_hessian(
+        &self,
+        x: &[f64],
+        gradient: Option<Vec<f64>>,
+    ) -> (Vec<f64>, Self::Hessian);
+
+    /// Factors the Hessian, or `None` when it is not positive definite.
+    fn factor(&self, hessian: Self::Hessian) -> Option<Self::Factor>;
+
+    /// The Newton step `Δx = −H⁻¹ g` in x's space.
+    fn solve(&self, factor: &Self::Factor, gradient: &[f64]) -> Vec<f64>;
+
+    /// The scale-invariant size of a step, compared with [`NewtonParams::tolerance`] (for the
+    /// simulators: the root-mean-square distance the step moves the mass, over L).
+    fn step_norm(&self, step: &[f64]) -> f64;
+
+    /// `gᵀΔx`, the slope of E along the step (default: the dot product, for a gradient in x's
+    /// space).
+    fn directional_derivative(&self, gradient: &[f64], step: &[f64]) -> f64 {
+        gradient.iter().zip(step).map(|(g, s)| g * s).sum()
+    }
+}
+
+/// Options of [`minimize`].
+#[derive(Clone, Copy, Debug, PartialEq, Serialize, Deserialize)]
+pub struct NewtonParams {
+    /// Iteration cap (default 20).
+    pub max_iterations: usize,
+    /// Converged when the objective's step norm of a Newton step falls below this (default
+    /// 1e-6; for the simulators, the step moves the mass by less than `tolerance · L` root mean
+    /// square, L the largest rest bounding-box side).
+    pub tolerance: f64,
+    /// Armijo sufficient-decrease constant c in `E(x + αΔx) ≤ E(x) + c α gᵀΔx` (default 1e-4).
+    pub armijo: f64,
+    /// Step halvings allowed per iteration before the line search gives up (default 30).
+    pub max_line_search_cuts: usize,
+}
+
+impl Default for NewtonParams {
+    fn default() -> Self {
+        NewtonParams {
+            max_iterations: 20,
+            tolerance: 1e-6,
+            armijo: 1e-4,
+            max_line_search_cuts: 30,
+        }
+    }
+}
+
+/// Why Newton stopped.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, Deserialize)]
+pub enum NewtonStop {
+    /// The step norm fell below the tolerance.
+    Converged,
+    /// `max_iterations` reached first.
+    IterationLimit,
+    /// The line search found no decrease within `max_line_search_cuts` halvings.
+    LineSearchStalled,
+}
+
+/// Seconds spent in each part of a solve.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Serialize, Deserialize)]
+pub struct NewtonTimings {
+    /// Gradients and Hessians.
+    pub assembly: f64,
+    /// Factorizations and solves.
+    pub solve: f64,
+    /// Energy evaluations of the line search.
+    pub line_search: f64,
+}
+
+impl NewtonTimings {
+    /// Sum of the parts (s).
+    pub fn total(&self) -> f64 {
+        self.assembly + self.solve + self.line_search
+    }
+}
+
+/// What one solve did.
+#[derive(Clone, Copy, Debug, PartialEq, Serialize, Deserialize)]
+pub struct NewtonReport {
+    /// Newton iterations performed (each ends in a convergence test).
+    pub iterations: usize,
+    /// Hessians assembled and factored (an iteration whose lagged-Hessian step already passes
+    /// the convergence test assembles none).
+    pub hessian_assemblies: usize,
+    /// The last convergence measure (the objective's step norm; ∞ before the first).
+    pub residual: f64,
+    /// Step halvings of the line search over all iterations (the last try of a stalled
+    /// search is not a cut).
+    pub line_search_cuts: usize,
+    /// Why Newton stopped.
+    pub stop: NewtonStop,
+    /// The final E.
+    pub energy: f64,
+    /// Time per part.
+    pub timings: NewtonTimings,
+}
+
+impl NewtonReport {
+    /// True when Newton met its tolerance.
+    pub fn converged(&self) -> bool {
+        self.stop == NewtonStop::Converged
+    }
+}
+
+/// The solve cannot go on; x is left at the last accepted iterate.
+#[derive(Clone, Debug, Error, PartialEq)]
+pub enum NewtonError {
+    /// A NaN or infinity appeared.
+    #[error("non-finite {quantity} at Newton iteration {iteration}")]
+    NonFinite {
+        /// Iteration where it appeared (0 = the starting energy).
+        iteration: usize,
+        /// What was non-finite ("energy", "gradient", "Newton step").
+        quantity: &'static str,
+    },
+    /// The Hessian was not positive definite (a static solve with free rigid motions, or an
+    /// exact tangent that is indefinite).
+    #[error("the Newton system is not positive definite at iteration {iteration}")]
+    NotPositiveDefinite {
+        /// Iteration.
+        iteration: usize,
+    },
+}
+
+/// Minimizes `objective` from `x` in place (the steps of the module docs).
+///
+/// Postcondition: on `Ok`, `x` is the last accepted iterate (the converged point when
+/// `report.converged()`), and `report.energy = E(x)` up to the final full step of a converged
+/// solve, whose energy change is below the tolerance's order.
+///
+/// # Errors
+/// [`NewtonError::NonFinite`] for a non-finite starting energy, gradient or Newton step;
+/// [`NewtonError::NotPositiveDefinite`] when a Hessian cannot be factored.
+pub fn minimize<O: NewtonObjective>(
+    objective: &O,
+    x: &mut Vec<f64>,
+    params: &NewtonParams,
+) -> Result<NewtonReport, NewtonError> {
+    let mut timings = NewtonTimings::default();
+    let mut energy = objective.energy(x);
+    if !energy.is_finite() {
+        return Err(NewtonError::NonFinite {
+            iteration: 0,
+            quantity: "energy",
+        });
+    }
+    let mut report = NewtonReport {
+        iterations: 0,
+        hessian_assemblies: 0,
+        residual: f64::INFINITY,
+        line_search_cuts: 0,
+        stop: NewtonStop::IterationLimit,
+        energy,
+        timings,
+    };
+    let non_finite_gradient = |iteration| NewtonError::NonFinite {
+        iteration,
+        quantity: "gradient",
+    };
+    let mut factor: Option<O::Factor> = None;
+    for iteration in 1..=params.max_iterations {
+        report.iterations = iteration;
+        // The lagged-Hessian convergence test: gradient only, no new Hessian if it passes.
+        let mut known_gradient = None;
+        if let Some(f) = &factor {
+            let t = Instant::now();
+            let gradient = objective.gradient(x);
+            timings.assembly += t.elapsed().as_secs_f64();
+            if !gradient.iter().all(|g| g.is_finite()) {
+                return Err(non_finite_gradient(iteration));
+            }
+            let t = Instant::now();
+            let step = objective.solve(f, &gradient);
+            timings.solve += t.elapsed().as_secs_f64();
+            let residual = objective.step_norm(&step);
+            if residual.is_finite() && residual < params.tolerance {
+                report.residual = residual;
+                apply(x, &step, 1.0);
+                report.stop = NewtonStop::Converged;
+                break;
+            }
+            known_gradient = Some(gradient);
+        }
+        let t = Instant::now();
+        let (gradient, hessian) = objective.gradient_and_hessian(x, known_gradient);
+        timings.assembly += t.elapsed().as_secs_f64();
+        report.hessian_assemblies += 1;
+        if !gradient.iter().all(|g| g.is_finite()) {
+            return Err(non_finite_gradient(iteration));
+        }
+        let t = Instant::now();
+        let f = objective
+            .factor(hessian)
+            .ok_or(NewtonError::NotPositiveDefinite { iteration })?;
+        let step = objective.solve(&f, &gradient);
+        factor = Some(f);
+        timings.solve += t.elapsed().as_secs_f64();
+        if !step.iter().all(|s| s.is_finite()) {
+            return Err(NewtonError::NonFinite {
+                iteration,
+                quantity: "Newton step",
+            });
+        }
+        let residual = objective.step_norm(&step);
+        report.residual = residual;
+        if residual < params.tolerance {
+            // Within tolerance: take the full step (quadratically small) and stop.
+            apply(x, &step, 1.0);
+            report.stop = NewtonStop::Converged;
+            break;
+        }
+        let t = Instant::now();
+        let slope = objective.directional_derivative(&gradient, &step);
+        let mut alpha = 1.0;
+        let mut accepted = None;
+        for _ in 0..=params.max_line_search_cuts {
+            let mut trial = x.clone();
+            apply(&mut trial, &step, alpha);
+            let e = objective.energy(&trial);
+            if e.is_finite() && e <= energy + params.armijo * alpha * slope {
+                accepted = Some((trial, e));
+                break;
+            }
+            alpha *= 0.5;
+            report.line_search_cuts += 1;
+        }
+        timings.line_search += t.elapsed().as_secs_f64();
+        match accepted {
+            Some((trial, e)) => {
+                *x = trial;
+                energy = e;
+            }
+            None => {
+                // The last pass of the loop tried α = 2^-cuts and counted one halving too many.
+                report.line_search_cuts -= 1;
+                report.stop = NewtonStop::LineSearchStalled;
+                break;
+            }
+        }
+    }
+    report.energy = energy;
+    report.timings = timings;
+    Ok(report)
+}
+
+/// `x += α Δx`.
+fn apply(x: &mut [f64], step: &[f64], alpha: f64) {
+    for (a, s) in x.iter_mut().zip(step) {
+        *a += alpha * s;
+    }
+}
