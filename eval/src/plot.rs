@@ -125,8 +125,19 @@ where
     macro_rules! body {
         ($chart:expr) => {{
             let mut chart = $chart;
+            let log_y = spec.scale != AxisScale::Linear;
+            let log_x = spec.scale == AxisScale::LogLog;
+            let tick = |log: bool, v: f64| {
+                if log {
+                    format!("{v:.0e}")
+                } else {
+                    format!("{v:.3}")
+                }
+            };
             chart
                 .configure_mesh()
+                .x_label_formatter(&|v| tick(log_x, *v))
+                .y_label_formatter(&|v| tick(log_y, *v))
                 .x_desc(spec.x_label.as_str())
                 .y_desc(spec.y_label.as_str())
                 .label_style(("sans-serif", 14))
