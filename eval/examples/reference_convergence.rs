@@ -11,7 +11,7 @@
 
 use clap::Parser;
 use eval::beam::BeamTest;
-use eval::beam_study::beam_length_scale;
+use eval::beam::study::beam_length_scale;
 use eval::fem_reference::{FemResolution, run_fem_beam};
 use eval::metrics::trajectory_errors;
 use eval::progress::Progress;

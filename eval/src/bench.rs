@@ -12,14 +12,14 @@ use serde::{Deserialize, Serialize};
 
 use crate::EvalError;
 use crate::beam::BeamTest;
-use crate::beam_study::beam_length_scale;
+use crate::beam::reduced::{ReducedSettings, build_beam_basis, run_reduced_beam};
+use crate::beam::simplicits::train_beam_simplicits;
+use crate::beam::study::beam_length_scale;
 use crate::fem_reference::{FemResolution, run_fem_beam};
 use crate::metrics::trajectory_errors;
-use crate::output::write_atomically;
-use crate::plot::{AxisScale, PlotSpec, Series};
 use crate::progress::Progress;
-use crate::reduced_beam::{ReducedSettings, build_beam_basis, run_reduced_beam};
-use crate::simplicits_beam::train_beam_simplicits;
+use crate::report::plot::{AxisScale, PlotSpec, Series};
+use artifact::write_atomically;
 
 /// One configuration to time.
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
@@ -369,7 +369,7 @@ pub fn write_bench(
 
 /// The headline figure: normalized MSE against ms per step, log-log, one colour per knob, the
 /// coarser FEM levels, and the Pareto front as a line. Draw it with
-/// [`crate::plot::write_plot`].
+/// [`crate::report::plot::write_plot`].
 pub fn bench_plot(results: &[BenchResult], config: &BenchConfig) -> PlotSpec {
     let mut series: Vec<Series> = Vec::new();
     for (i, knob) in ["m", "K", "points", "tolerance", "pin factor"]

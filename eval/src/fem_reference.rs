@@ -21,7 +21,7 @@ use crate::EvalError;
 use crate::beam::{BEAM_MAX, BEAM_MIN, BEAM_TIME_STEP, BeamTest, beam_material};
 use crate::metrics::{TrajectoryErrors, basis_fitting_residual, per_frame_mse, trajectory_errors};
 use crate::progress::Progress;
-use crate::scene_spec::SceneSpec;
+use freeform::scene::SceneSpec;
 
 /// Resolution and element order of a FEM beam run.
 #[derive(Clone, Copy, Debug, PartialEq, Serialize, Deserialize)]
@@ -89,8 +89,7 @@ pub fn run_fem_beam(
     progress: &Progress,
 ) -> Result<FemRun, EvalError> {
     let r = resolution.cells_per_metre;
-    let tets = TetMesh::cuboid(BEAM_MIN, BEAM_MAX, [5 * r, r, r])
-        .map_err(|e| EvalError::Setup(e.to_string()))?;
+    let tets = TetMesh::cuboid(BEAM_MIN, BEAM_MAX, [5 * r, r, r]).map_err(EvalError::FemBox)?;
     run_fem(
         &FemProblem {
             tets,
@@ -129,8 +128,9 @@ pub struct FemProblem<'a> {
 /// `problem`, showing a bar labelled `FEM <label>`.
 ///
 /// # Errors
-/// [`EvalError::Setup`] for a model that cannot be built or a region that selects no node,
-/// [`EvalError::Fem`] for a failed step or an unusable cache.
+/// [`EvalError::FemModel`] / [`EvalError::FemSetup`] for a model or scene that cannot be built
+/// (e.g. a region that selects no node), [`EvalError::Fem`] for a failed step or an unusable
+/// cache.
 pub fn run_fem(
     problem: &FemProblem<'_>,
     label: &str,
@@ -145,7 +145,7 @@ pub fn run_fem(
         StableNeoHookean,
         MassKind::Consistent,
     )
-    .map_err(|e| EvalError::Setup(e.to_string()))?;
+    .map_err(EvalError::FemModel)?;
     let fem_scene = problem.scene.fem_scene(model.mesh().nodes(), 1e4)?;
     let region_nodes = fem_scene.dirichlet.iter().map(|r| r.nodes.len()).collect();
     let params = FemParams {
@@ -153,15 +153,14 @@ pub fn run_fem(
         newton: problem.newton,
         ..FemParams::default()
     };
-    let mut sim =
-        FemSimulator::new(model, fem_scene, params).map_err(|e| EvalError::Setup(e.to_string()))?;
+    let mut sim = FemSimulator::new(model, fem_scene, params).map_err(EvalError::FemSetup)?;
     let dofs = sim.free_dofs();
     let cache = TrajectoryCache::new(cache_dir.join("fem"));
     let steps = problem.steps;
     let bar = progress.bar(steps, format!("FEM {label} ({dofs} DOFs)"));
     let (trajectory, cached) = sim
         .run_cached(steps, &problem.scene.label(), &cache, |_| bar.inc(1))
-        .map_err(|e| EvalError::Fem(e.to_string()))?;
+        .map_err(EvalError::Fem)?;
     bar.finish_and_clear();
     if cached {
         progress.status(format!(
@@ -291,7 +290,7 @@ impl FemRun {
     ///
     /// # Errors
     /// [`EvalError::Metrics`] for mismatched or non-finite frames or a singular fit,
-    /// [`EvalError::Setup`] if `field` cannot be evaluated at the vertices.
+    /// [`EvalError::OutputMap`] if `field` cannot be evaluated at the vertices.
     pub fn score<B: SkinningField + ?Sized>(
         &self,
         field: &B,
@@ -301,8 +300,7 @@ impl FemRun {
         let reference = self.vertex_frames();
         let errors = trajectory_errors(&frames[1..], &reference[1..], length)?;
         let per_frame_mse = per_frame_mse(&frames[1..], &reference[1..], length)?;
-        let map = DeformationMap::new(field, self.vertices())
-            .map_err(|e| EvalError::Setup(e.to_string()))?;
+        let map = DeformationMap::new(field, self.vertices()).map_err(EvalError::OutputMap)?;
         let fitting_residual = basis_fitting_residual(&map, &reference[1..], length)?;
         Ok(FieldScores {
             errors,
@@ -315,10 +313,9 @@ impl FemRun {
     /// elements.
     ///
     /// # Errors
-    /// [`EvalError::Setup`] if a point lies outside the mesh.
+    /// [`EvalError::PointLocation`] if a point lies outside the mesh.
     pub fn frames_at(&self, points: &[Vector3<f64>]) -> Result<Vec<Vec<Vector3<f64>>>, EvalError> {
-        let interpolation = PointInterpolation::new(&self.mesh, points)
-            .map_err(|e| EvalError::Setup(e.to_string()))?;
+        let interpolation = PointInterpolation::new(&self.mesh, points)?;
         Ok(self
             .frames
             .iter()

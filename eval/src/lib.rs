@@ -1,19 +1,20 @@
-//! FreeForm experiments (DESIGN 4, 5): the named scenes translated into each solver's inputs,
-//! the metrics against the FEM ground truth, the paper's tables with its numbers beside ours,
-//! the error-vs-time benchmark, and the `freeform` CLI (`src/bin/freeform.rs`).
+//! FreeForm experiments (DESIGN 4, 5), the paper layer on top of the `freeform` library: the
+//! named scenes, the metrics against the FEM ground truth, the paper's tables with its numbers
+//! beside ours, the error-vs-time benchmark, and the `freeform` CLI (`src/bin/freeform.rs`).
+//! Scenes, scene files, the reduced-run loop and frame writers live in the library crate
+//! `freeform`; this crate holds what reproduces the paper.
 //!
-//! - [`scene_spec`]: one solver-independent scene ([`SceneSpec`]) → reduced and FEM inputs.
-//! - [`beam`]: the beam Bend and Twist of DESIGN 4.1.
-//! - [`metrics`]: normalized MSE, max error, basis fitting residual (DESIGN 4.3).
-//! - [`fem_reference`], [`reduced_run`]: the FEM reference and one reduced run on any scene;
-//!   [`reduced_beam`]: the beam's basis and integration points.
-//! - [`simplicits_beam`], [`coefficient_beam`]: the Simplicits baseline and the Table 3
-//!   coefficient ablations trained on the beam, cached through [`model_cache`].
-//! - [`beam_study`], [`ablation_study`], [`tables`]: Tables 1, 3, 4, 5, 6. [`bench`]: the
-//!   error-vs-time study.
-//! - [`scene_file`]: user scenes in TOML/JSON for `freeform simulate`.
-//! - [`stress`]: the numerical stress suite (`freeform stress`).
-//! - [`output`], [`plot`], [`progress`]: files, figures, progress bars.
+//! The paper's experiments, one folder each:
+//! - [`beam`]: the beam Bend and Twist of DESIGN 4.1 and Tables 1, 5, 6 (with the Simplicits
+//!   baseline trained on the beam).
+//! - [`ablation`]: Tables 3 and 4 (how the basis is trained, how points are sampled).
+//! - [`shapes`]: Tables 2 and 7 on a folder of meshes.
+//! - [`bench`]: the error-vs-time study. [`stress`]: the numerical stress suite.
+//! - [`report`]: the paper's numbers, rendered tables, plots.
+//!
+//! What they share: [`fem_reference`] (the FEM ground truth on any scene, cached, refused
+//! when unconverged), [`reduced_run`] (one reduced run recorded at the FEM vertices),
+//! [`metrics`] (DESIGN 4.3), [`model_cache`] (trained networks), [`progress`] (terminal bars).
 //!
 //! Caches (FEM trajectories, bases) live under one folder (default `freeform-cache/`, or
 //! `$FREEFORM_CACHE`), keyed by content hash; deleting it only costs recomputation.
@@ -22,57 +23,91 @@ use std::path::Path;
 
 use thiserror::Error;
 
-pub mod ablation_study;
-pub mod ablation_tables;
+pub mod ablation;
 pub mod beam;
-pub mod beam_study;
 pub mod bench;
-pub mod coefficient_beam;
 pub mod fem_reference;
 pub mod metrics;
 pub mod model_cache;
-pub mod output;
-pub mod paper;
-pub mod plot;
 pub mod progress;
-pub mod reduced_beam;
 pub mod reduced_run;
-pub mod scene_file;
-pub mod scene_spec;
-pub mod shape_boundary;
-pub mod shape_catalog;
-pub mod shape_study;
-pub mod shape_tables;
-pub mod simplicits_beam;
+pub mod report;
+pub mod shapes;
 pub mod stress;
-pub mod tables;
 
-pub use scene_spec::SceneSpec;
-
-/// An experiment failed.
+/// An experiment failed. Every variant that wraps another error keeps it as its `source`.
 #[derive(Debug, Error)]
 pub enum EvalError {
-    /// Building a mesh, model or solver failed.
-    #[error("setup failed: {0}")]
-    Setup(String),
+    /// The experiment was asked for something it cannot run (an empty folder, no such mesh,
+    /// zero jobs); the message says what.
+    #[error("{0}")]
+    InvalidInput(String),
+    /// A mesh file could not be read.
+    #[error(transparent)]
+    MeshFile(#[from] rkpm_core::GeometryReadError),
+    /// Integration points could not be sampled.
+    #[error("sampling the {what} failed")]
+    Sampling {
+        /// Which points ("basis points", "simulation points", ...).
+        what: &'static str,
+        /// Why.
+        #[source]
+        source: rkpm_core::SamplingError,
+    },
+    /// E or ν is out of range.
+    #[error("invalid material")]
+    Material(#[source] hyperelastic::MaterialParameterError),
     /// Building a basis failed.
-    #[error("basis construction failed: {0}")]
-    Basis(String),
-    /// The FEM reference failed.
-    #[error("FEM reference failed: {0}")]
-    Fem(String),
-    /// The reduced simulation failed.
-    #[error("reduced simulation failed: {0}")]
-    Reduced(String),
+    #[error("building the basis failed")]
+    Basis(#[source] skin_eigen::BasisError),
+    /// Training the Simplicits network failed.
+    #[error("training {what} failed")]
+    Simplicits {
+        /// Which network.
+        what: String,
+        /// Why.
+        #[source]
+        source: baselines::simplicits::SimplicitsError,
+    },
+    /// Training a Table 3 coefficient ablation failed.
+    #[error("training {what} failed")]
+    Coefficients {
+        /// Which ablation.
+        what: String,
+        /// Why.
+        #[source]
+        source: baselines::coefficient_training::CoefficientTrainingError,
+    },
+    /// The FEM reference's box mesh could not be built.
+    #[error("building the FEM box mesh failed")]
+    FemBox(#[source] fem_ref::TetMeshError),
+    /// A surface could not be tetrahedralized for the FEM reference.
+    #[error("tetrahedralizing for the FEM reference failed")]
+    FemMesh(#[source] fem_ref::LatticeMesherError),
+    /// The FEM model could not be built.
+    #[error("building the FEM model failed")]
+    FemModel(#[source] fem_ref::FemModelError),
+    /// The FEM simulator refused the scene.
+    #[error("setting up the FEM simulator failed")]
+    FemSetup(#[source] fem_ref::FemSetupError),
+    /// The FEM reference failed to run or to use its cache.
+    #[error("the FEM reference failed")]
+    Fem(#[source] fem_ref::FemRunError),
+    /// Points to read the FEM solution at lie outside its mesh.
+    #[error(transparent)]
+    PointLocation(#[from] fem_ref::PointLocationError),
+    /// A skinning field cannot be evaluated at the output points.
+    #[error("evaluating the skinning field at the output points failed")]
+    OutputMap(#[source] reduced_sim::DeformationMapError),
     /// A scene cannot be applied.
     #[error(transparent)]
-    Scene(#[from] scene_spec::SceneSpecError),
+    Scene(#[from] freeform::SceneSpecError),
+    /// A reduced run could not start or stopped.
+    #[error(transparent)]
+    Run(#[from] freeform::RunError),
     /// Metrics could not be computed.
     #[error(transparent)]
     Metrics(#[from] metrics::MetricsError),
-    /// A scene file is unreadable or malformed.
-    #[error(transparent)]
-    SceneFile(#[from] scene_file::SceneFileError),
     /// A file could not be read or written.
     #[error("{path}: {source}")]
     Io {
@@ -87,9 +122,15 @@ pub enum EvalError {
     /// An output or cache file could not be written or read.
     #[error(transparent)]
     Artifact(#[from] artifact::ArtifactError),
-    /// A plot could not be drawn.
-    #[error("plot failed: {0}")]
-    Plot(String),
+    /// A plot could not be drawn (plotters' errors are generic over the backend, so only
+    /// their text is kept).
+    #[error("{path}: plot failed: {message}")]
+    Plot {
+        /// The figure file.
+        path: std::path::PathBuf,
+        /// The drawing backend's message.
+        message: String,
+    },
 }
 
 impl EvalError {

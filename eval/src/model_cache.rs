@@ -11,15 +11,15 @@ use rkpm_core::IntegrationPoints;
 
 use crate::EvalError;
 use crate::beam::beam_material;
+use crate::beam::reduced::beam_basis_grid;
 use crate::progress::Progress;
-use crate::reduced_beam::beam_basis_grid;
 
 /// `<cache>/<folder>/<folder>-<hash>.model` for a model of the beam grid of about
 /// `basis_points` points, trained with `options` (their `Debug` form) by a file format of
 /// `format_version`.
 ///
 /// # Errors
-/// [`EvalError::Basis`] when the grid cannot be built.
+/// [`EvalError::Sampling`] or [`EvalError::Material`] when the grid cannot be built.
 pub fn beam_model_path(
     cache_dir: &Path,
     folder: &str,

@@ -46,3 +46,54 @@ impl Progress {
         }
     }
 }
+
+/// [`Progress`] behind the library's [`freeform::Progress`] trait: one bar per stage.
+#[derive(Debug, Default)]
+pub struct BarProgress {
+    settings: Progress,
+    bar: std::sync::Mutex<Option<ProgressBar>>,
+}
+
+impl BarProgress {
+    /// Bars and status lines as `settings` says.
+    pub fn new(settings: Progress) -> Self {
+        BarProgress {
+            settings,
+            bar: std::sync::Mutex::new(None),
+        }
+    }
+
+    fn with_bar(&self, f: impl FnOnce(&mut Option<ProgressBar>)) {
+        let mut bar = self
+            .bar
+            .lock()
+            .unwrap_or_else(std::sync::PoisonError::into_inner);
+        f(&mut bar);
+    }
+}
+
+impl freeform::Progress for BarProgress {
+    fn begin(&self, len: usize, label: &str) {
+        self.with_bar(|bar| *bar = Some(self.settings.bar(len, label)));
+    }
+
+    fn advance(&self) {
+        self.with_bar(|bar| {
+            if let Some(bar) = bar {
+                bar.inc(1);
+            }
+        });
+    }
+
+    fn finish(&self) {
+        self.with_bar(|bar| {
+            if let Some(bar) = bar.take() {
+                bar.finish_and_clear();
+            }
+        });
+    }
+
+    fn status(&self, line: &str) {
+        self.settings.status(line);
+    }
+}

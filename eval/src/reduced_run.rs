@@ -1,17 +1,15 @@
-//! One reduced simulation of any skinning field on any scene (Eqs. 1-2): the loop shared by the
-//! beam tables, the shape tables and the benchmarks. It records positions at given output
-//! points (usually the FEM vertices) every step, with timings and convergence counts.
+//! One reduced run of any skinning field on any scene, recorded at given output points (usually
+//! the FEM vertices) every step: the library's [`freeform::run`] with a recorder and a bar.
 
-use hyperelastic::MaterialSample;
-use std::time::Instant;
-
+use hyperelastic::{MaterialField, MaterialSample, StableNeoHookean};
 use nalgebra::Vector3;
-use reduced_sim::{DeformationMap, ReducedModel, SimulationParams, Simulator, SkinningField};
+use reduced_sim::{DeformationMap, SimulationParams, SkinningField};
 use rkpm_core::IntegrationPoints;
 
 use crate::EvalError;
 use crate::progress::Progress;
-use crate::scene_spec::SceneSpec;
+use freeform::scene::SceneSpec;
+use freeform::{RunReport, Simulation, run};
 
 /// Everything one reduced run needs.
 pub struct ReducedProblem<'a, B: SkinningField + ?Sized> {
@@ -19,7 +17,7 @@ pub struct ReducedProblem<'a, B: SkinningField + ?Sized> {
     pub field: &'a B,
     /// Integration points of the simulation (rest positions in m, volumes in m³).
     pub points: &'a IntegrationPoints,
-    /// One homogeneous material.
+    /// One homogeneous material (stable Neo-Hookean, as in every paper experiment).
     pub material: MaterialSample,
     /// What acts on the object.
     pub scene: &'a SceneSpec,
@@ -57,61 +55,54 @@ pub struct ReducedRun {
 /// Simulates `problem.steps` steps, showing a bar labelled `label`.
 ///
 /// # Errors
-/// [`EvalError::Setup`] for a model, scene or output map that cannot be built (e.g. a region
-/// that selects no integration point), [`EvalError::Reduced`] for a failed step.
+/// [`EvalError::Run`] for a model, scene or step that fails (e.g. a region that selects no
+/// integration point); [`EvalError::OutputMap`] if the output points cannot be mapped.
 pub fn run_reduced<B: SkinningField + ?Sized>(
     problem: &ReducedProblem<'_, B>,
     label: &str,
     progress: &Progress,
 ) -> Result<ReducedRun, EvalError> {
-    let start = Instant::now();
-    let points = problem.points;
-    let model = ReducedModel::new(
-        problem.field,
-        points,
-        &vec![problem.material; points.len()],
-        hyperelastic::StableNeoHookean,
-    )
-    .map_err(|e| EvalError::Setup(e.to_string()))?;
-    let scene = problem.scene.reduced_scene(model.rest_positions())?;
-    let region_points = scene.pins.iter().map(|p| p.points.len()).collect();
-    let mut sim = Simulator::new(model, &scene, problem.params)
-        .map_err(|e| EvalError::Setup(e.to_string()))?;
-    let output = DeformationMap::new(problem.field, problem.output_points)
-        .map_err(|e| EvalError::Setup(e.to_string()))?;
-    let setup_seconds = start.elapsed().as_secs_f64();
-
+    let output =
+        DeformationMap::new(problem.field, problem.output_points).map_err(EvalError::OutputMap)?;
+    let simulation = Simulation {
+        field: problem.field,
+        points: problem.points,
+        material: &MaterialField::Uniform(problem.material),
+        material_model: StableNeoHookean,
+        scene: problem.scene,
+        params: problem.params,
+    };
     let steps = problem.steps;
     let bar = progress.bar(steps, label);
     let mut frames = Vec::with_capacity(steps + 1);
-    frames.push(output.positions(&sim.state().z));
-    let (mut iterations, mut unconverged) = (0usize, 0usize);
-    let (mut stepping, mut assembly) = (0.0, 0.0);
-    let mut max_pin_deviation: f64 = 0.0;
-    for step in 1..=steps {
-        let t = Instant::now();
-        let report = sim
-            .step()
-            .map_err(|e| EvalError::Reduced(format!("step {step}: {e}")))?;
-        stepping += t.elapsed().as_secs_f64();
-        assembly += report.timings.assembly;
-        iterations += report.iterations;
-        unconverged += usize::from(!report.converged());
-        max_pin_deviation = max_pin_deviation.max(sim.max_pin_deviation().unwrap_or(0.0));
-        frames.push(output.positions(&sim.state().z));
-        bar.inc(1);
-    }
+    let report = run(&simulation, steps, |frame| {
+        frames.push(output.positions(&frame.simulator.state().z));
+        if frame.index > 0 {
+            bar.inc(1);
+        }
+        Ok(())
+    });
     bar.finish_and_clear();
-    let n = steps.max(1) as f64;
-    Ok(ReducedRun {
-        frames,
-        ms_per_step: 1e3 * stepping / n,
-        ms_assembly_per_step: 1e3 * assembly / n,
-        iterations_per_step: iterations as f64 / n,
-        unconverged_steps: unconverged,
+    let RunReport {
+        ms_per_step,
+        ms_assembly_per_step,
+        iterations_per_step,
+        unconverged_steps,
         max_pin_deviation,
         setup_seconds,
-        simulation_points: points.len(),
+        simulation_points,
+        region_points,
+        ..
+    } = report?;
+    Ok(ReducedRun {
+        frames,
+        ms_per_step,
+        ms_assembly_per_step,
+        iterations_per_step,
+        unconverged_steps,
+        max_pin_deviation,
+        setup_seconds,
+        simulation_points,
         region_points,
     })
 }

@@ -4,13 +4,13 @@
 //! grid.
 
 use baselines::SimplicitsParams;
-use eval::ablation_study::{AblationStudyConfig, run_ablation_study};
-use eval::ablation_tables::{table3, table4};
+use eval::ablation::study::{AblationStudyConfig, run_ablation_study};
+use eval::ablation::tables::{table3, table4};
 use eval::beam::BeamTest;
-use eval::beam_study::BeamStudyConfig;
+use eval::beam::reduced::{ReducedSettings, SimulationSampling};
+use eval::beam::study::BeamStudyConfig;
 use eval::fem_reference::FemResolution;
 use eval::progress::Progress;
-use eval::reduced_beam::{ReducedSettings, SimulationSampling};
 use fem_ref::ElementOrder;
 use optimize::NewtonParams;
 

@@ -8,9 +8,9 @@
 //! because faer's dense eigensolver blocks its work by the thread count.
 
 use eval::beam::BeamTest;
+use eval::beam::reduced::{ReducedSettings, build_beam_basis, run_reduced_beam};
 use eval::fem_reference::{FemResolution, run_fem_beam};
 use eval::progress::Progress;
-use eval::reduced_beam::{ReducedSettings, build_beam_basis, run_reduced_beam};
 use fem_ref::ElementOrder;
 use nalgebra::Vector3;
 use optimize::NewtonParams;

@@ -1,9 +1,9 @@
 //! The basis fitting residual on a real basis: zero for motions the basis spans, positive for
 //! one it cannot.
 
+use eval::beam::reduced::{ReducedSettings, build_beam_basis};
 use eval::beam::{BEAM_MAX, BEAM_MIN};
 use eval::metrics::basis_fitting_residual;
-use eval::reduced_beam::{ReducedSettings, build_beam_basis};
 use nalgebra::{Matrix3, Vector3};
 use reduced_sim::DeformationMap;
 

@@ -1,8 +1,8 @@
 //! One scene description gives both solvers the same constrained set and the same targets.
 
 use eval::beam::{BEAM_TIME_STEP, BeamTest};
-use eval::scene_spec::{SceneSpec, SceneSpecError};
 use fem_ref::{ElementOrder, FemMesh, TetMesh};
+use freeform::scene::{SceneSpec, SceneSpecError};
 use nalgebra::Vector3;
 
 fn beam_nodes() -> Vec<Vector3<f64>> {

@@ -1,8 +1,8 @@
 //! The shapes experiment (Tables 2 and 7): the three boundary conditions select the intended
 //! regions (the end-to-end `freeform table 2 7 --quick` run is in `cli.rs`).
 
-use eval::scene_spec::Motion;
-use eval::shape_boundary::{ShapeBoundary, ShapeBoundaryParams};
+use eval::shapes::boundary::{ShapeBoundary, ShapeBoundaryParams};
+use freeform::scene::Motion;
 use nalgebra::Vector3;
 use rkpm_core::TriangleMesh;
 
@@ -82,7 +82,7 @@ fn pull_farthest_pulls_four_distinct_corners_outward_within_the_radius() {
     };
     // Sampling among all cells: the first two are opposite corners (the farthest from the
     // centre, ties to the lowest index, then the farthest from it).
-    let first_two = eval::shape_boundary::farthest_points(&points, centre, 2);
+    let first_two = eval::shapes::boundary::farthest_points(&points, centre, 2);
     assert!((first_two[0] - Vector3::from(lo)).norm() < 1e-12);
     assert!(
         (first_two[1] - Vector3::from(hi)).norm() < 1e-12,
@@ -109,7 +109,7 @@ fn pull_farthest_pulls_four_distinct_corners_outward_within_the_radius() {
     let selected = scene.select(&points, "cell centres").unwrap();
     let mut centres = Vec::new();
     for (constraint, region) in scene.constraints.iter().zip(&selected) {
-        let eval::scene_spec::Region::Ball { center, radius } = constraint.region else {
+        let freeform::scene::Region::Ball { center, radius } = constraint.region else {
             panic!("a pulled patch is a ball, got {:?}", constraint.region);
         };
         assert!(

@@ -3,11 +3,12 @@
 
 use baselines::SimplicitsParams;
 use eval::beam::BeamTest;
-use eval::beam_study::{BeamStudyConfig, run_beam_study};
+use eval::beam::reduced::ReducedSettings;
+use eval::beam::study::{BeamStudyConfig, run_beam_study};
+use eval::beam::tables::{table1, table5, table6, twist_error_plot};
 use eval::fem_reference::FemResolution;
 use eval::progress::Progress;
-use eval::reduced_beam::ReducedSettings;
-use eval::tables::{table1, table5, table6, twist_error_plot, write_table};
+use eval::report::table::write_table;
 use fem_ref::ElementOrder;
 use optimize::NewtonParams;
 

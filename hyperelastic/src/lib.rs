@@ -23,6 +23,8 @@ pub mod determinant;
 pub mod lame_parameters;
 pub mod linear_elastic;
 pub mod material;
+#[cfg(any(test, feature = "checks"))]
+pub mod material_checks;
 pub mod material_sample;
 pub mod psd_projection;
 pub mod signed_svd;
@@ -33,6 +35,10 @@ pub use determinant::{Matrix9, cofactor, determinant_hessian};
 pub use lame_parameters::{LameParameters, MaterialParameterError};
 pub use linear_elastic::LinearElastic;
 pub use material::{HyperelasticMaterial, Tangent};
+#[cfg(any(test, feature = "checks"))]
+pub use material_checks::{
+    MaterialCheckError, MaterialCheckParams, MaterialCheckReport, check_material,
+};
 pub use material_sample::{MaterialField, MaterialFunction, MaterialSample, lame_parameters_of};
 pub use psd_projection::project_to_psd;
 pub use signed_svd::SignedSvd;

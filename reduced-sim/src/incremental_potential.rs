@@ -5,6 +5,10 @@
 //! ```
 //!
 //! with `ẑ = z_t + h ż_t`. Without the inertia term it is the static equilibrium problem.
+//!
+//! [`crate::Simulator::step_potential`] hands out the potential of the next step, so a caller
+//! can evaluate it, check its derivatives, or minimize it with its own solver (it implements
+//! [`optimize::NewtonObjective`]).
 
 use faer::linalg::solvers::{Llt, Solve};
 use faer::{Mat, Side};
@@ -20,8 +24,10 @@ pub(crate) struct Inertia<'a> {
     pub(crate) inverse_step_squared: f64,
 }
 
-/// E(z) of one step, with its gradient and (PSD) Hessian.
-pub(crate) struct IncrementalPotential<'a, M: HyperelasticMaterial> {
+/// E(z) of one step (Eq. 2 with backward Euler, DESIGN 3.7), with its gradient and Hessian
+/// (PSD-projected per point for [`Tangent::ProjectedPsd`]). z has length 12(m + 1) (the
+/// [`crate::ReducedLayout`]); E is in J up to a constant.
+pub struct IncrementalPotential<'a, M: HyperelasticMaterial> {
     pub(crate) model: &'a ReducedModel<M>,
     pub(crate) terms: &'a SceneTerms,
     pub(crate) targets: PinTargets,
@@ -31,7 +37,7 @@ pub(crate) struct IncrementalPotential<'a, M: HyperelasticMaterial> {
 
 impl<M: HyperelasticMaterial> IncrementalPotential<'_, M> {
     /// E(z) (J, up to a constant). Non-finite when some term is.
-    pub(crate) fn energy(&self, z: &[f64]) -> f64 {
+    pub fn energy(&self, z: &[f64]) -> f64 {
         let mut e = self.model.elastic_energy(z) + self.terms.energy(self.model, z, &self.targets);
         if let Some(inertia) = &self.inertia {
             let d: Vec<f64> = z
@@ -44,8 +50,8 @@ impl<M: HyperelasticMaterial> IncrementalPotential<'_, M> {
         e
     }
 
-    /// `(∂E/∂z, ∂²E/∂z²)` at z.
-    pub(crate) fn derivatives(&self, z: &[f64]) -> (Vec<f64>, Mat<f64>) {
+    /// `(∂E/∂z, ∂²E/∂z²)` at z (J, J; the Hessian 12(m+1) square, dense).
+    pub fn derivatives(&self, z: &[f64]) -> (Vec<f64>, Mat<f64>) {
         let f = self.model.deformation_map().deformation_gradients(z);
         let mut gradient = self.model.elastic_gradient_at(&f);
         let mut hessian = Mat::zeros(z.len(), z.len());
@@ -63,7 +69,7 @@ impl<M: HyperelasticMaterial> IncrementalPotential<'_, M> {
     }
 
     /// `∂E/∂z` alone (no Hessian work).
-    pub(crate) fn gradient(&self, z: &[f64]) -> Vec<f64> {
+    pub fn gradient(&self, z: &[f64]) -> Vec<f64> {
         let mut gradient = self.model.elastic_gradient(z);
         self.terms
             .add_derivatives(self.model, z, &self.targets, &mut gradient, None);

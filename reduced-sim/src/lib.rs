@@ -38,7 +38,7 @@
 mod analytic_field;
 pub mod deformation_map;
 pub mod elastic_energy;
-mod incremental_potential;
+pub mod incremental_potential;
 pub mod reduced_coordinates;
 pub mod reduced_model;
 pub mod scene;
@@ -47,6 +47,7 @@ pub mod simulator;
 pub mod skinning_field;
 
 pub use deformation_map::{DeformationMap, DeformationMapError};
+pub use incremental_potential::IncrementalPotential;
 pub use reduced_coordinates::ReducedLayout;
 pub use reduced_model::{ReducedModel, ReducedModelError};
 pub use scene::{Floor, PenaltyParams, PinTarget, PinnedRegion, Scene, TargetFunction};

@@ -172,24 +172,9 @@ impl<M: HyperelasticMaterial> Simulator<M> {
         if !(h > 0.0 && h.is_finite()) {
             return Err(StepError::InvalidTimeStep(h));
         }
-        let predicted: Vec<f64> = self
-            .state
-            .z
-            .iter()
-            .zip(&self.state.velocity)
-            .map(|(z, v)| z + h * v)
-            .collect();
+        let predicted = self.predicted_coordinates();
         let next_time = self.state.time + h;
-        let potential = IncrementalPotential {
-            model: &self.model,
-            terms: &self.terms,
-            targets: self.terms.pin_targets(next_time),
-            inertia: Some(Inertia {
-                predicted: &predicted,
-                inverse_step_squared: 1.0 / (h * h),
-            }),
-            tangent: self.params.tangent,
-        };
+        let potential = self.step_potential(&predicted);
         let mut z = predicted.clone();
         let report = minimize(&potential, &mut z, &self.params.newton)?;
         let velocity = z
@@ -203,6 +188,34 @@ impl<M: HyperelasticMaterial> Simulator<M> {
             time: next_time,
         };
         Ok(report)
+    }
+
+    /// The inertial prediction `ẑ = z_t + h ż_t` of the next step (length 12(m + 1)).
+    pub fn predicted_coordinates(&self) -> Vec<f64> {
+        let h = self.params.time_step;
+        self.state
+            .z
+            .iter()
+            .zip(&self.state.velocity)
+            .map(|(z, v)| z + h * v)
+            .collect()
+    }
+
+    /// The incremental potential E(z) that [`Simulator::step`] minimizes next: inertia about
+    /// `predicted` (normally [`Simulator::predicted_coordinates`]), elasticity, and the scene's
+    /// terms at t + h.
+    pub fn step_potential<'a>(&'a self, predicted: &'a [f64]) -> IncrementalPotential<'a, M> {
+        let h = self.params.time_step;
+        IncrementalPotential {
+            model: &self.model,
+            terms: &self.terms,
+            targets: self.terms.pin_targets(self.state.time + h),
+            inertia: Some(Inertia {
+                predicted,
+                inverse_step_squared: 1.0 / (h * h),
+            }),
+            tangent: self.params.tangent,
+        }
     }
 
     /// Static equilibrium under the scene's loads and pin targets at `time` (s): minimizes the

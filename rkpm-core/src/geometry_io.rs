@@ -402,13 +402,12 @@ fn parse_ply(bytes: &[u8], path: &Path) -> Result<PlyContents, GeometryReadError
 
 fn parse_ply_mesh(bytes: &[u8], path: &Path) -> Result<Soup, GeometryReadError> {
     let contents = parse_ply(bytes, path)?;
-    let faces = contents
-        .faces
-        .ok_or_else(|| GeometryReadError::MissingProperty {
-            path: path.to_owned(),
-            element: "face".into(),
-            property: "vertex_indices".into(),
-        })?;
+    // No face element at all: a point cloud (e.g. a 3DGS file), which callers that accept
+    // clouds recognise by `NoData`.
+    let faces = contents.faces.ok_or_else(|| GeometryReadError::NoData {
+        path: path.to_owned(),
+        what: "the PLY file has no face element (a point cloud, not a mesh)".into(),
+    })?;
     let vertices = contents
         .vertices
         .iter()

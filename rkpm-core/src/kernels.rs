@@ -4,7 +4,8 @@
 //! `r_k = max(radius_scale · d₂(p_k), min_radius_factor · s̄)`, with d₂ the distance from p_k to
 //! its second-nearest other centre (the paper's "minimal distance to reach two other centers")
 //! and s̄ the mean nearest-neighbour spacing of the integration points (the authors' clamp).
-//! The raw kernel is the Gaussian `φ_k(X) = exp(-|X - p_k|² / r_k²)`.
+//! The raw kernel is a window of `|X - p_k| / r_k` ([`KernelWindow`]): the paper's Gaussian
+//! `φ_k(X) = exp(-|X - p_k|² / r_k²)` by default, or a compactly supported cubic B-spline.
 
 use nalgebra::Vector3;
 use rand::{Rng, SeedableRng};
@@ -35,6 +36,62 @@ impl Default for KernelParams {
             radius_scale: 1.0,
             min_radius_factor: 3.0,
             seed: 0,
+        }
+    }
+}
+
+/// The window `φ(X) = w(|X − p| / r)` of one RKPM kernel of centre p and radius r (m).
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Serialize, Deserialize)]
+#[serde(rename_all = "snake_case")]
+pub enum KernelWindow {
+    /// `w(q) = exp(−q²)` (the Gaussian RBF of the paper, Sec. 4): infinite support, truncated by
+    /// [`crate::ShapeFunctionParams::cutoff`].
+    #[default]
+    Gaussian,
+    /// The cubic B-spline `w(q) = 2/3 − q² + q³/2` for q < 1, `(2 − q)³/6` for 1 ≤ q < 2, 0
+    /// beyond: C², exactly zero outside 2r, so no tail is truncated.
+    CubicBSpline,
+}
+
+impl KernelWindow {
+    /// Support radius in units of r (`∞` for the Gaussian).
+    pub fn support(&self) -> f64 {
+        match self {
+            KernelWindow::Gaussian => f64::INFINITY,
+            KernelWindow::CubicBSpline => 2.0,
+        }
+    }
+
+    /// `φ(X)` and `∇φ(X)` (1/m) at offset `d = X − p` (m) from a kernel of radius `r` (m).
+    pub fn value_and_gradient(&self, d: &Vector3<f64>, r: f64) -> (f64, Vector3<f64>) {
+        match self {
+            KernelWindow::Gaussian => {
+                let f = (-d.norm_squared() / (r * r)).exp();
+                (f, d * (-2.0 * f / (r * r)))
+            }
+            KernelWindow::CubicBSpline => {
+                let distance = d.norm();
+                let q = distance / r;
+                // w'(q)/q keeps the gradient finite at the centre: w'(q) = −2q + 3q²/2 on [0, 1).
+                let (w, dw_over_q) = if q < 1.0 {
+                    (2.0 / 3.0 - q * q + 0.5 * q * q * q, -2.0 + 1.5 * q)
+                } else if q < 2.0 {
+                    let t = 2.0 - q;
+                    (t * t * t / 6.0, -0.5 * t * t / q)
+                } else {
+                    (0.0, 0.0)
+                };
+                // ∇φ = w'(q) ∇q = w'(q) d / (r |d|) = (w'(q)/q) d / r².
+                (w, d * (dw_over_q / (r * r)))
+            }
+        }
+    }
+
+    /// `φ(X)` at offset `d = X − p` (m) from a kernel of radius `r` (m).
+    pub fn value(&self, d: &Vector3<f64>, r: f64) -> f64 {
+        match self {
+            KernelWindow::Gaussian => (-d.norm_squared() / (r * r)).exp(),
+            KernelWindow::CubicBSpline => self.value_and_gradient(d, r).0,
         }
     }
 }
@@ -280,5 +337,39 @@ mod tests {
                 available: 8
             })
         );
+    }
+}
+
+#[cfg(test)]
+mod window_tests {
+    use super::*;
+
+    #[test]
+    fn window_gradients_match_central_differences_and_the_spline_is_c1_at_its_knots() {
+        let h = 1e-6;
+        let r = 0.7;
+        for window in [KernelWindow::Gaussian, KernelWindow::CubicBSpline] {
+            // Offsets at q = 0.3, 0.999, 1.001, 1.6 and 2.2 along a skew direction.
+            let dir = Vector3::new(0.3, -0.5, 0.8).normalize();
+            for q in [0.3, 0.999, 1.001, 1.6, 2.2] {
+                let d = dir * q * r;
+                let (_, g) = window.value_and_gradient(&d, r);
+                let fd = Vector3::from_fn(|i, _| {
+                    let e = Vector3::ith(i, h);
+                    (window.value(&(d + e), r) - window.value(&(d - e), r)) / (2.0 * h)
+                });
+                assert!(
+                    (g - fd).norm() < 1e-7,
+                    "{window:?} at q = {q}: {g:?} vs {fd:?}"
+                );
+            }
+            let (f0, g0) = window.value_and_gradient(&Vector3::zeros(), r);
+            assert!(f0 > 0.0 && g0.norm() == 0.0);
+        }
+        let spline = KernelWindow::CubicBSpline;
+        let at = |q: f64| spline.value(&Vector3::new(q * r, 0.0, 0.0), r);
+        assert!((at(1.0 - 1e-12) - at(1.0 + 1e-12)).abs() < 1e-11);
+        assert_eq!(at(2.0), 0.0);
+        assert!((at(0.0) - 2.0 / 3.0).abs() < 1e-15);
     }
 }

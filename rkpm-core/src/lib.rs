@@ -43,7 +43,9 @@ pub use integration_points::{
     RandomSamplingParams, SamplingError, sample_box_grid, sample_grid, sample_point_cloud,
     sample_random,
 };
-pub use kernels::{KernelError, KernelParams, Kernels, farthest_point_sampling, place_kernels};
+pub use kernels::{
+    KernelError, KernelParams, KernelWindow, Kernels, farthest_point_sampling, place_kernels,
+};
 pub use point_cloud::{GaussianSplatAttributes, PointCloud};
 pub use shape_functions::{
     ReproducingErrors, ShapeFunctionError, ShapeFunctionParams, ShapeFunctions,

@@ -39,7 +39,7 @@ use nalgebra::{Matrix3, Matrix4, Vector3, Vector4};
 use rayon::prelude::*;
 use serde::{Deserialize, Serialize};
 
-use crate::kernels::Kernels;
+use crate::kernels::{KernelWindow, Kernels};
 use crate::spatial_index::SpatialIndex;
 
 /// Options for [`evaluate_shape_functions`].
@@ -51,6 +51,10 @@ pub struct ShapeFunctionParams {
     /// Smallest accepted pivot-ratio estimate of the moment matrix's reciprocal condition number
     /// (default 1e-12).
     pub min_reciprocal_condition: f64,
+    /// The kernel window (default the paper's Gaussian). A window of finite support reaches no
+    /// farther than its support, whatever the cutoff.
+    #[serde(default)]
+    pub window: KernelWindow,
 }
 
 impl Default for ShapeFunctionParams {
@@ -58,6 +62,7 @@ impl Default for ShapeFunctionParams {
         ShapeFunctionParams {
             cutoff: 4.0,
             min_reciprocal_condition: 1e-12,
+            window: KernelWindow::Gaussian,
         }
     }
 }
@@ -263,7 +268,8 @@ pub fn evaluate_shape_functions(
         }
     }
     let index = SpatialIndex::new(kernels.centers());
-    let search_radius = params.cutoff * kernels.radii().iter().copied().fold(0.0, f64::max);
+    let cutoff = params.cutoff.min(params.window.support());
+    let search_radius = cutoff * kernels.radii().iter().copied().fold(0.0, f64::max);
     let per_point: Vec<PointShapeFunctions> = queries
         .par_iter()
         .enumerate()
@@ -274,20 +280,25 @@ pub fn evaluate_shape_functions(
             let mut reach: Vec<u32> = index
                 .within(x, search_radius)
                 .into_iter()
-                .filter(|&(k, d)| d < params.cutoff * kernels.radii()[k])
+                .filter(|&(k, d)| d < cutoff * kernels.radii()[k])
                 .map(|(k, _)| k as u32)
                 .collect();
             reach.sort_unstable();
-            evaluate_at(x, kernels, reach, params.min_reciprocal_condition).map_err(
-                |(kernels_in_reach, reciprocal_condition)| {
-                    ShapeFunctionError::SingularMomentMatrix {
-                        point: i,
-                        position: [x.x, x.y, x.z],
-                        kernels_in_reach,
-                        reciprocal_condition,
-                    }
-                },
+            evaluate_at(
+                x,
+                kernels,
+                params.window,
+                reach,
+                params.min_reciprocal_condition,
             )
+            .map_err(|(kernels_in_reach, reciprocal_condition)| {
+                ShapeFunctionError::SingularMomentMatrix {
+                    point: i,
+                    position: [x.x, x.y, x.z],
+                    kernels_in_reach,
+                    reciprocal_condition,
+                }
+            })
         })
         .collect::<Vec<_>>()
         .into_iter()
@@ -321,6 +332,7 @@ pub fn evaluate_shape_functions(
 fn evaluate_at(
     x: &Vector3<f64>,
     kernels: &Kernels,
+    window: KernelWindow,
     reach: Vec<u32>,
     min_rcond: f64,
 ) -> Result<PointShapeFunctions, (usize, f64)> {
@@ -339,11 +351,11 @@ fn evaluate_at(
     for &k in &reach {
         let (p, r) = (kernels.centers()[k as usize], kernels.radii()[k as usize]);
         let d = x - p;
-        let f = (-d.norm_squared() / (r * r)).exp();
+        let (f, grad_f) = window.value_and_gradient(&d, r);
         let bk = Vector4::new(1.0, d.x / s, d.y / s, d.z / s);
         M += f * bk * bk.transpose();
         phi.push(f);
-        grad_phi.push(d * (-2.0 * f / (r * r)));
+        grad_phi.push(grad_f);
         b.push(bk);
     }
     let chol = M.cholesky().ok_or((n, 0.0))?;
@@ -386,6 +398,7 @@ fn evaluate_at(
 pub fn shape_function_values_unshifted(
     x: &Vector3<f64>,
     kernels: &Kernels,
+    window: KernelWindow,
     reach: &[u32],
 ) -> Option<Vec<f64>> {
     let basis = |p: &Vector3<f64>| Vector4::new(1.0, p.x, p.y, p.z);
@@ -393,7 +406,7 @@ pub fn shape_function_values_unshifted(
         .iter()
         .map(|&k| {
             let (p, r) = (kernels.centers()[k as usize], kernels.radii()[k as usize]);
-            (-(x - p).norm_squared() / (r * r)).exp()
+            window.value(&(x - p), r)
         })
         .collect();
     let moment: Matrix4<f64> = reach

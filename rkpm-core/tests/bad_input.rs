@@ -86,12 +86,23 @@ fn ply_with_missing_properties_is_reported() {
         matches!(&err, GeometryReadError::MissingProperty { element, property, .. } if element == "vertex" && property == "z"),
         "{err:?}"
     );
-    let no_faces = "ply\nformat ascii 1.0\nelement vertex 1\nproperty float x\nproperty float y\nproperty float z\nend_header\n0 0 0\n";
-    let err = read_triangle_mesh(write("nofaces.ply", no_faces.as_bytes())).unwrap_err();
+    let face_without_indices = "ply\nformat ascii 1.0\nelement vertex 1\nproperty float x\nproperty float y\nproperty float z\nelement face 1\nproperty uchar flags\nend_header\n0 0 0\n1\n";
+    let err =
+        read_triangle_mesh(write("faceflags.ply", face_without_indices.as_bytes())).unwrap_err();
     assert!(
         matches!(&err, GeometryReadError::MissingProperty { element, .. } if element == "face"),
         "{err:?}"
     );
+}
+
+#[test]
+fn a_ply_without_a_face_element_is_no_mesh_but_reads_as_a_point_cloud() {
+    let no_faces = "ply\nformat ascii 1.0\nelement vertex 1\nproperty float x\nproperty float y\nproperty float z\nend_header\n0 0 0\n";
+    let path = write("nofaces.ply", no_faces.as_bytes());
+    let err = read_triangle_mesh(&path).unwrap_err();
+    assert!(matches!(&err, GeometryReadError::NoData { .. }), "{err:?}");
+    assert!(err.to_string().contains("point cloud"), "{err}");
+    assert_eq!(read_point_cloud(&path).unwrap().len(), 1);
 }
 
 #[test]

@@ -4,7 +4,7 @@
 use nalgebra::Vector3;
 use proptest::prelude::*;
 use rkpm_core::{
-    GridSamplingParams, IntegrationPoints, KernelParams, Kernels, ShapeFunctionError,
+    GridSamplingParams, IntegrationPoints, KernelParams, KernelWindow, Kernels, ShapeFunctionError,
     ShapeFunctionParams, ShapeFunctions, evaluate_shape_functions, place_kernels,
     read_triangle_mesh, sample_box_grid, sample_grid, shape_function_values_unshifted,
 };
@@ -73,17 +73,47 @@ proptest! {
     }
 }
 
+const WINDOWS: [KernelWindow; 2] = [KernelWindow::Gaussian, KernelWindow::CubicBSpline];
+
 #[test]
-fn reproducing_conditions_hold_on_the_beam() {
+fn reproducing_conditions_hold_on_the_beam_for_every_window() {
     let (points, kernels) = box_layout([5.0, 1.0, 1.0], 0.1, 400);
-    let shape = evaluate_shape_functions(
+    for window in WINDOWS {
+        let shape = evaluate_shape_functions(
+            &kernels,
+            points.positions(),
+            &ShapeFunctionParams {
+                window,
+                ..Default::default()
+            },
+        )
+        .unwrap();
+        let err = reproducing_error(&shape, &kernels, points.positions(), 5.0);
+        assert!(err < 1e-10, "{window:?}: beam reproducing error {err:e}");
+    }
+}
+
+#[test]
+fn the_spline_window_reaches_no_kernel_beyond_twice_its_radius() {
+    let (points, kernels) = box_layout([2.0, 1.0, 1.0], 0.1, 150);
+    let params = ShapeFunctionParams {
+        window: KernelWindow::CubicBSpline,
+        ..Default::default()
+    };
+    let shape = evaluate_shape_functions(&kernels, points.positions(), &params).unwrap();
+    for (i, x) in points.positions().iter().enumerate() {
+        for &k in shape.kernels(i) {
+            let k = k as usize;
+            assert!((x - kernels.centers()[k]).norm() < 2.0 * kernels.radii()[k]);
+        }
+    }
+    let gaussian = evaluate_shape_functions(
         &kernels,
         points.positions(),
         &ShapeFunctionParams::default(),
     )
     .unwrap();
-    let err = reproducing_error(&shape, &kernels, points.positions(), 5.0);
-    assert!(err < 1e-10, "beam reproducing error {err:e}");
+    assert!(shape.mean_kernels_per_point() < gaussian.mean_kernels_per_point());
 }
 
 #[test]
@@ -117,19 +147,28 @@ fn reproducing_conditions_hold_on_shared_meshes() {
 }
 
 #[test]
-fn gradients_match_central_differences() {
+fn gradients_match_central_differences_for_every_window() {
     let (_, kernels) = box_layout([2.0, 1.0, 1.0], 0.1, 120);
-    let params = ShapeFunctionParams {
-        cutoff: 6.0,
-        ..Default::default()
-    };
+    for window in WINDOWS {
+        check_gradients(
+            &kernels,
+            &ShapeFunctionParams {
+                cutoff: 6.0,
+                window,
+                ..Default::default()
+            },
+        );
+    }
+}
+
+fn check_gradients(kernels: &Kernels, params: &ShapeFunctionParams) {
     let h = 1e-6;
     for q in [
         Vector3::new(0.31, 0.52, 0.47),
         Vector3::new(1.73, 0.11, 0.9),
         Vector3::new(0.05, 0.95, 0.02),
     ] {
-        let at = |x: Vector3<f64>| evaluate_shape_functions(&kernels, &[x], &params).unwrap();
+        let at = |x: Vector3<f64>| evaluate_shape_functions(kernels, &[x], params).unwrap();
         let base = at(q);
         let mut probes = Vec::new();
         for d in 0..3 {
@@ -161,33 +200,43 @@ fn gradients_match_central_differences() {
         }
         assert!(
             worst < 1e-6,
-            "gradient vs finite difference, relative error {worst:e} at {q:?}"
+            "{:?}: gradient vs finite difference, relative error {worst:e} at {q:?}",
+            params.window
         );
     }
 }
 
 #[test]
-fn shifted_form_equals_the_papers_unshifted_form() {
+fn shifted_form_equals_the_papers_unshifted_form_for_every_window() {
     let (points, kernels) = box_layout([2.0, 1.0, 1.0], 0.1, 100);
-    let shape = evaluate_shape_functions(
-        &kernels,
-        points.positions(),
-        &ShapeFunctionParams::default(),
-    )
-    .unwrap();
-    let mut worst: f64 = 0.0;
-    for i in (0..points.len()).step_by(37) {
-        let unshifted =
-            shape_function_values_unshifted(&points.positions()[i], &kernels, shape.kernels(i))
-                .unwrap();
-        for (a, b) in shape.values(i).iter().zip(&unshifted) {
-            worst = worst.max((a - b).abs());
+    for window in WINDOWS {
+        let shape = evaluate_shape_functions(
+            &kernels,
+            points.positions(),
+            &ShapeFunctionParams {
+                window,
+                ..Default::default()
+            },
+        )
+        .unwrap();
+        let mut worst: f64 = 0.0;
+        for i in (0..points.len()).step_by(37) {
+            let unshifted = shape_function_values_unshifted(
+                &points.positions()[i],
+                &kernels,
+                window,
+                shape.kernels(i),
+            )
+            .unwrap();
+            for (a, b) in shape.values(i).iter().zip(&unshifted) {
+                worst = worst.max((a - b).abs());
+            }
         }
+        assert!(
+            worst < 1e-9,
+            "{window:?}: shifted vs unshifted: max difference {worst:e}"
+        );
     }
-    assert!(
-        worst < 1e-9,
-        "shifted vs unshifted: max difference {worst:e}"
-    );
 }
 
 #[test]

@@ -10,8 +10,9 @@ use serde::{Deserialize, Serialize};
 
 /// File magic of a saved basis.
 const MAGIC: [u8; 8] = *b"FFBASIS\0";
-/// Format version; bump on any change of [`SkinningBasis`]'s serialized layout.
-pub const BASIS_FORMAT_VERSION: u32 = 1;
+/// Format version; bump on any change of [`SkinningBasis`]'s serialized layout (2: the
+/// shape-function options carry the kernel window).
+pub const BASIS_FORMAT_VERSION: u32 = 2;
 
 /// Saving or loading a basis failed.
 #[derive(Debug, thiserror::Error)]

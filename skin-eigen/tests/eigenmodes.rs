@@ -218,7 +218,7 @@ fn saved_basis_reloads_with_identical_weights_and_rejects_other_versions() {
     let mut truncated = std::fs::read(dir.join("beam.basis")).unwrap_or_default();
     truncated.clear();
     truncated.extend(b"FFBASIS\0");
-    truncated.extend(1u32.to_le_bytes());
+    truncated.extend(skin_eigen::BASIS_FORMAT_VERSION.to_le_bytes());
     truncated.extend([1, 2, 3]);
     std::fs::write(&path, &truncated).unwrap();
     assert!(matches!(

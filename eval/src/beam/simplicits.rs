@@ -9,9 +9,9 @@ use hyperelastic::LameParameters;
 use rkpm_core::IntegrationPoints;
 
 use crate::EvalError;
+use crate::beam::reduced::beam_basis_grid;
 use crate::model_cache::{beam_model_path, load_or_train};
 use crate::progress::Progress;
-use crate::reduced_beam::beam_basis_grid;
 
 /// A trained network and whether it came from the cache.
 pub struct CachedSimplicits {
@@ -25,7 +25,7 @@ pub struct CachedSimplicits {
 /// of about `basis_points` points.
 ///
 /// # Errors
-/// [`EvalError::Basis`] if training fails (a cache that cannot be written is a warning).
+/// [`EvalError::Simplicits`] if training fails (a cache that cannot be written is a warning).
 pub fn train_beam_simplicits(
     params: &SimplicitsParams,
     basis_points: usize,
@@ -47,7 +47,7 @@ pub fn train_beam_simplicits(
 /// parameters `lame` (one per point), showing a bar with the loss every 100 steps.
 ///
 /// # Errors
-/// [`EvalError::Basis`] if training fails (a cache that cannot be written is a warning).
+/// [`EvalError::Simplicits`] if training fails (a cache that cannot be written is a warning).
 pub fn train_cached_simplicits(
     points: &IntegrationPoints,
     lame: &[LameParameters],
@@ -74,7 +74,10 @@ pub fn train_cached_simplicits(
                     ));
                 }
             })
-            .map_err(|e| EvalError::Basis(format!("Simplicits training: {e}")))?;
+            .map_err(|source| EvalError::Simplicits {
+                what: format!("Simplicits m = {}", params.modes),
+                source,
+            })?;
             bar.finish_and_clear();
             Ok(TrainedSimplicits {
                 field,

@@ -70,10 +70,15 @@ impl SimulationSampling {
     /// The beam's integration points for about `points` points.
     ///
     /// # Errors
-    /// [`EvalError::Setup`] for a count the samplers reject.
+    /// [`EvalError::Sampling`] for a count the samplers reject.
     pub fn beam_points(&self, points: usize) -> Result<IntegrationPoints, EvalError> {
-        let grid = sample_box_grid(BEAM_MIN, BEAM_MAX, beam_grid_spacing(points))
-            .map_err(|e| EvalError::Setup(e.to_string()))?;
+        let grid =
+            sample_box_grid(BEAM_MIN, BEAM_MAX, beam_grid_spacing(points)).map_err(|source| {
+                EvalError::Sampling {
+                    what: "simulation points",
+                    source,
+                }
+            })?;
         match *self {
             SimulationSampling::Grid => Ok(grid),
             SimulationSampling::Random { seed } => sample_random(
@@ -83,7 +88,10 @@ impl SimulationSampling {
                     seed,
                 },
             )
-            .map_err(|e| EvalError::Setup(e.to_string())),
+            .map_err(|source| EvalError::Sampling {
+                what: "simulation points",
+                source,
+            }),
         }
     }
 }
@@ -142,16 +150,20 @@ pub struct BeamBasis {
 /// beam's Lamé parameters at every point.
 ///
 /// # Errors
-/// [`EvalError::Basis`] for an invalid count or material.
+/// [`EvalError::Sampling`] for an invalid count, [`EvalError::Material`] for an invalid
+/// material.
 pub fn beam_basis_grid(
     points: usize,
 ) -> Result<(IntegrationPoints, Vec<LameParameters>), EvalError> {
-    let grid = sample_box_grid(BEAM_MIN, BEAM_MAX, beam_grid_spacing(points))
-        .map_err(|e| EvalError::Basis(e.to_string()))?;
+    let grid =
+        sample_box_grid(BEAM_MIN, BEAM_MAX, beam_grid_spacing(points)).map_err(|source| {
+            EvalError::Sampling {
+                what: "basis points",
+                source,
+            }
+        })?;
     let material = beam_material();
-    let lame = material
-        .lame_parameters()
-        .map_err(|e| EvalError::Basis(e.to_string()))?;
+    let lame = material.lame_parameters().map_err(EvalError::Material)?;
     let lame = vec![lame; grid.len()];
     Ok((grid, lame))
 }
@@ -163,8 +175,8 @@ pub fn beam_basis_grid(
 pub fn build_beam_basis(settings: &ReducedSettings) -> Result<BeamBasis, EvalError> {
     let start = Instant::now();
     let (grid, lame) = beam_basis_grid(settings.basis_points)?;
-    let (basis, report, _) = build_basis(&grid, &lame, &settings.basis_params())
-        .map_err(|e| EvalError::Basis(e.to_string()))?;
+    let (basis, report, _) =
+        build_basis(&grid, &lame, &settings.basis_params()).map_err(EvalError::Basis)?;
     Ok(BeamBasis {
         basis,
         report,

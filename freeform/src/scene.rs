@@ -1,5 +1,5 @@
-//! One scene description, translated into each solver's inputs (DESIGN 2: "eval owns the named
-//! scenes and turns one scene description into the inputs of each solver").
+//! One scene description, translated into each solver's inputs: the reduced simulator's and
+//! the FEM reference's, so that every method sees the same problem.
 //!
 //! A [`SceneSpec`] says what acts on the object: gravity, constrained regions with a motion, a
 //! floor. [`SceneSpec::reduced_scene`] selects the reduced model's integration points in each

@@ -5,10 +5,11 @@ use std::fmt::Write as _;
 
 use serde_json::json;
 
-use crate::ablation_study::AblationStudy;
+use crate::ablation::study::AblationStudy;
 use crate::beam::BeamTest;
-use crate::paper;
-use crate::tables::{RenderedTable, sci, score_or_why, settings_lines};
+use crate::beam::tables::{score_or_why, settings_lines};
+use crate::report::paper;
+use crate::report::table::{RenderedTable, sci};
 
 /// How the trained rows were trained.
 fn training_line(study: &AblationStudy) -> String {

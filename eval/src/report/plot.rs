@@ -216,8 +216,12 @@ pub fn write_plot(spec: &PlotSpec, base: &Path) -> Result<Vec<PathBuf>, EvalErro
     let mut written = Vec::new();
     let font = register_font();
     let svg = base.with_extension("svg");
-    draw(SVGBackend::new(&svg, (960, 640)).into_drawing_area(), spec)
-        .map_err(|e| EvalError::Plot(format!("{}: {e}", svg.display())))?;
+    draw(SVGBackend::new(&svg, (960, 640)).into_drawing_area(), spec).map_err(|message| {
+        EvalError::Plot {
+            path: svg.clone(),
+            message,
+        }
+    })?;
     written.push(svg);
     if font {
         let png = base.with_extension("png");
@@ -225,7 +229,10 @@ pub fn write_plot(spec: &PlotSpec, base: &Path) -> Result<Vec<PathBuf>, EvalErro
             BitMapBackend::new(&png, (960, 640)).into_drawing_area(),
             spec,
         )
-        .map_err(|e| EvalError::Plot(format!("{}: {e}", png.display())))?;
+        .map_err(|message| EvalError::Plot {
+            path: png.clone(),
+            message,
+        })?;
         written.push(png);
     }
     Ok(written)

@@ -23,7 +23,7 @@ use nalgebra::Vector3;
 use rkpm_core::{Aabb, TriangleMesh};
 use serde::{Deserialize, Serialize};
 
-use crate::scene_spec::{Constraint, Motion, Region, SceneSpec};
+use freeform::scene::{Constraint, Motion, Region, SceneSpec};
 
 /// One of the three boundary conditions.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Hash, Serialize, Deserialize)]

@@ -8,9 +8,9 @@ use baselines::{
 };
 
 use crate::EvalError;
+use crate::beam::reduced::beam_basis_grid;
 use crate::model_cache::{beam_model_path, load_or_train};
 use crate::progress::Progress;
-use crate::reduced_beam::beam_basis_grid;
 
 /// A trained ablation basis and whether it came from the cache.
 pub struct BeamCoefficients {
@@ -24,7 +24,7 @@ pub struct BeamCoefficients {
 /// `basis_points` points.
 ///
 /// # Errors
-/// [`EvalError::Basis`] if training fails (a cache that cannot be written is a warning).
+/// [`EvalError::Coefficients`] if training fails (a cache that cannot be written is a warning).
 pub fn train_beam_coefficients(
     params: &CoefficientTrainingParams,
     basis_points: usize,
@@ -53,7 +53,10 @@ pub fn train_beam_coefficients(
                     bar.set_message(format!("{label} loss {:.3e}", losses.total));
                 }
             })
-            .map_err(|e| EvalError::Basis(format!("{label}: {e}")))?;
+            .map_err(|source| EvalError::Coefficients {
+                what: label.clone(),
+                source,
+            })?;
             bar.finish_and_clear();
             Ok(trained)
         },

@@ -2,12 +2,21 @@
 //! ρ = 1000 kg/m³, h = 0.01 s; Bend (gravity, x ≤ 0.5 pinned, 300 steps) and Twist (x ≤ 0.5
 //! pinned, x ≥ 4.5 rotated about the beam axis by min(2160°/s · t, 720°), 30 steps: 648° at
 //! t = 0.30 s, before the twisted beam buckles).
+//!
+//! - [`study`]: Tables 1, 5, 6's run (ours and Simplicits against the FEM at each m);
+//!   [`tables`]: their rendering; [`reduced`]: the beam's basis and integration points;
+//!   [`simplicits`]: the Simplicits baseline trained (and cached) on the beam.
+
+pub mod reduced;
+pub mod simplicits;
+pub mod study;
+pub mod tables;
 
 use hyperelastic::MaterialSample;
 use nalgebra::Vector3;
 use serde::{Deserialize, Serialize};
 
-use crate::scene_spec::{Constraint, Motion, Region, SceneSpec};
+use freeform::scene::{Constraint, Motion, Region, SceneSpec};
 
 /// Rest box of the beam (m).
 pub const BEAM_MIN: Vector3<f64> = Vector3::new(0.0, 0.0, 0.0);

@@ -8,14 +8,14 @@ use serde::{Deserialize, Serialize};
 use skin_eigen::BasisParams;
 
 use crate::EvalError;
+use crate::ablation::coefficients::train_beam_coefficients;
 use crate::beam::BeamTest;
-use crate::beam_study::{
+use crate::beam::reduced::{ReducedSettings, SimulationSampling, build_beam_basis};
+use crate::beam::simplicits::train_beam_simplicits;
+use crate::beam::study::{
     BeamStudyConfig, FemReference, FemSummary, evaluate_field, fem_references,
 };
-use crate::coefficient_beam::train_beam_coefficients;
 use crate::progress::Progress;
-use crate::reduced_beam::{ReducedSettings, SimulationSampling, build_beam_basis};
-use crate::simplicits_beam::train_beam_simplicits;
 
 /// What the ablation study runs.
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]

@@ -1,28 +1,15 @@
-//! The beam tables (1, 5, 6; 3 and 4 in [`crate::ablation_tables`]) as Markdown (ours beside the paper's), JSON and CSV.
+//! The beam tables (1, 5, 6; 3 and 4 in [`crate::ablation::tables`]) as Markdown (ours beside
+//! the paper's), JSON and CSV, and the Twist error-per-frame plot.
 
 use std::fmt::Write as _;
-use std::path::{Path, PathBuf};
 
 use serde_json::{Value, json};
 
-use crate::EvalError;
+use crate::beam::study::{BeamStudy, BeamStudyConfig, FemSummary, beam_length_scale};
 use crate::beam::{BEAM_TIME_STEP, BeamTest};
-use crate::beam_study::{BeamStudy, BeamStudyConfig, FemSummary, beam_length_scale};
-use crate::paper;
-use crate::plot::{AxisScale, PlotSpec, Series};
-
-/// A rendered table.
-#[derive(Clone, Debug)]
-pub struct RenderedTable {
-    /// Table number (1, 3, 4, 5, 6).
-    pub number: u32,
-    /// Markdown with a settings preamble.
-    pub markdown: String,
-    /// Machine-readable form.
-    pub json: Value,
-    /// Header and rows.
-    pub csv: String,
-}
+use crate::report::paper;
+use crate::report::plot::{AxisScale, PlotSpec, Series};
+use crate::report::table::{RenderedTable, not_run_or, sci};
 
 /// The settings preamble of a beam table: the reduced settings and each FEM reference.
 pub(crate) fn settings_lines(config: &BeamStudyConfig, fem: &[FemSummary]) -> String {
@@ -62,14 +49,6 @@ pub(crate) fn settings_lines(config: &BeamStudyConfig, fem: &[FemSummary]) -> St
         beam_length_scale()
     );
     out
-}
-
-pub(crate) fn sci(v: Option<f64>) -> String {
-    v.map_or("—".into(), |v| format!("{v:.2e}"))
-}
-
-pub(crate) fn not_run_or(v: Option<f64>) -> String {
-    v.map_or("not run".into(), |v| format!("{v:.2e}"))
 }
 
 /// A score, or "not scored" when `test`'s reference in `fem` was refused (a step stopped
@@ -325,27 +304,4 @@ pub fn twist_error_plot(study: &BeamStudy) -> Option<PlotSpec> {
 
 fn settings_json(study: &BeamStudy) -> Value {
     json!({"config": study.config, "fem": study.fem})
-}
-
-/// Writes `table<N>.md`, `.json` and `.csv` under `dir`; returns the paths.
-///
-/// # Errors
-/// [`EvalError::Io`] naming the file.
-pub fn write_table(table: &RenderedTable, dir: &Path) -> Result<Vec<PathBuf>, EvalError> {
-    std::fs::create_dir_all(dir).map_err(|e| EvalError::io(dir, e))?;
-    let base = dir.join(format!("table{}", table.number));
-    let mut written = Vec::new();
-    for (ext, text) in [
-        ("md", table.markdown.clone()),
-        (
-            "json",
-            serde_json::to_string_pretty(&table.json).unwrap_or_default(),
-        ),
-        ("csv", table.csv.clone()),
-    ] {
-        let path = base.with_extension(ext);
-        crate::output::write_atomically(&path, text.as_bytes())?;
-        written.push(path);
-    }
-    Ok(written)
 }

@@ -11,11 +11,11 @@ use std::fmt::Write as _;
 use serde::Serialize;
 use serde_json::{Value, json};
 
-use crate::paper;
-use crate::shape_boundary::ShapeBoundary;
-use crate::shape_catalog::{SHAPE_DENSITY, SHAPE_POISSON_RATIO, ShapeCollection};
-use crate::shape_study::{MethodScores, ShapeResult, ShapeStudy};
-use crate::tables::{RenderedTable, not_run_or, sci};
+use crate::report::paper;
+use crate::report::table::{RenderedTable, not_run_or, sci};
+use crate::shapes::boundary::ShapeBoundary;
+use crate::shapes::catalog::{SHAPE_DENSITY, SHAPE_POISSON_RATIO, ShapeCollection};
+use crate::shapes::study::{MethodScores, ShapeResult, ShapeStudy};
 
 /// Which number of a method's scores a table reports.
 #[derive(Clone, Copy)]
@@ -126,7 +126,7 @@ fn settings_lines(study: &ShapeStudy) -> String {
     let s = &c.settings;
     let mut out = format!(
         "Settings: every mesh scaled so its largest bounding-box side is L = 1 m; ν = {}, ρ = {} \
-         kg/m³, E per shape (10⁵ Pa organic, 10⁸ Pa manufactured; `eval::shape_catalog`, shown \
+         kg/m³, E per shape (10⁵ Pa organic, 10⁸ Pa manufactured; `eval::shapes::catalog`, shown \
          per shape below). m = {}, K = {} kernels; our basis and Simplicits on the same ≈{} grid \
          points; simulation on ≈{} grid points; Newton tolerance {:e}; pin penalty factor {:e}.\n",
         SHAPE_POISSON_RATIO,

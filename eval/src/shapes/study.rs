@@ -1,7 +1,7 @@
 //! The shapes study behind Tables 2 and 7 (DESIGN 4.2): for every closed mesh, normalized so its
 //! largest bounding-box side is L = 1 m, our basis and the Simplicits network (m = 32) on the
 //! same grid of integration points, a tetrahedralization for the FEM reference, and the three
-//! boundary conditions of [`crate::shape_boundary`] run by all three solvers. Reduced runs are
+//! boundary conditions of [`crate::shapes::boundary`] run by all three solvers. Reduced runs are
 //! scored at the FEM mesh's vertices.
 //!
 //! A shape that cannot be read, sampled, meshed or given a basis is reported with the reason,
@@ -17,10 +17,6 @@ use std::sync::atomic::{AtomicUsize, Ordering};
 use std::time::Instant;
 
 use baselines::{SIMPLICITS_FORMAT_VERSION, SimplicitsParams};
-use fem_ref::{
-    ElementOrder, LatticeMesherError, LatticeMesherParams, LatticeMesherReport, TetMesh,
-    VolumeTarget, tetrahedralize, tetrahedralize_to_volume,
-};
 use reduced_sim::{SimulationParams, SkinningField};
 use rkpm_core::{
     GridSamplingParams, IntegrationPoints, TriangleMesh, read_triangle_mesh, sample_grid,
@@ -29,46 +25,19 @@ use serde::{Deserialize, Serialize};
 use skin_eigen::build_basis;
 
 use crate::EvalError;
+use crate::beam::reduced::ReducedSettings;
+use crate::beam::simplicits::train_cached_simplicits;
 use crate::fem_reference::{FemProblem, FemRun, run_fem};
 use crate::model_cache::model_path;
 use crate::progress::Progress;
-use crate::reduced_beam::ReducedSettings;
 use crate::reduced_run::{ReducedProblem, run_reduced};
-use crate::scene_spec::SceneSpec;
-use crate::shape_boundary::{ShapeBoundary, ShapeBoundaryParams};
-use crate::shape_catalog::{
+use crate::shapes::boundary::{ShapeBoundary, ShapeBoundaryParams};
+use crate::shapes::catalog::{
     DEFAULT_SHAPE_YOUNGS_MODULUS, MaterialClass, SHAPE_DENSITY, SHAPE_POISSON_RATIO,
     ShapeCollection, catalog_entry,
 };
-use crate::simplicits_beam::train_cached_simplicits;
-
-/// How the FEM reference of a shape is meshed.
-#[derive(Clone, Copy, Debug, PartialEq, Serialize, Deserialize)]
-pub struct ShapeFemParams {
-    /// P1 or P2 (default P2: ν = 0.45 locks P1).
-    pub order: ElementOrder,
-    /// Lattice cells across L of the first try (default 10).
-    pub first_cells_across: usize,
-    /// Finest lattice tried (default 16). A shape whose volume is still off by more than
-    /// `volume_tolerance` there is meshed at this lattice anyway, and its volume error is
-    /// reported. Coarse on purpose: on 2 cores a P2 run of 50 steps takes 27-73 s on the
-    /// bunny at 15 cells (26k DOFs, 2-4 Newton iterations per step), which over 72 runs is
-    /// an hour.
-    pub max_cells_across: usize,
-    /// Accepted |relative volume error| of the tetrahedral mesh (default 0.05).
-    pub volume_tolerance: f64,
-}
-
-impl Default for ShapeFemParams {
-    fn default() -> Self {
-        ShapeFemParams {
-            order: ElementOrder::Quadratic,
-            first_cells_across: 10,
-            max_cells_across: 16,
-            volume_tolerance: 0.05,
-        }
-    }
-}
+use crate::shapes::reference::{FemMeshSummary, ShapeFemParams, mesh_for_fem};
+use freeform::scene::SceneSpec;
 
 /// What the study runs.
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
@@ -85,7 +54,7 @@ pub struct ShapeStudyConfig {
     /// The Simplicits baseline's training options (`modes` is set from `settings`), or `None`
     /// to leave it out.
     pub simplicits: Option<SimplicitsParams>,
-    /// Young's modulus of a file not in [`crate::shape_catalog`] (Pa, default 10⁵).
+    /// Young's modulus of a file not in [`crate::shapes::catalog`] (Pa, default 10⁵).
     pub default_youngs_modulus: f64,
     /// Shapes run at the same time (default 1). Each holds one FEM system (≤ 1 GB at the
     /// default resolution); the solvers already use every core, so more jobs mainly fill the
@@ -198,23 +167,6 @@ pub struct ShapeRow {
     pub error: Option<String>,
 }
 
-/// The tetrahedral mesh of the FEM reference.
-#[derive(Clone, Copy, Debug, PartialEq, Serialize, Deserialize)]
-pub struct FemMeshSummary {
-    /// Lattice cells across L.
-    pub cells_across: usize,
-    /// Tetrahedral mesh vertices (where methods are scored).
-    pub vertices: usize,
-    /// Tetrahedra.
-    pub tets: usize,
-    /// (mesh volume − surface volume) / surface volume, after dropping the islands.
-    pub relative_volume_error: f64,
-    /// Pieces of the lattice mesh not face-connected to the largest one, dropped.
-    pub dropped_pieces: usize,
-    /// Their volume over the surface's.
-    pub dropped_volume_fraction: f64,
-}
-
 /// Everything measured on one shape.
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
 pub struct ShapeResult {
@@ -259,7 +211,7 @@ pub struct ShapeStudy {
 /// just the one whose file name or stem is `only`.
 ///
 /// # Errors
-/// [`EvalError::Io`] if `dir` cannot be read; [`EvalError::Setup`] if it holds no mesh or
+/// [`EvalError::Io`] if `dir` cannot be read; [`EvalError::InvalidInput`] if it holds no mesh or
 /// nothing matches `only`.
 pub fn mesh_files(dir: &Path, only: Option<&str>) -> Result<Vec<PathBuf>, EvalError> {
     let entries = std::fs::read_dir(dir).map_err(|e| EvalError::io(dir, e))?;
@@ -274,7 +226,7 @@ pub fn mesh_files(dir: &Path, only: Option<&str>) -> Result<Vec<PathBuf>, EvalEr
         .collect();
     files.sort();
     if files.is_empty() {
-        return Err(EvalError::Setup(format!(
+        return Err(EvalError::InvalidInput(format!(
             "{}: no .obj, .stl or .ply file in this folder",
             dir.display()
         )));
@@ -294,7 +246,7 @@ pub fn mesh_files(dir: &Path, only: Option<&str>) -> Result<Vec<PathBuf>, EvalEr
             .iter()
             .filter_map(|p| p.file_name().map(|n| n.to_string_lossy().into_owned()))
             .collect();
-        return Err(EvalError::Setup(format!(
+        return Err(EvalError::InvalidInput(format!(
             "--only {only}: no such mesh in {} (there are: {})",
             dir.display(),
             names.join(", ")
@@ -306,7 +258,7 @@ pub fn mesh_files(dir: &Path, only: Option<&str>) -> Result<Vec<PathBuf>, EvalEr
 /// Runs the study, `config.jobs` shapes at a time; `on_shape` sees each shape as it finishes.
 ///
 /// # Errors
-/// None from a shape (those are reported in its [`ShapeResult`]); [`EvalError::Setup`] for
+/// None from a shape (those are reported in its [`ShapeResult`]); [`EvalError::InvalidInput`] for
 /// `jobs = 0` or no meshes.
 pub fn run_shape_study(
     config: &ShapeStudyConfig,
@@ -314,7 +266,7 @@ pub fn run_shape_study(
     on_shape: impl Fn(&ShapeResult) + Sync,
 ) -> Result<ShapeStudy, EvalError> {
     if config.jobs == 0 || config.meshes.is_empty() {
-        return Err(EvalError::Setup(format!(
+        return Err(EvalError::InvalidInput(format!(
             "the shape study needs at least one job and one mesh (jobs = {}, {} meshes)",
             config.jobs,
             config.meshes.len()
@@ -440,22 +392,17 @@ fn run_shape_into(
     progress: &Progress,
     result: &mut ShapeResult,
 ) -> Result<(), EvalError> {
-    let surface = read_triangle_mesh(path)
-        .map_err(|e| EvalError::Setup(e.to_string()))?
-        .normalized()
-        .0;
+    let surface = read_triangle_mesh(path)?.normalized().0;
     let length = surface.bounding_box().largest_side();
     let material = result.material();
-    let lame = material
-        .lame_parameters()
-        .map_err(|e| EvalError::Setup(e.to_string()))?;
+    let lame = material.lame_parameters().map_err(EvalError::Material)?;
     let settings = &config.settings;
 
     let basis_start = Instant::now();
-    let basis_points = sample_on(&surface, settings.basis_points, "basis")?;
+    let basis_points = sample_on(&surface, settings.basis_points, "basis points")?;
     let lames = vec![lame; basis_points.len()];
-    let (ours, _, _) = build_basis(&basis_points, &lames, &settings.basis_params())
-        .map_err(|e| EvalError::Basis(e.to_string()))?;
+    let (ours, _, _) =
+        build_basis(&basis_points, &lames, &settings.basis_params()).map_err(EvalError::Basis)?;
     result.basis_points = basis_points.len();
     result.basis_seconds = Some(basis_start.elapsed().as_secs_f64());
 
@@ -493,7 +440,7 @@ fn run_shape_into(
         dropped_pieces: pieces - 1,
         dropped_volume_fraction: dropped / report.surface_volume,
     });
-    let points = sample_on(&surface, settings.simulation_points, "simulation")?;
+    let points = sample_on(&surface, settings.simulation_points, "simulation points")?;
 
     let mut fem_seconds = 0.0;
     for boundary in ShapeBoundary::ALL {
@@ -565,7 +512,7 @@ fn run_shape_into(
 fn sample_on(
     surface: &TriangleMesh,
     target: usize,
-    what: &str,
+    what: &'static str,
 ) -> Result<IntegrationPoints, EvalError> {
     sample_grid(
         surface,
@@ -573,37 +520,7 @@ fn sample_on(
             target_points: target,
         },
     )
-    .map_err(|e| EvalError::Setup(format!("sampling the {what} points: {e}")))
-}
-
-/// The FEM mesh of `surface`: the first lattice from `first_cells_across` up (×1.5) whose
-/// volume is within the tolerance, else the `max_cells_across` lattice as it is (islands
-/// included; the caller drops them).
-fn mesh_for_fem(
-    surface: &TriangleMesh,
-    params: &ShapeFemParams,
-) -> Result<(TetMesh, LatticeMesherReport), EvalError> {
-    let lattice = LatticeMesherParams {
-        cells_across: params.first_cells_across,
-        ..Default::default()
-    };
-    let target = VolumeTarget {
-        max_relative_error: params.volume_tolerance,
-        max_cells_across: params.max_cells_across.max(params.first_cells_across),
-        growth: 1.5,
-    };
-    match tetrahedralize_to_volume(surface, &lattice, &target) {
-        Ok(mesh) => Ok(mesh),
-        Err(LatticeMesherError::VolumeNotReached { cells_across, .. }) => tetrahedralize(
-            surface,
-            &LatticeMesherParams {
-                cells_across,
-                ..lattice
-            },
-        ),
-        Err(e) => Err(e),
-    }
-    .map_err(|e| EvalError::Setup(format!("tetrahedralizing for the FEM reference: {e}")))
+    .map_err(|source| EvalError::Sampling { what, source })
 }
 
 /// One boundary condition of one shape, ready to run any skinning field on.

@@ -1,12 +1,14 @@
-//! User scenes for `freeform simulate`: a TOML or JSON file naming the geometry, material, basis
-//! settings, what acts on the object and how long to run; the run writes per-frame PLY and VTK
-//! of the deformed surface.
+//! Scene files: a TOML or JSON file naming the geometry, material, basis settings, what acts on
+//! the object and how long to run. [`crate::simulate::simulate_scene_file`] runs one and writes
+//! per-frame PLY and VTK of the deformed surface (or cloud).
 //!
 //! ```toml
 //! [geometry]
 //! mesh = "../data/meshes/bunny.obj"           # OBJ/STL/PLY, relative to this file; or
 //! # box = { min = [0, 0, 0], max = [5, 1, 1] }
-//! normalize = true                            # scale so the largest side is 1 m (default true)
+//! # points = "cloud.ply"                      # a point cloud or 3DGS PLY (no faces)
+//! normalize = true                            # scale so the largest side is 1 m (default true;
+//!                                             # a box or cloud keeps its units)
 //!
 //! [material]                                  # SI units
 //! youngs_modulus = 1e5
@@ -34,22 +36,14 @@
 //! motion = { translate = { velocity = [0, 0.2, 0] } }
 //! ```
 
-use hyperelastic::MaterialSample;
 use std::path::{Path, PathBuf};
-use std::time::Instant;
 
-use hyperelastic::StableNeoHookean;
-use nalgebra::Vector3;
-use reduced_sim::{DeformationMap, ReducedModel, SimulationParams, Simulator};
-use rkpm_core::{GridSamplingParams, TriangleMesh, read_triangle_mesh, sample_grid};
+use hyperelastic::MaterialSample;
 use serde::{Deserialize, Serialize};
-use skin_eigen::{BasisParams, build_basis};
 use thiserror::Error;
 
-use crate::EvalError;
-use crate::output::{triangle_mesh_ply, unstructured_grid_vtk, write_atomically};
-use crate::progress::Progress;
-use crate::scene_spec::SceneSpec;
+use crate::geometry::{Geometry, GeometryError};
+use crate::scene::SceneSpec;
 
 /// A scene file is unusable.
 #[derive(Debug, Error)]
@@ -92,7 +86,11 @@ pub struct GeometrySpec {
     /// Or an axis-aligned box `{ min, max }` (m).
     #[serde(default, rename = "box")]
     pub cuboid: Option<BoxSpec>,
-    /// Scale so the largest bounding-box side is 1 m (default true; ignored for a box).
+    /// Or a point cloud: a PLY without faces, plain or 3DGS (path relative to the scene file).
+    #[serde(default)]
+    pub points: Option<PathBuf>,
+    /// Scale a mesh so its largest bounding-box side is 1 m (default true; a box or a cloud
+    /// keeps its units).
     #[serde(default = "yes")]
     pub normalize: bool,
 }
@@ -207,11 +205,15 @@ impl SceneFile {
                 message: e.to_string().trim().replace('\n', " "),
             })?
         };
-        if let Some(mesh) = &file.geometry.mesh
-            && mesh.is_relative()
-            && let Some(dir) = path.parent()
-        {
-            file.geometry.mesh = Some(dir.join(mesh));
+        if let Some(dir) = path.parent() {
+            for file_path in [&mut file.geometry.mesh, &mut file.geometry.points]
+                .into_iter()
+                .flatten()
+            {
+                if file_path.is_relative() {
+                    *file_path = dir.join(&*file_path);
+                }
+            }
         }
         file.validate(&display)?;
         Ok(file)
@@ -225,17 +227,21 @@ impl SceneFile {
                 problem,
             })
         };
-        match (&self.geometry.mesh, &self.geometry.cuboid) {
-            (Some(_), Some(_)) | (None, None) => {
-                return bad("geometry", "give exactly one of `mesh` and `box`".into());
-            }
-            (None, Some(b)) if !(0..3).all(|d| b.max[d] > b.min[d]) => {
-                return bad(
-                    "geometry.box",
-                    format!("max {:?} must exceed min {:?}", b.max, b.min),
-                );
-            }
-            _ => {}
+        let g = &self.geometry;
+        let given = [g.mesh.is_some(), g.cuboid.is_some(), g.points.is_some()];
+        if given.iter().filter(|&&given| given).count() != 1 {
+            return bad(
+                "geometry",
+                "give exactly one of `mesh`, `box` and `points`".into(),
+            );
+        }
+        if let Some(b) = &g.cuboid
+            && !(0..3).all(|d| b.max[d] > b.min[d])
+        {
+            return bad(
+                "geometry.box",
+                format!("max {:?} must exceed min {:?}", b.max, b.min),
+            );
         }
         let m = &self.material;
         if let Err(e) = MaterialSample::from(*m).lame_parameters() {
@@ -281,146 +287,25 @@ impl SceneFile {
         Ok(())
     }
 
-    /// The surface of the object, normalized if asked.
+    /// The object's shape: the mesh (normalized if asked), the box, or the cloud.
     ///
     /// # Errors
-    /// [`EvalError::Setup`] if the mesh cannot be read or is invalid.
-    pub fn surface(&self) -> Result<TriangleMesh, EvalError> {
-        match (&self.geometry.mesh, &self.geometry.cuboid) {
-            (Some(path), _) => {
-                let mesh = read_triangle_mesh(path).map_err(|e| EvalError::Setup(e.to_string()))?;
-                Ok(if self.geometry.normalize {
-                    mesh.normalized().0
-                } else {
-                    mesh
-                })
-            }
-            (None, Some(b)) => Ok(TriangleMesh::cuboid(b.min.into(), b.max.into())),
-            (None, None) => Err(EvalError::Setup("no geometry".into())),
+    /// [`GeometryError`] if the file cannot be read, is not closed, or (for `points`) has no
+    /// points.
+    pub fn geometry(&self) -> Result<Geometry, GeometryError> {
+        let g = &self.geometry;
+        if let Some(b) = &g.cuboid {
+            return Ok(Geometry::cuboid(b.min.into(), b.max.into()));
         }
-    }
-}
-
-/// What `simulate` did.
-#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
-pub struct SimulateReport {
-    /// Basis build time (s).
-    pub basis_seconds: f64,
-    /// Mean wall time per step (ms).
-    pub ms_per_step: f64,
-    /// Steps that did not converge.
-    pub unconverged_steps: usize,
-    /// Frames written.
-    pub frames_written: usize,
-    /// Integration points simulated.
-    pub simulation_points: usize,
-    /// Largest displacement of a surface vertex at the last frame (m).
-    pub final_max_displacement: f64,
-}
-
-/// Runs a scene file and writes `frame_NNNNN.ply` / `.vtk` (deformed surface) and
-/// `summary.json` under `out_dir`.
-///
-/// # Errors
-/// [`EvalError`] from any stage; frames already written stay valid files.
-pub fn run_scene_file(
-    file: &SceneFile,
-    out_dir: &Path,
-    progress: &Progress,
-) -> Result<SimulateReport, EvalError> {
-    let surface = file.surface()?;
-    let lame = MaterialSample::from(file.material)
-        .lame_parameters()
-        .map_err(|e| EvalError::Setup(e.to_string()))?;
-    let start = Instant::now();
-    progress.status(format!(
-        "basis: m = {}, K = {}, ≈{} grid points",
-        file.basis.modes, file.basis.kernels, file.basis.points
-    ));
-    let basis_points = sample_grid(
-        &surface,
-        &GridSamplingParams {
-            target_points: file.basis.points,
-        },
-    )
-    .map_err(|e| EvalError::Basis(e.to_string()))?;
-    let params = BasisParams::default()
-        .with_modes(file.basis.modes)
-        .with_kernels(file.basis.kernels);
-    let (basis, _, _) = build_basis(&basis_points, &vec![lame; basis_points.len()], &params)
-        .map_err(|e| EvalError::Basis(e.to_string()))?;
-    let basis_seconds = start.elapsed().as_secs_f64();
-
-    let points = sample_grid(
-        &surface,
-        &GridSamplingParams {
-            target_points: file.simulation.points,
-        },
-    )
-    .map_err(|e| EvalError::Setup(e.to_string()))?;
-    let model = ReducedModel::new(
-        &basis,
-        &points,
-        &vec![MaterialSample::from(file.material); points.len()],
-        StableNeoHookean,
-    )
-    .map_err(|e| EvalError::Setup(e.to_string()))?;
-    let scene = file.scene.reduced_scene(model.rest_positions())?;
-    let mut sim = Simulator::new(
-        model,
-        &scene,
-        SimulationParams {
-            time_step: file.simulation.time_step,
-            ..Default::default()
-        },
-    )
-    .map_err(|e| EvalError::Setup(e.to_string()))?;
-    let rest: Vec<Vector3<f64>> = surface.vertices().to_vec();
-    let output = DeformationMap::new(&basis, &rest).map_err(|e| EvalError::Setup(e.to_string()))?;
-    let write_frame = |frame: usize, z: &[f64], time: f64| -> Result<(), EvalError> {
-        let x = output.positions(z);
-        let name = out_dir.join(format!("frame_{frame:05}"));
-        write_atomically(
-            &name.with_extension("ply"),
-            triangle_mesh_ply(&x, surface.triangles()).as_bytes(),
-        )?;
-        write_atomically(
-            &name.with_extension("vtk"),
-            unstructured_grid_vtk(&x, &rest, surface.triangles(), time).as_bytes(),
-        )
-    };
-    write_frame(0, &sim.state().z, 0.0)?;
-    let mut frames_written = 1;
-    let bar = progress.bar(file.simulation.steps, "simulate");
-    let (mut unconverged, mut stepping) = (0usize, 0.0);
-    for step in 1..=file.simulation.steps {
-        let t = Instant::now();
-        let report = sim
-            .step()
-            .map_err(|e| EvalError::Reduced(format!("step {step}: {e}")))?;
-        stepping += t.elapsed().as_secs_f64();
-        unconverged += usize::from(!report.converged());
-        if step % file.simulation.output_every == 0 || step == file.simulation.steps {
-            write_frame(step, &sim.state().z, sim.state().time)?;
-            frames_written += 1;
+        if let Some(path) = &g.points {
+            return Ok(Geometry::Cloud(rkpm_core::read_point_cloud(path)?));
         }
-        bar.inc(1);
+        let path = g.mesh.as_deref().unwrap_or(Path::new(""));
+        let mesh = rkpm_core::read_triangle_mesh(path)?;
+        Ok(if g.normalize {
+            Geometry::Surface(mesh).normalized()
+        } else {
+            Geometry::Surface(mesh)
+        })
     }
-    bar.finish_and_clear();
-    let last = output.displacements(&sim.state().z);
-    let report = SimulateReport {
-        basis_seconds,
-        ms_per_step: 1e3 * stepping / file.simulation.steps as f64,
-        unconverged_steps: unconverged,
-        frames_written,
-        simulation_points: points.len(),
-        final_max_displacement: last.iter().map(|d| d.norm()).fold(0.0, f64::max),
-    };
-    write_atomically(
-        &out_dir.join("summary.json"),
-        serde_json::to_string_pretty(&report)
-            .unwrap_or_default()
-            .as_bytes(),
-    )?;
-    Ok(report)
 }

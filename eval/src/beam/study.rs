@@ -9,13 +9,13 @@ use reduced_sim::SkinningField;
 use serde::{Deserialize, Serialize};
 
 use crate::EvalError;
+use crate::beam::reduced::{ReducedSettings, build_beam_basis, run_reduced_beam};
+use crate::beam::simplicits::train_beam_simplicits;
 use crate::beam::{BEAM_MAX, BEAM_MIN, BeamTest};
 use crate::fem_reference::{FemResolution, FemRun, run_fem_beam};
 use crate::metrics::TrajectoryErrors;
 use crate::progress::Progress;
-use crate::reduced_beam::{ReducedSettings, build_beam_basis, run_reduced_beam};
 use crate::reduced_run::ReducedRun;
-use crate::simplicits_beam::train_beam_simplicits;
 
 /// What the study runs.
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]

@@ -1,0 +1,25 @@
+//! `freeform bench`: the error-vs-time sweep.
+
+use crate::plot_or_warn;
+use std::path::{Path, PathBuf};
+
+use anyhow::Result;
+use eval::bench::{BenchConfig, bench_plot, run_bench, write_bench};
+use eval::progress::Progress;
+
+/// Runs the sweep and writes its CSV, Markdown and plot under `out`.
+pub(crate) fn run(quick: bool, cache: PathBuf, out: &Path, progress: &Progress) -> Result<()> {
+    let config = if quick {
+        BenchConfig::quick(cache)
+    } else {
+        BenchConfig::full(cache)
+    };
+    let results = run_bench(&config, progress)?;
+    let (md, files) = write_bench(&results, &config, out)?;
+    println!("{md}");
+    for f in files {
+        println!("wrote {}", f.display());
+    }
+    plot_or_warn(&bench_plot(&results, &config), &out.join("bench"));
+    Ok(())
+}

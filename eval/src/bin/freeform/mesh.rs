@@ -1,0 +1,70 @@
+//! `freeform mesh`: tetrahedralize a surface.
+
+use std::path::Path;
+
+use anyhow::Result;
+use artifact::write_atomically;
+use fem_ref::{LatticeMesherParams, VolumeTarget, tetrahedralize, tetrahedralize_to_volume};
+use freeform::frames::unstructured_grid_vtk;
+use rkpm_core::read_triangle_mesh;
+
+/// Meshes `path` and writes the tet mesh as VTK under `out`.
+pub(crate) fn run(
+    path: &Path,
+    cells: usize,
+    volume_target: Option<f64>,
+    keep_units: bool,
+    out: &Path,
+) -> Result<()> {
+    let surface = read_triangle_mesh(path)?;
+    let surface = if keep_units {
+        surface
+    } else {
+        surface.normalized().0
+    };
+    let params = LatticeMesherParams {
+        cells_across: cells,
+        ..Default::default()
+    };
+    let (tets, report) = match volume_target {
+        None => tetrahedralize(&surface, &params)?,
+        Some(max_relative_error) => tetrahedralize_to_volume(
+            &surface,
+            &params,
+            &VolumeTarget {
+                max_relative_error,
+                ..Default::default()
+            },
+        )?,
+    };
+    let stem = path.file_stem().unwrap_or_default().to_string_lossy();
+    let file = out.join(format!("{stem}.vtk"));
+    write_atomically(
+        &file,
+        unstructured_grid_vtk(tets.vertices(), tets.vertices(), tets.tets(), 0.0).as_bytes(),
+    )?;
+    let q = &report.quality;
+    println!(
+        "{}: {} cells across (h = {:.4}), {} vertices, {} tetrahedra\n\
+         volume {:.6} vs surface {:.6} ({:+.3}%)\n\
+         dihedral angles {:.1}°–{:.1}°; boundary vertices {} ({} moved part way, {} kept off \
+         the surface to protect quality)\n\
+         {:.2} s; wrote {}",
+        path.display(),
+        (1.0 / report.cell_size * surface.bounding_box().largest_side()).round(),
+        report.cell_size,
+        report.vertices,
+        report.tets,
+        report.mesh_volume,
+        report.surface_volume,
+        100.0 * report.relative_volume_error,
+        q.min_dihedral_degrees,
+        q.max_dihedral_degrees,
+        report.boundary_vertices,
+        report.boundary_vertices_held_back[0],
+        report.boundary_vertices_held_back[1],
+        report.seconds,
+        file.display()
+    );
+    Ok(())
+}

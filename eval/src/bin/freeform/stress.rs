@@ -1,0 +1,50 @@
+//! `freeform stress`: the numerical stress suite.
+
+use std::path::Path;
+
+use anyhow::{Result, bail};
+use artifact::write_atomically;
+use eval::progress::Progress;
+use eval::stress::{StressConfig, run_stress, stress_markdown};
+
+/// Runs the suite, writes `stress/stress.{md,json}` and fails if any case is not acceptable.
+pub(crate) fn run(quick: bool, json: bool, out: &Path, progress: &Progress) -> Result<()> {
+    let config = if quick {
+        StressConfig::quick()
+    } else {
+        StressConfig::full()
+    };
+    let bar = progress.bar(config.cases.len(), "stress cases");
+    let outcomes = run_stress(&config, |o| {
+        bar.inc(1);
+        bar.set_message(o.case.name.clone());
+    });
+    bar.finish_and_clear();
+    let md = stress_markdown(&outcomes);
+    let value = serde_json::to_value(&outcomes)?;
+    let dir = out.join("stress");
+    std::fs::create_dir_all(&dir)?;
+    write_atomically(&dir.join("stress.md"), md.as_bytes())?;
+    write_atomically(
+        &dir.join("stress.json"),
+        serde_json::to_string_pretty(&value)?.as_bytes(),
+    )?;
+    if json {
+        println!("{}", serde_json::to_string_pretty(&value)?);
+    } else {
+        println!("{md}\nwrote {}", dir.display());
+    }
+    let bad: Vec<&str> = outcomes
+        .iter()
+        .filter(|o| !o.acceptable())
+        .map(|o| o.case.name.as_str())
+        .collect();
+    if !bad.is_empty() {
+        bail!(
+            "{} stress case(s) produced non-finite values or panicked: {}",
+            bad.len(),
+            bad.join(", ")
+        );
+    }
+    Ok(())
+}

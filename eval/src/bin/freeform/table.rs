@@ -1,0 +1,222 @@
+//! `freeform table`: the paper's tables.
+
+use crate::plot_or_warn;
+use std::path::{Path, PathBuf};
+
+use anyhow::{Result, bail};
+use eval::ablation::study::{AblationStudyConfig, run_ablation_study};
+use eval::ablation::tables::{table3, table4};
+use eval::beam::BeamTest;
+use eval::beam::study::{BeamStudyConfig, run_beam_study};
+use eval::beam::tables::{table1, table5, table6, twist_error_plot};
+use eval::progress::Progress;
+use eval::report::table::write_table;
+use eval::shapes::study::{ShapeStudyConfig, mesh_files, run_shape_study};
+use eval::shapes::tables::{table2, table7};
+
+/// Options of `freeform table`.
+#[derive(clap::Args)]
+pub(crate) struct TableOptions {
+    /// Reduced configuration (minutes instead of tens of minutes).
+    #[arg(long)]
+    pub(crate) quick: bool,
+    /// Print JSON instead of Markdown.
+    #[arg(long)]
+    json: bool,
+    /// Leave out the Simplicits baseline (its training takes about 16 min per m on 2 cores
+    /// the first time; networks are cached).
+    #[arg(long)]
+    skip_simplicits: bool,
+    /// Only these modes (comma-separated), instead of the paper's 6, 9, 16, 32 (tables 3
+    /// and 4: one m, default 16).
+    #[arg(long, value_delimiter = ',')]
+    modes: Option<Vec<usize>>,
+    /// Tables 2 and 7: the folder of closed meshes (OBJ/STL/PLY), e.g. the shared
+    /// `data/meshes`.
+    #[arg(long)]
+    meshes: Option<PathBuf>,
+    /// Tables 2 and 7: only the mesh with this file name or stem.
+    #[arg(long)]
+    only: Option<String>,
+    /// Tables 2 and 7: Young's modulus (Pa) of a mesh not in the shared-mesh catalog.
+    #[arg(long, default_value_t = eval::shapes::catalog::DEFAULT_SHAPE_YOUNGS_MODULUS)]
+    young: f64,
+    /// Tables 2 and 7: shapes run at the same time.
+    #[arg(long, default_value_t = 1)]
+    jobs: usize,
+    /// Tables 2 and 7: mesh the FEM reference on this lattice (cells across L) instead of
+    /// refining from 10 up to 16 cells until the volume is within 5%.
+    #[arg(long)]
+    fem_cells: Option<usize>,
+    /// Train Simplicits for this many Adam steps instead of the configuration's (the
+    /// paper's 10 000 in a full run): networks are cached per step count.
+    #[arg(long)]
+    simplicits_steps: Option<usize>,
+}
+
+pub(crate) fn run(
+    numbers: &[u32],
+    TableOptions {
+        quick,
+        json,
+        skip_simplicits,
+        modes,
+        meshes,
+        only,
+        young,
+        jobs,
+        fem_cells,
+        simplicits_steps,
+    }: TableOptions,
+    out: &Path,
+    cache: &Path,
+    progress: &Progress,
+) -> Result<()> {
+    if let Some(n) = numbers.iter().find(|n| !matches!(n, 1..=7)) {
+        bail!("there is no table {n}: the paper's tables are 1 to 7");
+    }
+    if simplicits_steps == Some(0) {
+        bail!("--simplicits-steps must be at least 1");
+    }
+    let mut config = if quick {
+        BeamStudyConfig::quick(cache.to_path_buf())
+    } else {
+        BeamStudyConfig::full(cache.to_path_buf())
+    };
+    if numbers.iter().all(|&n| n == 5) {
+        // Timing only needs the Bend.
+        config.tests = vec![BeamTest::Bend];
+    }
+    if let Some(modes) = &modes {
+        if modes.contains(&0) {
+            bail!("--modes: every m must be at least 1");
+        }
+        config.modes = modes.clone();
+    }
+    let wants = |group: &[u32]| numbers.iter().any(|n| group.contains(n));
+    if let Some(steps) = simplicits_steps
+        && let Some(params) = &mut config.simplicits
+    {
+        params.steps = steps;
+    }
+    let mut rendered = Vec::new();
+    if wants(&[2, 7]) {
+        let Some(dir) = &meshes else {
+            bail!("tables 2 and 7 need --meshes DIR (e.g. the shared data/meshes folder)");
+        };
+        if !(young > 0.0 && young.is_finite()) {
+            bail!("--young must be a positive number of pascals, got {young}");
+        }
+        let files = mesh_files(dir, only.as_deref())?;
+        let mut shapes = if quick {
+            ShapeStudyConfig::quick(files, cache.to_path_buf())
+        } else {
+            ShapeStudyConfig::full(files, cache.to_path_buf())
+        };
+        shapes.default_youngs_modulus = young;
+        shapes.jobs = jobs;
+        if let Some(cells) = fem_cells {
+            if cells == 0 {
+                bail!("--fem-cells must be at least 1");
+            }
+            shapes.fem.first_cells_across = cells;
+            shapes.fem.max_cells_across = cells;
+        }
+        if let Some(modes) = &modes {
+            match modes.as_slice() {
+                [m] => shapes.settings.modes = *m,
+                _ => bail!("tables 2 and 7 use one m: give --modes a single value"),
+            }
+        }
+        match (skip_simplicits, &mut shapes.simplicits, simplicits_steps) {
+            (true, simplicits, _) => *simplicits = None,
+            (false, Some(params), Some(steps)) => params.steps = steps,
+            _ => {}
+        }
+        let total = shapes.meshes.len();
+        let finished = std::sync::atomic::AtomicUsize::new(0);
+        let study = run_shape_study(&shapes, progress, |shape| {
+            let k = finished.fetch_add(1, std::sync::atomic::Ordering::Relaxed) + 1;
+            progress.status(format!("[{k}/{total} shapes] {} finished", shape.name));
+        })?;
+        progress.status(format!(
+            "shape study: {total} shape(s) in {:.0} s",
+            study.seconds
+        ));
+        for &number in numbers.iter().filter(|n| matches!(n, 2 | 7)) {
+            rendered.push(if number == 2 {
+                table2(&study)
+            } else {
+                table7(&study)
+            });
+        }
+    }
+    if wants(&[3, 4]) {
+        if skip_simplicits {
+            bail!("tables 3 and 4 compare against Simplicits; drop --skip-simplicits for them");
+        }
+        let m = match modes.as_deref() {
+            None => 16,
+            Some([m]) => *m,
+            Some(_) => bail!("tables 3 and 4 study one m: give --modes a single value"),
+        };
+        let ablation = AblationStudyConfig {
+            coefficient_ablations: wants(&[3]),
+            sampling_ablation: wants(&[4]),
+            ..AblationStudyConfig::full(BeamStudyConfig {
+                modes: vec![m],
+                ..config.clone()
+            })
+        };
+        let study = run_ablation_study(&ablation, progress)?;
+        for &number in numbers.iter().filter(|n| matches!(n, 3 | 4)) {
+            rendered.push(if number == 3 {
+                table3(&study)
+            } else {
+                table4(&study)
+            });
+        }
+    }
+    if wants(&[1, 5, 6]) {
+        if skip_simplicits {
+            config.simplicits = None;
+        }
+        let study = run_beam_study(&config, progress)?;
+        if wants(&[1])
+            && let Some(spec) = twist_error_plot(&study)
+        {
+            for f in plot_or_warn(&spec, &out.join("twist_error_per_frame")) {
+                progress.status(format!("wrote {}", f.display()));
+            }
+        }
+        for &number in numbers.iter().filter(|n| matches!(n, 1 | 5 | 6)) {
+            rendered.push(match number {
+                1 => table1(&study),
+                5 => table5(&study),
+                _ => table6(&study),
+            });
+        }
+    }
+    let mut rendered_json = Vec::new();
+    for table in rendered {
+        let files = write_table(&table, out)?;
+        if json {
+            rendered_json.push(table.json);
+        } else {
+            println!("{}", table.markdown);
+            for f in files {
+                println!("wrote {}", f.display());
+            }
+            println!();
+        }
+    }
+    if json {
+        let value = if rendered_json.len() == 1 {
+            rendered_json.remove(0)
+        } else {
+            serde_json::Value::Array(rendered_json)
+        };
+        println!("{}", serde_json::to_string_pretty(&value)?);
+    }
+    Ok(())
+}

@@ -1,0 +1,174 @@
+//! One reduced simulation of any skinning field and any material on any scene (Eqs. 1-2): the
+//! loop every caller shares, from a user's program to the paper's tables. It builds the model
+//! and the scene, steps, and hands every frame to an observer (record positions, write files,
+//! advance a progress bar) while it keeps timings and convergence counts.
+
+use std::time::Instant;
+
+use hyperelastic::{HyperelasticMaterial, MaterialField};
+use optimize::NewtonReport;
+use reduced_sim::{
+    ReducedModel, ReducedModelError, SceneError, SimulationParams, Simulator, SkinningField,
+    StepError,
+};
+use rkpm_core::IntegrationPoints;
+use thiserror::Error;
+
+use crate::scene::{SceneSpec, SceneSpecError};
+
+/// Everything one reduced run needs.
+pub struct Simulation<'a, B: SkinningField + ?Sized, M> {
+    /// The skinning field (an RKPM eigenbasis, or a baseline's network).
+    pub field: &'a B,
+    /// Integration points (rest positions in m, volumes in m³).
+    pub points: &'a IntegrationPoints,
+    /// E, ν, ρ over the object, sampled at the integration points.
+    pub material: &'a MaterialField,
+    /// The energy density Ψ(F) (e.g. [`hyperelastic::StableNeoHookean`]).
+    pub material_model: M,
+    /// What acts on the object.
+    pub scene: &'a SceneSpec,
+    /// Time step, Newton, tangent and penalty options.
+    pub params: SimulationParams,
+}
+
+/// The state after frame `index`, handed to the observer of [`run`].
+pub struct Frame<'a, M: HyperelasticMaterial> {
+    /// 0 for the rest state, then the step number.
+    pub index: usize,
+    /// Simulated time t = index · h (s).
+    pub time: f64,
+    /// The simulator, to read the reduced coordinates z (`state().z`, length 12m) and
+    /// anything else (pin deviation, energies).
+    pub simulator: &'a Simulator<M>,
+    /// The Newton solve of this step (`None` for frame 0).
+    pub step: Option<&'a NewtonReport>,
+}
+
+/// Timings and convergence of one run.
+#[derive(Clone, Debug, PartialEq)]
+pub struct RunReport {
+    /// Steps taken.
+    pub steps: usize,
+    /// Wall time per step, Newton solve only (ms).
+    pub ms_per_step: f64,
+    /// Hessian/gradient assembly per step (ms).
+    pub ms_assembly_per_step: f64,
+    /// Mean Newton iterations per step.
+    pub iterations_per_step: f64,
+    /// Steps whose Newton solve stopped unconverged (the run goes on; the caller decides).
+    pub unconverged_steps: usize,
+    /// Largest distance of a held integration point from its target over the run (m).
+    pub max_pin_deviation: f64,
+    /// Model and scene setup (s).
+    pub setup_seconds: f64,
+    /// Integration points simulated.
+    pub simulation_points: usize,
+    /// Integration points held in each constrained region of the scene.
+    pub region_points: Vec<usize>,
+}
+
+/// A run could not start or stopped.
+#[derive(Debug, Error)]
+pub enum RunError {
+    /// The reduced model cannot be built (invalid material, singular mass matrix, ...).
+    #[error("building the reduced model failed")]
+    Model(#[source] ReducedModelError),
+    /// The scene does not fit these points (e.g. a region that holds no integration point).
+    #[error(transparent)]
+    Scene(#[from] SceneSpecError),
+    /// The simulator refused the scene (e.g. a penalty that is not positive).
+    #[error("setting up the simulator failed")]
+    Simulator(#[source] SceneError),
+    /// A step failed (non-finite energy, a Hessian that is not positive definite, ...).
+    #[error("step {step} failed")]
+    Step {
+        /// The step (1-based).
+        step: usize,
+        /// Why.
+        #[source]
+        source: StepError,
+    },
+    /// The observer stopped the run (e.g. a frame could not be written).
+    #[error("frame {frame}: the observer stopped the run")]
+    Observer {
+        /// The frame it was handed.
+        frame: usize,
+        /// Why.
+        #[source]
+        source: Box<dyn std::error::Error + Send + Sync>,
+    },
+}
+
+/// What [`run`] hands each frame to: return `Err` to stop the run.
+pub type ObserverResult = Result<(), Box<dyn std::error::Error + Send + Sync>>;
+
+/// Runs `steps` backward-Euler steps of `simulation`, calling `observe` with frame 0 (rest)
+/// and after every step. Only the steps are timed, not the observer.
+///
+/// # Errors
+/// [`RunError`] naming the stage; frames handed to the observer before the error stay its own.
+pub fn run<B, M>(
+    simulation: &Simulation<'_, B, M>,
+    steps: usize,
+    mut observe: impl FnMut(&Frame<'_, M>) -> ObserverResult,
+) -> Result<RunReport, RunError>
+where
+    B: SkinningField + ?Sized,
+    M: HyperelasticMaterial + Clone,
+{
+    let start = Instant::now();
+    let points = simulation.points;
+    let model = ReducedModel::new(
+        simulation.field,
+        points,
+        &simulation.material.sample(points.positions()),
+        simulation.material_model.clone(),
+    )
+    .map_err(RunError::Model)?;
+    let scene = simulation.scene.reduced_scene(model.rest_positions())?;
+    let region_points = scene.pins.iter().map(|p| p.points.len()).collect();
+    let mut sim = Simulator::new(model, &scene, simulation.params).map_err(RunError::Simulator)?;
+    let setup_seconds = start.elapsed().as_secs_f64();
+
+    let mut notify = |sim: &Simulator<M>, index: usize, step: Option<&NewtonReport>| {
+        observe(&Frame {
+            index,
+            time: sim.state().time,
+            simulator: sim,
+            step,
+        })
+        .map_err(|source| RunError::Observer {
+            frame: index,
+            source,
+        })
+    };
+    notify(&sim, 0, None)?;
+    let (mut iterations, mut unconverged) = (0usize, 0usize);
+    let (mut stepping, mut assembly) = (0.0, 0.0);
+    let mut max_pin_deviation: f64 = 0.0;
+    for step in 1..=steps {
+        let t = Instant::now();
+        let report = sim
+            .step()
+            .map_err(|source| RunError::Step { step, source })?;
+        stepping += t.elapsed().as_secs_f64();
+        assembly += report.timings.assembly;
+        iterations += report.iterations;
+        unconverged += usize::from(!report.converged());
+        max_pin_deviation = max_pin_deviation.max(sim.max_pin_deviation().unwrap_or(0.0));
+        notify(&sim, step, Some(&report))?;
+    }
+    let n = steps.max(1) as f64;
+    Ok(RunReport {
+        steps,
+        ms_per_step: 1e3 * stepping / n,
+        ms_assembly_per_step: 1e3 * assembly / n,
+        iterations_per_step: iterations as f64 / n,
+        unconverged_steps: unconverged,
+        max_pin_deviation,
+        setup_seconds,
+        simulation_points: points.len(),
+        region_points,
+    })
+}

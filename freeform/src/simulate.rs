@@ -1,0 +1,143 @@
+//! A scene file, run end to end: geometry → basis → simulation → frames on disk.
+
+use std::path::Path;
+use std::time::Instant;
+
+use artifact::{ArtifactError, write_atomically};
+use hyperelastic::{MaterialField, MaterialParameterError, MaterialSample, StableNeoHookean};
+use reduced_sim::{DeformationMap, DeformationMapError, SimulationParams};
+use serde::{Deserialize, Serialize};
+use skin_eigen::{BasisError, BasisParams, build_basis};
+use thiserror::Error;
+
+use crate::frames::FrameWriter;
+use crate::geometry::GeometryError;
+use crate::progress::Progress;
+use crate::runner::RunError;
+use crate::runner::{Simulation, run};
+use crate::scene_file::SceneFile;
+
+/// What [`simulate_scene_file`] did.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+pub struct SimulateReport {
+    /// Basis build time (s).
+    pub basis_seconds: f64,
+    /// Mean wall time per step (ms).
+    pub ms_per_step: f64,
+    /// Steps that did not converge.
+    pub unconverged_steps: usize,
+    /// Frames written.
+    pub frames_written: usize,
+    /// Integration points simulated.
+    pub simulation_points: usize,
+    /// Largest displacement of a surface vertex (or cloud point) at the last frame (m).
+    pub final_max_displacement: f64,
+}
+
+/// A scene file could not be run to the end.
+#[derive(Debug, Error)]
+pub enum SimulateError {
+    /// The geometry could not be read or sampled.
+    #[error(transparent)]
+    Geometry(#[from] GeometryError),
+    /// E or ν is out of range.
+    #[error("invalid material")]
+    Material(#[source] MaterialParameterError),
+    /// The basis could not be built.
+    #[error("building the basis failed")]
+    Basis(#[source] BasisError),
+    /// The deformation map at the written points could not be built.
+    #[error("the deformation map at the output points failed")]
+    OutputMap(#[source] DeformationMapError),
+    /// The simulation stopped (frames already written stay valid files).
+    #[error(transparent)]
+    Run(#[from] RunError),
+    /// A file could not be written.
+    #[error(transparent)]
+    Write(#[from] ArtifactError),
+}
+
+/// Runs a scene file with stable Neo-Hookean elasticity and writes `frame_NNNNN.ply` / `.vtk`
+/// (the deformed surface or cloud, every `output_every` steps and the last) and `summary.json`
+/// under `out_dir`.
+///
+/// # Errors
+/// [`SimulateError`] naming the stage; frames already written stay valid files.
+pub fn simulate_scene_file(
+    file: &SceneFile,
+    out_dir: &Path,
+    progress: &dyn Progress,
+) -> Result<SimulateReport, SimulateError> {
+    let geometry = file.geometry()?;
+    let material = MaterialSample::from(file.material);
+    let lame = material
+        .lame_parameters()
+        .map_err(SimulateError::Material)?;
+    let start = Instant::now();
+    progress.status(&format!(
+        "basis: m = {}, K = {}, ≈{} grid points",
+        file.basis.modes, file.basis.kernels, file.basis.points
+    ));
+    let basis_points = geometry.integration_points(file.basis.points)?;
+    let params = BasisParams::default()
+        .with_modes(file.basis.modes)
+        .with_kernels(file.basis.kernels);
+    let (basis, _, _) = build_basis(&basis_points, &vec![lame; basis_points.len()], &params)
+        .map_err(SimulateError::Basis)?;
+    let basis_seconds = start.elapsed().as_secs_f64();
+
+    let points = geometry.integration_points(file.simulation.points)?;
+    let writer = FrameWriter::new(out_dir, &geometry);
+    let output =
+        DeformationMap::new(&basis, writer.rest_positions()).map_err(SimulateError::OutputMap)?;
+    let steps = file.simulation.steps;
+    let simulation = Simulation {
+        field: &basis,
+        points: &points,
+        material: &MaterialField::Uniform(material),
+        material_model: StableNeoHookean,
+        scene: &file.scene,
+        params: SimulationParams {
+            time_step: file.simulation.time_step,
+            ..Default::default()
+        },
+    };
+    let mut frames_written = 0;
+    let mut last_z = Vec::new();
+    progress.begin(steps, "simulate");
+    let report = run(&simulation, steps, |frame| {
+        let z = &frame.simulator.state().z;
+        if frame.index % file.simulation.output_every == 0 || frame.index == steps {
+            writer.write(frame.index, &output.positions(z), frame.time)?;
+            frames_written += 1;
+        }
+        if frame.index > 0 {
+            progress.advance();
+        }
+        if frame.index == steps {
+            last_z.clone_from(z);
+        }
+        Ok(())
+    });
+    progress.finish();
+    let report = report?;
+    let report = SimulateReport {
+        basis_seconds,
+        ms_per_step: report.ms_per_step,
+        unconverged_steps: report.unconverged_steps,
+        frames_written,
+        simulation_points: points.len(),
+        final_max_displacement: output
+            .displacements(&last_z)
+            .iter()
+            .map(|d| d.norm())
+            .fold(0.0, f64::max),
+    };
+    write_atomically(
+        &out_dir.join("summary.json"),
+        serde_json::to_string_pretty(&report)
+            .unwrap_or_default()
+            .as_bytes(),
+    )?;
+    Ok(report)
+}

@@ -1,0 +1,211 @@
+//! The library layer end to end: geometry → integration points → basis → one runner → frames,
+//! checked against backward Euler's exact free fall, and its errors.
+
+use std::path::Path;
+
+use freeform::{
+    Constraint, FrameWriter, Geometry, GeometryError, Motion, Region, RunError, SceneSpec,
+    SceneSpecError, Simulation, run,
+};
+use hyperelastic::{MaterialField, MaterialSample, StableNeoHookean};
+use nalgebra::Vector3;
+use reduced_sim::{DeformationMap, SimulationParams};
+use skin_eigen::{BasisParams, SkinningBasis, build_basis};
+use test_support::fixtures::scratch_dir;
+
+const RUBBER: MaterialSample = MaterialSample {
+    youngs_modulus: 1e5,
+    poisson_ratio: 0.3,
+    density: 1000.0,
+};
+const H: f64 = 0.01;
+const G: f64 = 9.8;
+
+fn small_basis(geometry: &Geometry) -> SkinningBasis {
+    let points = geometry.integration_points(800).unwrap();
+    let lame = vec![RUBBER.lame_parameters().unwrap(); points.len()];
+    let params = BasisParams::default().with_modes(4).with_kernels(60);
+    build_basis(&points, &lame, &params).unwrap().0
+}
+
+fn falling(scene: &SceneSpec) -> SceneSpec {
+    SceneSpec {
+        gravity: Some(Vector3::new(0.0, -G, 0.0)),
+        ..scene.clone()
+    }
+}
+
+/// Backward Euler from rest under gravity alone: v_n = n g h, x_n = x_0 − g h² n(n+1)/2. The
+/// reduced space holds every translation and a translation has no elastic energy, so the
+/// reduced solution is exactly this.
+fn free_fall_drop(steps: usize) -> f64 {
+    G * H * H * (steps * (steps + 1)) as f64 / 2.0
+}
+
+fn assert_falls_as_backward_euler(geometry: &Geometry, dir: &Path) {
+    let basis = small_basis(geometry);
+    let points = geometry.integration_points(300).unwrap();
+    let scene = falling(&SceneSpec::default());
+    let simulation = Simulation {
+        field: &basis,
+        points: &points,
+        material: &MaterialField::Uniform(RUBBER),
+        material_model: StableNeoHookean,
+        scene: &scene,
+        params: SimulationParams {
+            time_step: H,
+            ..Default::default()
+        },
+    };
+    let writer = FrameWriter::new(dir, geometry);
+    let map = DeformationMap::new(&basis, writer.rest_positions()).unwrap();
+    let steps = 5;
+    let mut largest_error: f64 = 0.0;
+    let report = run(&simulation, steps, |frame| {
+        let x = map.positions(&frame.simulator.state().z);
+        for (x, rest) in x.iter().zip(writer.rest_positions()) {
+            let expected = rest - Vector3::y() * free_fall_drop(frame.index);
+            largest_error = largest_error.max((x - expected).norm());
+        }
+        writer.write(frame.index, &x, frame.time)?;
+        Ok(())
+    })
+    .unwrap();
+    assert_eq!(report.steps, steps);
+    assert_eq!(report.unconverged_steps, 0);
+    assert_eq!(report.simulation_points, points.len());
+    assert!(
+        largest_error < 1e-8,
+        "largest distance from exact backward-Euler free fall {largest_error:.3e} m"
+    );
+    for index in 0..=steps {
+        let ply = std::fs::read_to_string(dir.join(format!("frame_{index:05}.ply"))).unwrap();
+        let count = format!("element vertex {}\n", writer.rest_positions().len());
+        assert!(ply.contains(&count), "frame {index}: {ply:.200}");
+        assert!(dir.join(format!("frame_{index:05}.vtk")).is_file());
+    }
+}
+
+#[test]
+fn a_box_surface_falls_exactly_as_backward_euler_and_every_frame_is_written() {
+    let geometry = Geometry::cuboid(Vector3::zeros(), Vector3::new(1.0, 0.25, 0.25));
+    assert_falls_as_backward_euler(&geometry, &scratch_dir("freeform-box-fall"));
+}
+
+#[test]
+fn a_point_cloud_file_gets_points_a_basis_and_a_run_that_falls_exactly() {
+    let dir = scratch_dir("freeform-cloud-fall");
+    // A plain PLY cloud (no faces): an 8 × 4 × 4 lattice filling a 1 × 0.5 × 0.5 m block.
+    let mut ply = String::from(
+        "ply\nformat ascii 1.0\nelement vertex 128\nproperty float x\nproperty float y\n\
+         property float z\nend_header\n",
+    );
+    for i in 0..8 {
+        for j in 0..4 {
+            for k in 0..4 {
+                let p = [i as f64 + 0.5, j as f64 + 0.5, k as f64 + 0.5].map(|c| c / 8.0);
+                ply += &format!("{} {} {}\n", p[0], p[1], p[2]);
+            }
+        }
+    }
+    let file = dir.join("block.ply");
+    std::fs::write(&file, ply).unwrap();
+    let geometry = Geometry::read(&file).unwrap();
+    assert!(matches!(geometry, Geometry::Cloud(_)));
+    assert_eq!(geometry.integration_points(1000).unwrap().len(), 128);
+    assert_falls_as_backward_euler(&geometry, &dir.join("frames"));
+}
+
+#[test]
+fn a_region_that_holds_no_point_stops_the_run_before_any_frame_with_the_region_named() {
+    let geometry = Geometry::cuboid(Vector3::zeros(), Vector3::new(1.0, 0.25, 0.25));
+    let basis = small_basis(&geometry);
+    let points = geometry.integration_points(300).unwrap();
+    let scene = falling(&SceneSpec {
+        constraints: vec![Constraint {
+            region: Region::Below {
+                axis: 0,
+                value: -1.0,
+            },
+            motion: Motion::Rest,
+        }],
+        ..Default::default()
+    });
+    let simulation = Simulation {
+        field: &basis,
+        points: &points,
+        material: &MaterialField::Uniform(RUBBER),
+        material_model: StableNeoHookean,
+        scene: &scene,
+        params: SimulationParams::default(),
+    };
+    let mut frames = 0;
+    let err = run(&simulation, 3, |_| {
+        frames += 1;
+        Ok(())
+    })
+    .unwrap_err();
+    assert_eq!(frames, 0);
+    assert!(
+        matches!(
+            err,
+            RunError::Scene(SceneSpecError::EmptyRegion { index: 0, .. })
+        ),
+        "{err}"
+    );
+}
+
+#[test]
+fn an_observer_error_stops_the_run_and_keeps_its_source_and_frame() {
+    let geometry = Geometry::cuboid(Vector3::zeros(), Vector3::new(1.0, 0.25, 0.25));
+    let basis = small_basis(&geometry);
+    let points = geometry.integration_points(300).unwrap();
+    let scene = falling(&SceneSpec::default());
+    let simulation = Simulation {
+        field: &basis,
+        points: &points,
+        material: &MaterialField::Uniform(RUBBER),
+        material_model: StableNeoHookean,
+        scene: &scene,
+        params: SimulationParams::default(),
+    };
+    let err = run(&simulation, 10, |frame| {
+        if frame.index == 2 {
+            Err("disk full".into())
+        } else {
+            Ok(())
+        }
+    })
+    .unwrap_err();
+    let RunError::Observer { frame, source } = &err else {
+        panic!("{err}");
+    };
+    assert_eq!(*frame, 2);
+    assert_eq!(source.to_string(), "disk full");
+}
+
+#[test]
+fn an_empty_or_missing_geometry_file_is_a_named_error() {
+    let dir = scratch_dir("freeform-bad-geometry");
+    let empty = dir.join("empty.ply");
+    std::fs::write(
+        &empty,
+        "ply\nformat ascii 1.0\nelement vertex 0\nproperty float x\nproperty float y\n\
+         property float z\nend_header\n",
+    )
+    .unwrap();
+    let err = Geometry::read(&empty).unwrap_err();
+    assert!(
+        matches!(
+            err,
+            GeometryError::Unreadable { .. } | GeometryError::Read(_)
+        ),
+        "{err}"
+    );
+    assert!(err.to_string().contains("empty.ply"), "{err}");
+    let missing = Geometry::read(&dir.join("missing.obj")).unwrap_err();
+    assert!(
+        matches!(missing, GeometryError::Missing { .. }),
+        "{missing}"
+    );
+}
