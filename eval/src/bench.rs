@@ -2,7 +2,7 @@
 //! error — modes m, kernels K, simulation points, Newton tolerance, and coarser FEM as its own
 //! method — and mark the Pareto front (no other configuration is both faster and more accurate).
 
-use optimize::NewtonParams;
+use optimize::{HessianReuse, NewtonParams};
 use std::fmt::Write as _;
 use std::path::{Path, PathBuf};
 
@@ -20,6 +20,10 @@ use crate::metrics::trajectory_errors;
 use crate::progress::Progress;
 use crate::report::plot::{AxisScale, PlotSpec, Series};
 use artifact::write_atomically;
+
+/// The Hessian reuse of the bench's "Hessian reuse" series: chord steps while each is at most
+/// half the previous one.
+pub const HESSIAN_REUSE: HessianReuse = HessianReuse::WhileContracting { contraction: 0.5 };
 
 /// One configuration to time.
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
@@ -57,6 +61,16 @@ impl BenchConfig {
             runs.push((
                 "m".into(),
                 BenchMethod::FreeForm(ReducedSettings { modes: m, ..base }),
+            ));
+        }
+        for m in [6, 9, 16, 32] {
+            runs.push((
+                "Hessian reuse".into(),
+                BenchMethod::FreeForm(ReducedSettings {
+                    modes: m,
+                    hessian_reuse: HESSIAN_REUSE,
+                    ..base
+                }),
             ));
         }
         for k in [250, 500, 2000] {
@@ -148,6 +162,16 @@ impl BenchConfig {
                 ..base
             }),
         ));
+        for m in [6, 16] {
+            runs.push((
+                "Hessian reuse".into(),
+                BenchMethod::FreeForm(ReducedSettings {
+                    modes: m,
+                    hessian_reuse: HESSIAN_REUSE,
+                    ..base
+                }),
+            ));
+        }
         for order in [ElementOrder::Linear, ElementOrder::Quadratic] {
             runs.push((
                 "FEM".into(),
@@ -238,8 +262,18 @@ pub fn run_bench(config: &BenchConfig, progress: &Progress) -> Result<Vec<BenchR
                 (
                     "freeform",
                     format!(
-                        "m={} K={} pts={} tol={:e} pin={:e}",
-                        s.modes, s.kernels, run.simulation_points, s.tolerance, s.pin_factor
+                        "m={} K={} pts={} tol={:e} pin={:e}{}",
+                        s.modes,
+                        s.kernels,
+                        run.simulation_points,
+                        s.tolerance,
+                        s.pin_factor,
+                        match s.hessian_reuse {
+                            HessianReuse::Never => String::new(),
+                            HessianReuse::WhileContracting { contraction } => {
+                                format!(" reuse={contraction}")
+                            }
+                        }
                     ),
                     run.ms_per_step,
                     basis.seconds,
@@ -372,9 +406,16 @@ pub fn write_bench(
 /// [`crate::report::plot::write_plot`].
 pub fn bench_plot(results: &[BenchResult], config: &BenchConfig) -> PlotSpec {
     let mut series: Vec<Series> = Vec::new();
-    for (i, knob) in ["m", "K", "points", "tolerance", "pin factor"]
-        .into_iter()
-        .enumerate()
+    for (i, knob) in [
+        "m",
+        "K",
+        "points",
+        "tolerance",
+        "pin factor",
+        "Hessian reuse",
+    ]
+    .into_iter()
+    .enumerate()
     {
         let mut points: Vec<(f64, f64)> = results
             .iter()
@@ -386,10 +427,15 @@ pub fn bench_plot(results: &[BenchResult], config: &BenchConfig) -> PlotSpec {
         }
         points.sort_by(|a, b| a.0.total_cmp(&b.0));
         series.push(Series {
-            label: format!("FreeForm, varying {knob}"),
+            label: if knob == "Hessian reuse" {
+                "FreeForm with Hessian reuse, varying m".into()
+            } else {
+                format!("FreeForm, varying {knob}")
+            },
             points,
             line: false,
-            color: i,
+            // Colours 5-7 are the front, the coarser FEM and Simplicits.
+            color: if i < 5 { i } else { 8 + i - 5 },
         });
     }
     let mut simplicits: Vec<(f64, f64)> = results

@@ -40,6 +40,8 @@ pub struct ReducedRun {
     pub ms_assembly_per_step: f64,
     /// Mean Newton iterations per step.
     pub iterations_per_step: f64,
+    /// Mean Hessians assembled and factored per step.
+    pub hessians_per_step: f64,
     /// Steps whose Newton solve did not converge.
     pub unconverged_steps: usize,
     /// Largest distance of a pinned point from its target over the run (m).
@@ -87,6 +89,7 @@ pub fn run_reduced<B: SkinningField + ?Sized>(
         ms_per_step,
         ms_assembly_per_step,
         iterations_per_step,
+        hessians_per_step,
         unconverged_steps,
         max_pin_deviation,
         setup_seconds,
@@ -99,6 +102,7 @@ pub fn run_reduced<B: SkinningField + ?Sized>(
         ms_per_step,
         ms_assembly_per_step,
         iterations_per_step,
+        hessians_per_step,
         unconverged_steps,
         max_pin_deviation,
         setup_seconds,

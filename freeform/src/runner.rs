@@ -56,6 +56,8 @@ pub struct RunReport {
     pub ms_assembly_per_step: f64,
     /// Mean Newton iterations per step.
     pub iterations_per_step: f64,
+    /// Mean Hessians assembled and factored per step (below 1 with Hessian reuse).
+    pub hessians_per_step: f64,
     /// Steps whose Newton solve stopped unconverged (the run goes on; the caller decides).
     pub unconverged_steps: usize,
     /// Largest distance of a held integration point from its target over the run (m).
@@ -144,7 +146,7 @@ where
         })
     };
     notify(&sim, 0, None)?;
-    let (mut iterations, mut unconverged) = (0usize, 0usize);
+    let (mut iterations, mut unconverged, mut hessians) = (0usize, 0usize, 0usize);
     let (mut stepping, mut assembly) = (0.0, 0.0);
     let mut max_pin_deviation: f64 = 0.0;
     for step in 1..=steps {
@@ -155,6 +157,7 @@ where
         stepping += t.elapsed().as_secs_f64();
         assembly += report.timings.assembly;
         iterations += report.iterations;
+        hessians += report.hessian_assemblies;
         unconverged += usize::from(!report.converged());
         max_pin_deviation = max_pin_deviation.max(sim.max_pin_deviation().unwrap_or(0.0));
         notify(&sim, step, Some(&report))?;
@@ -165,6 +168,7 @@ where
         ms_per_step: 1e3 * stepping / n,
         ms_assembly_per_step: 1e3 * assembly / n,
         iterations_per_step: iterations as f64 / n,
+        hessians_per_step: hessians as f64 / n,
         unconverged_steps: unconverged,
         max_pin_deviation,
         setup_seconds,

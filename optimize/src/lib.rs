@@ -9,10 +9,12 @@
 //!
 //! - [`NewtonObjective`]: what an objective provides.
 //! - [`minimize`]: the solver; [`NewtonParams`] in, [`NewtonReport`] out, [`NewtonError`]
-//!   when it cannot go on.
+//!   when it cannot go on; [`minimize_reusing`] carries the Hessian factorization from one
+//!   solve to the next ([`HessianReuse`]).
 
 pub mod newton;
 
 pub use newton::{
-    NewtonError, NewtonObjective, NewtonParams, NewtonReport, NewtonStop, NewtonTimings, minimize,
+    HessianReuse, NewtonError, NewtonObjective, NewtonParams, NewtonReport, NewtonStop,
+    NewtonTimings, minimize, minimize_reusing,
 };

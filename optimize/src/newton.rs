@@ -12,6 +12,13 @@
 //!
 //! Reaching the iteration cap stops with [`NewtonStop::IterationLimit`]; the last iterate is
 //! kept either way, and the report says why it stopped.
+//!
+//! With [`HessianReuse::WhileContracting`], step 1 goes further: when the lagged step is not yet
+//! converged but is at most `contraction` times the previous step, it is taken (with the same
+//! line search) instead of assembling a new Hessian (a chord step), and
+//! [`minimize_reusing`] carries the factor from one solve to the next (e.g. across time
+//! steps). Convergence is tested exactly as without reuse, so the converged point meets the
+//! same tolerance; it is reached by more, cheaper iterations.
 
 use std::time::Instant;
 
@@ -61,6 +68,23 @@ pub trait NewtonObjective {
     }
 }
 
+/// Whether Newton may keep stepping with an older Hessian factorization.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Serialize, Deserialize)]
+#[serde(rename_all = "snake_case")]
+pub enum HessianReuse {
+    /// A new Hessian for every iteration whose lagged step does not pass the convergence test
+    /// (default; the setting of the paper's tables).
+    #[default]
+    Never,
+    /// Take the step of the last factorization while its norm is at most `contraction` times
+    /// the previous step's (the first step of a solve always may), with the Armijo line search;
+    /// assemble a new Hessian when it does not contract or the line search stalls.
+    WhileContracting {
+        /// Required ratio of successive step norms, in (0, 1) (e.g. 0.5).
+        contraction: f64,
+    },
+}
+
 /// Options of [`minimize`].
 #[derive(Clone, Copy, Debug, PartialEq, Serialize, Deserialize)]
 pub struct NewtonParams {
@@ -74,6 +98,9 @@ pub struct NewtonParams {
     pub armijo: f64,
     /// Step halvings allowed per iteration before the line search gives up (default 30).
     pub max_line_search_cuts: usize,
+    /// Whether to keep stepping with an older Hessian (default [`HessianReuse::Never`]).
+    #[serde(default)]
+    pub hessian_reuse: HessianReuse,
 }
 
 impl Default for NewtonParams {
@@ -83,6 +110,7 @@ impl Default for NewtonParams {
             tolerance: 1e-6,
             armijo: 1e-4,
             max_line_search_cuts: 30,
+            hessian_reuse: HessianReuse::Never,
         }
     }
 }
@@ -129,6 +157,9 @@ pub struct NewtonReport {
     /// Step halvings of the line search over all iterations (the last try of a stalled
     /// search is not a cut).
     pub line_search_cuts: usize,
+    /// Steps taken along an older factorization ([`HessianReuse::WhileContracting`]).
+    #[serde(default)]
+    pub lagged_steps: usize,
     /// Why Newton stopped.
     pub stop: NewtonStop,
     /// The final E.
@@ -178,6 +209,40 @@ pub fn minimize<O: NewtonObjective>(
     x: &mut Vec<f64>,
     params: &NewtonParams,
 ) -> Result<NewtonReport, NewtonError> {
+    minimize_reusing(objective, x, params, &mut None)
+}
+
+/// [`minimize`] starting from the factorization in `factor` (left by an earlier solve of a
+/// similar objective, e.g. the previous time step) and leaving its last one there. A carried
+/// factor is only used by the lagged convergence test, and, with
+/// [`HessianReuse::WhileContracting`], for chord steps; a step along it is always checked by the
+/// same tolerance and line search.
+///
+/// # Errors
+/// As [`minimize`]; `factor` is then emptied.
+pub fn minimize_reusing<O: NewtonObjective>(
+    objective: &O,
+    x: &mut Vec<f64>,
+    params: &NewtonParams,
+    factor: &mut Option<O::Factor>,
+) -> Result<NewtonReport, NewtonError> {
+    let carried = factor.take();
+    let result = solve(objective, x, params, carried);
+    match result {
+        Ok((report, last)) => {
+            *factor = last;
+            Ok(report)
+        }
+        Err(e) => Err(e),
+    }
+}
+
+fn solve<O: NewtonObjective>(
+    objective: &O,
+    x: &mut Vec<f64>,
+    params: &NewtonParams,
+    carried: Option<O::Factor>,
+) -> Result<(NewtonReport, Option<O::Factor>), NewtonError> {
     let mut timings = NewtonTimings::default();
     let mut energy = objective.energy(x);
     if !energy.is_finite() {
@@ -191,6 +256,7 @@ pub fn minimize<O: NewtonObjective>(
         hessian_assemblies: 0,
         residual: f64::INFINITY,
         line_search_cuts: 0,
+        lagged_steps: 0,
         stop: NewtonStop::IterationLimit,
         energy,
         timings,
@@ -199,7 +265,9 @@ pub fn minimize<O: NewtonObjective>(
         iteration,
         quantity: "gradient",
     };
-    let mut factor: Option<O::Factor> = None;
+    let mut factor: Option<O::Factor> = carried;
+    // Norm of the last step taken (∞ before the first), for the contraction test.
+    let mut previous_residual = f64::INFINITY;
     for iteration in 1..=params.max_iterations {
         report.iterations = iteration;
         // The lagged-Hessian convergence test: gradient only, no new Hessian if it passes.
@@ -220,6 +288,25 @@ pub fn minimize<O: NewtonObjective>(
                 apply(x, &step, 1.0);
                 report.stop = NewtonStop::Converged;
                 break;
+            }
+            if let HessianReuse::WhileContracting { contraction } = params.hessian_reuse
+                && residual.is_finite()
+                && residual <= contraction * previous_residual
+            {
+                let t = Instant::now();
+                let accepted = line_search(objective, x, energy, &gradient, &step, params);
+                timings.line_search += t.elapsed().as_secs_f64();
+                if let Some((trial, e, cuts)) = accepted {
+                    // A chord step: no new Hessian this iteration.
+                    report.line_search_cuts += cuts;
+                    report.lagged_steps += 1;
+                    report.residual = residual;
+                    previous_residual = residual;
+                    *x = trial;
+                    energy = e;
+                    continue;
+                }
+                // No decrease along the old factor's step: a new Hessian decides.
             }
             known_gradient = Some(gradient);
         }
@@ -245,6 +332,7 @@ pub fn minimize<O: NewtonObjective>(
         }
         let residual = objective.step_norm(&step);
         report.residual = residual;
+        previous_residual = residual;
         if residual < params.tolerance {
             // Within tolerance: take the full step (quadratically small) and stop.
             apply(x, &step, 1.0);
@@ -252,29 +340,16 @@ pub fn minimize<O: NewtonObjective>(
             break;
         }
         let t = Instant::now();
-        let slope = objective.directional_derivative(&gradient, &step);
-        let mut alpha = 1.0;
-        let mut accepted = None;
-        for _ in 0..=params.max_line_search_cuts {
-            let mut trial = x.clone();
-            apply(&mut trial, &step, alpha);
-            let e = objective.energy(&trial);
-            if e.is_finite() && e <= energy + params.armijo * alpha * slope {
-                accepted = Some((trial, e));
-                break;
-            }
-            alpha *= 0.5;
-            report.line_search_cuts += 1;
-        }
+        let accepted = line_search(objective, x, energy, &gradient, &step, params);
         timings.line_search += t.elapsed().as_secs_f64();
         match accepted {
-            Some((trial, e)) => {
+            Some((trial, e, cuts)) => {
+                report.line_search_cuts += cuts;
                 *x = trial;
                 energy = e;
             }
             None => {
-                // The last pass of the loop tried α = 2^-cuts and counted one halving too many.
-                report.line_search_cuts -= 1;
+                report.line_search_cuts += params.max_line_search_cuts;
                 report.stop = NewtonStop::LineSearchStalled;
                 break;
             }
@@ -282,7 +357,32 @@ pub fn minimize<O: NewtonObjective>(
     }
     report.energy = energy;
     report.timings = timings;
-    Ok(report)
+    Ok((report, factor))
+}
+
+/// Armijo backtracking from α = 1 along `step`: the accepted point, its energy and the
+/// halvings it took, or `None` when no α ≥ 2^-max_cuts decreases E enough (then
+/// `max_line_search_cuts` halvings were made).
+fn line_search<O: NewtonObjective>(
+    objective: &O,
+    x: &[f64],
+    energy: f64,
+    gradient: &[f64],
+    step: &[f64],
+    params: &NewtonParams,
+) -> Option<(Vec<f64>, f64, usize)> {
+    let slope = objective.directional_derivative(gradient, step);
+    let mut alpha = 1.0;
+    for cuts in 0..=params.max_line_search_cuts {
+        let mut trial = x.to_vec();
+        apply(&mut trial, step, alpha);
+        let e = objective.energy(&trial);
+        if e.is_finite() && e <= energy + params.armijo * alpha * slope {
+            return Some((trial, e, cuts));
+        }
+        alpha *= 0.5;
+    }
+    None
 }
 
 /// `x += α Δx`.

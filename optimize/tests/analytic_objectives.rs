@@ -2,7 +2,10 @@
 
 use faer::linalg::solvers::{Llt, Solve};
 use faer::{Mat, Side};
-use optimize::{NewtonError, NewtonObjective, NewtonParams, NewtonStop, minimize};
+use optimize::{
+    HessianReuse, NewtonError, NewtonObjective, NewtonParams, NewtonStop, minimize,
+    minimize_reusing,
+};
 
 /// A dense objective from closures; the factorization is faer's Cholesky, shifted by `shift · I`
 /// (doubling from `shift`) until it succeeds when `shift > 0`, refused otherwise.
@@ -228,4 +231,59 @@ fn nan_energy_gradient_and_indefinite_hessians_are_named_errors() {
         Err(NewtonError::NotPositiveDefinite { iteration: 1 })
     );
     assert_eq!(x, vec![1.0], "a failed solve leaves x where it was");
+}
+
+#[test]
+fn a_carried_factor_solves_the_same_quadratic_again_without_a_new_hessian_only_when_reuse_allows() {
+    let objective = quadratic();
+    let reuse = NewtonParams {
+        hessian_reuse: HessianReuse::WhileContracting { contraction: 0.5 },
+        ..Default::default()
+    };
+    let mut factor = None;
+    let mut x = vec![3.0, -5.0];
+    let first = minimize_reusing(&objective, &mut x, &reuse, &mut factor).unwrap();
+    assert_eq!(first.hessian_assemblies, 1);
+    assert!(factor.is_some(), "the last factorization is handed back");
+    // A new start: the carried factor is the exact Hessian, so its step is the Newton step.
+    let mut y = vec![-2.0, 4.0];
+    let second = minimize_reusing(&objective, &mut y, &reuse, &mut factor).unwrap();
+    assert!(second.converged());
+    assert_eq!(second.hessian_assemblies, 0);
+    assert_eq!(second.lagged_steps, 1);
+    assert!((y[0] - 1.0 / 11.0).abs() < 1e-14 && (y[1] - 7.0 / 11.0).abs() < 1e-14);
+    // Without reuse the carried factor only serves the convergence test: a new Hessian.
+    let mut z = vec![-2.0, 4.0];
+    let never =
+        minimize_reusing(&objective, &mut z, &NewtonParams::default(), &mut factor).unwrap();
+    assert_eq!((never.hessian_assemblies, never.lagged_steps), (1, 0));
+    assert_eq!(z, y);
+}
+
+#[test]
+fn chord_steps_on_rosenbrock_reach_the_same_minimum_with_fewer_hessians() {
+    let objective = rosenbrock();
+    let mut fresh_x = vec![-1.2, 1.0];
+    let fresh = minimize(
+        &objective,
+        &mut fresh_x,
+        &NewtonParams {
+            max_iterations: 200,
+            ..Default::default()
+        },
+    )
+    .unwrap();
+    let reuse = NewtonParams {
+        max_iterations: 200,
+        hessian_reuse: HessianReuse::WhileContracting { contraction: 0.5 },
+        ..Default::default()
+    };
+    let mut x = vec![-1.2, 1.0];
+    let reused = minimize(&objective, &mut x, &reuse).unwrap();
+    assert!(fresh.converged() && reused.converged());
+    assert!(
+        (x[0] - 1.0).abs() < 1e-5 && (x[1] - 1.0).abs() < 1e-5,
+        "{x:?}"
+    );
+    assert!(reused.hessian_assemblies <= fresh.hessian_assemblies);
 }

@@ -1,8 +1,9 @@
 //! The time stepper: a model, a scene, and the reduced state advanced by backward Euler
 //! (DESIGN 3.7, paper Eqs. 1-2).
 
+use faer::linalg::solvers::Llt;
 use hyperelastic::{HyperelasticMaterial, Tangent};
-use optimize::{NewtonError, NewtonParams, NewtonReport, minimize};
+use optimize::{HessianReuse, NewtonError, NewtonParams, NewtonReport, minimize, minimize_reusing};
 use serde::{Deserialize, Serialize};
 use thiserror::Error;
 
@@ -84,6 +85,9 @@ pub struct Simulator<M: HyperelasticMaterial> {
     terms: SceneTerms,
     params: SimulationParams,
     state: ReducedState,
+    /// The last step's Hessian factorization, kept for the next step when
+    /// `params.newton.hessian_reuse` allows it.
+    factor: Option<Llt<f64>>,
 }
 
 impl<M: HyperelasticMaterial> Simulator<M> {
@@ -108,6 +112,7 @@ impl<M: HyperelasticMaterial> Simulator<M> {
                 velocity: layout.rest(),
                 time: 0.0,
             },
+            factor: None,
         })
     }
 
@@ -158,12 +163,15 @@ impl<M: HyperelasticMaterial> Simulator<M> {
             return Err(StateError::NonFinite);
         }
         self.state = state;
+        self.factor = None;
         Ok(())
     }
 
     /// Advances one step of h: minimizes the incremental potential from `ẑ = z_t + h ż_t`,
     /// then `ż_{t+h} = (z_{t+h} - z_t)/h`. A step that does not converge still advances (to
-    /// Newton's last iterate) and says so in its report.
+    /// Newton's last iterate) and says so in its report. With
+    /// [`optimize::HessianReuse::WhileContracting`] in `params.newton`, the last step's Hessian
+    /// factorization is carried into this one (chord steps while they contract).
     ///
     /// # Errors
     /// [`StepError`] on a non-finite value or a singular system; the state is then unchanged.
@@ -172,11 +180,18 @@ impl<M: HyperelasticMaterial> Simulator<M> {
         if !(h > 0.0 && h.is_finite()) {
             return Err(StepError::InvalidTimeStep(h));
         }
+        let mut factor = self.factor.take();
         let predicted = self.predicted_coordinates();
         let next_time = self.state.time + h;
         let potential = self.step_potential(&predicted);
         let mut z = predicted.clone();
-        let report = minimize(&potential, &mut z, &self.params.newton)?;
+        let report = match self.params.newton.hessian_reuse {
+            HessianReuse::Never => minimize(&potential, &mut z, &self.params.newton),
+            HessianReuse::WhileContracting { .. } => {
+                minimize_reusing(&potential, &mut z, &self.params.newton, &mut factor)
+            }
+        }?;
+        self.factor = factor;
         let velocity = z
             .iter()
             .zip(&self.state.z)
@@ -236,6 +251,7 @@ impl<M: HyperelasticMaterial> Simulator<M> {
         let mut z = self.state.z.clone();
         let report = minimize(&potential, &mut z, &self.params.newton)?;
         let layout = self.model.deformation_map().layout();
+        self.factor = None;
         self.state = ReducedState {
             z,
             velocity: layout.rest(),

@@ -5,7 +5,7 @@ use std::time::Instant;
 
 use hyperelastic::LameParameters;
 use nalgebra::Vector3;
-use optimize::NewtonParams;
+use optimize::{HessianReuse, NewtonParams};
 use reduced_sim::{PenaltyParams, SimulationParams, SkinningField};
 use rkpm_core::{
     IntegrationPoints, RandomSamplingParams, TriangleMesh, sample_box_grid, sample_random,
@@ -42,6 +42,11 @@ pub struct ReducedSettings {
     /// ablation).
     #[serde(default)]
     pub simulation_sampling: SimulationSampling,
+    /// Whether Newton carries its Hessian factorization across steps (default
+    /// [`HessianReuse::Never`], the paper's setting; the bench's "Hessian reuse" series runs
+    /// `WhileContracting { contraction: 0.5 }`).
+    #[serde(default)]
+    pub hessian_reuse: HessianReuse,
 }
 
 /// How the simulation's integration points are placed.
@@ -111,6 +116,7 @@ impl ReducedSettings {
             time_step,
             newton: NewtonParams {
                 tolerance: self.tolerance,
+                hessian_reuse: self.hessian_reuse,
                 ..Default::default()
             },
             penalty: PenaltyParams {
@@ -132,6 +138,7 @@ impl Default for ReducedSettings {
             tolerance: NewtonParams::default().tolerance,
             pin_factor: 1e3,
             simulation_sampling: SimulationSampling::Grid,
+            hessian_reuse: HessianReuse::Never,
         }
     }
 }
