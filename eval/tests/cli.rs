@@ -373,3 +373,36 @@ fn an_unknown_only_name_is_an_error_listing_the_meshes() {
     assert!(!missing.status.success());
     assert!(String::from_utf8_lossy(&missing.stderr).contains("--meshes"));
 }
+
+/// The first step of a splat workflow: a real 3DGS file (no face element) gets a basis. Before,
+/// the mesh reader's "no `vertex_indices`" error stopped it.
+#[test]
+fn basis_of_the_shared_3dgs_donut_is_built_from_its_splat_centres() {
+    let dir = scratch("donut-basis");
+    let save = dir.join("donut.basis");
+    let splat = test_support::fixtures::shared_splat();
+    let run = freeform(
+        &[
+            "basis",
+            splat.to_str().unwrap(),
+            "--points",
+            "3000",
+            "--kernels",
+            "200",
+            "--modes",
+            "6",
+            "--save",
+            save.to_str().unwrap(),
+        ],
+        &dir,
+    );
+    let stdout = String::from_utf8_lossy(&run.stdout);
+    assert!(
+        run.status.success(),
+        "{}",
+        String::from_utf8_lossy(&run.stderr)
+    );
+    assert!(stdout.contains("N = 3000 points"), "{stdout}");
+    let basis = skin_eigen::SkinningBasis::load(&save).unwrap();
+    assert_eq!(basis.modes(), 6);
+}
