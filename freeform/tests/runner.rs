@@ -10,6 +10,7 @@ use freeform::{
 use hyperelastic::{MaterialField, MaterialSample, StableNeoHookean};
 use nalgebra::Vector3;
 use reduced_sim::{DeformationMap, SimulationParams};
+use rkpm_core::IntegrationPoints;
 use skin_eigen::{BasisParams, SkinningBasis, build_basis};
 use test_support::fixtures::scratch_dir;
 
@@ -26,6 +27,27 @@ fn small_basis(geometry: &Geometry) -> SkinningBasis {
     let lame = vec![RUBBER.lame_parameters().unwrap(); points.len()];
     let params = BasisParams::default().with_modes(4).with_kernels(60);
     build_basis(&points, &lame, &params).unwrap().0
+}
+
+/// `RUBBER` everywhere, stable Neo-Hookean, h = `H`.
+fn rubber<'a>(
+    basis: &'a SkinningBasis,
+    points: &'a IntegrationPoints,
+    scene: &'a SceneSpec,
+) -> Simulation<'a, SkinningBasis, StableNeoHookean> {
+    static MATERIAL: std::sync::LazyLock<MaterialField> =
+        std::sync::LazyLock::new(|| MaterialField::Uniform(RUBBER));
+    Simulation {
+        field: basis,
+        points,
+        material: &MATERIAL,
+        material_model: StableNeoHookean,
+        scene,
+        params: SimulationParams {
+            time_step: H,
+            ..Default::default()
+        },
+    }
 }
 
 fn falling(scene: &SceneSpec) -> SceneSpec {
@@ -46,17 +68,7 @@ fn assert_falls_as_backward_euler(geometry: &Geometry, dir: &Path) {
     let basis = small_basis(geometry);
     let points = geometry.integration_points(300).unwrap();
     let scene = falling(&SceneSpec::default());
-    let simulation = Simulation {
-        field: &basis,
-        points: &points,
-        material: &MaterialField::Uniform(RUBBER),
-        material_model: StableNeoHookean,
-        scene: &scene,
-        params: SimulationParams {
-            time_step: H,
-            ..Default::default()
-        },
-    };
+    let simulation = rubber(&basis, &points, &scene);
     let writer = FrameWriter::new(dir, geometry);
     let map = DeformationMap::new(&basis, writer.rest_positions()).unwrap();
     let steps = 5;
@@ -131,14 +143,7 @@ fn a_region_that_holds_no_point_stops_the_run_before_any_frame_with_the_region_n
         }],
         ..Default::default()
     });
-    let simulation = Simulation {
-        field: &basis,
-        points: &points,
-        material: &MaterialField::Uniform(RUBBER),
-        material_model: StableNeoHookean,
-        scene: &scene,
-        params: SimulationParams::default(),
-    };
+    let simulation = rubber(&basis, &points, &scene);
     let mut frames = 0;
     let err = run(&simulation, 3, |_| {
         frames += 1;
@@ -161,14 +166,7 @@ fn an_observer_error_stops_the_run_and_keeps_its_source_and_frame() {
     let basis = small_basis(&geometry);
     let points = geometry.integration_points(300).unwrap();
     let scene = falling(&SceneSpec::default());
-    let simulation = Simulation {
-        field: &basis,
-        points: &points,
-        material: &MaterialField::Uniform(RUBBER),
-        material_model: StableNeoHookean,
-        scene: &scene,
-        params: SimulationParams::default(),
-    };
+    let simulation = rubber(&basis, &points, &scene);
     let err = run(&simulation, 10, |frame| {
         if frame.index == 2 {
             Err("disk full".into())
