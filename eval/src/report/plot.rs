@@ -127,13 +127,7 @@ where
             let mut chart = $chart;
             let log_y = spec.scale != AxisScale::Linear;
             let log_x = spec.scale == AxisScale::LogLog;
-            let tick = |log: bool, v: f64| {
-                if log {
-                    format!("{v:.0e}")
-                } else {
-                    format!("{v:.3}")
-                }
-            };
+            let tick = |log: bool, v: f64| if log { log_tick(v) } else { format!("{v:.3}") };
             chart
                 .configure_mesh()
                 .x_label_formatter(&|v| tick(log_x, *v))
@@ -236,4 +230,42 @@ pub fn write_plot(spec: &PlotSpec, base: &Path) -> Result<Vec<PathBuf>, EvalErro
         written.push(png);
     }
     Ok(written)
+}
+
+/// A log axis's label: only the ticks at 1, 2 and 5 times a power of ten are written (the
+/// others would run into each other), in plain form between 0.01 and 1000, else as `1e-5`.
+fn log_tick(v: f64) -> String {
+    if !(v > 0.0 && v.is_finite()) {
+        return String::new();
+    }
+    let decade = 10f64.powf(v.log10().floor());
+    let lead = (v / decade).round();
+    if ((v / decade) - lead).abs() > 1e-6 || !matches!(lead as u32, 1 | 2 | 5) {
+        return String::new();
+    }
+    if (0.01..1000.0).contains(&v) {
+        let text = format!("{v:.2}");
+        text.trim_end_matches('0').trim_end_matches('.').to_string()
+    } else {
+        format!("{v:.0e}")
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::log_tick;
+
+    #[test]
+    fn log_ticks_label_one_two_and_five_per_decade_only() {
+        let labels: Vec<String> = [1.0, 2.0, 3.0, 5.0, 8.0, 10.0, 20.0, 0.05, 1e-5, 2e-4, 7e-4]
+            .map(log_tick)
+            .to_vec();
+        assert_eq!(
+            labels,
+            [
+                "1", "2", "", "5", "", "10", "20", "0.05", "1e-5", "2e-4", ""
+            ]
+        );
+        assert_eq!(log_tick(0.0), "");
+    }
 }
