@@ -10,7 +10,9 @@
 //!   [`scene_file`]: the same as a TOML/JSON file with geometry, material, basis and time.
 //! - [`runner`]: one loop ([`run`]) for any skinning field and any
 //!   [`hyperelastic::HyperelasticMaterial`], handing every frame to the caller.
-//! - [`frames`]: per-frame PLY and VTK ([`FrameWriter`]); [`simulate`]: a scene file end to end.
+//! - [`frames`]: per-frame PLY and VTK ([`FrameWriter`]); [`splats`]: 3DGS files deformed
+//!   (`Σ' = F Σ Fᵀ`) in their own layout ([`SplatTable`]); [`simulate`]: a scene file end to
+//!   end.
 //! - [`progress`]: progress reported through a trait ([`Progress`]), not a terminal type.
 //!
 //! Units: SI throughout (m, s, kg, Pa).
@@ -52,6 +54,7 @@ pub mod runner;
 pub mod scene;
 pub mod scene_file;
 pub mod simulate;
+pub mod splats;
 
 pub use frames::FrameWriter;
 pub use geometry::{Geometry, GeometryError};
@@ -60,3 +63,4 @@ pub use runner::{Frame, ObserverResult, RunError, RunReport, Simulation, run};
 pub use scene::{Constraint, FloorSpec, Motion, Region, SceneSpec, SceneSpecError};
 pub use scene_file::{SceneFile, SceneFileError};
 pub use simulate::{SimulateError, SimulateReport, simulate_scene_file};
+pub use splats::{SplatFileError, SplatTable};

@@ -7,6 +7,7 @@
 //! mesh = "../data/meshes/bunny.obj"           # OBJ/STL/PLY, relative to this file; or
 //! # box = { min = [0, 0, 0], max = [5, 1, 1] }
 //! # points = "cloud.ply"                      # a point cloud or 3DGS PLY (no faces)
+//! # splats = "object.ply"                     # a 3DGS PLY: frames are deformed 3DGS files
 //! normalize = true                            # scale so the largest side is 1 m (default true;
 //!                                             # a box or cloud keeps its units)
 //!
@@ -89,6 +90,10 @@ pub struct GeometrySpec {
     /// Or a point cloud: a PLY without faces, plain or 3DGS (path relative to the scene file).
     #[serde(default)]
     pub points: Option<PathBuf>,
+    /// Or a 3D Gaussian Splatting PLY, simulated on its splat centres; every written frame is
+    /// the deformed 3DGS file (centres moved, covariances `F Σ Fᵀ`; see [`crate::splats`]).
+    #[serde(default)]
+    pub splats: Option<PathBuf>,
     /// Scale a mesh so its largest bounding-box side is 1 m (default true; a box or a cloud
     /// keeps its units).
     #[serde(default = "yes")]
@@ -206,9 +211,13 @@ impl SceneFile {
             })?
         };
         if let Some(dir) = path.parent() {
-            for file_path in [&mut file.geometry.mesh, &mut file.geometry.points]
-                .into_iter()
-                .flatten()
+            for file_path in [
+                &mut file.geometry.mesh,
+                &mut file.geometry.points,
+                &mut file.geometry.splats,
+            ]
+            .into_iter()
+            .flatten()
             {
                 if file_path.is_relative() {
                     *file_path = dir.join(&*file_path);
@@ -228,11 +237,16 @@ impl SceneFile {
             })
         };
         let g = &self.geometry;
-        let given = [g.mesh.is_some(), g.cuboid.is_some(), g.points.is_some()];
+        let given = [
+            g.mesh.is_some(),
+            g.cuboid.is_some(),
+            g.points.is_some(),
+            g.splats.is_some(),
+        ];
         if given.iter().filter(|&&given| given).count() != 1 {
             return bad(
                 "geometry",
-                "give exactly one of `mesh`, `box` and `points`".into(),
+                "give exactly one of `mesh`, `box`, `points` and `splats`".into(),
             );
         }
         if let Some(b) = &g.cuboid
@@ -297,7 +311,7 @@ impl SceneFile {
         if let Some(b) = &g.cuboid {
             return Ok(Geometry::cuboid(b.min.into(), b.max.into()));
         }
-        if let Some(path) = &g.points {
+        if let Some(path) = g.points.as_ref().or(g.splats.as_ref()) {
             return Ok(Geometry::Cloud(rkpm_core::read_point_cloud(path)?));
         }
         let path = g.mesh.as_deref().unwrap_or(Path::new(""));

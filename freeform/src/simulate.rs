@@ -16,6 +16,7 @@ use crate::progress::Progress;
 use crate::runner::RunError;
 use crate::runner::{Simulation, run};
 use crate::scene_file::SceneFile;
+use crate::splats::{SplatFileError, SplatTable};
 
 /// What [`simulate_scene_file`] did.
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
@@ -32,6 +33,9 @@ pub struct SimulateReport {
     pub simulation_points: usize,
     /// Largest displacement of a surface vertex (or cloud point) at the last frame (m).
     pub final_max_displacement: f64,
+    /// For a splat scene: the most splats with det F ≤ 0 in one written frame.
+    #[serde(default)]
+    pub inverted_splats: usize,
 }
 
 /// A scene file could not be run to the end.
@@ -55,6 +59,9 @@ pub enum SimulateError {
     /// A file could not be written.
     #[error(transparent)]
     Write(#[from] ArtifactError),
+    /// The 3DGS file could not be read or a deformed frame written.
+    #[error(transparent)]
+    Splats(#[from] SplatFileError),
 }
 
 /// Runs a scene file with stable Neo-Hookean elasticity and writes `frame_NNNNN.ply` / `.vtk`
@@ -90,6 +97,12 @@ pub fn simulate_scene_file(
     let writer = FrameWriter::new(out_dir, &geometry);
     let output =
         DeformationMap::new(&basis, writer.rest_positions()).map_err(SimulateError::OutputMap)?;
+    // A splat scene writes the deformed 3DGS file instead of a plain cloud.
+    let splats = match &file.geometry.splats {
+        Some(path) => Some(SplatTable::read(path)?),
+        None => None,
+    };
+    let mut inverted_splats = 0;
     let steps = file.simulation.steps;
     let simulation = Simulation {
         field: &basis,
@@ -108,7 +121,18 @@ pub fn simulate_scene_file(
     let report = run(&simulation, steps, |frame| {
         let z = &frame.simulator.state().z;
         if frame.index % file.simulation.output_every == 0 || frame.index == steps {
-            writer.write(frame.index, &output.positions(z), frame.time)?;
+            let x = output.positions(z);
+            match &splats {
+                Some(table) => {
+                    let (deformed, inverted) =
+                        table.deformed(&x, &output.deformation_gradients(z))?;
+                    deformed.write(&out_dir.join(format!("frame_{:05}.ply", frame.index)))?;
+                    inverted_splats = inverted_splats.max(inverted);
+                }
+                None => {
+                    writer.write(frame.index, &x, frame.time)?;
+                }
+            }
             frames_written += 1;
         }
         if frame.index > 0 {
@@ -132,6 +156,7 @@ pub fn simulate_scene_file(
             .iter()
             .map(|d| d.norm())
             .fold(0.0, f64::max),
+        inverted_splats,
     };
     write_atomically(
         &out_dir.join("summary.json"),

@@ -13,7 +13,7 @@ pub(crate) fn run(scene: &Path, out: &Path, progress: Progress) -> Result<()> {
     let out = out.join(stem.as_ref());
     let report = simulate_scene_file(&file, &out, &BarProgress::new(progress))?;
     println!(
-        "{} frames written to {} (PLY + VTK); basis {:.2} s, {:.2} ms/step, {} unconverged \
+        "{} frames written to {}; basis {:.2} s, {:.2} ms/step, {} unconverged \
          steps, final max displacement {:.4} m",
         report.frames_written,
         out.display(),
