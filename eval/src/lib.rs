@@ -9,7 +9,7 @@
 //!   baseline trained on the beam).
 //! - [`ablation`]: Tables 3 and 4 (how the basis is trained, how points are sampled).
 //! - [`shapes`]: Tables 2 and 7 on a folder of meshes.
-//! - [`bench`]: the error-vs-time study. [`stress`]: the numerical stress suite.
+//! - [`bench`](mod@bench): the error-vs-time study. [`stress`]: the numerical stress suite.
 //! - [`report`]: the paper's numbers, rendered tables, plots.
 //!
 //! What they share: [`fem_reference`] (the FEM ground truth on any scene, cached, refused

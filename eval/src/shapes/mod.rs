@@ -2,7 +2,7 @@
 //! Simplicits against a FEM reference of the same mesh.
 //!
 //! - [`catalog`]: the shared meshes' names and materials; [`boundary`]: the two boundary
-//!   conditions on any shape; [`reference`]: the FEM mesh of a shape; [`study`]: the run;
+//!   conditions on any shape; [`reference`](mod@reference): the FEM mesh of a shape; [`study`]: the run;
 //!   [`tables`]: the rendering.
 
 pub mod boundary;
