@@ -82,10 +82,10 @@ fn main() -> anyhow::Result<()> {
                     } else {
                         "reused"
                     },
-                    run.ms_per_step,
-                    run.hessians_per_step,
-                    run.iterations_per_step,
-                    run.unconverged_steps,
+                    run.report.ms_per_step,
+                    run.report.hessians_per_step,
+                    run.report.iterations_per_step,
+                    run.report.unconverged_steps,
                     errors.normalized_mse
                 );
             }

@@ -265,7 +265,7 @@ pub fn run_bench(config: &BenchConfig, progress: &Progress) -> Result<Vec<BenchR
                         "m={} K={} pts={} tol={:e} pin={:e}{}",
                         s.modes,
                         s.kernels,
-                        run.simulation_points,
+                        run.report.simulation_points,
                         s.tolerance,
                         s.pin_factor,
                         match s.hessian_reuse {
@@ -275,7 +275,7 @@ pub fn run_bench(config: &BenchConfig, progress: &Progress) -> Result<Vec<BenchR
                             }
                         }
                     ),
-                    run.ms_per_step,
+                    run.report.ms_per_step,
                     basis.seconds,
                     run.frames,
                 )
@@ -295,9 +295,9 @@ pub fn run_bench(config: &BenchConfig, progress: &Progress) -> Result<Vec<BenchR
                     "simplicits",
                     format!(
                         "m={} pts={} ({} training steps)",
-                        s.modes, run.simulation_points, params.steps
+                        s.modes, run.report.simulation_points, params.steps
                     ),
-                    run.ms_per_step,
+                    run.report.ms_per_step,
                     net.trained.report.seconds,
                     run.frames,
                 )

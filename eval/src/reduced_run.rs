@@ -29,29 +29,13 @@ pub struct ReducedProblem<'a, B: SkinningField + ?Sized> {
     pub steps: usize,
 }
 
-/// A reduced trajectory at the output points, with timings.
+/// A reduced trajectory at the output points, with the run's timings and convergence.
 #[derive(Clone, Debug)]
 pub struct ReducedRun {
     /// Output-point positions per frame, frame 0 = rest (m); `steps + 1` frames.
     pub frames: Vec<Vec<Vector3<f64>>>,
-    /// Wall time per step (ms).
-    pub ms_per_step: f64,
-    /// Hessian/gradient assembly per step (ms).
-    pub ms_assembly_per_step: f64,
-    /// Mean Newton iterations per step.
-    pub iterations_per_step: f64,
-    /// Mean Hessians assembled and factored per step.
-    pub hessians_per_step: f64,
-    /// Steps whose Newton solve did not converge.
-    pub unconverged_steps: usize,
-    /// Largest distance of a pinned point from its target over the run (m).
-    pub max_pin_deviation: f64,
-    /// Model and scene setup (s).
-    pub setup_seconds: f64,
-    /// Integration points simulated.
-    pub simulation_points: usize,
-    /// Integration points held in each constrained region of the scene.
-    pub region_points: Vec<usize>,
+    /// Timings, Newton counts, pin deviation, points simulated and held.
+    pub report: RunReport,
 }
 
 /// Simulates `problem.steps` steps, showing a bar labelled `label`.
@@ -85,28 +69,8 @@ pub fn run_reduced<B: SkinningField + ?Sized>(
         Ok(())
     });
     bar.finish_and_clear();
-    let RunReport {
-        ms_per_step,
-        ms_assembly_per_step,
-        iterations_per_step,
-        hessians_per_step,
-        unconverged_steps,
-        max_pin_deviation,
-        setup_seconds,
-        simulation_points,
-        region_points,
-        ..
-    } = report?;
     Ok(ReducedRun {
         frames,
-        ms_per_step,
-        ms_assembly_per_step,
-        iterations_per_step,
-        hessians_per_step,
-        unconverged_steps,
-        max_pin_deviation,
-        setup_seconds,
-        simulation_points,
-        region_points,
+        report: report?,
     })
 }

@@ -6,12 +6,13 @@ use std::time::Instant;
 use artifact::{ArtifactError, write_atomically};
 use hyperelastic::{MaterialField, MaterialParameterError, MaterialSample, StableNeoHookean};
 use reduced_sim::{DeformationMap, DeformationMapError, SimulationParams};
+use rkpm_core::PointCloud;
 use serde::{Deserialize, Serialize};
 use skin_eigen::{BasisError, BasisParams, build_basis};
 use thiserror::Error;
 
 use crate::frames::FrameWriter;
-use crate::geometry::GeometryError;
+use crate::geometry::{Geometry, GeometryError};
 use crate::progress::Progress;
 use crate::runner::RunError;
 use crate::runner::{Simulation, run};
@@ -75,7 +76,17 @@ pub fn simulate_scene_file(
     out_dir: &Path,
     progress: &dyn Progress,
 ) -> Result<SimulateReport, SimulateError> {
-    let geometry = file.geometry()?;
+    // A splat scene reads its file once: the splat centres are the cloud.
+    let splats = file
+        .geometry
+        .splats
+        .as_deref()
+        .map(SplatTable::read)
+        .transpose()?;
+    let geometry = match &splats {
+        Some(table) => Geometry::Cloud(PointCloud::new(table.positions(), None)),
+        None => file.geometry()?,
+    };
     let material = MaterialSample::from(file.material);
     let lame = material
         .lame_parameters()
@@ -97,11 +108,6 @@ pub fn simulate_scene_file(
     let writer = FrameWriter::new(out_dir, &geometry);
     let output =
         DeformationMap::new(&basis, writer.rest_positions()).map_err(SimulateError::OutputMap)?;
-    // A splat scene writes the deformed 3DGS file instead of a plain cloud.
-    let splats = match &file.geometry.splats {
-        Some(path) => Some(SplatTable::read(path)?),
-        None => None,
-    };
     let mut inverted_splats = 0;
     let steps = file.simulation.steps;
     let simulation = Simulation {

@@ -111,9 +111,11 @@ pub struct SplatTable {
     row_size: usize,
     rows: Vec<u8>,
     count: usize,
+    columns: Columns,
 }
 
 /// The column indices of the properties a deformation rewrites.
+#[derive(Clone, Debug, PartialEq)]
 struct Columns {
     position: [usize; 3],
     scale: [usize; 3],
@@ -132,9 +134,7 @@ impl SplatTable {
             path: path.to_owned(),
             source,
         })?;
-        let table = Self::parse(&bytes, path)?;
-        table.columns(path)?;
-        Ok(table)
+        Self::parse(&bytes, path)
     }
 
     fn parse(bytes: &[u8], path: &Path) -> Result<Self, SplatFileError> {
@@ -201,18 +201,20 @@ impl SplatTable {
                 rows.len()
             )));
         }
+        let columns = Self::columns(&properties, path)?;
         Ok(SplatTable {
             header,
             properties,
             row_size,
             rows,
             count,
+            columns,
         })
     }
 
-    fn columns(&self, path: &Path) -> Result<Columns, SplatFileError> {
+    fn columns(properties: &[Property], path: &Path) -> Result<Columns, SplatFileError> {
         let find = |property: &'static str| {
-            self.properties
+            properties
                 .iter()
                 .position(|p| p.name == property)
                 .ok_or_else(|| SplatFileError::MissingProperty {
@@ -283,9 +285,7 @@ impl SplatTable {
 
     /// Splat centres (file units).
     pub fn positions(&self) -> Vec<Vector3<f64>> {
-        let Some(c) = self.columns(Path::new("")).ok() else {
-            return Vec::new();
-        };
+        let c = &self.columns;
         (0..self.count)
             .map(|i| Vector3::from_fn(|d, _| self.get(i, c.position[d])))
             .collect()
@@ -294,9 +294,7 @@ impl SplatTable {
     /// Splat covariances `Σ = R diag(exp(2 s)) Rᵀ` (file units²), R from the `(w, x, y, z)`
     /// quaternion `rot_0..3` (normalized), s the log-scales `scale_0..2`.
     pub fn covariances(&self) -> Vec<Matrix3<f64>> {
-        let Some(c) = self.columns(Path::new("")).ok() else {
-            return Vec::new();
-        };
+        let c = &self.columns;
         (0..self.count)
             .map(|i| {
                 let q = UnitQuaternion::from_quaternion(Quaternion::new(
@@ -336,7 +334,7 @@ impl SplatTable {
                 });
             }
         }
-        let c = self.columns(Path::new(""))?;
+        let c = &self.columns;
         let mut out = self.clone();
         let mut inverted = 0;
         for (i, (sigma, (x, f))) in self

@@ -226,15 +226,9 @@ pub fn minimize_reusing<O: NewtonObjective>(
     params: &NewtonParams,
     factor: &mut Option<O::Factor>,
 ) -> Result<NewtonReport, NewtonError> {
-    let carried = factor.take();
-    let result = solve(objective, x, params, carried);
-    match result {
-        Ok((report, last)) => {
-            *factor = last;
-            Ok(report)
-        }
-        Err(e) => Err(e),
-    }
+    let (report, last) = solve(objective, x, params, factor.take())?;
+    *factor = last;
+    Ok(report)
 }
 
 fn solve<O: NewtonObjective>(

@@ -170,7 +170,7 @@ fn score_all<B: SkinningField + ?Sized>(
                 test: *test,
                 mse: e.errors.normalized_mse,
                 max: e.errors.normalized_max,
-                unconverged_steps: e.run.unconverged_steps,
+                unconverged_steps: e.run.report.unconverged_steps,
             })
         })
         .collect()

@@ -225,9 +225,9 @@ pub fn run_beam_study(
                         max: e.errors.normalized_max,
                         per_frame_mse: e.per_frame_mse,
                         fitting_residual: e.fitting_residual,
-                        ms_per_step: e.run.ms_per_step,
+                        ms_per_step: e.run.report.ms_per_step,
                         training_seconds: net.trained.report.seconds,
-                        unconverged_steps: e.run.unconverged_steps,
+                        unconverged_steps: e.run.report.unconverged_steps,
                     })
                 }
                 None => None,
@@ -239,10 +239,10 @@ pub fn run_beam_study(
                 ours_max: ours.errors.normalized_max,
                 ours_per_frame_mse: ours.per_frame_mse,
                 fitting_residual: ours.fitting_residual,
-                ms_per_step: ours.run.ms_per_step,
-                iterations_per_step: ours.run.iterations_per_step,
-                unconverged_steps: ours.run.unconverged_steps,
-                max_pin_deviation: ours.run.max_pin_deviation,
+                ms_per_step: ours.run.report.ms_per_step,
+                iterations_per_step: ours.run.report.iterations_per_step,
+                unconverged_steps: ours.run.report.unconverged_steps,
+                max_pin_deviation: ours.run.report.max_pin_deviation,
                 basis_seconds: basis.seconds,
                 simplicits,
             });

@@ -562,10 +562,10 @@ impl BoundaryRun<'_> {
             mse: scores.errors.normalized_mse,
             max: scores.errors.normalized_max,
             fitting_residual: scores.fitting_residual,
-            ms_per_step: run.ms_per_step,
-            unconverged_steps: run.unconverged_steps,
-            max_pin_deviation: run.max_pin_deviation,
+            ms_per_step: run.report.ms_per_step,
+            unconverged_steps: run.report.unconverged_steps,
+            max_pin_deviation: run.report.max_pin_deviation,
         };
-        Ok((scores, run.region_points))
+        Ok((scores, run.report.region_points))
     }
 }

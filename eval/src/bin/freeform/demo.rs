@@ -96,17 +96,17 @@ pub(crate) fn run(
         "steps": steps,
         "m": settings.modes,
         "kernels": settings.kernels,
-        "simulation_points": run.simulation_points,
+        "simulation_points": run.report.simulation_points,
         "fem": fem.label(),
         "fem_dofs": reference.dofs,
         "fem_cached": reference.cached,
         "normalized_mse": errors.normalized_mse,
         "normalized_max": errors.normalized_max,
-        "ours_ms_per_step": run.ms_per_step,
+        "ours_ms_per_step": run.report.ms_per_step,
         "fem_ms_per_step": 1e3 * reference.seconds_per_step,
         "basis_seconds": basis.seconds,
         "tip_y_final": {"ours": ours_tip.last().map(|p| p.1), "fem": fem_tip.last().map(|p| p.1)},
-        "unconverged_steps": run.unconverged_steps,
+        "unconverged_steps": run.report.unconverged_steps,
         "wall_seconds": seconds,
     });
     write_atomically(
@@ -142,7 +142,7 @@ pub(crate) fn run(
     } else {
         println!(
             "FreeForm beam Bend, {steps} steps of 0.01 s: m = {}, K = {}, {} simulation points",
-            settings.modes, settings.kernels, run.simulation_points
+            settings.modes, settings.kernels, run.report.simulation_points
         );
         println!(
             "ground truth: FEM {} ({} DOFs){}",
@@ -167,10 +167,10 @@ pub(crate) fn run(
         println!(
             "time: basis {:.2} s, ours {:.2} ms/step, FEM {:.1} ms/step ({:.0}× ours); {} unconverged steps",
             basis.seconds,
-            run.ms_per_step,
+            run.report.ms_per_step,
             1e3 * reference.seconds_per_step,
-            1e3 * reference.seconds_per_step / run.ms_per_step,
-            run.unconverged_steps
+            1e3 * reference.seconds_per_step / run.report.ms_per_step,
+            run.report.unconverged_steps
         );
         for p in plot {
             println!("wrote {}", p.display());
