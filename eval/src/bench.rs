@@ -20,10 +20,58 @@ use crate::metrics::trajectory_errors;
 use crate::progress::Progress;
 use crate::report::plot::{AxisScale, PlotSpec, Series};
 use artifact::write_atomically;
+use freeform::RunReport;
+use reduced_sim::{CubatureParams, QuadratureRule};
 
 /// The Hessian reuse of the bench's "Hessian reuse" series: chord steps while each is at most
 /// half the previous one.
 pub const HESSIAN_REUSE: HessianReuse = HessianReuse::WhileContracting { contraction: 0.5 };
+
+/// The cubature of the bench's cubature series: [`CubatureParams::default`] (relative force
+/// error 0.02 on the training poses, at most 400 points).
+pub const CUBATURE: QuadratureRule = QuadratureRule::Cubature(CubatureParams::DEFAULT);
+
+/// The bench's knob names with their plot labels, in plot order.
+const FREEFORM_SERIES: [(&str, &str); 9] = [
+    ("m", "FreeForm, varying m"),
+    ("K", "FreeForm, varying K"),
+    ("points", "FreeForm, varying points"),
+    ("tolerance", "FreeForm, varying tolerance"),
+    ("pin factor", "FreeForm, varying pin factor"),
+    ("Hessian reuse", "FreeForm with Hessian reuse, varying m"),
+    ("cubature", "FreeForm on a cubature, varying m"),
+    (
+        "cubature + reuse",
+        "FreeForm on a cubature with Hessian reuse, varying m",
+    ),
+    (
+        "quadrature points",
+        "FreeForm m=16 on fewer points (cubature tolerance, random subsets)",
+    ),
+];
+
+/// The fast-step series of issue 18 at modes `modes` on `base`: cubature with fresh and with
+/// reused Hessians.
+fn fast_step_runs(base: ReducedSettings, modes: &[usize]) -> Vec<(String, BenchMethod)> {
+    let mut runs = Vec::new();
+    for (knob, hessian_reuse) in [
+        ("cubature", HessianReuse::Never),
+        ("cubature + reuse", HESSIAN_REUSE),
+    ] {
+        for &m in modes {
+            runs.push((
+                knob.into(),
+                BenchMethod::FreeForm(ReducedSettings {
+                    modes: m,
+                    quadrature: CUBATURE,
+                    hessian_reuse,
+                    ..base
+                }),
+            ));
+        }
+    }
+    runs
+}
 
 /// One configuration to time.
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
@@ -69,6 +117,28 @@ impl BenchConfig {
                 BenchMethod::FreeForm(ReducedSettings {
                     modes: m,
                     hessian_reuse: HESSIAN_REUSE,
+                    ..base
+                }),
+            ));
+        }
+        runs.extend(fast_step_runs(base, &[6, 9, 16, 32]));
+        for tolerance in [0.05, 0.005] {
+            runs.push((
+                "quadrature points".into(),
+                BenchMethod::FreeForm(ReducedSettings {
+                    quadrature: QuadratureRule::Cubature(CubatureParams {
+                        tolerance,
+                        ..CubatureParams::DEFAULT
+                    }),
+                    ..base
+                }),
+            ));
+        }
+        for points in [150, 500] {
+            runs.push((
+                "quadrature points".into(),
+                BenchMethod::FreeForm(ReducedSettings {
+                    quadrature: QuadratureRule::RandomSubset { points, seed: 0 },
                     ..base
                 }),
             ));
@@ -172,6 +242,7 @@ impl BenchConfig {
                 }),
             ));
         }
+        runs.extend(fast_step_runs(base, &[6, 16]));
         for order in [ElementOrder::Linear, ElementOrder::Quadratic] {
             runs.push((
                 "FEM".into(),
@@ -204,8 +275,15 @@ pub struct BenchResult {
     pub label: String,
     /// Wall time per step (ms).
     pub ms_per_step: f64,
-    /// One-off cost before stepping: basis build for FreeForm, training for Simplicits (from
-    /// the run that produced the cached network) (s); 0 for FEM.
+    /// Of which Hessian/gradient assembly, factorization and solve, line search (ms; 0 for the
+    /// FEM, whose split is not recorded here).
+    pub ms_split: [f64; 3],
+    /// Hessians assembled per step (1 for the FEM, which assembles every iteration's).
+    pub hessians_per_step: f64,
+    /// Points the elastic energy is evaluated at (FreeForm and Simplicits; 0 for the FEM).
+    pub quadrature_points: usize,
+    /// One-off cost before stepping: basis build and quadrature for FreeForm, training for
+    /// Simplicits (from the run that produced the cached network) (s); 0 for FEM.
     pub setup_seconds: f64,
     /// Normalized MSE against the ground truth.
     pub normalized_mse: f64,
@@ -248,7 +326,7 @@ pub fn run_bench(config: &BenchConfig, progress: &Progress) -> Result<Vec<BenchR
     let length = beam_length_scale();
     let mut results = Vec::new();
     for (knob, method) in &config.runs {
-        let (name, label, ms, setup, frames) = match method {
+        let (name, label, timing, setup, frames) = match method {
             BenchMethod::FreeForm(s) => {
                 let basis = build_beam_basis(s)?;
                 let run = run_reduced_beam(
@@ -262,7 +340,7 @@ pub fn run_bench(config: &BenchConfig, progress: &Progress) -> Result<Vec<BenchR
                 (
                     "freeform",
                     format!(
-                        "m={} K={} pts={} tol={:e} pin={:e}{}",
+                        "m={} K={} pts={} tol={:e} pin={:e}{}{}",
                         s.modes,
                         s.kernels,
                         run.report.simulation_points,
@@ -273,10 +351,11 @@ pub fn run_bench(config: &BenchConfig, progress: &Progress) -> Result<Vec<BenchR
                             HessianReuse::WhileContracting { contraction } => {
                                 format!(" reuse={contraction}")
                             }
-                        }
+                        },
+                        quadrature_label(&s.quadrature, run.report.quadrature.points),
                     ),
-                    run.report.ms_per_step,
-                    basis.seconds,
+                    Timing::of(&run.report),
+                    basis.seconds + run.report.setup_seconds,
                     run.frames,
                 )
             }
@@ -297,7 +376,7 @@ pub fn run_bench(config: &BenchConfig, progress: &Progress) -> Result<Vec<BenchR
                         "m={} pts={} ({} training steps)",
                         s.modes, run.report.simulation_points, params.steps
                     ),
-                    run.report.ms_per_step,
+                    Timing::of(&run.report),
                     net.trained.report.seconds,
                     run.frames,
                 )
@@ -315,7 +394,12 @@ pub fn run_bench(config: &BenchConfig, progress: &Progress) -> Result<Vec<BenchR
                 (
                     "fem",
                     format!("{} ({} DOFs)", r.label(), run.dofs),
-                    1e3 * run.seconds_per_step,
+                    Timing {
+                        ms_per_step: 1e3 * run.seconds_per_step,
+                        split: [0.0; 3],
+                        hessians_per_step: 1.0,
+                        quadrature_points: 0,
+                    },
                     0.0,
                     frames,
                 )
@@ -323,14 +407,17 @@ pub fn run_bench(config: &BenchConfig, progress: &Progress) -> Result<Vec<BenchR
         };
         let errors = trajectory_errors(&frames[1..], &truth_frames[1..], length)?;
         progress.status(format!(
-            "{name} {label}: {ms:.2} ms/step, MSE {:.2e}",
-            errors.normalized_mse
+            "{name} {label}: {:.2} ms/step, MSE {:.2e}",
+            timing.ms_per_step, errors.normalized_mse
         ));
         results.push(BenchResult {
             method: name.into(),
             knob: knob.clone(),
             label,
-            ms_per_step: ms,
+            ms_per_step: timing.ms_per_step,
+            ms_split: timing.split,
+            hessians_per_step: timing.hessians_per_step,
+            quadrature_points: timing.quadrature_points,
             setup_seconds: setup,
             normalized_mse: errors.normalized_mse,
             normalized_max: errors.normalized_max,
@@ -347,6 +434,38 @@ pub fn run_bench(config: &BenchConfig, progress: &Progress) -> Result<Vec<BenchR
     Ok(results)
 }
 
+/// A run's step cost as the bench reports it.
+struct Timing {
+    ms_per_step: f64,
+    split: [f64; 3],
+    hessians_per_step: f64,
+    quadrature_points: usize,
+}
+
+impl Timing {
+    fn of(report: &RunReport) -> Timing {
+        Timing {
+            ms_per_step: report.ms_per_step,
+            split: [
+                report.ms_assembly_per_step,
+                report.ms_solve_per_step,
+                report.ms_line_search_per_step,
+            ],
+            hessians_per_step: report.hessians_per_step,
+            quadrature_points: report.quadrature.points,
+        }
+    }
+}
+
+/// " cubature(tol=0.02, 142 pts)", " random(500 pts)", or "" for every point.
+pub fn quadrature_label(rule: &QuadratureRule, points: usize) -> String {
+    match rule {
+        QuadratureRule::Full => String::new(),
+        QuadratureRule::RandomSubset { .. } => format!(" random({points} pts)"),
+        QuadratureRule::Cubature(p) => format!(" cubature(tol={}, {points} pts)", p.tolerance),
+    }
+}
+
 /// Writes `bench.csv` and `bench.md` under `dir`; returns the Markdown and the paths.
 ///
 /// # Errors
@@ -357,11 +476,11 @@ pub fn write_bench(
     dir: &Path,
 ) -> Result<(String, Vec<PathBuf>), EvalError> {
     let mut csv = String::from(
-        "method,knob,label,ms_per_step,setup_seconds,normalized_mse,normalized_max,pareto\n",
+        "method,knob,label,ms_per_step,ms_assembly,ms_solve,ms_line_search,hessians_per_step,quadrature_points,setup_seconds,normalized_mse,normalized_max,pareto\n",
     );
     let mut md = format!(
         "## Error vs time, beam Bend ({} steps; ground truth FEM {}; {} threads)\n\n\
-         | method | knob | settings | ms/step | setup s | MSE | max | Pareto |\n|---|---|---|---|---|---|---|---|\n",
+         | method | knob | settings | ms/step | assembly / solve / line search | Hessians/step | setup s | MSE | max | Pareto |\n|---|---|---|---|---|---|---|---|---|---|\n",
         config.steps,
         config.ground_truth.label(),
         rayon::current_num_threads()
@@ -369,11 +488,16 @@ pub fn write_bench(
     for r in results {
         let _ = writeln!(
             csv,
-            "{},{},\"{}\",{},{},{:e},{:e},{}",
+            "{},{},\"{}\",{},{},{},{},{},{},{},{:e},{:e},{}",
             r.method,
             r.knob,
             r.label,
             r.ms_per_step,
+            r.ms_split[0],
+            r.ms_split[1],
+            r.ms_split[2],
+            r.hessians_per_step,
+            r.quadrature_points,
             r.setup_seconds,
             r.normalized_mse,
             r.normalized_max,
@@ -381,11 +505,15 @@ pub fn write_bench(
         );
         let _ = writeln!(
             md,
-            "| {} | {} | {} | {:.2} | {:.1} | {:.2e} | {:.2e} | {} |",
+            "| {} | {} | {} | {:.2} | {:.2} / {:.2} / {:.2} | {:.2} | {:.1} | {:.2e} | {:.2e} | {} |",
             r.method,
             r.knob,
             r.label,
             r.ms_per_step,
+            r.ms_split[0],
+            r.ms_split[1],
+            r.ms_split[2],
+            r.hessians_per_step,
             r.setup_seconds,
             r.normalized_mse,
             r.normalized_max,
@@ -406,17 +534,7 @@ pub fn write_bench(
 /// [`crate::report::plot::write_plot`].
 pub fn bench_plot(results: &[BenchResult], config: &BenchConfig) -> PlotSpec {
     let mut series: Vec<Series> = Vec::new();
-    for (i, knob) in [
-        "m",
-        "K",
-        "points",
-        "tolerance",
-        "pin factor",
-        "Hessian reuse",
-    ]
-    .into_iter()
-    .enumerate()
-    {
+    for (i, (knob, label)) in FREEFORM_SERIES.into_iter().enumerate() {
         let mut points: Vec<(f64, f64)> = results
             .iter()
             .filter(|r| r.method == "freeform" && r.knob == knob)
@@ -427,11 +545,7 @@ pub fn bench_plot(results: &[BenchResult], config: &BenchConfig) -> PlotSpec {
         }
         points.sort_by(|a, b| a.0.total_cmp(&b.0));
         series.push(Series {
-            label: if knob == "Hessian reuse" {
-                "FreeForm with Hessian reuse, varying m".into()
-            } else {
-                format!("FreeForm, varying {knob}")
-            },
+            label: label.into(),
             points,
             line: false,
             // Colours 5-7 are the front, the coarser FEM and Simplicits.

@@ -3,7 +3,7 @@
 
 use hyperelastic::{MaterialField, MaterialSample, StableNeoHookean};
 use nalgebra::Vector3;
-use reduced_sim::{DeformationMap, SimulationParams, SkinningField};
+use reduced_sim::{DeformationMap, QuadratureRule, SimulationParams, SkinningField};
 use rkpm_core::IntegrationPoints;
 
 use crate::EvalError;
@@ -23,6 +23,8 @@ pub struct ReducedProblem<'a, B: SkinningField + ?Sized> {
     pub scene: &'a SceneSpec,
     /// Time step, Newton and penalty options.
     pub params: SimulationParams,
+    /// Where the elastic energy is integrated.
+    pub quadrature: QuadratureRule,
     /// Rest positions (m) where positions are recorded every step.
     pub output_points: &'a [Vector3<f64>],
     /// Steps to run.
@@ -57,6 +59,7 @@ pub fn run_reduced<B: SkinningField + ?Sized>(
         material_model: StableNeoHookean,
         scene: problem.scene,
         params: problem.params,
+        quadrature: problem.quadrature,
     };
     let steps = problem.steps;
     let bar = progress.bar(steps, label);

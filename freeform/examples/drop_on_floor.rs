@@ -41,6 +41,7 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
         material_model: StableNeoHookean,
         scene: &scene,
         params: Default::default(), // h = 0.01 s
+        quadrature: Default::default(),
     };
     let frames = FrameWriter::new(&out, &geometry);
     let surface = DeformationMap::new(&basis, frames.rest_positions())?;

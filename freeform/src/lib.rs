@@ -41,6 +41,7 @@
 //!     material_model: StableNeoHookean,
 //!     scene: &scene,
 //!     params: Default::default(),
+//!     quadrature: Default::default(), // every point; QuadratureRule::Cubature(..) is faster
 //! };
 //! let report = run(&simulation, 100, |_frame| Ok(()))?;
 //! println!("{:.2} ms per step", report.ms_per_step);

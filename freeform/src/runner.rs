@@ -8,8 +8,8 @@ use std::time::Instant;
 use hyperelastic::{HyperelasticMaterial, MaterialField};
 use optimize::NewtonReport;
 use reduced_sim::{
-    ReducedModel, ReducedModelError, SceneError, SimulationParams, Simulator, SkinningField,
-    StepError,
+    CubatureError, QuadratureReport, QuadratureRule, ReducedModel, ReducedModelError, SceneError,
+    SimulationParams, Simulator, SkinningField, StepError,
 };
 use rkpm_core::IntegrationPoints;
 use thiserror::Error;
@@ -30,6 +30,9 @@ pub struct Simulation<'a, B: SkinningField + ?Sized, M> {
     pub scene: &'a SceneSpec,
     /// Time step, Newton, tangent and penalty options.
     pub params: SimulationParams,
+    /// Where the elastic energy is integrated ([`QuadratureRule::Full`], every point, is the
+    /// paper's setting; a cubature makes the step cost independent of the point count).
+    pub quadrature: QuadratureRule,
 }
 
 /// The state after frame `index`, handed to the observer of [`run`].
@@ -54,6 +57,10 @@ pub struct RunReport {
     pub ms_per_step: f64,
     /// Hessian/gradient assembly per step (ms).
     pub ms_assembly_per_step: f64,
+    /// Factorization and back-substitution per step (ms).
+    pub ms_solve_per_step: f64,
+    /// Line search per step (ms).
+    pub ms_line_search_per_step: f64,
     /// Mean Newton iterations per step.
     pub iterations_per_step: f64,
     /// Mean Hessians assembled and factored per step (below 1 with Hessian reuse).
@@ -62,8 +69,10 @@ pub struct RunReport {
     pub unconverged_steps: usize,
     /// Largest distance of a held integration point from its target over the run (m).
     pub max_pin_deviation: f64,
-    /// Model and scene setup (s).
+    /// Model and scene setup, quadrature included (s).
     pub setup_seconds: f64,
+    /// The elastic quadrature the run used (kind, points, cubature report).
+    pub quadrature: QuadratureReport,
     /// Integration points simulated.
     pub simulation_points: usize,
     /// Integration points held in each constrained region of the scene.
@@ -76,6 +85,10 @@ pub enum RunError {
     /// The reduced model cannot be built (invalid material, singular mass matrix, ...).
     #[error("building the reduced model failed")]
     Model(#[source] ReducedModelError),
+    /// The elastic quadrature cannot be built (a subset larger than the model, a failed
+    /// cubature optimization).
+    #[error("building the elastic quadrature failed")]
+    Quadrature(#[source] CubatureError),
     /// The scene does not fit these points (e.g. a region that holds no integration point).
     #[error(transparent)]
     Scene(#[from] SceneSpecError),
@@ -128,6 +141,10 @@ where
         simulation.material_model.clone(),
     )
     .map_err(RunError::Model)?;
+    let (model, quadrature) = simulation
+        .quadrature
+        .apply(model)
+        .map_err(RunError::Quadrature)?;
     let scene = simulation.scene.reduced_scene(model.rest_positions())?;
     let region_points = scene.pins.iter().map(|p| p.points.len()).collect();
     let mut sim = Simulator::new(model, &scene, simulation.params).map_err(RunError::Simulator)?;
@@ -147,7 +164,7 @@ where
     };
     notify(&sim, 0, None)?;
     let (mut iterations, mut unconverged, mut hessians) = (0usize, 0usize, 0usize);
-    let (mut stepping, mut assembly) = (0.0, 0.0);
+    let (mut stepping, mut assembly, mut solve, mut line_search) = (0.0, 0.0, 0.0, 0.0);
     let mut max_pin_deviation: f64 = 0.0;
     for step in 1..=steps {
         let t = Instant::now();
@@ -156,6 +173,8 @@ where
             .map_err(|source| RunError::Step { step, source })?;
         stepping += t.elapsed().as_secs_f64();
         assembly += report.timings.assembly;
+        solve += report.timings.solve;
+        line_search += report.timings.line_search;
         iterations += report.iterations;
         hessians += report.hessian_assemblies;
         unconverged += usize::from(!report.converged());
@@ -167,11 +186,14 @@ where
         steps,
         ms_per_step: 1e3 * stepping / n,
         ms_assembly_per_step: 1e3 * assembly / n,
+        ms_solve_per_step: 1e3 * solve / n,
+        ms_line_search_per_step: 1e3 * line_search / n,
         iterations_per_step: iterations as f64 / n,
         hessians_per_step: hessians as f64 / n,
         unconverged_steps: unconverged,
         max_pin_deviation,
         setup_seconds,
+        quadrature,
         simulation_points: points.len(),
         region_points,
     })

@@ -26,6 +26,8 @@
 //! steps = 100
 //! points = 5000     # grid points the simulation integrates over
 //! output_every = 5  # write every 5th frame (default 1)
+//! quadrature = { kind = "cubature" }  # elastic energy on an optimized cubature (default
+//!                                     # { kind = "full" }: every point)
 //!
 //! [scene]
 //! gravity = [0, -9.8, 0]
@@ -40,6 +42,7 @@
 use std::path::{Path, PathBuf};
 
 use hyperelastic::MaterialSample;
+use reduced_sim::QuadratureRule;
 use serde::{Deserialize, Serialize};
 use thiserror::Error;
 
@@ -139,6 +142,11 @@ pub struct SimulationSpec {
     /// Write every n-th frame (default 1).
     #[serde(default = "one")]
     pub output_every: usize,
+    /// Where the elastic energy is integrated (default every point, `{ kind = "full" }`;
+    /// `{ kind = "cubature" }` optimizes a cubature first, with
+    /// [`reduced_sim::CubatureParams`]' fields as optional overrides).
+    #[serde(default)]
+    pub quadrature: QuadratureRule,
 }
 
 fn one() -> usize {

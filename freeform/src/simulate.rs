@@ -120,6 +120,7 @@ pub fn simulate_scene_file(
             time_step: file.simulation.time_step,
             ..Default::default()
         },
+        quadrature: file.simulation.quadrature,
     };
     let mut frames_written = 0;
     let mut last_z = Vec::new();

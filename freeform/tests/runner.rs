@@ -47,6 +47,7 @@ fn rubber<'a>(
             time_step: H,
             ..Default::default()
         },
+        quadrature: Default::default(),
     }
 }
 

@@ -7,14 +7,17 @@
 //! of a 12(m+1)-square Hessian) and `fem-ref` for the FEM reference (sparse Cholesky on the
 //! free DOFs). A user's own solver plugs in by implementing [`NewtonObjective`].
 //!
+//! - [`nnls`]: non-negative least squares (Lawson–Hanson), for cubature weights.
 //! - [`NewtonObjective`]: what an objective provides.
 //! - [`minimize`]: the solver; [`NewtonParams`] in, [`NewtonReport`] out, [`NewtonError`]
 //!   when it cannot go on; [`minimize_reusing`] carries the Hessian factorization from one
 //!   solve to the next ([`HessianReuse`]).
 
 pub mod newton;
+pub mod nnls;
 
 pub use newton::{
     HessianReuse, NewtonError, NewtonObjective, NewtonParams, NewtonReport, NewtonStop,
     NewtonTimings, minimize, minimize_reusing,
 };
+pub use nnls::{NnlsError, NnlsParams, NnlsSolution, nnls, nnls_normal};

@@ -19,10 +19,10 @@ use std::time::Instant;
 
 use hyperelastic::{LameParameters, StableNeoHookean};
 use nalgebra::Vector3;
-use optimize::{NewtonParams, NewtonTimings};
+use optimize::{HessianReuse, NewtonParams, NewtonTimings};
 use reduced_sim::{
-    DeformationMap, PenaltyParams, PinTarget, PinnedRegion, ReducedModel, Scene, SimulationParams,
-    Simulator,
+    CubatureParams, DeformationMap, PenaltyParams, PinTarget, PinnedRegion, ReducedModel, Scene,
+    SimulationParams, Simulator, optimize_cubature,
 };
 use rkpm_core::sample_box_grid;
 use skin_eigen::{BasisParams, build_basis};
@@ -54,6 +54,12 @@ struct Args {
     /// Pin penalty factor.
     #[arg(long, default_value_t = PenaltyParams::default().pin_factor)]
     pin_factor: f64,
+    /// Integrate the elastic energy on an optimized cubature (default options).
+    #[arg(long)]
+    cubature: bool,
+    /// Carry the Hessian factorization across steps while it contracts (rate 0.5).
+    #[arg(long)]
+    hessian_reuse: bool,
 }
 
 const BEAM_MIN: Vector3<f64> = Vector3::new(0.0, 0.0, 0.0);
@@ -74,6 +80,8 @@ fn run() -> Result<(), String> {
         steps,
         tolerance,
         pin_factor,
+        cubature,
+        hessian_reuse,
     } = clap::Parser::parse();
     if modes == 0 || kernels == 0 || basis_points == 0 || sim_points == 0 {
         return Err("--modes, --kernels, --basis-points and --points must be positive".into());
@@ -107,6 +115,16 @@ fn run() -> Result<(), String> {
         StableNeoHookean,
     )
     .map_err(|e| e.to_string())?;
+    let (model, cubature_report) = if cubature {
+        let (quadrature, report) =
+            optimize_cubature(&model, &CubatureParams::default()).map_err(|e| e.to_string())?;
+        let model = model
+            .with_elastic_quadrature(quadrature)
+            .map_err(|e| e.to_string())?;
+        (model, Some(report))
+    } else {
+        (model, None)
+    };
     let pinned = model.points_where(|x| x.x <= 0.5);
     let scene = Scene {
         gravity: Some(Vector3::new(0.0, -9.8, 0.0)),
@@ -120,6 +138,11 @@ fn run() -> Result<(), String> {
         time_step: 0.01,
         newton: NewtonParams {
             tolerance,
+            hessian_reuse: if hessian_reuse {
+                HessianReuse::WhileContracting { contraction: 0.5 }
+            } else {
+                HessianReuse::Never
+            },
             ..Default::default()
         },
         penalty: PenaltyParams {
@@ -185,6 +208,18 @@ fn run() -> Result<(), String> {
             sim.model().rest_positions().len()
         );
         println!("basis {basis_seconds:.2} s, model setup {setup_seconds:.2} s");
+        if let Some(r) = &cubature_report {
+            println!(
+                "cubature: {} points from {} training poses in {:.2} s, force error {:.2e} \
+                 (training) / {:.2e} (unseen poses), Σw/V = {:.3}",
+                r.points,
+                r.training_poses,
+                r.seconds,
+                r.training_error,
+                r.validation_error,
+                r.weight_over_volume
+            );
+        }
         for (k, v) in &tip_y {
             println!("tip y at t = {k} s: {v:.6} m");
         }

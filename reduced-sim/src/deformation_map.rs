@@ -149,6 +149,27 @@ impl DeformationMap {
         })
     }
 
+    /// The map at a subset of its points (`indices` into this map's points, in that order):
+    /// the columns of B and G copied, no basis evaluation.
+    ///
+    /// # Panics
+    /// If an index is out of range.
+    pub fn subset(&self, indices: &[usize]) -> DeformationMap {
+        let n4 = self.layout.block_len();
+        let mut b = Vec::with_capacity(n4 * indices.len());
+        let mut g = Vec::with_capacity(3 * n4 * indices.len());
+        for &i in indices {
+            b.extend_from_slice(self.position_row(i));
+            g.extend_from_slice(self.gradient_block(i));
+        }
+        DeformationMap {
+            layout: self.layout,
+            rest: indices.iter().map(|&i| self.rest[i]).collect(),
+            b,
+            g,
+        }
+    }
+
     /// The layout of z.
     pub fn layout(&self) -> ReducedLayout {
         self.layout

@@ -13,25 +13,26 @@ use crate::reduced_model::ReducedModel;
 const BLOCK_PAIRS: [(usize, usize); 6] = [(0, 0), (1, 1), (2, 2), (0, 1), (0, 2), (1, 2)];
 
 impl<M: HyperelasticMaterial> ReducedModel<M> {
-    /// Elastic energy `E_el(z) = Σ_i v_i Ψ(F_i(z))` (J).
+    /// Elastic energy `E_el(z) = Σ_i v_i Ψ(F_i(z))` (J), the sum over the elastic quadrature
+    /// (`Σ_q w_q Ψ(F_q(z))` when one is set; the same for the gradient and Hessian below).
     ///
     /// # Panics
     /// If `z.len() != 12(m + 1)`.
     pub fn elastic_energy(&self, z: &[f64]) -> f64 {
-        let f = self.deformation_map().deformation_gradients(z);
+        let f = self.elastic_map().deformation_gradients(z);
         self.elastic_energy_at(&f)
     }
 
     /// Elastic energy from precomputed deformation gradients (J).
     pub(crate) fn elastic_energy_at(&self, f: &[Matrix3<f64>]) -> f64 {
-        let lame = self.lame_parameters();
+        let lame = self.elastic_lame();
         let material = self.material();
         // Per-point terms in parallel, summed in index order: a parallel `sum` would associate
         // differently from run to run and make trajectories differ in the last bits.
         let terms: Vec<f64> = f
             .par_iter()
             .zip(lame.par_iter())
-            .zip(self.volumes().par_iter())
+            .zip(self.elastic_weights().par_iter())
             .map(|((f, p), v)| v * material.energy_density(p, f))
             .collect();
         terms.iter().sum()
@@ -44,15 +45,15 @@ impl<M: HyperelasticMaterial> ReducedModel<M> {
     /// # Panics
     /// If `z.len() != 12(m + 1)`.
     pub fn elastic_gradient(&self, z: &[f64]) -> Vec<f64> {
-        let f = self.deformation_map().deformation_gradients(z);
+        let f = self.elastic_map().deformation_gradients(z);
         self.elastic_gradient_at(&f)
     }
 
     pub(crate) fn elastic_gradient_at(&self, f: &[Matrix3<f64>]) -> Vec<f64> {
         let n = f.len();
         let material = self.material();
-        let lame = self.lame_parameters();
-        let volumes = self.volumes();
+        let lame = self.elastic_lame();
+        let volumes = self.elastic_weights();
         // Per point, the column-major storage of v_i P_i: entry 3s + r is v_i P_i[r, s], so the
         // whole buffer is P̃ᵀ as a column-major 3 × 3N matrix.
         let mut stresses_t = vec![0.0; 9 * n];
@@ -63,12 +64,12 @@ impl<M: HyperelasticMaterial> ReducedModel<M> {
                 let p = material.first_piola_kirchhoff(&lame[i], &f[i]) * volumes[i];
                 out.copy_from_slice(p.as_slice());
             });
-        let n4 = self.deformation_map().layout().block_len();
+        let n4 = self.elastic_map().layout().block_len();
         let mut gradient = vec![0.0; 3 * n4];
         faer::linalg::matmul::matmul(
             faer::MatMut::from_column_major_slice_mut(&mut gradient, n4, 3),
             Accum::Replace,
-            self.deformation_map().gradient_matrix(),
+            self.elastic_map().gradient_matrix(),
             MatRef::from_column_major_slice(&stresses_t, 3, 3 * n).transpose(),
             1.0,
             Par::rayon(0),
@@ -87,7 +88,7 @@ impl<M: HyperelasticMaterial> ReducedModel<M> {
     /// # Panics
     /// If `z.len() != 12(m + 1)`.
     pub fn elastic_hessian(&self, z: &[f64], tangent: Tangent) -> Mat<f64> {
-        let f = self.deformation_map().deformation_gradients(z);
+        let f = self.elastic_map().deformation_gradients(z);
         let mut h = Mat::zeros(z.len(), z.len());
         self.add_elastic_hessian_at(&f, tangent, &mut h);
         h
@@ -102,8 +103,8 @@ impl<M: HyperelasticMaterial> ReducedModel<M> {
     ) {
         let n = f.len();
         let material = self.material();
-        let lame = self.lame_parameters();
-        let volumes = self.volumes();
+        let lame = self.elastic_lame();
+        let volumes = self.elastic_weights();
         let mut tangents = vec![Matrix9::zeros(); n];
         tangents.par_iter_mut().enumerate().for_each(|(i, d)| {
             let raw = match tangent {
@@ -112,7 +113,7 @@ impl<M: HyperelasticMaterial> ReducedModel<M> {
             };
             *d = raw * volumes[i];
         });
-        let map = self.deformation_map();
+        let map = self.elastic_map();
         let n4 = map.layout().block_len();
         let g = map.gradient_matrix();
         let mut t_buffer = vec![0.0; n4 * 3 * n];

@@ -52,7 +52,7 @@ impl<M: HyperelasticMaterial> IncrementalPotential<'_, M> {
 
     /// `(∂E/∂z, ∂²E/∂z²)` at z (J, J; the Hessian 12(m+1) square, dense).
     pub fn derivatives(&self, z: &[f64]) -> (Vec<f64>, Mat<f64>) {
-        let f = self.model.deformation_map().deformation_gradients(z);
+        let f = self.model.elastic_map().deformation_gradients(z);
         let mut gradient = self.model.elastic_gradient_at(&f);
         let mut hessian = Mat::zeros(z.len(), z.len());
         self.model

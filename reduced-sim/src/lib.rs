@@ -36,9 +36,11 @@
 
 #[cfg(test)]
 mod analytic_field;
+pub mod cubature;
 pub mod deformation_map;
 pub mod elastic_energy;
 pub mod incremental_potential;
+pub mod quadrature;
 pub mod reduced_coordinates;
 pub mod reduced_model;
 pub mod scene;
@@ -46,8 +48,10 @@ mod scene_terms;
 pub mod simulator;
 pub mod skinning_field;
 
+pub use cubature::{CubatureError, CubatureParams, CubatureReport, optimize_cubature};
 pub use deformation_map::{DeformationMap, DeformationMapError};
 pub use incremental_potential::IncrementalPotential;
+pub use quadrature::{ElasticQuadrature, QuadratureError, QuadratureReport, QuadratureRule};
 pub use reduced_coordinates::ReducedLayout;
 pub use reduced_model::{ReducedModel, ReducedModelError};
 pub use scene::{Floor, PenaltyParams, PinTarget, PinnedRegion, Scene, TargetFunction};

@@ -9,6 +9,7 @@ use rkpm_core::{Aabb, IntegrationPoints};
 use thiserror::Error;
 
 use crate::deformation_map::{DeformationMap, DeformationMapError};
+use crate::quadrature::{ElasticQuadrature, QuadratureError};
 use crate::skinning_field::SkinningField;
 
 /// The model could not be built.
@@ -71,9 +72,14 @@ pub enum ReducedModelError {
 /// positive definite).
 ///
 /// Any integration points work: the points the basis was built on, a coarser grid, random
-/// points or a cubature set.
+/// points. The elastic energy is integrated over all of them with their volumes unless an
+/// [`ElasticQuadrature`] (a weighted subset, e.g. an optimized cubature) is set with
+/// [`ReducedModel::with_elastic_quadrature`]; mass, gravity, pins and floor always use every
+/// point.
 pub struct ReducedModel<M: HyperelasticMaterial> {
     map: DeformationMap,
+    /// The elastic quadrature when it is not every point with its volume.
+    elastic: Option<ElasticSubset>,
     volumes: Vec<f64>,
     densities: Vec<f64>,
     lame: Vec<LameParameters>,
@@ -151,6 +157,7 @@ impl<M: HyperelasticMaterial> ReducedModel<M> {
             .map(|(v, rho)| v * rho)
             .sum();
         Ok(ReducedModel {
+            elastic: None,
             volumes: points.volumes().to_vec(),
             bounds: points.bounding_box(),
             map,
@@ -161,6 +168,56 @@ impl<M: HyperelasticMaterial> ReducedModel<M> {
             mass_factor,
             total_mass,
         })
+    }
+
+    /// The model with its elastic energy integrated by `quadrature` instead of every point
+    /// with its volume: `E_el(z) = Σ_q w_q Ψ(F_q(z))`, so its gradient and Hessian cost
+    /// O(|Q|) instead of O(N). Mass, gravity, pins and floor are unchanged.
+    ///
+    /// # Errors
+    /// [`QuadratureError::OutOfRange`] when a quadrature point is not a point of the model.
+    pub fn with_elastic_quadrature(
+        mut self,
+        quadrature: ElasticQuadrature,
+    ) -> Result<Self, QuadratureError> {
+        let n = self.map.len();
+        if let Some(&point) = quadrature.points().iter().find(|&&p| p >= n) {
+            return Err(QuadratureError::OutOfRange { point, points: n });
+        }
+        self.elastic = Some(ElasticSubset {
+            map: self.map.subset(quadrature.points()),
+            lame: quadrature.points().iter().map(|&i| self.lame[i]).collect(),
+            quadrature,
+        });
+        Ok(self)
+    }
+
+    /// The elastic quadrature set by [`ReducedModel::with_elastic_quadrature`], or `None` when
+    /// the elastic energy is integrated over every point with its volume.
+    pub fn elastic_quadrature(&self) -> Option<&ElasticQuadrature> {
+        self.elastic.as_ref().map(|e| &e.quadrature)
+    }
+
+    /// Number of points the elastic energy is evaluated at (N for the full quadrature).
+    pub fn elastic_point_count(&self) -> usize {
+        self.elastic_map().len()
+    }
+
+    /// The deformation map at the elastic quadrature points.
+    pub(crate) fn elastic_map(&self) -> &DeformationMap {
+        self.elastic.as_ref().map_or(&self.map, |e| &e.map)
+    }
+
+    /// The elastic quadrature weights (m³), one per point of [`Self::elastic_map`].
+    pub(crate) fn elastic_weights(&self) -> &[f64] {
+        self.elastic
+            .as_ref()
+            .map_or(&self.volumes, |e| e.quadrature.weights())
+    }
+
+    /// Lamé parameters at the elastic quadrature points.
+    pub(crate) fn elastic_lame(&self) -> &[LameParameters] {
+        self.elastic.as_ref().map_or(&self.lame, |e| &e.lame)
     }
 
     /// The deformation map at the integration points.
@@ -254,6 +311,13 @@ impl<M: HyperelasticMaterial> ReducedModel<M> {
             .map(|(k, r)| rhs[(k, r)])
             .collect()
     }
+}
+
+/// An elastic quadrature with the deformation map and materials restricted to its points.
+struct ElasticSubset {
+    quadrature: ElasticQuadrature,
+    map: DeformationMap,
+    lame: Vec<LameParameters>,
 }
 
 /// Copies the lower triangle's mirror over round-off asymmetry: `A ← (A + Aᵀ)/2`.

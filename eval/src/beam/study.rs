@@ -5,7 +5,7 @@ use optimize::NewtonParams;
 use std::path::PathBuf;
 
 use baselines::SimplicitsParams;
-use reduced_sim::SkinningField;
+use reduced_sim::{QuadratureReport, SkinningField};
 use serde::{Deserialize, Serialize};
 
 use crate::EvalError;
@@ -105,6 +105,12 @@ pub struct BeamRow {
     pub ms_per_step: f64,
     /// Mean Newton iterations per step.
     pub iterations_per_step: f64,
+    /// Mean Hessians assembled per step (1 without Hessian reuse at 2 iterations, ...).
+    #[serde(default)]
+    pub hessians_per_step: f64,
+    /// The elastic quadrature of the run (kind, points, cubature report).
+    #[serde(default)]
+    pub quadrature: Option<QuadratureReport>,
     /// Steps that did not converge.
     pub unconverged_steps: usize,
     /// Largest pinned-point drift (m).
@@ -241,6 +247,8 @@ pub fn run_beam_study(
                 fitting_residual: ours.fitting_residual,
                 ms_per_step: ours.run.report.ms_per_step,
                 iterations_per_step: ours.run.report.iterations_per_step,
+                hessians_per_step: ours.run.report.hessians_per_step,
+                quadrature: Some(ours.run.report.quadrature.clone()),
                 unconverged_steps: ours.run.report.unconverged_steps,
                 max_pin_deviation: ours.run.report.max_pin_deviation,
                 basis_seconds: basis.seconds,

@@ -13,6 +13,7 @@ use eval::progress::Progress;
 use eval::report::table::write_table;
 use eval::shapes::study::{ShapeStudyConfig, mesh_files, run_shape_study};
 use eval::shapes::tables::{table2, table7};
+use reduced_sim::{CubatureParams, QuadratureRule};
 
 /// Options of `freeform table`.
 #[derive(clap::Args)]
@@ -52,6 +53,26 @@ pub(crate) struct TableOptions {
     /// paper's 10 000 in a full run): networks are cached per step count.
     #[arg(long)]
     simplicits_steps: Option<usize>,
+    /// Tables 1, 5, 6: integrate the elastic energy on every simulation point (`full`, the
+    /// paper's setting) or on an optimized cubature (`cubature`, issue 18).
+    #[arg(long, value_enum, default_value_t = QuadratureChoice::Full)]
+    quadrature: QuadratureChoice,
+    /// With `--quadrature cubature`: the relative force error it is optimized to.
+    #[arg(long, default_value_t = CubatureParams::DEFAULT.tolerance)]
+    cubature_tolerance: f64,
+    /// Tables 1, 5, 6: carry the Hessian factorization across steps while chord steps
+    /// contract by 0.5 (the paper's setting assembles a fresh Hessian every iteration).
+    #[arg(long)]
+    hessian_reuse: bool,
+}
+
+/// Where the beam runs integrate the elastic energy.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, clap::ValueEnum)]
+pub(crate) enum QuadratureChoice {
+    /// Every simulation point with its volume.
+    Full,
+    /// An optimized cubature.
+    Cubature,
 }
 
 pub(crate) fn run(
@@ -67,6 +88,9 @@ pub(crate) fn run(
         jobs,
         fem_cells,
         simplicits_steps,
+        quadrature,
+        cubature_tolerance,
+        hessian_reuse,
     }: TableOptions,
     out: &Path,
     cache: &Path,
@@ -92,6 +116,19 @@ pub(crate) fn run(
             bail!("--modes: every m must be at least 1");
         }
         config.modes = modes.clone();
+    }
+    if !(cubature_tolerance > 0.0 && cubature_tolerance.is_finite()) {
+        bail!("--cubature-tolerance must be a positive number, got {cubature_tolerance}");
+    }
+    config.settings.quadrature = match quadrature {
+        QuadratureChoice::Full => QuadratureRule::Full,
+        QuadratureChoice::Cubature => QuadratureRule::Cubature(CubatureParams {
+            tolerance: cubature_tolerance,
+            ..CubatureParams::DEFAULT
+        }),
+    };
+    if hessian_reuse {
+        config.settings.hessian_reuse = eval::bench::HESSIAN_REUSE;
     }
     let wants = |group: &[u32]| numbers.iter().any(|n| group.contains(n));
     if let Some(steps) = simplicits_steps

@@ -1,0 +1,148 @@
+//! What each shortcut of a fast step buys and costs on the beam (issue 18): for each test and
+//! m, the reduced run with every combination of elastic quadrature (every point, the paper's
+//! setting, or an optimized cubature at each `--cubature-tolerance`) and Hessian reuse (fresh
+//! Hessians, the paper's setting, or `HessianReuse::WhileContracting { contraction: 0.5 }`),
+//! all against the FEM ground truth (P2, 6 per metre): ms per step split into assembly / solve
+//! / line search, Hessians and Newton iterations per step, quadrature points and cubature
+//! training time, normalized MSE and its ratio to the full-quadrature, fresh-Hessian MSE.
+//!
+//! ```sh
+//! cargo run --release -p eval --example fast_step -- --modes 6,16,32 --tests bend,twist
+//! ```
+//! The FEM runs are cached under `freeform-cache/` (or `$FREEFORM_CACHE`).
+
+use clap::Parser;
+use eval::beam::BeamTest;
+use eval::beam::reduced::{ReducedSettings, build_beam_basis, run_reduced_beam};
+use eval::beam::study::beam_length_scale;
+use eval::bench::HESSIAN_REUSE;
+use eval::fem_reference::{FemResolution, run_fem_beam};
+use eval::metrics::trajectory_errors;
+use eval::progress::Progress;
+use optimize::{HessianReuse, NewtonParams};
+use reduced_sim::{CubatureParams, QuadratureRule};
+
+#[derive(Parser)]
+struct Args {
+    /// Modes m, comma-separated.
+    #[arg(long, value_delimiter = ',', default_value = "6,16,32")]
+    modes: Vec<usize>,
+    /// Tests (bend, twist), comma-separated.
+    #[arg(long, value_delimiter = ',', default_value = "bend,twist")]
+    tests: Vec<String>,
+    /// Relative force errors the cubature is optimized to, comma-separated.
+    #[arg(long, value_delimiter = ',', default_value = "0.02")]
+    cubature_tolerance: Vec<f64>,
+    /// Point budget of the cubature.
+    #[arg(long, default_value_t = CubatureParams::default().max_points)]
+    cubature_points: usize,
+    /// Skip the Hessian-reuse rows.
+    #[arg(long)]
+    no_reuse: bool,
+}
+
+fn main() -> anyhow::Result<()> {
+    let args = Args::parse();
+    let progress = Progress::default();
+    let cache = eval::default_cache_dir();
+    let mut rules = vec![QuadratureRule::Full];
+    for &tolerance in &args.cubature_tolerance {
+        rules.push(QuadratureRule::Cubature(CubatureParams {
+            tolerance,
+            max_points: args.cubature_points,
+            ..CubatureParams::default()
+        }));
+    }
+    let reuses: &[HessianReuse] = if args.no_reuse {
+        &[HessianReuse::Never]
+    } else {
+        &[HessianReuse::Never, HESSIAN_REUSE]
+    };
+    println!(
+        "| test | m | quadrature | points | cubature s | force err. (train/unseen) | Hessians \
+         | ms/step | assembly | solve | line search | Hessians/step | Newton it./step \
+         | unconverged | MSE | MSE / full |"
+    );
+    println!("|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|");
+    for name in &args.tests {
+        let test = match name.as_str() {
+            "bend" => BeamTest::Bend,
+            "twist" => BeamTest::Twist,
+            other => anyhow::bail!("--tests: bend or twist, not {other}"),
+        };
+        let steps = test.steps();
+        let fem = run_fem_beam(
+            test,
+            FemResolution::GROUND_TRUTH,
+            NewtonParams::default(),
+            steps,
+            &cache,
+            &progress,
+        )?;
+        fem.check_converged(NewtonParams::default().max_iterations)?;
+        let reference = fem.vertex_frames();
+        for &m in &args.modes {
+            let base = ReducedSettings {
+                modes: m,
+                ..ReducedSettings::default()
+            };
+            let basis = build_beam_basis(&base)?;
+            let mut full_mse = None;
+            for &quadrature in &rules {
+                for &hessian_reuse in reuses {
+                    let settings = ReducedSettings {
+                        hessian_reuse,
+                        quadrature,
+                        ..base
+                    };
+                    let run = run_reduced_beam(
+                        test,
+                        &basis.basis,
+                        &settings,
+                        fem.vertices(),
+                        steps,
+                        &progress,
+                    )?;
+                    let errors =
+                        trajectory_errors(&run.frames[1..], &reference[1..], beam_length_scale())?;
+                    let mse = errors.normalized_mse;
+                    let full = *full_mse.get_or_insert(mse);
+                    let r = &run.report;
+                    let (seconds, force) = r.quadrature.cubature.as_ref().map_or(
+                        ("-".to_string(), "-".to_string()),
+                        |c| {
+                            (
+                                format!("{:.2}", c.seconds),
+                                format!("{:.1e} / {:.1e}", c.training_error, c.validation_error),
+                            )
+                        },
+                    );
+                    println!(
+                        "| {} | {m} | {} | {} | {seconds} | {force} | {} | {:.2} | {:.2} | {:.2} \
+                         | {:.2} | {:.2} | {:.2} | {} | {mse:.3e} | {:.2} |",
+                        test.name(),
+                        match quadrature {
+                            QuadratureRule::Cubature(p) => format!("cubature {:.0e}", p.tolerance),
+                            other => other.name().to_string(),
+                        },
+                        r.quadrature.points,
+                        if hessian_reuse == HessianReuse::Never {
+                            "fresh"
+                        } else {
+                            "reused"
+                        },
+                        r.ms_per_step,
+                        r.ms_assembly_per_step,
+                        r.ms_solve_per_step,
+                        r.ms_line_search_per_step,
+                        r.hessians_per_step,
+                        r.iterations_per_step,
+                        r.unconverged_steps,
+                        mse / full,
+                    );
+                }
+            }
+        }
+    }
+    Ok(())
+}

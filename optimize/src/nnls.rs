@@ -1,0 +1,252 @@
+//! Non-negative least squares: `min ‖A x − b‖²  subject to  x ≥ 0`, by the active-set method
+//! of Lawson and Hanson (1974, ch. 23) in the normal-equation form of Bro and de Jong (1997),
+//! which needs only `AᵀA` and `Aᵀb` (so a caller that grows A column by column, as greedy
+//! cubature does, updates them instead of refactoring A).
+//!
+//! With `P` the passive set (free variables) and `R` the active set (held at 0):
+//!
+//! 1. `w = Aᵀb − AᵀA x` (the negative gradient). If `w_j ≤ tol` for every `j ∈ R`, x is optimal
+//!    (the KKT conditions hold); stop.
+//! 2. Move `j = argmax_{R} w_j` into P.
+//! 3. Solve the unconstrained problem on P: `(AᵀA)_PP s_P = (Aᵀb)_P`, `s_R = 0`. If some
+//!    `s_i ≤ 0` on P, step from x toward s as far as feasibility allows
+//!    (`α = min_{s_i ≤ 0} x_i / (x_i − s_i)`), move the variables that reached 0 back to R and
+//!    solve again; otherwise `x = s` and go to 1.
+//!
+//! A warm start (a feasible x, e.g. the solution before new columns were added) starts P at its
+//! support.
+
+use faer::linalg::solvers::Solve;
+use faer::{Mat, MatRef, Side};
+use thiserror::Error;
+
+/// Options of [`nnls`] and [`nnls_normal`].
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct NnlsParams {
+    /// Optimality tolerance on the negative gradient, relative to `max |Aᵀb|` (default 1e-10):
+    /// the solve stops when `w_j ≤ tolerance · max|Aᵀb|` on every variable held at 0.
+    pub tolerance: f64,
+    /// Cap on variables moved into the passive set (default: 3 × the number of variables).
+    pub max_iterations: Option<usize>,
+}
+
+impl Default for NnlsParams {
+    fn default() -> Self {
+        NnlsParams {
+            tolerance: 1e-10,
+            max_iterations: None,
+        }
+    }
+}
+
+/// The solution of an NNLS problem.
+#[derive(Clone, Debug, PartialEq)]
+pub struct NnlsSolution {
+    /// x ≥ 0 (length n).
+    pub x: Vec<f64>,
+    /// Outer iterations (variables moved into the passive set).
+    pub iterations: usize,
+}
+
+/// An NNLS problem that cannot be solved.
+#[derive(Clone, Debug, Error, PartialEq)]
+pub enum NnlsError {
+    /// The matrices' sizes do not agree.
+    #[error("NNLS sizes disagree: {what}")]
+    Dimension {
+        /// Which sizes.
+        what: String,
+    },
+    /// A NaN or infinity in the input.
+    #[error("NNLS input contains a non-finite value")]
+    NonFinite,
+    /// The iteration cap was reached before the KKT conditions held.
+    #[error(
+        "NNLS did not converge in {iterations} iterations (largest free gradient {gradient:e})"
+    )]
+    NotConverged {
+        /// Outer iterations taken.
+        iterations: usize,
+        /// The largest `w_j` left on the active set.
+        gradient: f64,
+    },
+}
+
+/// Solves `min ‖A x − b‖², x ≥ 0` (A is `rows × n`, b has `rows` entries).
+///
+/// # Errors
+/// [`NnlsError`]: mismatched sizes, non-finite input, or no convergence within the cap.
+pub fn nnls(a: MatRef<'_, f64>, b: &[f64], params: &NnlsParams) -> Result<NnlsSolution, NnlsError> {
+    if a.nrows() != b.len() {
+        return Err(NnlsError::Dimension {
+            what: format!("A has {} rows, b has {} entries", a.nrows(), b.len()),
+        });
+    }
+    let gram = a.transpose() * a;
+    let b_col = MatRef::from_column_major_slice(b, b.len(), 1);
+    let atb_col = a.transpose() * b_col;
+    let atb: Vec<f64> = (0..a.ncols()).map(|j| atb_col[(j, 0)]).collect();
+    nnls_normal(gram.as_ref(), &atb, None, params)
+}
+
+/// Solves the NNLS problem given its normal equations: `gram = AᵀA` (`n × n`, symmetric
+/// positive semidefinite) and `atb = Aᵀb` (length n). `warm`, when given, is a feasible start
+/// (`x ≥ 0`, length n) whose support becomes the first passive set.
+///
+/// # Errors
+/// [`NnlsError`]: mismatched sizes, non-finite input, or no convergence within the cap.
+pub fn nnls_normal(
+    gram: MatRef<'_, f64>,
+    atb: &[f64],
+    warm: Option<&[f64]>,
+    params: &NnlsParams,
+) -> Result<NnlsSolution, NnlsError> {
+    let n = atb.len();
+    if gram.nrows() != n || gram.ncols() != n {
+        return Err(NnlsError::Dimension {
+            what: format!(
+                "AᵀA is {}×{}, Aᵀb has {n} entries",
+                gram.nrows(),
+                gram.ncols()
+            ),
+        });
+    }
+    if let Some(w) = warm
+        && w.len() != n
+    {
+        return Err(NnlsError::Dimension {
+            what: format!("the warm start has {} entries, expected {n}", w.len()),
+        });
+    }
+    let finite = atb.iter().all(|v| v.is_finite())
+        && (0..n).all(|j| (0..n).all(|i| gram[(i, j)].is_finite()))
+        && warm.is_none_or(|w| w.iter().all(|v| v.is_finite()));
+    if !finite {
+        return Err(NnlsError::NonFinite);
+    }
+    let scale = atb.iter().fold(0.0_f64, |m, v| m.max(v.abs()));
+    if scale == 0.0 {
+        return Ok(NnlsSolution {
+            x: vec![0.0; n],
+            iterations: 0,
+        });
+    }
+    let tolerance = params.tolerance * scale;
+    let max_iterations = params.max_iterations.unwrap_or(3 * n.max(1));
+
+    let mut x: Vec<f64> =
+        warm.map_or_else(|| vec![0.0; n], |w| w.iter().map(|v| v.max(0.0)).collect());
+    let mut passive: Vec<bool> = x.iter().map(|&v| v > 0.0).collect();
+    let mut iterations = 0;
+    if passive.iter().any(|&p| p) {
+        restore_feasibility(gram, atb, &mut x, &mut passive);
+    }
+    loop {
+        let w = negative_gradient(gram, atb, &x);
+        let candidate = (0..n)
+            .filter(|&j| !passive[j])
+            .max_by(|&i, &j| w[i].total_cmp(&w[j]));
+        let Some(j) = candidate.filter(|&j| w[j] > tolerance) else {
+            return Ok(NnlsSolution { x, iterations });
+        };
+        if iterations >= max_iterations {
+            return Err(NnlsError::NotConverged {
+                iterations,
+                gradient: w[j],
+            });
+        }
+        iterations += 1;
+        passive[j] = true;
+        let before = x.clone();
+        restore_feasibility(gram, atb, &mut x, &mut passive);
+        if x == before {
+            // The new variable's least-squares value was not positive (round-off at the
+            // tolerance): optimal to working precision.
+            passive[j] = false;
+            return Ok(NnlsSolution { x, iterations });
+        }
+    }
+}
+
+/// The inner loop (step 3): moves x to the least-squares solution on the passive set, dropping
+/// variables that would turn negative, until that solution is strictly positive.
+fn restore_feasibility(gram: MatRef<'_, f64>, atb: &[f64], x: &mut [f64], passive: &mut [bool]) {
+    loop {
+        let set: Vec<usize> = (0..x.len()).filter(|&i| passive[i]).collect();
+        if set.is_empty() {
+            return;
+        }
+        let s = solve_on(gram, atb, &set);
+        if s.iter().all(|&v| v > 0.0) {
+            for (&i, v) in set.iter().zip(&s) {
+                x[i] = *v;
+            }
+            return;
+        }
+        let alpha = set
+            .iter()
+            .zip(&s)
+            .filter(|&(_, &v)| v <= 0.0)
+            .map(|(&i, &v)| x[i] / (x[i] - v))
+            .fold(f64::INFINITY, f64::min);
+        for (&i, v) in set.iter().zip(&s) {
+            x[i] += alpha * (v - x[i]);
+        }
+        // Whatever reached zero (the minimizing index exactly, others to round-off) leaves P.
+        let floor = 1e-14 * set.iter().fold(0.0_f64, |m, &i| m.max(x[i].abs()));
+        for (&i, v) in set.iter().zip(&s) {
+            if x[i] <= floor || (*v <= 0.0 && x[i] / (x[i] - v) <= alpha) {
+                x[i] = 0.0;
+                passive[i] = false;
+            }
+        }
+    }
+}
+
+/// `Aᵀb − AᵀA x`.
+fn negative_gradient(gram: MatRef<'_, f64>, atb: &[f64], x: &[f64]) -> Vec<f64> {
+    let mut w = atb.to_vec();
+    for (j, &xj) in x.iter().enumerate() {
+        if xj != 0.0 {
+            let col = gram.col(j);
+            for (wi, g) in w.iter_mut().zip(col.iter()) {
+                *wi -= g * xj;
+            }
+        }
+    }
+    w
+}
+
+/// Solves `(AᵀA)_PP s = (Aᵀb)_P` by Cholesky; a singular subsystem (dependent columns) is
+/// regularized by `1e-12 · max diag` on the diagonal.
+fn solve_on(gram: MatRef<'_, f64>, atb: &[f64], set: &[usize]) -> Vec<f64> {
+    let k = set.len();
+    let sub = Mat::from_fn(k, k, |a, b| gram[(set[a], set[b])]);
+    let mut rhs = Mat::from_fn(k, 1, |a, _| atb[set[a]]);
+    match sub.llt(Side::Lower) {
+        Ok(llt) => llt.solve_in_place(rhs.as_mut()),
+        Err(_) => {
+            let max_diag = (0..k).fold(0.0_f64, |m, a| m.max(sub[(a, a)]));
+            let shift = 1e-12 * max_diag.max(f64::MIN_POSITIVE);
+            let shifted = Mat::from_fn(k, k, |a, b| sub[(a, b)] + if a == b { shift } else { 0.0 });
+            match shifted.llt(Side::Lower) {
+                Ok(llt) => llt.solve_in_place(rhs.as_mut()),
+                Err(_) => return vec![0.0; k],
+            }
+        }
+    }
+    (0..k).map(|a| rhs[(a, 0)]).collect()
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn a_solution_with_an_active_bound_is_found_exactly() {
+        // min ‖x − (1, −2, 3)‖², x ≥ 0: x = (1, 0, 3).
+        let a = Mat::<f64>::identity(3, 3);
+        let solution = nnls(a.as_ref(), &[1.0, -2.0, 3.0], &NnlsParams::default()).unwrap();
+        assert_eq!(solution.x, vec![1.0, 0.0, 3.0]);
+    }
+}

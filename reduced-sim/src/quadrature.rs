@@ -1,0 +1,247 @@
+//! The elastic quadrature: which integration points, with which non-negative weights, carry the
+//! elastic energy `E_el(z) ≈ Σ_{q ∈ Q} w_q Ψ(F_q(z))` (DESIGN 3.7, issue 18).
+//!
+//! Mass, gravity, pins and the floor always use every integration point with its volume; only
+//! the elastic energy, its gradient and its Hessian (the cost of a step) move to the quadrature.
+//! Three kinds:
+//! - every point with its volume ([`ElasticQuadrature::full`], the paper's setting and the
+//!   default of a [`crate::ReducedModel`]);
+//! - a random subset, volumes rescaled to the total ([`ElasticQuadrature::random_subset`]);
+//! - an optimized cubature (An, Kim and James 2008; [`crate::cubature`]).
+
+use hyperelastic::HyperelasticMaterial;
+use rand::SeedableRng;
+use rand::seq::index::sample;
+use rand_chacha::ChaCha8Rng;
+use serde::{Deserialize, Serialize};
+use thiserror::Error;
+
+use crate::cubature::{CubatureError, CubatureParams, CubatureReport, optimize_cubature};
+use crate::reduced_model::ReducedModel;
+
+/// A quadrature that cannot be used.
+#[derive(Clone, Debug, Error, PartialEq)]
+pub enum QuadratureError {
+    /// No point carries weight.
+    #[error("the elastic quadrature has no points")]
+    Empty,
+    /// Points and weights differ in number.
+    #[error("{points} quadrature points but {weights} weights")]
+    Count {
+        /// Points given.
+        points: usize,
+        /// Weights given.
+        weights: usize,
+    },
+    /// A weight is negative or not finite.
+    #[error("quadrature weight {index} must be finite and non-negative, got {weight} m³")]
+    Weight {
+        /// Position in the quadrature.
+        index: usize,
+        /// The weight.
+        weight: f64,
+    },
+    /// A point index is not an integration point of the model.
+    #[error("quadrature point {point} is not one of the model's {points} integration points")]
+    OutOfRange {
+        /// The bad index.
+        point: usize,
+        /// Integration points of the model.
+        points: usize,
+    },
+    /// The same point appears twice.
+    #[error("integration point {point} appears twice in the quadrature")]
+    Duplicate {
+        /// The repeated index.
+        point: usize,
+    },
+    /// A random subset larger than the set it is drawn from.
+    #[error("a random subset of {requested} points was asked of {available} integration points")]
+    SubsetTooLarge {
+        /// Points asked for.
+        requested: usize,
+        /// Points available.
+        available: usize,
+    },
+}
+
+/// Quadrature points (indices into a model's integration points, ascending) and their weights
+/// w_q (m³, ≥ 0).
+#[derive(Clone, Debug, PartialEq)]
+pub struct ElasticQuadrature {
+    points: Vec<usize>,
+    weights: Vec<f64>,
+}
+
+impl ElasticQuadrature {
+    /// A quadrature from points and weights; sorted by point index.
+    ///
+    /// # Errors
+    /// [`QuadratureError`]: empty, counts differ, a weight negative or non-finite, a point
+    /// repeated. (Indices are checked against a model by
+    /// [`crate::ReducedModel::with_elastic_quadrature`].)
+    pub fn new(points: Vec<usize>, weights: Vec<f64>) -> Result<Self, QuadratureError> {
+        if points.len() != weights.len() {
+            return Err(QuadratureError::Count {
+                points: points.len(),
+                weights: weights.len(),
+            });
+        }
+        if points.is_empty() {
+            return Err(QuadratureError::Empty);
+        }
+        if let Some((index, &weight)) = weights
+            .iter()
+            .enumerate()
+            .find(|(_, w)| !(w.is_finite() && **w >= 0.0))
+        {
+            return Err(QuadratureError::Weight { index, weight });
+        }
+        let mut pairs: Vec<(usize, f64)> = points.into_iter().zip(weights).collect();
+        pairs.sort_by_key(|&(p, _)| p);
+        if let Some(pair) = pairs.windows(2).find(|pair| pair[0].0 == pair[1].0) {
+            return Err(QuadratureError::Duplicate { point: pair[0].0 });
+        }
+        let (points, weights) = pairs.into_iter().unzip();
+        Ok(ElasticQuadrature { points, weights })
+    }
+
+    /// Every point with its volume: the exact sum over the integration points.
+    ///
+    /// # Errors
+    /// [`QuadratureError`] for no points or an invalid volume.
+    pub fn full(volumes: &[f64]) -> Result<Self, QuadratureError> {
+        ElasticQuadrature::new((0..volumes.len()).collect(), volumes.to_vec())
+    }
+
+    /// `count` points drawn uniformly without replacement (seeded), each weighted by its volume
+    /// times `V / V_subset` so that the weights sum to the total volume V.
+    ///
+    /// # Errors
+    /// [`QuadratureError`] for `count` 0 or larger than the number of points, or invalid volumes.
+    pub fn random_subset(
+        volumes: &[f64],
+        count: usize,
+        seed: u64,
+    ) -> Result<Self, QuadratureError> {
+        if count > volumes.len() {
+            return Err(QuadratureError::SubsetTooLarge {
+                requested: count,
+                available: volumes.len(),
+            });
+        }
+        let mut rng = ChaCha8Rng::seed_from_u64(seed);
+        let points: Vec<usize> = sample(&mut rng, volumes.len(), count).into_vec();
+        let total: f64 = volumes.iter().sum();
+        let subset: f64 = points.iter().map(|&i| volumes[i]).sum();
+        let scale = if subset > 0.0 { total / subset } else { 0.0 };
+        let weights = points.iter().map(|&i| volumes[i] * scale).collect();
+        ElasticQuadrature::new(points, weights)
+    }
+
+    /// Indices of the quadrature points, ascending.
+    pub fn points(&self) -> &[usize] {
+        &self.points
+    }
+
+    /// Their weights w_q (m³).
+    pub fn weights(&self) -> &[f64] {
+        &self.weights
+    }
+
+    /// Number of quadrature points.
+    pub fn len(&self) -> usize {
+        self.points.len()
+    }
+
+    /// Never true (a quadrature has at least one point); for clippy's `len_without_is_empty`.
+    pub fn is_empty(&self) -> bool {
+        self.points.is_empty()
+    }
+
+    /// Σ w_q (m³).
+    pub fn total_weight(&self) -> f64 {
+        self.weights.iter().sum()
+    }
+}
+
+/// How to choose the elastic quadrature of a model: a typed option for scene files, the CLI
+/// and the experiments.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Serialize, Deserialize)]
+#[serde(rename_all = "snake_case", tag = "kind")]
+pub enum QuadratureRule {
+    /// Every integration point with its volume (default; the paper's setting).
+    #[default]
+    Full,
+    /// `points` integration points drawn at random (seeded), volumes rescaled to the total.
+    RandomSubset {
+        /// Points kept.
+        points: usize,
+        /// Seed of the draw.
+        seed: u64,
+    },
+    /// An optimized cubature ([`crate::cubature`]).
+    Cubature(CubatureParams),
+}
+
+/// Which quadrature a model integrates its elastic energy with, and what choosing it cost.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+pub struct QuadratureReport {
+    /// "full", "random_subset" or "cubature".
+    pub kind: String,
+    /// Points the elastic energy is evaluated at.
+    pub points: usize,
+    /// The cubature optimization's report, for a cubature.
+    pub cubature: Option<CubatureReport>,
+}
+
+impl QuadratureRule {
+    /// "full", "random_subset" or "cubature".
+    pub fn name(&self) -> &'static str {
+        match self {
+            QuadratureRule::Full => "full",
+            QuadratureRule::RandomSubset { .. } => "random_subset",
+            QuadratureRule::Cubature(_) => "cubature",
+        }
+    }
+
+    /// `model` (which must integrate over every point) with this rule's quadrature set.
+    ///
+    /// # Errors
+    /// [`CubatureError`]: the model already has a quadrature, the subset is larger than the
+    /// model, or the cubature optimization failed.
+    pub fn apply<M: HyperelasticMaterial>(
+        &self,
+        model: ReducedModel<M>,
+    ) -> Result<(ReducedModel<M>, QuadratureReport), CubatureError> {
+        if model.elastic_quadrature().is_some() {
+            return Err(CubatureError::NotFull);
+        }
+        let (quadrature, cubature) = match self {
+            QuadratureRule::Full => {
+                let points = model.elastic_point_count();
+                let report = QuadratureReport {
+                    kind: self.name().to_string(),
+                    points,
+                    cubature: None,
+                };
+                return Ok((model, report));
+            }
+            QuadratureRule::RandomSubset { points, seed } => (
+                ElasticQuadrature::random_subset(model.volumes(), *points, *seed)?,
+                None,
+            ),
+            QuadratureRule::Cubature(params) => {
+                let (quadrature, report) = optimize_cubature(&model, params)?;
+                (quadrature, Some(report))
+            }
+        };
+        let report = QuadratureReport {
+            kind: self.name().to_string(),
+            points: quadrature.len(),
+            cubature,
+        };
+        let model = model.with_elastic_quadrature(quadrature)?;
+        Ok((model, report))
+    }
+}
