@@ -36,6 +36,9 @@ struct Args {
     /// Point budget of the cubature.
     #[arg(long, default_value_t = CubatureParams::default().max_points)]
     cubature_points: usize,
+    /// Candidate pool of the cubature.
+    #[arg(long, default_value_t = CubatureParams::default().candidates)]
+    cubature_candidates: usize,
     /// Skip the Hessian-reuse rows.
     #[arg(long)]
     no_reuse: bool,
@@ -50,6 +53,7 @@ fn main() -> anyhow::Result<()> {
         rules.push(QuadratureRule::Cubature(CubatureParams {
             tolerance,
             max_points: args.cubature_points,
+            candidates: args.cubature_candidates,
             ..CubatureParams::default()
         }));
     }

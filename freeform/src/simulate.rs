@@ -5,7 +5,9 @@ use std::time::Instant;
 
 use artifact::{ArtifactError, write_atomically};
 use hyperelastic::{MaterialField, MaterialParameterError, MaterialSample, StableNeoHookean};
-use reduced_sim::{DeformationMap, DeformationMapError, SimulationParams};
+use reduced_sim::{
+    DeformationMap, DeformationMapError, QuadratureReport, QuadratureRule, SimulationParams,
+};
 use rkpm_core::PointCloud;
 use serde::{Deserialize, Serialize};
 use skin_eigen::{BasisError, BasisParams, build_basis};
@@ -37,6 +39,9 @@ pub struct SimulateReport {
     /// For a splat scene: the most splats with det F ≤ 0 in one written frame.
     #[serde(default)]
     pub inverted_splats: usize,
+    /// The elastic quadrature (kind, points, cubature report).
+    #[serde(default)]
+    pub quadrature: Option<QuadratureReport>,
 }
 
 /// A scene file could not be run to the end.
@@ -124,6 +129,12 @@ pub fn simulate_scene_file(
     };
     let mut frames_written = 0;
     let mut last_z = Vec::new();
+    if let QuadratureRule::Cubature(p) = &file.simulation.quadrature {
+        progress.status(&format!(
+            "elastic quadrature: optimizing a cubature to force error {} (at most {} points)",
+            p.tolerance, p.max_points
+        ));
+    }
     progress.begin(steps, "simulate");
     let report = run(&simulation, steps, |frame| {
         let z = &frame.simulator.state().z;
@@ -164,6 +175,7 @@ pub fn simulate_scene_file(
             .map(|d| d.norm())
             .fold(0.0, f64::max),
         inverted_splats,
+        quadrature: Some(report.quadrature.clone()),
     };
     write_atomically(
         &out_dir.join("summary.json"),

@@ -20,4 +20,4 @@ pub use newton::{
     HessianReuse, NewtonError, NewtonObjective, NewtonParams, NewtonReport, NewtonStop,
     NewtonTimings, minimize, minimize_reusing,
 };
-pub use nnls::{NnlsError, NnlsParams, NnlsSolution, nnls, nnls_normal};
+pub use nnls::{NnlsError, NnlsParams, NnlsSolution, NnlsWarmStart, nnls, nnls_normal};

@@ -26,8 +26,12 @@ pub struct NnlsParams {
     /// Optimality tolerance on the negative gradient, relative to `max |Aᵀb|` (default 1e-10):
     /// the solve stops when `w_j ≤ tolerance · max|Aᵀb|` on every variable held at 0.
     pub tolerance: f64,
-    /// Cap on variables moved into the passive set (default: 3 × the number of variables).
+    /// Cap on outer iterations (default: 3 × the number of variables).
     pub max_iterations: Option<usize>,
+    /// Variables moved into the passive set per outer iteration, those of largest gradient
+    /// (default 1: Lawson–Hanson). More cut the number of factorizations on large problems;
+    /// the stopping test (KKT) is the same.
+    pub block: usize,
 }
 
 impl Default for NnlsParams {
@@ -35,6 +39,7 @@ impl Default for NnlsParams {
         NnlsParams {
             tolerance: 1e-10,
             max_iterations: None,
+            block: 1,
         }
     }
 }
@@ -44,7 +49,7 @@ impl Default for NnlsParams {
 pub struct NnlsSolution {
     /// x ≥ 0 (length n).
     pub x: Vec<f64>,
-    /// Outer iterations (variables moved into the passive set).
+    /// Outer iterations (moves of variables into the passive set).
     pub iterations: usize,
 }
 
@@ -89,16 +94,27 @@ pub fn nnls(a: MatRef<'_, f64>, b: &[f64], params: &NnlsParams) -> Result<NnlsSo
     nnls_normal(gram.as_ref(), &atb, None, params)
 }
 
+/// A feasible starting point for [`nnls_normal`]: `x ≥ 0` (length n) and the variables to
+/// start free (`free[i]`, length n; the support of x is free whatever it says). Freeing
+/// variables that are likely positive (e.g. columns a greedy method just added) saves one
+/// outer iteration, and one factorization, per variable.
+#[derive(Clone, Copy, Debug)]
+pub struct NnlsWarmStart<'a> {
+    /// The start, `x ≥ 0`.
+    pub x: &'a [f64],
+    /// Variables in the first passive set besides the support of x.
+    pub free: &'a [bool],
+}
+
 /// Solves the NNLS problem given its normal equations: `gram = AᵀA` (`n × n`, symmetric
-/// positive semidefinite) and `atb = Aᵀb` (length n). `warm`, when given, is a feasible start
-/// (`x ≥ 0`, length n) whose support becomes the first passive set.
+/// positive semidefinite) and `atb = Aᵀb` (length n), optionally from a warm start.
 ///
 /// # Errors
 /// [`NnlsError`]: mismatched sizes, non-finite input, or no convergence within the cap.
 pub fn nnls_normal(
     gram: MatRef<'_, f64>,
     atb: &[f64],
-    warm: Option<&[f64]>,
+    warm: Option<NnlsWarmStart<'_>>,
     params: &NnlsParams,
 ) -> Result<NnlsSolution, NnlsError> {
     let n = atb.len();
@@ -112,15 +128,19 @@ pub fn nnls_normal(
         });
     }
     if let Some(w) = warm
-        && w.len() != n
+        && (w.x.len() != n || w.free.len() != n)
     {
         return Err(NnlsError::Dimension {
-            what: format!("the warm start has {} entries, expected {n}", w.len()),
+            what: format!(
+                "the warm start has {} values and {} flags, expected {n}",
+                w.x.len(),
+                w.free.len()
+            ),
         });
     }
     let finite = atb.iter().all(|v| v.is_finite())
         && (0..n).all(|j| (0..n).all(|i| gram[(i, j)].is_finite()))
-        && warm.is_none_or(|w| w.iter().all(|v| v.is_finite()));
+        && warm.is_none_or(|w| w.x.iter().all(|v| v.is_finite()));
     if !finite {
         return Err(NnlsError::NonFinite);
     }
@@ -134,35 +154,48 @@ pub fn nnls_normal(
     let tolerance = params.tolerance * scale;
     let max_iterations = params.max_iterations.unwrap_or(3 * n.max(1));
 
-    let mut x: Vec<f64> =
-        warm.map_or_else(|| vec![0.0; n], |w| w.iter().map(|v| v.max(0.0)).collect());
-    let mut passive: Vec<bool> = x.iter().map(|&v| v > 0.0).collect();
+    let mut x: Vec<f64> = warm.map_or_else(
+        || vec![0.0; n],
+        |w| w.x.iter().map(|v| v.max(0.0)).collect(),
+    );
+    let mut passive: Vec<bool> = match warm {
+        Some(w) => x.iter().zip(w.free).map(|(&v, &f)| v > 0.0 || f).collect(),
+        None => vec![false; n],
+    };
     let mut iterations = 0;
     if passive.iter().any(|&p| p) {
         restore_feasibility(gram, atb, &mut x, &mut passive);
     }
     loop {
         let w = negative_gradient(gram, atb, &x);
-        let candidate = (0..n)
-            .filter(|&j| !passive[j])
-            .max_by(|&i, &j| w[i].total_cmp(&w[j]));
-        let Some(j) = candidate.filter(|&j| w[j] > tolerance) else {
+        let mut joining: Vec<usize> = (0..n)
+            .filter(|&j| !passive[j] && w[j] > tolerance)
+            .collect();
+        if joining.is_empty() {
             return Ok(NnlsSolution { x, iterations });
-        };
+        }
+        joining.sort_by(|&i, &j| w[j].total_cmp(&w[i]));
         if iterations >= max_iterations {
             return Err(NnlsError::NotConverged {
                 iterations,
-                gradient: w[j],
+                gradient: w[joining[0]],
             });
         }
         iterations += 1;
-        passive[j] = true;
         let before = x.clone();
+        for &j in joining.iter().take(params.block.max(1)) {
+            passive[j] = true;
+        }
         restore_feasibility(gram, atb, &mut x, &mut passive);
+        if x == before && params.block > 1 {
+            // Every joined variable fell out again: try the best one alone.
+            passive[joining[0]] = true;
+            restore_feasibility(gram, atb, &mut x, &mut passive);
+        }
         if x == before {
-            // The new variable's least-squares value was not positive (round-off at the
+            // The best variable's least-squares value was not positive (round-off at the
             // tolerance): optimal to working precision.
-            passive[j] = false;
+            passive[joining[0]] = false;
             return Ok(NnlsSolution { x, iterations });
         }
     }
@@ -192,29 +225,18 @@ fn restore_feasibility(gram: MatRef<'_, f64>, atb: &[f64], x: &mut [f64], passiv
         for (&i, v) in set.iter().zip(&s) {
             x[i] += alpha * (v - x[i]);
         }
-        // Whatever reached zero (the minimizing index exactly, others to round-off) leaves P.
+        // Whatever reached zero on its way to a non-positive value leaves P (the minimizing
+        // index exactly, others to round-off); a variable at zero whose solution is positive
+        // stays (a freed warm-start variable).
         let floor = 1e-14 * set.iter().fold(0.0_f64, |m, &i| m.max(x[i].abs()));
         for (&i, v) in set.iter().zip(&s) {
-            if x[i] <= floor || (*v <= 0.0 && x[i] / (x[i] - v) <= alpha) {
+            let reached = *v <= 0.0 && (x[i] <= floor || x[i] / (x[i] - v) <= alpha);
+            if reached || (x[i] <= floor && *v <= floor) {
                 x[i] = 0.0;
                 passive[i] = false;
             }
         }
     }
-}
-
-/// `Aᵀb − AᵀA x`.
-fn negative_gradient(gram: MatRef<'_, f64>, atb: &[f64], x: &[f64]) -> Vec<f64> {
-    let mut w = atb.to_vec();
-    for (j, &xj) in x.iter().enumerate() {
-        if xj != 0.0 {
-            let col = gram.col(j);
-            for (wi, g) in w.iter_mut().zip(col.iter()) {
-                *wi -= g * xj;
-            }
-        }
-    }
-    w
 }
 
 /// Solves `(AᵀA)_PP s = (Aᵀb)_P` by Cholesky; a singular subsystem (dependent columns) is
@@ -236,6 +258,20 @@ fn solve_on(gram: MatRef<'_, f64>, atb: &[f64], set: &[usize]) -> Vec<f64> {
         }
     }
     (0..k).map(|a| rhs[(a, 0)]).collect()
+}
+
+/// `Aᵀb − AᵀA x`.
+fn negative_gradient(gram: MatRef<'_, f64>, atb: &[f64], x: &[f64]) -> Vec<f64> {
+    let mut w = atb.to_vec();
+    for (j, &xj) in x.iter().enumerate() {
+        if xj != 0.0 {
+            let col = gram.col(j);
+            for (wi, g) in w.iter_mut().zip(col.iter()) {
+                *wi -= g * xj;
+            }
+        }
+    }
+    w
 }
 
 #[cfg(test)]

@@ -3,7 +3,7 @@
 
 use faer::Mat;
 use faer::linalg::solvers::{Solve, SolveLstsq};
-use optimize::{NnlsError, NnlsParams, nnls, nnls_normal};
+use optimize::{NnlsError, NnlsParams, NnlsWarmStart, nnls, nnls_normal};
 use proptest::prelude::*;
 use rand::{Rng, SeedableRng};
 use rand_chacha::ChaCha8Rng;
@@ -94,14 +94,22 @@ fn a_warm_start_reaches_the_same_solution_as_a_cold_one() {
     let partial = nnls_normal(sub_gram.as_ref(), &atb[..10], None, &NnlsParams::default()).unwrap();
     let mut warm = partial.x.clone();
     warm.resize(15, 0.0);
-    let warmed = nnls_normal(gram.as_ref(), &atb, Some(&warm), &NnlsParams::default()).unwrap();
-    for (c, w) in cold.x.iter().zip(&warmed.x) {
-        assert!(
-            (c - w).abs() < 1e-10,
-            "cold {:?} vs warm {:?}",
-            cold.x,
-            warmed.x
-        );
+    // With the five new variables held at zero, and with them freed.
+    for free_new in [false, true] {
+        let free: Vec<bool> = (0..15).map(|i| free_new && i >= 10).collect();
+        let start = NnlsWarmStart {
+            x: &warm,
+            free: &free,
+        };
+        let warmed = nnls_normal(gram.as_ref(), &atb, Some(start), &NnlsParams::default()).unwrap();
+        for (c, w) in cold.x.iter().zip(&warmed.x) {
+            assert!(
+                (c - w).abs() < 1e-10,
+                "cold {:?} vs warm {:?} (new variables freed: {free_new})",
+                cold.x,
+                warmed.x
+            );
+        }
     }
 }
 
@@ -138,6 +146,11 @@ proptest! {
         let b: Vec<f64> = (0..rows).map(|_| rng.random_range(-1.0..1.0)).collect();
         let solution = nnls(a.as_ref(), &b, &NnlsParams::default()).unwrap();
         prop_assert!(solution.x.iter().all(|&v| v >= 0.0));
+        // Moving variables in blocks reaches the same solution.
+        let blocked = nnls(a.as_ref(), &b, &NnlsParams { block: 3, ..NnlsParams::default() }).unwrap();
+        for (p, q) in solution.x.iter().zip(&blocked.x) {
+            prop_assert!((p - q).abs() < 1e-9, "block 1 {:?} vs block 3 {:?}", solution.x, blocked.x);
+        }
         let (_, best) = brute_force(&a, &b);
         let got = residual_squared(&a, &solution.x, &b);
         prop_assert!(got <= best * (1.0 + 1e-9) + 1e-12, "residual² {got:e} > best {best:e}");

@@ -17,7 +17,7 @@
 use hyperelastic::MaterialSample;
 use std::time::Instant;
 
-use hyperelastic::{LameParameters, StableNeoHookean};
+use hyperelastic::{LameParameters, StableNeoHookean, Tangent};
 use nalgebra::Vector3;
 use optimize::{HessianReuse, NewtonParams, NewtonTimings};
 use reduced_sim::{
@@ -60,6 +60,10 @@ struct Args {
     /// Carry the Hessian factorization across steps while it contracts (rate 0.5).
     #[arg(long)]
     hessian_reuse: bool,
+    /// Assemble the exact material tangent instead of the PSD-projected one (a step whose
+    /// Hessian is then not positive definite fails with a named error).
+    #[arg(long)]
+    exact_tangent: bool,
 }
 
 const BEAM_MIN: Vector3<f64> = Vector3::new(0.0, 0.0, 0.0);
@@ -82,6 +86,7 @@ fn run() -> Result<(), String> {
         pin_factor,
         cubature,
         hessian_reuse,
+        exact_tangent,
     } = clap::Parser::parse();
     if modes == 0 || kernels == 0 || basis_points == 0 || sim_points == 0 {
         return Err("--modes, --kernels, --basis-points and --points must be positive".into());
@@ -149,7 +154,11 @@ fn run() -> Result<(), String> {
             pin_factor,
             ..Default::default()
         },
-        ..SimulationParams::default()
+        tangent: if exact_tangent {
+            Tangent::Exact
+        } else {
+            Tangent::ProjectedPsd
+        },
     };
     let mut sim = Simulator::new(model, &scene, sim_params).map_err(|e| e.to_string())?;
     let lattice: Vec<Vector3<f64>> = (0..11)

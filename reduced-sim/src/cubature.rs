@@ -27,7 +27,7 @@ use std::time::Instant;
 use faer::{Accum, Mat, MatRef, Par};
 use hyperelastic::{HyperelasticMaterial, LameParameters};
 use nalgebra::{Matrix3, Rotation3, Unit, Vector3};
-use optimize::{NnlsError, NnlsParams, nnls_normal};
+use optimize::{NnlsError, NnlsParams, NnlsWarmStart, nnls_normal};
 use rand::seq::index::sample;
 use rand::{Rng, SeedableRng};
 use rand_chacha::ChaCha8Rng;
@@ -67,16 +67,21 @@ pub struct CubatureParams {
     /// the force components: component k is scaled by `1/sqrt(H_kk)`, so errors in soft
     /// directions, which move the solution most, count most.
     pub time_step: f64,
-    /// Points the greedy selection chooses from, drawn at random (default 2000; every point
-    /// when the model has fewer).
+    /// Points the greedy selection chooses from, drawn at random (default 5000; every point
+    /// when the model has fewer). Too few limit the error reachable with non-negative
+    /// weights: on the beam at m = 32 a pool of 1500 of 5000 points stalled at 5.3e-3, and
+    /// its Bend MSE against the FEM was 10× the full quadrature's (1.2× from all 5000).
+    /// Memory: 8 · 12(m+1) · poses · candidates bytes (0.95 GB at m = 32).
     pub candidates: usize,
     /// Relative force error over the training poses (in the weighted norm of
-    /// [`force_weights`]) at which selection stops (default 0.005: on the beam Bend at m = 16
-    /// a cubature at 0.02 moved the trajectory visibly, see `eval/examples/fast_step.rs`).
+    /// [`force_weights`]) at which selection stops (default 0.003: on the beam at m = 32, 0.005
+    /// gave 1.5× and 0.003 gave 1.16× the full quadrature's Bend MSE against the FEM, see
+    /// `eval/examples/fast_step.rs`).
     pub tolerance: f64,
-    /// Most points the cubature may hold (default 1000).
+    /// Most points with positive weight the cubature may hold (default 1500).
     pub max_points: usize,
-    /// Points added between weight solves (default 8).
+    /// Points added between weight solves while the cubature is small (default 16; later an
+    /// eighth of the points it holds).
     pub batch: usize,
     /// Poses per amplitude not used for training, on which the error is also reported
     /// (default 3).
@@ -97,10 +102,10 @@ impl CubatureParams {
         max_twist: 4.0 * std::f64::consts::PI,
         max_bend: std::f64::consts::PI,
         time_step: 0.01,
-        candidates: 1500,
-        tolerance: 0.005,
-        max_points: 1000,
-        batch: 8,
+        candidates: 5000,
+        tolerance: 0.003,
+        max_points: 1500,
+        batch: 16,
         validation_poses_per_amplitude: 3,
         seed: 0,
     };
@@ -188,7 +193,7 @@ pub fn training_poses<M: HyperelasticMaterial>(
     let n4 = layout.block_len();
     // Strain is measured on a subset of points (cheap and plenty for an RMS).
     let mut rng = ChaCha8Rng::seed_from_u64(seed);
-    let probe = map.subset(&sample(&mut rng, map.len(), map.len().min(500)).into_vec());
+    let probe = map.subset(&sample(&mut rng, map.len(), map.len().min(200)).into_vec());
     // RMS of each handle's weight, so every handle's transform moves points comparably.
     let weight_scale: Vec<f64> = (0..layout.handles())
         .map(|j| {
@@ -339,16 +344,63 @@ pub fn optimize_cubature_on<M: HyperelasticMaterial>(
             targets[p].iter().map(move |f| f / scale)
         })
         .collect();
+    // Column c holds, pose after pose, candidate c's weighted, normalized force density.
+    // Per candidate, two small products over all poses at once: the strains
+    // `[F_k − I]_k = Z_allᵀ G_c` (`3K × 3`, Z_all the `4(m+1) × 3K` poses side by side), then
+    // the force densities `[g_k]_k = G_c S` (`4(m+1) × 3K`, S[s, 3k + r] = P_k[r, s]), which
+    // is the column's layout.
+    let n4 = layout.block_len();
+    let material = model.material();
+    let z_all: Vec<f64> = kept
+        .iter()
+        .flat_map(|&p| poses[p].iter().copied())
+        .collect();
+    let z_all = MatRef::from_column_major_slice(&z_all, n4, 3 * kept.len());
+    let scale: Vec<f64> = kept
+        .iter()
+        .flat_map(|&p| {
+            let norm = norms[p];
+            omega.iter().map(move |w| w / norm)
+        })
+        .collect();
     let mut columns = vec![0.0; rows * pool.len()];
-    for (k, &p) in kept.iter().enumerate() {
-        let forces = force_densities(model.material(), &pool_map, &pool_lame, &poses[p]);
-        for c in 0..pool.len() {
-            let dst = &mut columns[c * rows + k * d..c * rows + (k + 1) * d];
-            for ((x, g), w) in dst.iter_mut().zip(&forces[c * d..(c + 1) * d]).zip(&omega) {
-                *x = g * w / norms[p];
+    columns
+        .par_chunks_mut(rows)
+        .enumerate()
+        .for_each(|(c, column)| {
+            let g_c = MatRef::from_column_major_slice(pool_map.gradient_block(c), n4, 3);
+            let mut strain = Mat::<f64>::zeros(3 * kept.len(), 3);
+            faer::linalg::matmul::matmul(
+                strain.as_mut(),
+                Accum::Replace,
+                z_all.transpose(),
+                g_c,
+                1.0,
+                Par::Seq,
+            );
+            let mut stresses = Mat::<f64>::zeros(3, 3 * kept.len());
+            for k in 0..kept.len() {
+                let f =
+                    Matrix3::from_fn(|r, s| strain[(3 * k + r, s)] + f64::from(u8::from(r == s)));
+                let p = material.first_piola_kirchhoff(&pool_lame[c], &f);
+                for r in 0..3 {
+                    for s in 0..3 {
+                        stresses[(s, 3 * k + r)] = p[(r, s)];
+                    }
+                }
             }
-        }
-    }
+            faer::linalg::matmul::matmul(
+                faer::MatMut::from_column_major_slice_mut(column, n4, 3 * kept.len()),
+                Accum::Replace,
+                g_c,
+                stresses.as_ref(),
+                1.0,
+                Par::Seq,
+            );
+            for (x, s) in column.iter_mut().zip(&scale) {
+                *x *= s;
+            }
+        });
     let a = MatRef::from_column_major_slice(&columns, rows, pool.len());
     let column_norms: Vec<f64> = (0..pool.len())
         .map(|c| norm(&columns[c * rows..(c + 1) * rows]))
@@ -363,19 +415,31 @@ pub fn optimize_cubature_on<M: HyperelasticMaterial>(
     let mut weights: Vec<f64> = Vec::new();
     let mut residual = b.clone();
     let mut selected_columns: Vec<f64> = Vec::new();
-    let nnls_params = NnlsParams::default();
+    // Blocks of 16: the same KKT solution, far fewer factorizations at a thousand points.
+    let nnls_params = NnlsParams {
+        block: 16,
+        ..NnlsParams::default()
+    };
     loop {
         let error = norm(&residual) / b_norm;
-        if error <= params.tolerance || selected.len() >= params.max_points.min(pool.len()) {
+        let support = weights.iter().filter(|&&w| w > 0.0).count();
+        if error <= params.tolerance || support >= params.max_points || selected.len() >= pool.len()
+        {
             break;
         }
+        // Correlations Aᵀr of every candidate with the residual, as one product.
+        let mut correlation = Mat::<f64>::zeros(pool.len(), 1);
+        faer::linalg::matmul::matmul(
+            correlation.as_mut(),
+            Accum::Replace,
+            a.transpose(),
+            MatRef::from_column_major_slice(&residual, rows, 1),
+            1.0,
+            Par::rayon(0),
+        );
         let mut scores: Vec<(usize, f64)> = (0..pool.len())
-            .into_par_iter()
             .filter(|&c| !in_set[c] && column_norms[c] > 0.0)
-            .map(|c| {
-                let col = &columns[c * rows..(c + 1) * rows];
-                (c, dot(col, &residual) / column_norms[c])
-            })
+            .map(|c| (c, correlation[(c, 0)] / column_norms[c]))
             .filter(|&(_, s)| s > 0.0)
             .collect();
         if scores.is_empty() {
@@ -384,8 +448,8 @@ pub fn optimize_cubature_on<M: HyperelasticMaterial>(
         // Batches grow with the set (an eighth of it), so the weight solves stay few.
         let take = params
             .batch
-            .max(selected.len() / 8)
-            .min(params.max_points - selected.len());
+            .max(support / 8)
+            .min(params.max_points - support);
         scores.sort_by(|x, y| y.1.total_cmp(&x.1));
         let added: Vec<usize> = scores.iter().take(take).map(|&(c, _)| c).collect();
         let old = selected.len();
@@ -420,7 +484,12 @@ pub fn optimize_cubature_on<M: HyperelasticMaterial>(
         }
         gram = grown;
         weights.resize(k, 0.0);
-        weights = nnls_normal(gram.as_ref(), &atb, Some(&weights), &nnls_params)?.x;
+        let free: Vec<bool> = (0..k).map(|i| i >= old).collect();
+        let start = NnlsWarmStart {
+            x: &weights,
+            free: &free,
+        };
+        weights = nnls_normal(gram.as_ref(), &atb, Some(start), &nnls_params)?.x;
         residual = b.clone();
         for (i, &w) in weights.iter().enumerate() {
             if w > 0.0 {
@@ -555,7 +624,8 @@ fn force_densities<M: HyperelasticMaterial>(
 }
 
 /// The factor t making the RMS Green strain `‖(FᵀF − I)/2‖_F` of `t·direction` over the
-/// probe points equal `amplitude` (bisection on a monotone-enough function; capped at 1e6).
+/// probe points equal `amplitude` (bisection on a monotone-enough function, t in
+/// [1e-12, 1e6]).
 fn scale_to_strain(probe: &DeformationMap, direction: &[f64], amplitude: f64) -> f64 {
     let strain = |t: f64| {
         let z: Vec<f64> = direction.iter().map(|d| d * t).collect();
@@ -566,12 +636,20 @@ fn scale_to_strain(probe: &DeformationMap, direction: &[f64], amplitude: f64) ->
             .sum();
         (sum / f.len().max(1) as f64).sqrt()
     };
-    let (mut lo, mut hi) = (0.0, 1.0);
-    while strain(hi) < amplitude && hi < 1e6 {
-        lo = hi;
-        hi *= 2.0;
+    // Bracket [t/2, t] by doubling or halving from 1.
+    let mut hi = 1.0;
+    if strain(hi) < amplitude {
+        while strain(hi) < amplitude && hi < 1e6 {
+            hi *= 2.0;
+        }
+    } else {
+        while strain(0.5 * hi) >= amplitude && hi > 1e-12 {
+            hi *= 0.5;
+        }
     }
-    for _ in 0..50 {
+    let mut lo = 0.5 * hi;
+    // 20 halvings of a bracket [t, 2t] give t to 1e-6 relative: plenty for a pose amplitude.
+    for _ in 0..20 {
         let mid = 0.5 * (lo + hi);
         if strain(mid) < amplitude {
             lo = mid;

@@ -4,16 +4,27 @@ use crate::plot_or_warn;
 use std::path::{Path, PathBuf};
 
 use anyhow::Result;
-use eval::bench::{BenchConfig, bench_plot, run_bench, write_bench};
+use eval::bench::{BenchConfig, BenchMethod, bench_plot, run_bench, write_bench};
 use eval::progress::Progress;
 
 /// Runs the sweep and writes its CSV, Markdown and plot under `out`.
-pub(crate) fn run(quick: bool, cache: PathBuf, out: &Path, progress: &Progress) -> Result<()> {
-    let config = if quick {
+pub(crate) fn run(
+    quick: bool,
+    skip_simplicits: bool,
+    cache: PathBuf,
+    out: &Path,
+    progress: &Progress,
+) -> Result<()> {
+    let mut config = if quick {
         BenchConfig::quick(cache)
     } else {
         BenchConfig::full(cache)
     };
+    if skip_simplicits {
+        config
+            .runs
+            .retain(|(_, method)| !matches!(method, BenchMethod::Simplicits(..)));
+    }
     let results = run_bench(&config, progress)?;
     let (md, files) = write_bench(&results, &config, out)?;
     println!("{md}");

@@ -128,6 +128,10 @@ enum Command {
         /// One-minute sweep.
         #[arg(long)]
         quick: bool,
+        /// Leave out the Simplicits baseline (its networks train for about 10 min per m on
+        /// 2 cores the first time, then are cached).
+        #[arg(long)]
+        skip_simplicits: bool,
     },
 }
 
@@ -197,7 +201,10 @@ fn run(cli: Cli) -> Result<()> {
             table::run(&numbers, options, &cli.out, &cache, &progress)
         }
         Command::Stress { quick, json } => stress::run(quick, json, &cli.out, &progress),
-        Command::Bench { quick } => bench::run(quick, cache, &cli.out, &progress),
+        Command::Bench {
+            quick,
+            skip_simplicits,
+        } => bench::run(quick, skip_simplicits, cache, &cli.out, &progress),
     }
 }
 

@@ -22,5 +22,15 @@ pub(crate) fn run(scene: &Path, out: &Path, progress: Progress) -> Result<()> {
         report.unconverged_steps,
         report.final_max_displacement
     );
+    if let Some(q) = &report.quadrature {
+        match &q.cubature {
+            Some(c) => println!(
+                "elastic quadrature: cubature of {} of {} points, optimized in {:.2} s to force \
+                 error {:.1e} (unseen poses {:.1e})",
+                q.points, report.simulation_points, c.seconds, c.training_error, c.validation_error
+            ),
+            None => println!("elastic quadrature: {} ({} points)", q.kind, q.points),
+        }
+    }
     Ok(())
 }

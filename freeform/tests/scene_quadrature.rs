@@ -1,0 +1,88 @@
+//! The elastic quadrature chosen in a scene file: parsed with its defaults, reported, and
+//! exact for motions without strain.
+
+use std::path::PathBuf;
+
+use freeform::{SceneFile, Silent, simulate_scene_file};
+use reduced_sim::{CubatureParams, QuadratureRule};
+
+fn scratch_dir(name: &str) -> PathBuf {
+    let dir = PathBuf::from(env!("CARGO_TARGET_TMPDIR")).join(name);
+    let _ = std::fs::remove_dir_all(&dir);
+    std::fs::create_dir_all(&dir).unwrap();
+    dir
+}
+
+fn box_scene(quadrature: &str) -> String {
+    format!(
+        "[geometry]\nbox = {{ min = [0, 0, 0], max = [2, 1, 1] }}\n[material]\n\
+         youngs_modulus = 1e5\npoisson_ratio = 0.45\ndensity = 1000\n[basis]\nmodes = 6\n\
+         kernels = 150\npoints = 3000\n[simulation]\ntime_step = 0.01\nsteps = 5\npoints = 2000\n\
+         {quadrature}\n[scene]\ngravity = [0, -9.8, 0]\n"
+    )
+}
+
+#[test]
+fn a_scene_file_picks_a_cubature_with_defaults_for_the_fields_it_leaves_out() {
+    let dir = scratch_dir("quadrature-parse");
+    let path = dir.join("cubature.toml");
+    std::fs::write(
+        &path,
+        box_scene("quadrature = { kind = \"cubature\", tolerance = 0.01 }"),
+    )
+    .unwrap();
+    let file = SceneFile::load(&path).unwrap();
+    assert_eq!(
+        file.simulation.quadrature,
+        QuadratureRule::Cubature(CubatureParams {
+            tolerance: 0.01,
+            ..CubatureParams::DEFAULT
+        })
+    );
+    let path = dir.join("default.toml");
+    std::fs::write(&path, box_scene("")).unwrap();
+    assert_eq!(
+        SceneFile::load(&path).unwrap().simulation.quadrature,
+        QuadratureRule::Full
+    );
+    let path = dir.join("bad.toml");
+    std::fs::write(&path, box_scene("quadrature = { kind = \"gauss\" }")).unwrap();
+    let message = SceneFile::load(&path).unwrap_err().to_string();
+    assert!(message.contains("gauss"), "{message}");
+}
+
+#[test]
+fn a_falling_box_on_a_cubature_falls_exactly_as_on_every_point() {
+    // Free fall is a rigid translation: no strain, so any quadrature integrates its (zero)
+    // elastic force exactly and both runs drop by backward Euler's g h² n(n+1)/2.
+    let dir = scratch_dir("quadrature-fall");
+    let mut drops = Vec::new();
+    for (name, line) in [
+        ("full", ""),
+        (
+            "cubature",
+            "quadrature = { kind = \"cubature\", tolerance = 0.02 }",
+        ),
+    ] {
+        let path = dir.join(format!("{name}.toml"));
+        std::fs::write(&path, box_scene(line)).unwrap();
+        let file = SceneFile::load(&path).unwrap();
+        let report = simulate_scene_file(&file, &dir.join(name), &Silent).unwrap();
+        let quadrature = report.quadrature.unwrap();
+        assert_eq!(quadrature.kind, name);
+        if name == "cubature" {
+            assert!(quadrature.points < report.simulation_points);
+            assert!(quadrature.cubature.unwrap().reached_tolerance);
+        } else {
+            assert_eq!(quadrature.points, report.simulation_points);
+        }
+        drops.push(report.final_max_displacement);
+    }
+    let expected = 9.8 * 0.01 * 0.01 * 5.0 * 6.0 / 2.0;
+    for drop in drops {
+        assert!(
+            (drop - expected).abs() < 1e-9,
+            "dropped {drop} m, expected {expected} m"
+        );
+    }
+}
