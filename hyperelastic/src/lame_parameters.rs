@@ -88,6 +88,12 @@ impl LameParameters {
         self.mu
     }
 
+    /// Young's modulus `E = μ(3λ + 2μ)/(λ + μ)` (Pa): bounded by 3μ as ν → 1/2, where λ + 2μ
+    /// grows without bound.
+    pub fn youngs_modulus(&self) -> f64 {
+        self.mu * (3.0 * self.lambda + 2.0 * self.mu) / (self.lambda + self.mu)
+    }
+
     /// The P-wave modulus λ + 2μ (Pa).
     pub fn p_wave_modulus(&self) -> f64 {
         self.lambda + 2.0 * self.mu

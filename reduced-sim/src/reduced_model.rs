@@ -274,6 +274,15 @@ impl<M: HyperelasticMaterial> ReducedModel<M> {
             .fold(0.0, f64::max)
     }
 
+    /// The largest Young's modulus over the points (Pa): the stiffness scale of
+    /// [`crate::PinModulus::Young`].
+    pub fn max_youngs_modulus(&self) -> f64 {
+        self.lame
+            .iter()
+            .map(|l| l.youngs_modulus())
+            .fold(0.0, f64::max)
+    }
+
     /// Indices of the integration points whose rest position satisfies `predicate`.
     pub fn points_where(&self, predicate: impl Fn(&Vector3<f64>) -> bool) -> Vec<usize> {
         (0..self.map.len())

@@ -88,12 +88,13 @@ impl Scene {
     }
 }
 
-/// Penalty stiffnesses, scale-aware: with `E_ref` the largest p-wave modulus λ + 2μ of the
-/// object (Pa) and `L` the largest side of its rest bounding box (m),
+/// Penalty stiffnesses, scale-aware: with `L` the largest side of the object's rest bounding
+/// box (m), `E_pin` the largest modulus of [`PenaltyParams::pin_modulus`] over the object and
+/// `E_floor` its largest p-wave modulus λ + 2μ (Pa),
 ///
 /// ```text
-/// κ_pin   = pin_factor   · E_ref / L²     E_pin   = κ_pin/2   Σ_{i pinned} v_i |x_i - target_i|²
-/// κ_floor = floor_factor · E_ref / L²     E_floor = κ_floor/2 Σ_i v_i max(0, offset - n·x_i)²
+/// κ_pin   = pin_factor   · E_pin / L²     E_pin   = κ_pin/2   Σ_{i pinned} v_i |x_i - target_i|²
+/// κ_floor = floor_factor · E_floor / L²   E_floor = κ_floor/2 Σ_i v_i max(0, offset - n·x_i)²
 /// ```
 ///
 /// (κ in Pa/m², energies in J). With these rules, a pinned region deviates from its target by
@@ -105,6 +106,23 @@ pub struct PenaltyParams {
     pub pin_factor: f64,
     /// Floor stiffness factor (dimensionless, default 1e4).
     pub floor_factor: f64,
+    /// The modulus the pin stiffness scales with (default [`PinModulus::PWave`], the rule the
+    /// tables were made with).
+    #[serde(default)]
+    pub pin_modulus: PinModulus,
+}
+
+/// Which material modulus scales the pin penalty (issue 25).
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Serialize, Deserialize)]
+#[serde(rename_all = "snake_case")]
+pub enum PinModulus {
+    /// λ + 2μ (default): grows without bound as ν → 1/2, so the same factor pins a nearly
+    /// incompressible object far more stiffly (relative to its bending) than a compressible one.
+    #[default]
+    PWave,
+    /// Young's modulus E (at most 3μ as ν → 1/2): the same factor gives about the same pin
+    /// drift relative to the deformation at any ν.
+    Young,
 }
 
 impl Default for PenaltyParams {
@@ -112,6 +130,7 @@ impl Default for PenaltyParams {
         PenaltyParams {
             pin_factor: 1e4,
             floor_factor: 1e4,
+            pin_modulus: PinModulus::PWave,
         }
     }
 }

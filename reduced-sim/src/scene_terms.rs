@@ -7,7 +7,7 @@ use nalgebra::Vector3;
 use thiserror::Error;
 
 use crate::reduced_model::ReducedModel;
-use crate::scene::{Floor, PenaltyParams, PinTarget, Scene};
+use crate::scene::{Floor, PenaltyParams, PinModulus, PinTarget, Scene};
 
 /// The scene does not fit the model.
 #[derive(Debug, Error, Clone, PartialEq)]
@@ -90,7 +90,12 @@ impl SceneTerms {
         let map = model.deformation_map();
         let n4 = map.layout().block_len();
         let n = map.len();
-        let scale = model.max_p_wave_modulus() / model.bounds().largest_side().powi(2);
+        let area = model.bounds().largest_side().powi(2);
+        let scale = model.max_p_wave_modulus() / area;
+        let pin_scale = match penalty.pin_modulus {
+            PinModulus::PWave => scale,
+            PinModulus::Young => model.max_youngs_modulus() / area,
+        };
 
         let gravity_gradient = match scene.gravity {
             None => None,
@@ -114,7 +119,7 @@ impl SceneTerms {
             }
         };
 
-        let pin_stiffness = penalty.pin_factor * scale;
+        let pin_stiffness = penalty.pin_factor * pin_scale;
         let mut pins = Vec::with_capacity(scene.pins.len());
         let mut pin_hessian_block: Option<Mat<f64>> = None;
         for (region, pin) in scene.pins.iter().enumerate() {

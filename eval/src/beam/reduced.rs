@@ -6,7 +6,7 @@ use std::time::Instant;
 use hyperelastic::LameParameters;
 use nalgebra::Vector3;
 use optimize::{HessianReuse, NewtonParams};
-use reduced_sim::{PenaltyParams, QuadratureRule, SimulationParams, SkinningField};
+use reduced_sim::{PenaltyParams, PinModulus, QuadratureRule, SimulationParams, SkinningField};
 use rkpm_core::{
     IntegrationPoints, RandomSamplingParams, TriangleMesh, sample_box_grid, sample_random,
 };
@@ -52,6 +52,10 @@ pub struct ReducedSettings {
     /// [`QuadratureRule::Cubature`]).
     #[serde(default)]
     pub quadrature: QuadratureRule,
+    /// The modulus the pin penalty scales with (default [`PinModulus::PWave`], the rule
+    /// `pin_factor` was chosen for; [`PinModulus::Young`] means the same at every ν).
+    #[serde(default)]
+    pub pin_modulus: PinModulus,
 }
 
 /// How the simulation's integration points are placed.
@@ -126,6 +130,7 @@ impl ReducedSettings {
             },
             penalty: PenaltyParams {
                 pin_factor: self.pin_factor,
+                pin_modulus: self.pin_modulus,
                 ..Default::default()
             },
             ..SimulationParams::default()
@@ -145,6 +150,7 @@ impl Default for ReducedSettings {
             simulation_sampling: SimulationSampling::Grid,
             hessian_reuse: HessianReuse::Never,
             quadrature: QuadratureRule::Full,
+            pin_modulus: PinModulus::PWave,
         }
     }
 }

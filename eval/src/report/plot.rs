@@ -113,7 +113,17 @@ where
         AxisScale::Linear | AxisScale::LogY => (x0 - px, x1 + px),
     };
     (y0, y1) = match spec.scale {
-        AxisScale::LogLog | AxisScale::LogY => (y0 / 2.0, y1 * 2.0),
+        // The legend sits in the lower left of a log-log plot: room below the data for it,
+        // about 3.5% of the height per series.
+        AxisScale::LogLog => {
+            let decades = (y1 / y0).log10().max(1.0);
+            let share = (0.02 + 0.035 * spec.series.len() as f64).min(0.6);
+            (
+                y0 / 2.0 / 10f64.powf(decades * share / (1.0 - share)),
+                y1 * 2.0,
+            )
+        }
+        AxisScale::LogY => (y0 / 2.0, y1 * 2.0),
         AxisScale::Linear => (y0 - py, y1 + py),
     };
     let mut builder = ChartBuilder::on(&root);
