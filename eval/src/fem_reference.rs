@@ -88,19 +88,53 @@ pub fn run_fem_beam(
     cache_dir: &Path,
     progress: &Progress,
 ) -> Result<FemRun, EvalError> {
+    run_fem_beam_with(
+        test,
+        resolution,
+        beam_material(),
+        newton,
+        steps,
+        cache_dir,
+        progress,
+    )
+}
+
+/// [`run_fem_beam`] with another material than the beam's (the pin sweep's Poisson ratios).
+///
+/// # Errors
+/// As [`run_fem_beam`].
+pub fn run_fem_beam_with(
+    test: BeamTest,
+    resolution: FemResolution,
+    material: MaterialSample,
+    newton: NewtonParams,
+    steps: usize,
+    cache_dir: &Path,
+    progress: &Progress,
+) -> Result<FemRun, EvalError> {
     let r = resolution.cells_per_metre;
     let tets = TetMesh::cuboid(BEAM_MIN, BEAM_MAX, [5 * r, r, r]).map_err(EvalError::FemBox)?;
+    let label = if material == beam_material() {
+        format!("{} {}", test.name(), resolution.label())
+    } else {
+        format!(
+            "{} {} ν={}",
+            test.name(),
+            resolution.label(),
+            material.poisson_ratio
+        )
+    };
     run_fem(
         &FemProblem {
             tets,
             order: resolution.order,
-            material: beam_material(),
+            material,
             scene: &test.scene(),
             time_step: BEAM_TIME_STEP,
             newton,
             steps,
         },
-        &format!("{} {}", test.name(), resolution.label()),
+        &label,
         cache_dir,
         progress,
     )

@@ -29,6 +29,7 @@ pub mod bench;
 pub mod fem_reference;
 pub mod metrics;
 pub mod model_cache;
+pub mod pins;
 pub mod progress;
 pub mod reduced_run;
 pub mod report;

@@ -3,7 +3,7 @@
 
 use std::time::Instant;
 
-use hyperelastic::LameParameters;
+use hyperelastic::{LameParameters, MaterialSample};
 use nalgebra::Vector3;
 use optimize::{HessianReuse, NewtonParams};
 use reduced_sim::{PenaltyParams, PinModulus, QuadratureRule, SimulationParams, SkinningField};
@@ -217,6 +217,31 @@ pub fn run_reduced_beam<B: SkinningField + ?Sized>(
     steps: usize,
     progress: &Progress,
 ) -> Result<ReducedRun, EvalError> {
+    run_reduced_beam_with(
+        test,
+        basis,
+        settings,
+        beam_material(),
+        output_points,
+        steps,
+        progress,
+    )
+}
+
+/// [`run_reduced_beam`] with another material than the beam's (the pin sweep's Poisson
+/// ratios).
+///
+/// # Errors
+/// As [`run_reduced_beam`].
+pub fn run_reduced_beam_with<B: SkinningField + ?Sized>(
+    test: BeamTest,
+    basis: &B,
+    settings: &ReducedSettings,
+    material: MaterialSample,
+    output_points: &[Vector3<f64>],
+    steps: usize,
+    progress: &Progress,
+) -> Result<ReducedRun, EvalError> {
     let points = settings
         .simulation_sampling
         .beam_points(settings.simulation_points)?;
@@ -224,7 +249,7 @@ pub fn run_reduced_beam<B: SkinningField + ?Sized>(
         &ReducedProblem {
             field: basis,
             points: &points,
-            material: beam_material(),
+            material,
             scene: &test.scene(),
             params: settings.simulation_params(BEAM_TIME_STEP),
             quadrature: settings.quadrature,

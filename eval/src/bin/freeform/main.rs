@@ -22,6 +22,7 @@ mod basis;
 mod bench;
 mod demo;
 mod mesh;
+mod pins;
 mod simulate;
 mod stress;
 mod table;
@@ -123,6 +124,17 @@ enum Command {
         #[arg(long)]
         json: bool,
     },
+    /// Pin sweep (issue 25): the beam tests at several Poisson ratios and m, every pin factor
+    /// under both pin moduli (λ + 2μ, E), against the FEM at the same material; prints MSE and
+    /// pin drift per run and writes pins.md / pins.json.
+    Pins {
+        /// ν ∈ {0.3, 0.49}, m = 16, 100 Bend steps, FEM P2 res 4 (minutes).
+        #[arg(long)]
+        quick: bool,
+        /// Print JSON instead of Markdown.
+        #[arg(long)]
+        json: bool,
+    },
     /// Error-vs-time sweep on the beam Bend; writes CSV and a log-log plot with the Pareto front.
     Bench {
         /// One-minute sweep.
@@ -201,6 +213,7 @@ fn run(cli: Cli) -> Result<()> {
             table::run(&numbers, options, &cli.out, &cache, &progress)
         }
         Command::Stress { quick, json } => stress::run(quick, json, &cli.out, &progress),
+        Command::Pins { quick, json } => pins::run(quick, json, cache, &cli.out, &progress),
         Command::Bench {
             quick,
             skip_simplicits,

@@ -1,0 +1,35 @@
+//! `freeform pins`: the pin sweep of issue 25.
+
+use std::path::{Path, PathBuf};
+
+use anyhow::Result;
+use artifact::write_atomically;
+use eval::pins::{PinSweepConfig, pin_sweep_table, run_pin_sweep};
+use eval::progress::Progress;
+
+/// Runs the sweep, prints its table (or JSON) and writes `pins.md` and `pins.json` under `out`.
+pub(crate) fn run(
+    quick: bool,
+    json: bool,
+    cache: PathBuf,
+    out: &Path,
+    progress: &Progress,
+) -> Result<()> {
+    let config = if quick {
+        PinSweepConfig::quick(cache)
+    } else {
+        PinSweepConfig::full(cache)
+    };
+    let rows = run_pin_sweep(&config, progress)?;
+    let md = pin_sweep_table(&config, &rows);
+    let data = serde_json::to_string_pretty(&serde_json::json!({"config": config, "rows": rows}))?;
+    std::fs::create_dir_all(out)?;
+    write_atomically(&out.join("pins.md"), md.as_bytes())?;
+    write_atomically(&out.join("pins.json"), data.as_bytes())?;
+    if json {
+        println!("{data}");
+    } else {
+        println!("{md}");
+    }
+    Ok(())
+}

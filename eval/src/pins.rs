@@ -1,0 +1,352 @@
+//! The pin sweep of issue 25: the beam tests at several Poisson ratios and m, each with every
+//! pin factor under both pin moduli, against the FEM reference at the same material: which rule
+//! and factor are accurate across materials, and how far the pinned points drift.
+
+use std::fmt::Write as _;
+use std::path::PathBuf;
+
+use hyperelastic::MaterialSample;
+use optimize::NewtonParams;
+use reduced_sim::PinModulus;
+use serde::{Deserialize, Serialize};
+
+use crate::EvalError;
+use crate::beam::reduced::{ReducedSettings, build_beam_basis, run_reduced_beam_with};
+use crate::beam::study::beam_length_scale;
+use crate::beam::{BeamTest, beam_material};
+use crate::bench::HESSIAN_REUSE;
+use crate::fem_reference::{FemResolution, run_fem_beam_with};
+use crate::metrics::trajectory_errors;
+use crate::progress::Progress;
+
+/// What the sweep runs.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+pub struct PinSweepConfig {
+    /// Poisson ratios of the beam (E and ρ stay the beam's).
+    pub poisson_ratios: Vec<f64>,
+    /// Modes m.
+    pub modes: Vec<usize>,
+    /// Tests.
+    pub tests: Vec<BeamTest>,
+    /// Pin penalty factors.
+    pub factors: Vec<f64>,
+    /// Pin moduli.
+    pub moduli: Vec<PinModulus>,
+    /// Everything else of the reduced runs (its `modes`, `pin_factor`, `pin_modulus` are set
+    /// per run).
+    pub settings: ReducedSettings,
+    /// Steps per test; `None` for DESIGN 4.1's.
+    pub steps: Option<usize>,
+    /// The FEM reference.
+    pub fem: FemResolution,
+    /// Cache folder.
+    pub cache_dir: PathBuf,
+}
+
+impl PinSweepConfig {
+    /// ν ∈ {0.3, 0.45, 0.49}, m ∈ {16, 32}, Bend and Twist, factors 1e1…1e4 under both moduli,
+    /// every point with Hessian reuse (same MSE as fresh Hessians, 5× faster), FEM P2 res 6.
+    pub fn full(cache_dir: PathBuf) -> Self {
+        PinSweepConfig {
+            poisson_ratios: vec![0.3, 0.45, 0.49],
+            modes: vec![16, 32],
+            tests: BeamTest::ALL.to_vec(),
+            factors: vec![1e1, 1e2, 1e3, 1e4],
+            moduli: vec![PinModulus::PWave, PinModulus::Young],
+            settings: ReducedSettings {
+                hessian_reuse: HESSIAN_REUSE,
+                ..ReducedSettings::default()
+            },
+            steps: None,
+            fem: FemResolution::GROUND_TRUTH,
+            cache_dir,
+        }
+    }
+
+    /// A few-minute version: ν ∈ {0.3, 0.49}, m = 16, 100 Bend steps, FEM P2 res 4, K = 500.
+    pub fn quick(cache_dir: PathBuf) -> Self {
+        PinSweepConfig {
+            poisson_ratios: vec![0.3, 0.49],
+            modes: vec![16],
+            settings: ReducedSettings {
+                kernels: 500,
+                basis_points: 10_000,
+                hessian_reuse: HESSIAN_REUSE,
+                ..ReducedSettings::default()
+            },
+            steps: Some(100),
+            fem: FemResolution {
+                cells_per_metre: 4,
+                ..FemResolution::GROUND_TRUTH
+            },
+            ..PinSweepConfig::full(cache_dir)
+        }
+    }
+}
+
+/// One (ν, test, m, modulus, factor) result.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+pub struct PinSweepRow {
+    /// Poisson ratio.
+    pub poisson_ratio: f64,
+    /// Bend or Twist.
+    pub test: BeamTest,
+    /// Modes.
+    pub m: usize,
+    /// Pin modulus.
+    pub modulus: PinModulus,
+    /// Pin factor.
+    pub factor: f64,
+    /// Normalized MSE against the FEM at the same ν.
+    pub mse: f64,
+    /// Normalized max error.
+    pub max: f64,
+    /// Largest pinned-point drift over the run (m).
+    pub max_pin_deviation: f64,
+    /// Steps that did not converge.
+    pub unconverged_steps: usize,
+    /// Why the run stopped, when it did (then the errors are NaN).
+    pub failure: Option<String>,
+}
+
+/// Runs the sweep. A FEM reference with an unconverged step is refused for scoring (its
+/// rows are missing and the error names the frames).
+///
+/// # Errors
+/// [`EvalError`] from any run.
+pub fn run_pin_sweep(
+    config: &PinSweepConfig,
+    progress: &Progress,
+) -> Result<Vec<PinSweepRow>, EvalError> {
+    let mut rows = Vec::new();
+    for &nu in &config.poisson_ratios {
+        let material = MaterialSample {
+            poisson_ratio: nu,
+            ..beam_material()
+        };
+        for &test in &config.tests {
+            let steps = config.steps.unwrap_or(test.steps()).min(test.steps());
+            let fem = run_fem_beam_with(
+                test,
+                config.fem,
+                material,
+                NewtonParams::default(),
+                steps,
+                &config.cache_dir,
+                progress,
+            )?;
+            fem.check_converged(NewtonParams::default().max_iterations)?;
+            let reference = fem.vertex_frames();
+            for &m in &config.modes {
+                let base = ReducedSettings {
+                    modes: m,
+                    ..config.settings
+                };
+                // A uniform material scales the weight-space Hessian, not its eigenvectors: one
+                // basis serves every ν.
+                let basis = build_beam_basis(&base)?;
+                for &modulus in &config.moduli {
+                    for &factor in &config.factors {
+                        let settings = ReducedSettings {
+                            pin_factor: factor,
+                            pin_modulus: modulus,
+                            ..base
+                        };
+                        let run = run_reduced_beam_with(
+                            test,
+                            &basis.basis,
+                            &settings,
+                            material,
+                            fem.vertices(),
+                            steps,
+                            progress,
+                        );
+                        let mut row = PinSweepRow {
+                            poisson_ratio: nu,
+                            test,
+                            m,
+                            modulus,
+                            factor,
+                            mse: f64::NAN,
+                            max: f64::NAN,
+                            max_pin_deviation: f64::NAN,
+                            unconverged_steps: 0,
+                            failure: None,
+                        };
+                        match run {
+                            Ok(run) => {
+                                let errors = trajectory_errors(
+                                    &run.frames[1..],
+                                    &reference[1..],
+                                    beam_length_scale(),
+                                )?;
+                                row.mse = errors.normalized_mse;
+                                row.max = errors.normalized_max;
+                                row.max_pin_deviation = run.report.max_pin_deviation;
+                                row.unconverged_steps = run.report.unconverged_steps;
+                            }
+                            // A pin too soft or too stiff for the step: reported in its row.
+                            Err(e) => row.failure = Some(failure_chain(&e)),
+                        }
+                        progress.status(format!(
+                            "ν = {nu} {} m = {m} {} factor {factor:e}: MSE {:.3e}, pin drift \
+                             {:.2e} m",
+                            test.name(),
+                            modulus_name(modulus),
+                            row.mse,
+                            row.max_pin_deviation
+                        ));
+                        rows.push(row);
+                    }
+                }
+            }
+        }
+    }
+    Ok(rows)
+}
+
+/// The sweep as Markdown: one row per (test, m, modulus, factor), one MSE and pin-drift column
+/// pair per ν, and the best factor of each (test, m, ν, modulus) marked.
+pub fn pin_sweep_table(config: &PinSweepConfig, rows: &[PinSweepRow]) -> String {
+    let mut md = format!(
+        "## Pin sweep: beam, MSE against the FEM ({}) and largest pin drift (m)\n\n\
+         E = 5 MPa, ρ = 1000 kg/m³, K = {}, {} simulation points, every point with Hessian \
+         reuse. κ_pin = factor · (λ + 2μ or E) / L². ★ = lowest MSE of its (test, m, ν, \
+         modulus).\n\n| test | m | modulus | factor |",
+        config.fem.label(),
+        config.settings.kernels,
+        config.settings.simulation_points
+    );
+    for nu in &config.poisson_ratios {
+        let _ = write!(md, " MSE ν={nu} | drift ν={nu} |");
+    }
+    md += "\n|---|---|---|---|";
+    md += &"---|---|".repeat(config.poisson_ratios.len());
+    md += "\n";
+    let find = |test, m, modulus, factor, nu| {
+        rows.iter().find(|r| {
+            r.test == test
+                && r.m == m
+                && r.modulus == modulus
+                && r.factor == factor
+                && r.poisson_ratio == nu
+        })
+    };
+    let best = |test, m, modulus, nu| {
+        rows.iter()
+            .filter(|r| {
+                r.test == test
+                    && r.m == m
+                    && r.modulus == modulus
+                    && r.poisson_ratio == nu
+                    && r.failure.is_none()
+            })
+            .min_by(|a, b| a.mse.total_cmp(&b.mse))
+            .map(|r| r.factor)
+    };
+    for &test in &config.tests {
+        for &m in &config.modes {
+            for &modulus in &config.moduli {
+                for &factor in &config.factors {
+                    let _ = write!(
+                        md,
+                        "| {} | {m} | {} | {factor:e} |",
+                        test.name(),
+                        modulus_name(modulus)
+                    );
+                    for &nu in &config.poisson_ratios {
+                        match find(test, m, modulus, factor, nu) {
+                            Some(r) if r.failure.is_some() => md += " failed | — |",
+                            Some(r) => {
+                                let star = if best(test, m, modulus, nu) == Some(factor) {
+                                    " ★"
+                                } else {
+                                    ""
+                                };
+                                let _ = write!(
+                                    md,
+                                    " {:.3e}{star} | {:.2e} |",
+                                    r.mse, r.max_pin_deviation
+                                );
+                            }
+                            None => md += " — | — |",
+                        }
+                    }
+                    md += "\n";
+                }
+            }
+        }
+    }
+    md
+}
+
+/// "λ+2μ" or "E".
+fn modulus_name(modulus: PinModulus) -> &'static str {
+    match modulus {
+        PinModulus::PWave => "λ+2μ",
+        PinModulus::Young => "E",
+    }
+}
+
+/// An error and its sources on one line ("a: b: c").
+fn failure_chain(error: &dyn std::error::Error) -> String {
+    let mut line = error.to_string();
+    let mut source = error.source();
+    while let Some(cause) = source {
+        line += &format!(": {cause}");
+        source = cause.source();
+    }
+    line
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn row(nu: f64, modulus: PinModulus, factor: f64, mse: f64) -> PinSweepRow {
+        PinSweepRow {
+            poisson_ratio: nu,
+            test: BeamTest::Bend,
+            m: 16,
+            modulus,
+            factor,
+            mse,
+            max: 0.1,
+            max_pin_deviation: 0.01,
+            unconverged_steps: 0,
+            failure: None,
+        }
+    }
+
+    #[test]
+    fn the_table_stars_the_lowest_mse_per_material_and_modulus_and_names_failures() {
+        let config = PinSweepConfig {
+            poisson_ratios: vec![0.3, 0.49],
+            modes: vec![16],
+            tests: vec![BeamTest::Bend],
+            factors: vec![1e2, 1e3],
+            moduli: vec![PinModulus::Young],
+            ..PinSweepConfig::quick(PathBuf::from("unused"))
+        };
+        let mut failed = row(0.49, PinModulus::Young, 1e3, f64::NAN);
+        failed.failure = Some("step 3 failed".into());
+        let rows = vec![
+            row(0.3, PinModulus::Young, 1e2, 2e-4),
+            row(0.3, PinModulus::Young, 1e3, 1e-4),
+            row(0.49, PinModulus::Young, 1e2, 3e-4),
+            failed,
+        ];
+        let md = pin_sweep_table(&config, &rows);
+        let lines: Vec<&str> = md.lines().filter(|l| l.starts_with("| bend")).collect();
+        assert_eq!(lines.len(), 2, "{md}");
+        // ν = 0.3: 1e3 is best; ν = 0.49: 1e2 is the only one that ran.
+        assert!(
+            lines[0].contains("2.000e-4 |") && lines[0].contains("3.000e-4 ★"),
+            "{md}"
+        );
+        assert!(
+            lines[1].contains("1.000e-4 ★") && lines[1].contains("failed"),
+            "{md}"
+        );
+    }
+}
