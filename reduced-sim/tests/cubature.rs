@@ -8,8 +8,8 @@ use hyperelastic::{StableNeoHookean, Tangent};
 use nalgebra::Vector3;
 use reduced_sim::cubature::{force_error, force_weights, training_poses};
 use reduced_sim::{
-    CubatureError, CubatureParams, ElasticQuadrature, PinTarget, PinnedRegion, QuadratureError,
-    QuadratureRule, ReducedModel, Scene, SimulationParams, Simulator, optimize_cubature,
+    CubatureError, CubatureParams, ElasticQuadrature, QuadratureError, QuadratureRule,
+    ReducedModel, SimulationParams, Simulator, optimize_cubature,
 };
 use support::BEAM_MATERIAL;
 
@@ -93,14 +93,7 @@ fn a_cubature_integrates_its_training_forces_to_its_tolerance_and_unseen_poses_w
 fn a_bar_bending_on_a_cubature_follows_the_full_quadrature_to_within_twice_its_force_tolerance() {
     let run = |rule: QuadratureRule| {
         let (model, report) = rule.apply(bar_model()).unwrap();
-        let scene = Scene {
-            gravity: Some(Vector3::new(0.0, -9.8, 0.0)),
-            pins: vec![PinnedRegion {
-                points: model.points_where(|x| x.x <= 0.3),
-                target: PinTarget::Rest,
-            }],
-            floor: None,
-        };
+        let scene = support::cantilever_scene(&model, 0.3);
         let mut sim = Simulator::new(model, &scene, SimulationParams::default()).unwrap();
         let tip: Vec<usize> = sim.model().points_where(|x| x.x >= 2.9);
         let mut deflection = Vec::new();

@@ -7,7 +7,7 @@ mod support;
 use hyperelastic::StableNeoHookean;
 use nalgebra::Vector3;
 use optimize::{HessianReuse, NewtonParams};
-use reduced_sim::{PinTarget, PinnedRegion, ReducedModel, Scene, SimulationParams, Simulator};
+use reduced_sim::{ReducedModel, SimulationParams, Simulator};
 use support::BEAM_MATERIAL;
 
 fn bend(hessian_reuse: HessianReuse, max_iterations: usize) -> Simulator<StableNeoHookean> {
@@ -15,14 +15,7 @@ fn bend(hessian_reuse: HessianReuse, max_iterations: usize) -> Simulator<StableN
         support::box_basis(Vector3::new(3.0, 1.0, 1.0), 0.125, 200, 6, &BEAM_MATERIAL);
     let model: ReducedModel<StableNeoHookean> =
         support::uniform_model(&basis, &points, &BEAM_MATERIAL);
-    let scene = Scene {
-        gravity: Some(Vector3::new(0.0, -9.8, 0.0)),
-        pins: vec![PinnedRegion {
-            points: model.points_where(|x| x.x <= 0.5),
-            target: PinTarget::Rest,
-        }],
-        floor: None,
-    };
+    let scene = support::cantilever_scene(&model, 0.5);
     let params = SimulationParams {
         newton: NewtonParams {
             hessian_reuse,

@@ -6,9 +6,7 @@ mod support;
 
 use hyperelastic::MaterialSample;
 use nalgebra::Vector3;
-use reduced_sim::{
-    PenaltyParams, PinModulus, PinTarget, PinnedRegion, Scene, SimulationParams, Simulator,
-};
+use reduced_sim::{PenaltyParams, PinModulus, SimulationParams, Simulator};
 
 /// Static sag of a 3 × 1 × 1 m bar pinned at x ≤ 0.5 m under gravity: (largest pinned-point
 /// drift, tip deflection) in m.
@@ -20,14 +18,7 @@ fn static_sag(poisson_ratio: f64, pin_modulus: PinModulus) -> (f64, f64) {
     };
     let (basis, points) = support::box_basis(Vector3::new(3.0, 1.0, 1.0), 0.125, 200, 6, &material);
     let model = support::uniform_model(&basis, &points, &material);
-    let scene = Scene {
-        gravity: Some(Vector3::new(0.0, -9.8, 0.0)),
-        pins: vec![PinnedRegion {
-            points: model.points_where(|x| x.x <= 0.5),
-            target: PinTarget::Rest,
-        }],
-        floor: None,
-    };
+    let scene = support::cantilever_scene(&model, 0.5);
     let tip = model.points_where(|x| x.x >= 2.9);
     let params = SimulationParams {
         penalty: PenaltyParams {

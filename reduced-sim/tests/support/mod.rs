@@ -50,3 +50,19 @@ pub const BEAM_MATERIAL: MaterialSample = MaterialSample {
     poisson_ratio: 0.45,
     density: 1000.0,
 };
+
+/// Gravity (9.8 m/s² along -y) on `model` with the points at x ≤ `pinned_below` (m) held at
+/// rest: the cantilever scenes of these tests.
+pub fn cantilever_scene<M: hyperelastic::HyperelasticMaterial>(
+    model: &ReducedModel<M>,
+    pinned_below: f64,
+) -> reduced_sim::Scene {
+    reduced_sim::Scene {
+        gravity: Some(Vector3::new(0.0, -9.8, 0.0)),
+        pins: vec![reduced_sim::PinnedRegion {
+            points: model.points_where(|x| x.x <= pinned_below),
+            target: reduced_sim::PinTarget::Rest,
+        }],
+        floor: None,
+    }
+}
