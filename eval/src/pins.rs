@@ -44,14 +44,14 @@ pub struct PinSweepConfig {
 }
 
 impl PinSweepConfig {
-    /// ν ∈ {0.3, 0.45, 0.49}, m ∈ {16, 32}, Bend and Twist, factors 1e1…1e4 under both moduli,
+    /// ν ∈ {0.3, 0.45, 0.49}, m ∈ {16, 32}, Bend and Twist, factors 1e2…3e4 under both moduli,
     /// every point with Hessian reuse (same MSE as fresh Hessians, 5× faster), FEM P2 res 6.
     pub fn full(cache_dir: PathBuf) -> Self {
         PinSweepConfig {
             poisson_ratios: vec![0.3, 0.45, 0.49],
             modes: vec![16, 32],
             tests: BeamTest::ALL.to_vec(),
-            factors: vec![1e1, 1e2, 1e3, 1e4],
+            factors: vec![1e2, 3e2, 1e3, 3e3, 1e4, 3e4],
             moduli: vec![PinModulus::PWave, PinModulus::Young],
             settings: ReducedSettings {
                 hessian_reuse: HESSIAN_REUSE,
@@ -109,16 +109,25 @@ pub struct PinSweepRow {
     pub failure: Option<String>,
 }
 
-/// Runs the sweep. A FEM reference with an unconverged step is refused for scoring (its
-/// rows are missing and the error names the frames).
+/// The sweep's rows and the references it could not score against.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+pub struct PinSweep {
+    /// One per (ν, test, m, modulus, factor) whose FEM reference converged.
+    pub rows: Vec<PinSweepRow>,
+    /// "ν = …, test: why" for each FEM reference with an unconverged step (its test has no rows
+    /// at that ν).
+    pub refused_references: Vec<String>,
+}
+
+/// Runs the sweep. A FEM reference with an unconverged step is refused for scoring: its test
+/// has no rows at that ν and [`PinSweep::refused_references`] says why.
 ///
 /// # Errors
-/// [`EvalError`] from any run.
-pub fn run_pin_sweep(
-    config: &PinSweepConfig,
-    progress: &Progress,
-) -> Result<Vec<PinSweepRow>, EvalError> {
+/// [`EvalError`] from a FEM run or a metric; a reduced run that fails is a row with its
+/// `failure`.
+pub fn run_pin_sweep(config: &PinSweepConfig, progress: &Progress) -> Result<PinSweep, EvalError> {
     let mut rows = Vec::new();
+    let mut refused_references = Vec::new();
     for &nu in &config.poisson_ratios {
         let material = MaterialSample {
             poisson_ratio: nu,
@@ -135,7 +144,11 @@ pub fn run_pin_sweep(
                 &config.cache_dir,
                 progress,
             )?;
-            fem.check_converged(NewtonParams::default().max_iterations)?;
+            if let Err(why) = fem.check_converged(NewtonParams::default().max_iterations) {
+                progress.status(format!("ν = {nu} {}: {why}", test.name()));
+                refused_references.push(format!("ν = {nu}, {}: {why}", test.name()));
+                continue;
+            }
             let reference = fem.vertex_frames();
             for &m in &config.modes {
                 let base = ReducedSettings {
@@ -202,21 +215,29 @@ pub fn run_pin_sweep(
             }
         }
     }
-    Ok(rows)
+    Ok(PinSweep {
+        rows,
+        refused_references,
+    })
 }
 
 /// The sweep as Markdown: one row per (test, m, modulus, factor), one MSE and pin-drift column
 /// pair per ν, and the best factor of each (test, m, ν, modulus) marked.
-pub fn pin_sweep_table(config: &PinSweepConfig, rows: &[PinSweepRow]) -> String {
+pub fn pin_sweep_table(config: &PinSweepConfig, sweep: &PinSweep) -> String {
+    let rows = &sweep.rows;
     let mut md = format!(
         "## Pin sweep: beam, MSE against the FEM ({}) and largest pin drift (m)\n\n\
          E = 5 MPa, ρ = 1000 kg/m³, K = {}, {} simulation points, every point with Hessian \
          reuse. κ_pin = factor · (λ + 2μ or E) / L². ★ = lowest MSE of its (test, m, ν, \
-         modulus).\n\n| test | m | modulus | factor |",
+         modulus).\n\n",
         config.fem.label(),
         config.settings.kernels,
         config.settings.simulation_points
     );
+    for why in &sweep.refused_references {
+        let _ = writeln!(md, "Not scored: {why}.\n");
+    }
+    md += "| test | m | modulus | factor |";
     for nu in &config.poisson_ratios {
         let _ = write!(md, " MSE ν={nu} | drift ν={nu} |");
     }
@@ -336,7 +357,15 @@ mod tests {
             row(0.49, PinModulus::Young, 1e2, 3e-4),
             failed,
         ];
-        let md = pin_sweep_table(&config, &rows);
+        let sweep = PinSweep {
+            rows,
+            refused_references: vec!["ν = 0.3, twist: not converged".into()],
+        };
+        let md = pin_sweep_table(&config, &sweep);
+        assert!(
+            md.contains("Not scored: ν = 0.3, twist: not converged."),
+            "{md}"
+        );
         let lines: Vec<&str> = md.lines().filter(|l| l.starts_with("| bend")).collect();
         assert_eq!(lines.len(), 2, "{md}");
         // ν = 0.3: 1e3 is best; ν = 0.49: 1e2 is the only one that ran.

@@ -20,9 +20,10 @@ pub(crate) fn run(
     } else {
         PinSweepConfig::full(cache)
     };
-    let rows = run_pin_sweep(&config, progress)?;
-    let md = pin_sweep_table(&config, &rows);
-    let data = serde_json::to_string_pretty(&serde_json::json!({"config": config, "rows": rows}))?;
+    let sweep = run_pin_sweep(&config, progress)?;
+    let md = pin_sweep_table(&config, &sweep);
+    let data =
+        serde_json::to_string_pretty(&serde_json::json!({"config": config, "sweep": sweep}))?;
     std::fs::create_dir_all(out)?;
     write_atomically(&out.join("pins.md"), md.as_bytes())?;
     write_atomically(&out.join("pins.json"), data.as_bytes())?;
