@@ -12,9 +12,9 @@
 //! The FEM runs are cached under `freeform-cache/` (or `$FREEFORM_CACHE`).
 
 use clap::Parser;
-use eval::beam::BeamTest;
-use eval::beam::reduced::{ReducedSettings, build_beam_basis, run_reduced_beam};
+use eval::beam::reduced::{ReducedSettings, build_beam_basis, run_reduced_beam_with};
 use eval::beam::study::beam_length_scale;
+use eval::beam::{BeamTest, beam_material};
 use eval::bench::HESSIAN_REUSE;
 use eval::fem_reference::{FemResolution, run_fem_beam};
 use eval::metrics::trajectory_errors;
@@ -99,10 +99,12 @@ fn main() -> anyhow::Result<()> {
                         quadrature,
                         ..base
                     };
-                    let run = run_reduced_beam(
+                    let run = run_reduced_beam_with(
                         test,
                         &basis.basis,
                         &settings,
+                        beam_material(),
+                        None,
                         fem.vertices(),
                         steps,
                         &progress,

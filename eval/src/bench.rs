@@ -11,10 +11,12 @@ use fem_ref::ElementOrder;
 use serde::{Deserialize, Serialize};
 
 use crate::EvalError;
-use crate::beam::BeamTest;
-use crate::beam::reduced::{ReducedSettings, build_beam_basis, run_reduced_beam};
+use crate::beam::reduced::{
+    ReducedSettings, build_beam_basis, run_reduced_beam, run_reduced_beam_with,
+};
 use crate::beam::simplicits::train_beam_simplicits;
 use crate::beam::study::beam_length_scale;
+use crate::beam::{BeamTest, beam_material};
 use crate::fem_reference::{FemResolution, run_fem_beam};
 use crate::metrics::trajectory_errors;
 use crate::progress::Progress;
@@ -329,10 +331,12 @@ pub fn run_bench(config: &BenchConfig, progress: &Progress) -> Result<Vec<BenchR
         let (name, label, timing, setup, frames) = match method {
             BenchMethod::FreeForm(s) => {
                 let basis = build_beam_basis(s)?;
-                let run = run_reduced_beam(
+                let run = run_reduced_beam_with(
                     BeamTest::Bend,
                     &basis.basis,
                     s,
+                    beam_material(),
+                    Some(&config.cache_dir),
                     &vertices,
                     config.steps,
                     progress,

@@ -170,6 +170,7 @@ pub fn run_pin_sweep(config: &PinSweepConfig, progress: &Progress) -> Result<Pin
                             &basis.basis,
                             &settings,
                             material,
+                            Some(&config.cache_dir),
                             fem.vertices(),
                             steps,
                             progress,

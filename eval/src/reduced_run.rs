@@ -25,6 +25,8 @@ pub struct ReducedProblem<'a, B: SkinningField + ?Sized> {
     pub params: SimulationParams,
     /// Where the elastic energy is integrated.
     pub quadrature: QuadratureRule,
+    /// Where a cubature is cached (`None`: optimized every run).
+    pub cache_dir: Option<&'a std::path::Path>,
     /// Rest positions (m) where positions are recorded every step.
     pub output_points: &'a [Vector3<f64>],
     /// Steps to run.
@@ -60,6 +62,7 @@ pub fn run_reduced<B: SkinningField + ?Sized>(
         scene: problem.scene,
         params: problem.params,
         quadrature: problem.quadrature,
+        cache_dir: problem.cache_dir,
     };
     let steps = problem.steps;
     let bar = progress.bar(steps, label);

@@ -42,6 +42,7 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
         scene: &scene,
         params: Default::default(), // h = 0.01 s
         quadrature: Default::default(),
+        cache_dir: None,
     };
     let frames = FrameWriter::new(&out, &geometry);
     let surface = DeformationMap::new(&basis, frames.rest_positions())?;

@@ -42,6 +42,7 @@
 //!     scene: &scene,
 //!     params: Default::default(),
 //!     quadrature: Default::default(), // every point; QuadratureRule::Cubature(..) is faster
+//!     cache_dir: None,
 //! };
 //! let report = run(&simulation, 100, |_frame| Ok(()))?;
 //! println!("{:.2} ms per step", report.ms_per_step);

@@ -3,6 +3,7 @@
 //! and the scene, steps, and hands every frame to an observer (record positions, write files,
 //! advance a progress bar) while it keeps timings and convergence counts.
 
+use std::path::Path;
 use std::time::Instant;
 
 use hyperelastic::{HyperelasticMaterial, MaterialField};
@@ -33,6 +34,9 @@ pub struct Simulation<'a, B: SkinningField + ?Sized, M> {
     /// Where the elastic energy is integrated ([`QuadratureRule::Full`], every point, is the
     /// paper's setting; a cubature makes the step cost independent of the point count).
     pub quadrature: QuadratureRule,
+    /// Where an optimized cubature is cached by content (`<dir>/cubature/`), or `None` to
+    /// optimize it every run.
+    pub cache_dir: Option<&'a Path>,
 }
 
 /// The state after frame `index`, handed to the observer of [`run`].
@@ -143,7 +147,7 @@ where
     .map_err(RunError::Model)?;
     let (model, quadrature) = simulation
         .quadrature
-        .apply(model)
+        .apply_cached(model, simulation.cache_dir)
         .map_err(RunError::Quadrature)?;
     let scene = simulation.scene.reduced_scene(model.rest_positions())?;
     let region_points = scene.pins.iter().map(|p| p.points.len()).collect();

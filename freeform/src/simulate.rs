@@ -72,13 +72,15 @@ pub enum SimulateError {
 
 /// Runs a scene file with stable Neo-Hookean elasticity and writes `frame_NNNNN.ply` / `.vtk`
 /// (the deformed surface or cloud, every `output_every` steps and the last) and `summary.json`
-/// under `out_dir`.
+/// under `out_dir`. A cubature (`simulation.quadrature`) is cached under `cache_dir` when one
+/// is given.
 ///
 /// # Errors
 /// [`SimulateError`] naming the stage; frames already written stay valid files.
 pub fn simulate_scene_file(
     file: &SceneFile,
     out_dir: &Path,
+    cache_dir: Option<&Path>,
     progress: &dyn Progress,
 ) -> Result<SimulateReport, SimulateError> {
     // A splat scene reads its file once: the splat centres are the cloud.
@@ -126,6 +128,7 @@ pub fn simulate_scene_file(
             ..Default::default()
         },
         quadrature: file.simulation.quadrature,
+        cache_dir,
     };
     let mut frames_written = 0;
     let mut last_z = Vec::new();

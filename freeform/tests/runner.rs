@@ -48,6 +48,7 @@ fn rubber<'a>(
             ..Default::default()
         },
         quadrature: Default::default(),
+        cache_dir: None,
     }
 }
 

@@ -67,7 +67,7 @@ fn a_falling_box_on_a_cubature_falls_exactly_as_on_every_point() {
         let path = dir.join(format!("{name}.toml"));
         std::fs::write(&path, box_scene(line)).unwrap();
         let file = SceneFile::load(&path).unwrap();
-        let report = simulate_scene_file(&file, &dir.join(name), &Silent).unwrap();
+        let report = simulate_scene_file(&file, &dir.join(name), None, &Silent).unwrap();
         let quadrature = report.quadrature.unwrap();
         assert_eq!(quadrature.kind, name);
         if name == "cubature" {

@@ -120,7 +120,7 @@ fn a_splat_scene_writes_deformed_3dgs_frames_in_the_input_layout() {
     .unwrap();
     let file = freeform::SceneFile::load(&scene).unwrap();
     let out = dir.join("out");
-    let report = freeform::simulate_scene_file(&file, &out, &freeform::Silent).unwrap();
+    let report = freeform::simulate_scene_file(&file, &out, None, &freeform::Silent).unwrap();
     assert_eq!(report.frames_written, 3);
     assert_eq!(report.inverted_splats, 0);
     let input = SplatTable::read(&shared_splat()).unwrap();

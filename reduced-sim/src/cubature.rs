@@ -22,7 +22,10 @@
 //! One cubature serves every scene on that shape and material; a scene may add poses of its own
 //! ([`optimize_cubature_on`]).
 
+use std::path::{Path, PathBuf};
 use std::time::Instant;
+
+use artifact::{ContentKeyBuilder, load_framed, save_framed};
 
 use faer::{Accum, Mat, MatRef, Par};
 use hyperelastic::{HyperelasticMaterial, LameParameters};
@@ -146,8 +149,15 @@ pub struct CubatureReport {
     pub reached_tolerance: bool,
     /// Σ w_q over Σ v_i: how far the weights are from a volume-preserving quadrature.
     pub weight_over_volume: f64,
-    /// Wall time of pose generation, selection and weight solves (s).
+    /// Wall time of pose generation, selection and weight solves (s), as first optimized.
     pub seconds: f64,
+    /// Whether this cubature was loaded from a cache ([`optimize_cubature_cached`]).
+    #[serde(default)]
+    pub cached: bool,
+    /// Why a freshly optimized cubature could not be saved to the cache, if it could not (it
+    /// is still used).
+    #[serde(default)]
+    pub cache_warning: Option<String>,
 }
 
 /// The cubature could not be optimized.
@@ -518,7 +528,91 @@ pub fn optimize_cubature_on<M: HyperelasticMaterial>(
         reached_tolerance: training_error <= params.tolerance,
         weight_over_volume: quadrature.total_weight() / total_volume,
         seconds: start.elapsed().as_secs_f64(),
+        cached: false,
+        cache_warning: None,
     };
+    Ok((quadrature, report))
+}
+
+/// File kind and format version of cached cubatures.
+const CUBATURE_MAGIC: &[u8] = b"FREEFORM-CUBATURE";
+const CUBATURE_FORMAT_VERSION: u32 = 1;
+
+/// A cached cubature: its points, weights and the report of its optimization.
+#[derive(Serialize, Deserialize)]
+struct CachedCubature {
+    points: Vec<usize>,
+    weights: Vec<f64>,
+    report: CubatureReport,
+}
+
+/// Where [`optimize_cubature_cached`] keeps the cubature of `model` and `params`:
+/// `<cache_dir>/cubature/cubature-<hash>.bin`, the hash of everything that determines it (the
+/// deformation map's G at every point, volumes, densities, Lamé parameters, the material's
+/// name, every option).
+pub fn cubature_cache_path<M: HyperelasticMaterial>(
+    model: &ReducedModel<M>,
+    params: &CubatureParams,
+    cache_dir: &Path,
+) -> PathBuf {
+    let mut key = ContentKeyBuilder::new(CUBATURE_MAGIC, u64::from(CUBATURE_FORMAT_VERSION));
+    let map = model.deformation_map();
+    key.u64(map.layout().handles() as u64)
+        .f64s(map.gradient_matrix_slice())
+        .f64s(model.volumes())
+        .f64s(model.densities())
+        .str(model.material().name())
+        .str(&format!("{params:?}"));
+    for l in model.lame_parameters() {
+        key.f64s(&[l.lambda(), l.mu()]);
+    }
+    cache_dir
+        .join("cubature")
+        .join(format!("cubature-{}.bin", key.finish().hex()))
+}
+
+/// [`optimize_cubature`], cached under `cache_dir` by content ([`cubature_cache_path`]): a
+/// cached cubature is loaded (its report says `cached`), a missing or unreadable one is
+/// optimized and saved. A cubature that cannot be saved is still returned, with the reason in
+/// its report's `cache_warning`.
+///
+/// # Errors
+/// As [`optimize_cubature`].
+pub fn optimize_cubature_cached<M: HyperelasticMaterial>(
+    model: &ReducedModel<M>,
+    params: &CubatureParams,
+    cache_dir: &Path,
+) -> Result<(ElasticQuadrature, CubatureReport), CubatureError> {
+    let path = cubature_cache_path(model, params, cache_dir);
+    let n = model.volumes().len();
+    if let Ok(Some(cached)) =
+        load_framed::<CachedCubature>(&path, CUBATURE_MAGIC, CUBATURE_FORMAT_VERSION)
+        && cached.points.iter().all(|&p| p < n)
+        && let Ok(quadrature) = ElasticQuadrature::new(cached.points, cached.weights)
+    {
+        let report = CubatureReport {
+            cached: true,
+            ..cached.report
+        };
+        return Ok((quadrature, report));
+    }
+    let (quadrature, mut report) = optimize_cubature(model, params)?;
+    let entry = CachedCubature {
+        points: quadrature.points().to_vec(),
+        weights: quadrature.weights().to_vec(),
+        report: report.clone(),
+    };
+    let saved = path
+        .parent()
+        .map_or(Ok(()), std::fs::create_dir_all)
+        .map_err(|e| e.to_string())
+        .and_then(|()| {
+            save_framed(&path, CUBATURE_MAGIC, CUBATURE_FORMAT_VERSION, &entry)
+                .map_err(|e| e.to_string())
+        });
+    if let Err(why) = saved {
+        report.cache_warning = Some(format!("{}: {why}", path.display()));
+    }
     Ok((quadrature, report))
 }
 

@@ -200,6 +200,11 @@ impl DeformationMap {
         MatRef::from_column_major_slice(&self.g, self.layout.block_len(), 3 * self.len())
     }
 
+    /// G's storage, column-major (`4(m+1) · 3N` values; e.g. for content hashes).
+    pub fn gradient_matrix_slice(&self) -> &[f64] {
+        &self.g
+    }
+
     /// b_i (length `4(m+1)`).
     pub fn position_row(&self, i: usize) -> &[f64] {
         let n4 = self.layout.block_len();

@@ -16,7 +16,11 @@ use rand_chacha::ChaCha8Rng;
 use serde::{Deserialize, Serialize};
 use thiserror::Error;
 
-use crate::cubature::{CubatureError, CubatureParams, CubatureReport, optimize_cubature};
+use std::path::Path;
+
+use crate::cubature::{
+    CubatureError, CubatureParams, CubatureReport, optimize_cubature, optimize_cubature_cached,
+};
 use crate::reduced_model::ReducedModel;
 
 /// A quadrature that cannot be used.
@@ -214,6 +218,19 @@ impl QuadratureRule {
         &self,
         model: ReducedModel<M>,
     ) -> Result<(ReducedModel<M>, QuadratureReport), CubatureError> {
+        self.apply_cached(model, None)
+    }
+
+    /// [`QuadratureRule::apply`], with a cubature loaded from (or saved to) `cache_dir` when
+    /// one is given ([`crate::cubature::optimize_cubature_cached`]).
+    ///
+    /// # Errors
+    /// As [`QuadratureRule::apply`].
+    pub fn apply_cached<M: HyperelasticMaterial>(
+        &self,
+        model: ReducedModel<M>,
+        cache_dir: Option<&Path>,
+    ) -> Result<(ReducedModel<M>, QuadratureReport), CubatureError> {
         if model.elastic_quadrature().is_some() {
             return Err(CubatureError::NotFull);
         }
@@ -232,7 +249,10 @@ impl QuadratureRule {
                 None,
             ),
             QuadratureRule::Cubature(params) => {
-                let (quadrature, report) = optimize_cubature(&model, params)?;
+                let (quadrature, report) = match cache_dir {
+                    Some(dir) => optimize_cubature_cached(&model, params, dir)?,
+                    None => optimize_cubature(&model, params)?,
+                };
                 (quadrature, Some(report))
             }
         };

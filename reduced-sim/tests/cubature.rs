@@ -6,7 +6,9 @@ mod support;
 
 use hyperelastic::{StableNeoHookean, Tangent};
 use nalgebra::Vector3;
-use reduced_sim::cubature::{force_error, force_weights, training_poses};
+use reduced_sim::cubature::{
+    cubature_cache_path, force_error, force_weights, optimize_cubature_cached, training_poses,
+};
 use reduced_sim::{
     CubatureError, CubatureParams, ElasticQuadrature, QuadratureError, QuadratureRule,
     ReducedModel, SimulationParams, Simulator, optimize_cubature,
@@ -176,4 +178,47 @@ fn invalid_quadratures_and_options_are_refused_with_the_problem_named() {
         optimize_cubature(&on_subset, &CubatureParams::DEFAULT),
         Err(CubatureError::NotFull)
     ));
+}
+
+#[test]
+fn a_cached_cubature_is_reloaded_identical_and_a_corrupt_cache_file_is_replaced() {
+    let dir = std::path::PathBuf::from(env!("CARGO_TARGET_TMPDIR")).join("cubature-cache");
+    let _ = std::fs::remove_dir_all(&dir);
+    let model = bar_model();
+    let params = CubatureParams {
+        tolerance: 0.02,
+        ..CubatureParams::DEFAULT
+    };
+    let (first, report) = optimize_cubature_cached(&model, &params, &dir).unwrap();
+    assert!(
+        !report.cached && report.cache_warning.is_none(),
+        "{report:?}"
+    );
+    let (again, report) = optimize_cubature_cached(&model, &params, &dir).unwrap();
+    assert!(report.cached);
+    assert_eq!(again, first);
+    // Other options are another entry.
+    let other = CubatureParams {
+        tolerance: 0.05,
+        ..params
+    };
+    assert_ne!(
+        cubature_cache_path(&model, &other, &dir),
+        cubature_cache_path(&model, &params, &dir)
+    );
+    // A corrupt file is optimized again and overwritten.
+    std::fs::write(
+        cubature_cache_path(&model, &params, &dir),
+        b"not a cubature",
+    )
+    .unwrap();
+    let (rebuilt, report) = optimize_cubature_cached(&model, &params, &dir).unwrap();
+    assert!(!report.cached);
+    assert_eq!(rebuilt, first);
+    assert!(
+        optimize_cubature_cached(&model, &params, &dir)
+            .unwrap()
+            .1
+            .cached
+    );
 }

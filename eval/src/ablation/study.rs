@@ -164,6 +164,7 @@ fn score_all<B: SkinningField + ?Sized>(
                 settings,
                 reference,
                 config.steps_of(*test),
+                &config.cache_dir,
                 progress,
             )?;
             Ok(TestScore {

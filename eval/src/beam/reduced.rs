@@ -1,6 +1,7 @@
 //! FreeForm on the beam: build the skinning basis on a grid of the beam, simulate a beam test
 //! on a (coarser) grid of integration points, record positions at given output points.
 
+use std::path::Path;
 use std::time::Instant;
 
 use hyperelastic::{LameParameters, MaterialSample};
@@ -222,22 +223,25 @@ pub fn run_reduced_beam<B: SkinningField + ?Sized>(
         basis,
         settings,
         beam_material(),
+        None,
         output_points,
         steps,
         progress,
     )
 }
 
-/// [`run_reduced_beam`] with another material than the beam's (the pin sweep's Poisson
-/// ratios).
+/// [`run_reduced_beam`] with a material (the beam's is [`beam_material`]; the pin sweep varies
+/// its Poisson ratio) and a cache folder for the cubature (`None`: optimized every run).
 ///
 /// # Errors
 /// As [`run_reduced_beam`].
+#[allow(clippy::too_many_arguments)]
 pub fn run_reduced_beam_with<B: SkinningField + ?Sized>(
     test: BeamTest,
     basis: &B,
     settings: &ReducedSettings,
     material: MaterialSample,
+    cache_dir: Option<&Path>,
     output_points: &[Vector3<f64>],
     steps: usize,
     progress: &Progress,
@@ -253,6 +257,7 @@ pub fn run_reduced_beam_with<B: SkinningField + ?Sized>(
             scene: &test.scene(),
             params: settings.simulation_params(BEAM_TIME_STEP),
             quadrature: settings.quadrature,
+            cache_dir,
             output_points,
             steps,
         },

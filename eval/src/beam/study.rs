@@ -2,16 +2,16 @@
 //! truth (cached) and a reduced run evaluated at the FEM vertices.
 
 use optimize::NewtonParams;
-use std::path::PathBuf;
+use std::path::{Path, PathBuf};
 
 use baselines::SimplicitsParams;
 use reduced_sim::{QuadratureReport, SkinningField};
 use serde::{Deserialize, Serialize};
 
 use crate::EvalError;
-use crate::beam::reduced::{ReducedSettings, build_beam_basis, run_reduced_beam};
+use crate::beam::reduced::{ReducedSettings, build_beam_basis, run_reduced_beam_with};
 use crate::beam::simplicits::train_beam_simplicits;
-use crate::beam::{BEAM_MAX, BEAM_MIN, BeamTest};
+use crate::beam::{BEAM_MAX, BEAM_MIN, BeamTest, beam_material};
 use crate::fem_reference::{FemResolution, FemRun, run_fem_beam};
 use crate::metrics::TrajectoryErrors;
 use crate::progress::Progress;
@@ -215,7 +215,15 @@ pub fn run_beam_study(
         };
         for (test, reference) in &references {
             let steps = config.steps_of(*test);
-            let ours = evaluate_field(*test, &basis.basis, &settings, reference, steps, progress)?;
+            let ours = evaluate_field(
+                *test,
+                &basis.basis,
+                &settings,
+                reference,
+                steps,
+                &config.cache_dir,
+                progress,
+            )?;
             let simplicits = match &simplicits {
                 Some(net) => {
                     let e = evaluate_field(
@@ -224,6 +232,7 @@ pub fn run_beam_study(
                         &settings,
                         reference,
                         steps,
+                        &config.cache_dir,
                         progress,
                     )?;
                     Some(BaselineRow {
@@ -331,9 +340,19 @@ pub(crate) fn evaluate_field<B: SkinningField + ?Sized>(
     settings: &ReducedSettings,
     reference: &FemRun,
     steps: usize,
+    cache_dir: &Path,
     progress: &Progress,
 ) -> Result<FieldEvaluation, EvalError> {
-    let run = run_reduced_beam(test, field, settings, reference.vertices(), steps, progress)?;
+    let run = run_reduced_beam_with(
+        test,
+        field,
+        settings,
+        beam_material(),
+        Some(cache_dir),
+        reference.vertices(),
+        steps,
+        progress,
+    )?;
     let scores = reference.score(field, &run.frames, beam_length_scale())?;
     Ok(FieldEvaluation {
         run,

@@ -553,6 +553,7 @@ impl BoundaryRun<'_> {
                 params: self.params,
                 // The paper's setting; Table 2 does not yet compare quadratures.
                 quadrature: QuadratureRule::Full,
+                cache_dir: None,
                 output_points: self.fem.vertices(),
                 steps: self.steps,
             },

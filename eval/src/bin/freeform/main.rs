@@ -208,7 +208,7 @@ fn run(cli: Cli) -> Result<()> {
             volume_target,
             keep_units,
         } => mesh::run(&surface, cells, volume_target, keep_units, &cli.out),
-        Command::Simulate { scene } => simulate::run(&scene, &cli.out, progress),
+        Command::Simulate { scene } => simulate::run(&scene, &cli.out, &cache, progress),
         Command::Table { numbers, options } => {
             table::run(&numbers, options, &cli.out, &cache, &progress)
         }

@@ -7,11 +7,11 @@ use eval::progress::{BarProgress, Progress};
 use freeform::{SceneFile, simulate_scene_file};
 
 /// Runs `scene` and writes its frames under `<out>/<scene stem>/`.
-pub(crate) fn run(scene: &Path, out: &Path, progress: Progress) -> Result<()> {
+pub(crate) fn run(scene: &Path, out: &Path, cache: &Path, progress: Progress) -> Result<()> {
     let file = SceneFile::load(scene)?;
     let stem = scene.file_stem().unwrap_or_default().to_string_lossy();
     let out = out.join(stem.as_ref());
-    let report = simulate_scene_file(&file, &out, &BarProgress::new(progress))?;
+    let report = simulate_scene_file(&file, &out, Some(cache), &BarProgress::new(progress))?;
     println!(
         "{} frames written to {}; basis {:.2} s, {:.2} ms/step, {} unconverged \
          steps, final max displacement {:.4} m",
@@ -24,11 +24,24 @@ pub(crate) fn run(scene: &Path, out: &Path, progress: Progress) -> Result<()> {
     );
     if let Some(q) = &report.quadrature {
         match &q.cubature {
-            Some(c) => println!(
-                "elastic quadrature: cubature of {} of {} points, optimized in {:.2} s to force \
-                 error {:.1e} (unseen poses {:.1e})",
-                q.points, report.simulation_points, c.seconds, c.training_error, c.validation_error
-            ),
+            Some(c) => {
+                println!(
+                    "elastic quadrature: cubature of {} of {} points, {} to force error {:.1e} \
+                     (unseen poses {:.1e})",
+                    q.points,
+                    report.simulation_points,
+                    if c.cached {
+                        "loaded from the cache".to_string()
+                    } else {
+                        format!("optimized in {:.2} s", c.seconds)
+                    },
+                    c.training_error,
+                    c.validation_error
+                );
+                if let Some(warning) = &c.cache_warning {
+                    eprintln!("warning: the cubature was not cached: {warning}");
+                }
+            }
             None => println!("elastic quadrature: {} ({} points)", q.kind, q.points),
         }
     }
