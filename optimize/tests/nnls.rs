@@ -146,14 +146,15 @@ proptest! {
         let b: Vec<f64> = (0..rows).map(|_| rng.random_range(-1.0..1.0)).collect();
         let solution = nnls(a.as_ref(), &b, &NnlsParams::default()).unwrap();
         prop_assert!(solution.x.iter().all(|&v| v >= 0.0));
-        // Moving variables in blocks reaches the same solution.
+        // Moving variables in blocks reaches an optimum too (the minimizer need not be unique
+        // when A has dependent columns, so the residuals are compared, not the x).
         let blocked = nnls(a.as_ref(), &b, &NnlsParams { block: 3, ..NnlsParams::default() }).unwrap();
-        for (p, q) in solution.x.iter().zip(&blocked.x) {
-            prop_assert!((p - q).abs() < 1e-9, "block 1 {:?} vs block 3 {:?}", solution.x, blocked.x);
-        }
+        prop_assert!(blocked.x.iter().all(|&v| v >= 0.0));
         let (_, best) = brute_force(&a, &b);
-        let got = residual_squared(&a, &solution.x, &b);
-        prop_assert!(got <= best * (1.0 + 1e-9) + 1e-12, "residual² {got:e} > best {best:e}");
+        for x in [&solution.x, &blocked.x] {
+            let got = residual_squared(&a, x, &b);
+            prop_assert!(got <= best * (1.0 + 1e-9) + 1e-12, "residual² {got:e} > best {best:e}");
+        }
         // KKT: w = Aᵀ(b − Ax) is ≤ 0 where x = 0 and 0 where x > 0.
         for j in 0..cols {
             let w: f64 = (0..rows)
