@@ -52,20 +52,21 @@ const FREEFORM_SERIES: [(&str, &str); 9] = [
     ),
 ];
 
-/// The fast-step series of issue 18 at modes `modes` on `base`: cubature with fresh and with
-/// reused Hessians.
+/// The fast-step series of issue 18 at modes `modes` on `base`: Hessian reuse on every point,
+/// then the cubature with fresh and with reused Hessians.
 fn fast_step_runs(base: ReducedSettings, modes: &[usize]) -> Vec<(String, BenchMethod)> {
     let mut runs = Vec::new();
-    for (knob, hessian_reuse) in [
-        ("cubature", HessianReuse::Never),
-        ("cubature + reuse", HESSIAN_REUSE),
+    for (knob, quadrature, hessian_reuse) in [
+        ("Hessian reuse", QuadratureRule::Full, HESSIAN_REUSE),
+        ("cubature", CUBATURE, HessianReuse::Never),
+        ("cubature + reuse", CUBATURE, HESSIAN_REUSE),
     ] {
         for &m in modes {
             runs.push((
                 knob.into(),
                 BenchMethod::FreeForm(ReducedSettings {
                     modes: m,
-                    quadrature: CUBATURE,
+                    quadrature,
                     hessian_reuse,
                     ..base
                 }),
@@ -111,16 +112,6 @@ impl BenchConfig {
             runs.push((
                 "m".into(),
                 BenchMethod::FreeForm(ReducedSettings { modes: m, ..base }),
-            ));
-        }
-        for m in [6, 9, 16, 32] {
-            runs.push((
-                "Hessian reuse".into(),
-                BenchMethod::FreeForm(ReducedSettings {
-                    modes: m,
-                    hessian_reuse: HESSIAN_REUSE,
-                    ..base
-                }),
             ));
         }
         runs.extend(fast_step_runs(base, &[6, 9, 16, 32]));
@@ -234,16 +225,6 @@ impl BenchConfig {
                 ..base
             }),
         ));
-        for m in [6, 16] {
-            runs.push((
-                "Hessian reuse".into(),
-                BenchMethod::FreeForm(ReducedSettings {
-                    modes: m,
-                    hessian_reuse: HESSIAN_REUSE,
-                    ..base
-                }),
-            ));
-        }
         runs.extend(fast_step_runs(base, &[6, 16]));
         for order in [ElementOrder::Linear, ElementOrder::Quadratic] {
             runs.push((
