@@ -193,11 +193,7 @@ pub fn training_poses<M: HyperelasticMaterial>(
     let amplitudes = params.amplitudes();
     let (poses_per_amplitude, max_rotation, seed) =
         (params.poses_per_amplitude, params.max_rotation, params.seed);
-    if let Some(a) = amplitudes.iter().find(|a| !(a.is_finite() && **a > 0.0)) {
-        return Err(CubatureError::Params(format!(
-            "amplitudes must be finite and positive, got {a}"
-        )));
-    }
+    check_pose_ranges(params, &amplitudes)?;
     let map = model.deformation_map();
     let layout = map.layout();
     let n4 = layout.block_len();
@@ -264,11 +260,6 @@ pub fn training_poses<M: HyperelasticMaterial>(
         poses.push(model.project_field(&displacement));
     }
     debug_assert!(poses.iter().all(|p: &Vec<f64>| p.len() == 3 * n4));
-    if !(params.max_twist.is_finite() && params.max_bend.is_finite()) {
-        return Err(CubatureError::Params(
-            "max_twist and max_bend must be finite".into(),
-        ));
-    }
     Ok(poses)
 }
 
@@ -754,6 +745,27 @@ fn scale_to_strain(probe: &DeformationMap, direction: &[f64], amplitude: f64) ->
     0.5 * (lo + hi)
 }
 
+/// The ranges the pose generator samples from must be finite (and amplitudes positive, angles
+/// non-negative): checked before any is drawn.
+fn check_pose_ranges(params: &CubatureParams, amplitudes: &[f64]) -> Result<(), CubatureError> {
+    if let Some(a) = amplitudes.iter().find(|a| !(a.is_finite() && **a > 0.0)) {
+        return Err(CubatureError::Params(format!(
+            "amplitudes must be finite and positive, got {a}"
+        )));
+    }
+    let angles = [
+        ("max_rotation", params.max_rotation),
+        ("max_twist", params.max_twist),
+        ("max_bend", params.max_bend),
+    ];
+    match angles.iter().find(|(_, v)| !(v.is_finite() && *v >= 0.0)) {
+        Some((name, value)) => Err(CubatureError::Params(format!(
+            "{name} must be finite and non-negative, got {value} rad"
+        ))),
+        None => Ok(()),
+    }
+}
+
 fn check_params(params: &CubatureParams) -> Result<(), CubatureError> {
     let problem = if params.amplitude_levels == 0 || params.poses_per_amplitude == 0 {
         Some("at least one amplitude and one pose per amplitude are needed".to_string())
@@ -768,11 +780,6 @@ fn check_params(params: &CubatureParams) -> Result<(), CubatureError> {
         Some(format!(
             "time_step must be positive, got {} s",
             params.time_step
-        ))
-    } else if !(params.max_rotation.is_finite() && params.max_rotation >= 0.0) {
-        Some(format!(
-            "max_rotation must be finite and non-negative, got {}",
-            params.max_rotation
         ))
     } else {
         None

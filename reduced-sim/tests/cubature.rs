@@ -170,6 +170,15 @@ fn invalid_quadratures_and_options_are_refused_with_the_problem_named() {
         optimize_cubature(&model, &bad),
         Err(CubatureError::Params(_))
     ));
+    // A range the poses are drawn from that is not finite is refused before any draw.
+    let bad = CubatureParams {
+        max_twist: f64::NAN,
+        ..CubatureParams::DEFAULT
+    };
+    assert!(matches!(
+        training_poses(&model, &bad),
+        Err(CubatureError::Params(message)) if message.contains("max_twist")
+    ));
     let subset = ElasticQuadrature::random_subset(model.volumes(), 100, 1).unwrap();
     let total: f64 = model.volumes().iter().sum();
     assert!((subset.total_weight() - total).abs() < 1e-12 * total);
