@@ -128,7 +128,7 @@ fn main() -> anyhow::Result<()> {
                          | {:.2} | {:.2} | {:.2} | {} | {mse:.3e} | {:.2} |",
                         test.name(),
                         match quadrature {
-                            QuadratureRule::Cubature(p) => format!("cubature {:.0e}", p.tolerance),
+                            QuadratureRule::Cubature(p) => format!("cubature {}", p.tolerance),
                             other => other.name().to_string(),
                         },
                         r.quadrature.points,

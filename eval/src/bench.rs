@@ -25,9 +25,10 @@ use artifact::write_atomically;
 use freeform::RunReport;
 use reduced_sim::{CubatureParams, QuadratureRule};
 
-/// The Hessian reuse of the bench's "Hessian reuse" series: chord steps while each is at most
-/// half the previous one.
-pub const HESSIAN_REUSE: HessianReuse = HessianReuse::WhileContracting { contraction: 0.5 };
+/// The Hessian reuse of the bench's "Hessian reuse" series: the library default
+/// ([`reduced_sim::SimulationParams::HESSIAN_REUSE`], chord steps while each is at most half
+/// the previous one).
+pub const HESSIAN_REUSE: HessianReuse = reduced_sim::SimulationParams::HESSIAN_REUSE;
 
 /// The cubature of the bench's cubature series: [`CubatureParams::default`] (relative force
 /// error 0.02 on the training poses, at most 400 points).

@@ -26,8 +26,10 @@
 //! steps = 100
 //! points = 5000     # grid points the simulation integrates over
 //! output_every = 5  # write every 5th frame (default 1)
-//! quadrature = { kind = "cubature" }  # elastic energy on an optimized cubature (default
-//!                                     # { kind = "full" }: every point)
+//! quadrature = { kind = "cubature" }  # elastic energy on an optimized cubature (the default;
+//!                                     # { kind = "full" }: every point, the paper's setting)
+//! hessian_reuse = true                # carry the Hessian across steps (default; false: a
+//!                                     # fresh Hessian every iteration, the paper's setting)
 //!
 //! [scene]
 //! gravity = [0, -9.8, 0]
@@ -103,10 +105,6 @@ pub struct GeometrySpec {
     pub normalize: bool,
 }
 
-fn yes() -> bool {
-    true
-}
-
 /// An axis-aligned box.
 #[derive(Clone, Copy, Debug, PartialEq, Serialize, Deserialize)]
 #[serde(deny_unknown_fields)]
@@ -142,15 +140,24 @@ pub struct SimulationSpec {
     /// Write every n-th frame (default 1).
     #[serde(default = "one")]
     pub output_every: usize,
-    /// Where the elastic energy is integrated (default every point, `{ kind = "full" }`;
-    /// `{ kind = "cubature" }` optimizes a cubature first, with
-    /// [`reduced_sim::CubatureParams`]' fields as optional overrides).
+    /// Where the elastic energy is integrated (default `{ kind = "cubature" }`: a cubature
+    /// optimized first, with [`reduced_sim::CubatureParams`]' fields as optional overrides;
+    /// `{ kind = "full" }`: every point, the paper's setting).
     #[serde(default)]
     pub quadrature: QuadratureRule,
+    /// Carry the Hessian factorization across steps while chord steps contract (default true,
+    /// [`reduced_sim::SimulationParams::HESSIAN_REUSE`]; false: a fresh Hessian every Newton
+    /// iteration, the paper's setting).
+    #[serde(default = "yes")]
+    pub hessian_reuse: bool,
 }
 
 fn one() -> usize {
     1
+}
+
+fn yes() -> bool {
+    true
 }
 
 /// Material (SI units), uniform over the object.

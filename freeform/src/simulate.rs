@@ -123,9 +123,16 @@ pub fn simulate_scene_file(
         material: &MaterialField::Uniform(material),
         material_model: StableNeoHookean,
         scene: &file.scene,
-        params: SimulationParams {
-            time_step: file.simulation.time_step,
-            ..Default::default()
+        params: if file.simulation.hessian_reuse {
+            SimulationParams {
+                time_step: file.simulation.time_step,
+                ..SimulationParams::default()
+            }
+        } else {
+            SimulationParams {
+                time_step: file.simulation.time_step,
+                ..SimulationParams::paper_setting()
+            }
         },
         quadrature: file.simulation.quadrature,
         cache_dir,

@@ -41,10 +41,21 @@ fn a_scene_file_picks_a_cubature_with_defaults_for_the_fields_it_leaves_out() {
     );
     let path = dir.join("default.toml");
     std::fs::write(&path, box_scene("")).unwrap();
+    let default = SceneFile::load(&path).unwrap().simulation;
     assert_eq!(
-        SceneFile::load(&path).unwrap().simulation.quadrature,
-        QuadratureRule::Full
+        default.quadrature,
+        QuadratureRule::Cubature(CubatureParams::DEFAULT)
     );
+    assert!(default.hessian_reuse);
+    let path = dir.join("paper.toml");
+    std::fs::write(
+        &path,
+        box_scene("quadrature = { kind = \"full\" }\nhessian_reuse = false"),
+    )
+    .unwrap();
+    let paper = SceneFile::load(&path).unwrap().simulation;
+    assert_eq!(paper.quadrature, QuadratureRule::PAPER);
+    assert!(!paper.hessian_reuse);
     let path = dir.join("bad.toml");
     std::fs::write(&path, box_scene("quadrature = { kind = \"gauss\" }")).unwrap();
     let message = SceneFile::load(&path).unwrap_err().to_string();
@@ -58,7 +69,7 @@ fn a_falling_box_on_a_cubature_falls_exactly_as_on_every_point() {
     let dir = scratch_dir("quadrature-fall");
     let mut drops = Vec::new();
     for (name, line) in [
-        ("full", ""),
+        ("full", "quadrature = { kind = \"full\" }"),
         (
             "cubature",
             "quadrature = { kind = \"cubature\", tolerance = 0.02 }",

@@ -159,6 +159,7 @@ fn run() -> Result<(), String> {
         } else {
             Tangent::ProjectedPsd
         },
+        ..SimulationParams::default()
     };
     let mut sim = Simulator::new(model, &scene, sim_params).map_err(|e| e.to_string())?;
     let lattice: Vec<Vector3<f64>> = (0..11)

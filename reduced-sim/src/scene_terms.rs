@@ -256,6 +256,22 @@ impl SceneTerms {
         e
     }
 
+    /// The points below the floor at z, in index order (empty without a floor): the points
+    /// whose floor term is active, so the floor's Hessian changes when this set does.
+    pub(crate) fn contacts<M: HyperelasticMaterial>(
+        &self,
+        model: &ReducedModel<M>,
+        z: &[f64],
+    ) -> Vec<usize> {
+        let Some(floor) = &self.floor else {
+            return Vec::new();
+        };
+        let positions = model.deformation_map().positions(z);
+        (0..positions.len())
+            .filter(|&i| floor.offset - floor.normal.dot(&positions[i]) > 0.0)
+            .collect()
+    }
+
     /// Adds every external term's gradient at z to `gradient`, and its Hessian to `hessian`
     /// when given.
     pub(crate) fn add_derivatives<M: HyperelasticMaterial>(

@@ -1,16 +1,31 @@
 //! Carrying the Hessian factorization across steps (`HessianReuse::WhileContracting`): the same
-//! trajectory as fresh Hessians to within the Newton tolerance, fewer assemblies, and
-//! non-convergence still reported.
+//! trajectory as fresh Hessians to within the Newton tolerance, fewer assemblies,
+//! non-convergence still reported, and a fresh factorization at the age cap and whenever the
+//! floor contacts change.
 
 mod support;
 
 use hyperelastic::StableNeoHookean;
 use nalgebra::Vector3;
 use optimize::{HessianReuse, NewtonParams};
-use reduced_sim::{ReducedModel, SimulationParams, Simulator};
+use reduced_sim::{Floor, ReducedModel, ReducedState, Scene, SimulationParams, Simulator};
 use support::BEAM_MATERIAL;
 
+const REUSE: HessianReuse = HessianReuse::WhileContracting { contraction: 0.5 };
+
 fn bend(hessian_reuse: HessianReuse, max_iterations: usize) -> Simulator<StableNeoHookean> {
+    bend_with_age(
+        hessian_reuse,
+        max_iterations,
+        SimulationParams::default().hessian_max_age,
+    )
+}
+
+fn bend_with_age(
+    hessian_reuse: HessianReuse,
+    max_iterations: usize,
+    hessian_max_age: usize,
+) -> Simulator<StableNeoHookean> {
     let (basis, points) =
         support::box_basis(Vector3::new(3.0, 1.0, 1.0), 0.125, 200, 6, &BEAM_MATERIAL);
     let model: ReducedModel<StableNeoHookean> =
@@ -22,9 +37,101 @@ fn bend(hessian_reuse: HessianReuse, max_iterations: usize) -> Simulator<StableN
             max_iterations,
             ..Default::default()
         },
+        hessian_max_age,
         ..Default::default()
     };
     Simulator::new(model, &scene, params).unwrap()
+}
+
+/// The longest run of consecutive steps without a Hessian assembly in `steps` steps.
+fn longest_run_without_assembly(sim: &mut Simulator<StableNeoHookean>, steps: usize) -> usize {
+    let (mut run, mut longest) = (0, 0);
+    for _ in 0..steps {
+        let report = sim.step().unwrap();
+        assert!(report.converged());
+        run = if report.hessian_assemblies > 0 {
+            0
+        } else {
+            run + 1
+        };
+        longest = longest.max(run);
+    }
+    longest
+}
+
+#[test]
+fn a_factorization_is_carried_across_at_most_hessian_max_age_steps() {
+    let capped = longest_run_without_assembly(&mut bend_with_age(REUSE, 40, 3), 30);
+    assert!(
+        capped <= 2,
+        "with an age cap of 3 steps, {capped} steps in a row reused one factorization"
+    );
+    // Without the cap the same run carries a factorization longer: the cap is what stops it.
+    let uncapped = longest_run_without_assembly(&mut bend_with_age(REUSE, 40, 1000), 30);
+    assert!(
+        uncapped > 2,
+        "uncapped, the longest run without an assembly was only {uncapped} steps"
+    );
+}
+
+#[test]
+fn a_change_of_the_floor_contacts_forces_a_fresh_factorization() {
+    let (basis, points) =
+        support::box_basis(Vector3::new(1.0, 1.0, 1.0), 0.125, 100, 6, &BEAM_MATERIAL);
+    let model: ReducedModel<StableNeoHookean> =
+        support::uniform_model(&basis, &points, &BEAM_MATERIAL);
+    let floor = Floor {
+        normal: Vector3::y(),
+        offset: -0.05,
+    };
+    let scene = Scene {
+        gravity: Some(Vector3::new(0.0, -9.8, 0.0)),
+        pins: Vec::new(),
+        floor: Some(floor),
+    };
+    let params = SimulationParams {
+        newton: NewtonParams {
+            hessian_reuse: REUSE,
+            max_iterations: 40,
+            ..Default::default()
+        },
+        ..Default::default()
+    };
+    let mut sim = Simulator::new(model, &scene, params).unwrap();
+    let layout = sim.model().deformation_map().layout();
+    let falling = ReducedState {
+        z: layout.rest(),
+        velocity: layout.uniform_velocity(&Vector3::new(0.0, -1.0, 0.0)),
+        time: 0.0,
+    };
+    sim.set_state(falling).unwrap();
+    let contacts = |sim: &Simulator<StableNeoHookean>| -> Vec<usize> {
+        let x = sim.model().deformation_map().positions(&sim.state().z);
+        (0..x.len()).filter(|&i| x[i].y < floor.offset).collect()
+    };
+    // A step that follows a change of the contact set must assemble (its carried
+    // factorization was dropped); steps under unchanged contacts may reuse.
+    let mut previous = contacts(&sim);
+    let mut changed = false;
+    let (mut forced, mut reused) = (0, 0);
+    for step in 1..=40 {
+        let report = sim.step().unwrap();
+        assert!(report.converged(), "step {step}");
+        if changed {
+            forced += 1;
+            assert!(
+                report.hessian_assemblies > 0,
+                "step {step} follows a change of the floor contacts but assembled no Hessian"
+            );
+        } else if report.hessian_assemblies == 0 {
+            reused += 1;
+        }
+        let now = contacts(&sim);
+        changed = now != previous;
+        previous = now;
+    }
+    assert!(forced > 0, "the box never touched the floor");
+    assert!(reused > 0, "no step reused a factorization");
 }
 
 #[test]
@@ -72,8 +179,17 @@ fn a_reused_step_that_does_not_converge_still_says_so() {
     let mut sim = bend(reuse, 1);
     let first = sim.step().unwrap();
     assert!(!first.converged());
-    // The next step starts from the carried factor: one chord step, still not converged.
+    // The next step starts from the carried factor: one chord step, not converged, so the
+    // step is solved again with a fresh Hessian (one iteration), still not converged; the
+    // report counts both attempts.
     let second = sim.step().unwrap();
     assert!(!second.converged());
-    assert_eq!(second.iterations, 1);
+    assert_eq!(
+        (
+            second.iterations,
+            second.lagged_steps,
+            second.hessian_assemblies
+        ),
+        (2, 1, 1)
+    );
 }

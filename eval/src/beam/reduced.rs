@@ -48,10 +48,10 @@ pub struct ReducedSettings {
     /// `WhileContracting { contraction: 0.5 }`).
     #[serde(default)]
     pub hessian_reuse: HessianReuse,
-    /// Where the elastic energy is integrated (default [`QuadratureRule::Full`], every
-    /// simulation point: the paper's setting; the bench's cubature series runs
-    /// [`QuadratureRule::Cubature`]).
-    #[serde(default)]
+    /// Where the elastic energy is integrated (default [`QuadratureRule::PAPER`], every
+    /// simulation point: the paper's setting; the bench's cubature series and
+    /// [`ReducedSettings::library_default`] run [`QuadratureRule::Cubature`]).
+    #[serde(default = "paper_quadrature")]
     pub quadrature: QuadratureRule,
     /// The modulus the pin penalty scales with (default [`PinModulus::PWave`], the rule
     /// `pin_factor` was chosen for; [`PinModulus::Young`] means the same at every ν).
@@ -111,7 +111,22 @@ impl SimulationSampling {
     }
 }
 
+fn paper_quadrature() -> QuadratureRule {
+    QuadratureRule::PAPER
+}
+
 impl ReducedSettings {
+    /// The defaults with the library's fast step instead of the paper's setting: the elastic
+    /// energy on an optimized cubature ([`QuadratureRule::default`]) and the Hessian carried
+    /// across steps ([`reduced_sim::SimulationParams::HESSIAN_REUSE`]).
+    pub fn library_default() -> Self {
+        ReducedSettings {
+            quadrature: QuadratureRule::default(),
+            hessian_reuse: SimulationParams::HESSIAN_REUSE,
+            ..ReducedSettings::default()
+        }
+    }
+
     /// The basis builder's options for these settings: `modes` and `kernels`, the rest default.
     pub fn basis_params(&self) -> BasisParams {
         BasisParams::default()
@@ -150,7 +165,7 @@ impl Default for ReducedSettings {
             pin_factor: 1e3,
             simulation_sampling: SimulationSampling::Grid,
             hessian_reuse: HessianReuse::Never,
-            quadrature: QuadratureRule::Full,
+            quadrature: QuadratureRule::PAPER,
             pin_modulus: PinModulus::PWave,
         }
     }

@@ -8,7 +8,9 @@ use hyperelastic::{LameParameters, StableNeoHookean};
 use nalgebra::Vector3;
 use rand::{Rng, SeedableRng};
 use rand_chacha::ChaCha8Rng;
-use reduced_sim::{PinTarget, ReducedModel, ReducedState, Scene, SimulationParams, Simulator};
+use reduced_sim::{
+    PinTarget, QuadratureRule, ReducedModel, ReducedState, Scene, SimulationParams, Simulator,
+};
 use rkpm_core::{IntegrationPoints, sample_box_grid};
 use skin_eigen::{BasisParams, build_basis};
 
@@ -251,6 +253,11 @@ pub(super) fn run_case(case: &StressCase) -> StressOutcome {
     ) {
         Ok(model) => model,
         Err(e) => return fail(outcome, format!("model: {e}")),
+    };
+    // The library defaults throughout: an optimized cubature and Hessian reuse.
+    let model = match QuadratureRule::default().apply(model) {
+        Ok((model, _)) => model,
+        Err(e) => return fail(outcome, format!("elastic quadrature: {e}")),
     };
     let scene = match object.scene.reduced_scene(model.rest_positions()) {
         Ok(scene) => scene,
