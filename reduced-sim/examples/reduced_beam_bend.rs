@@ -8,7 +8,9 @@
 //! Options: `--modes m` (default 16), `--kernels K` (default 1000), `--basis-points N` (grid
 //! points the basis is built on, default 20000), `--points N` (simulation points, default
 //! 5000), `--steps S` (default 100), `--tolerance T` (Newton, default 1e-6), `--pin-factor F`
-//! (default 1e4), `--json`.
+//! and `--pin-modulus young|p-wave` (default the library's, [`PenaltyParams::default`]),
+//! `--full-quadrature` and `--fresh-hessians` (the paper's setting instead of the library's
+//! default cubature and Hessian reuse), `--exact-tangent`, `--json`.
 //!
 //! Output: `tip_y` at t = 0.5 s and 1.0 s — the y displacement (m) of the end face x = 5,
 //! averaged over an 11 × 11 lattice of points on it — plus ms per step (and its split into
@@ -19,10 +21,10 @@ use std::time::Instant;
 
 use hyperelastic::{LameParameters, StableNeoHookean, Tangent};
 use nalgebra::Vector3;
-use optimize::{HessianReuse, NewtonParams, NewtonTimings};
+use optimize::{NewtonParams, NewtonTimings};
 use reduced_sim::{
-    CubatureParams, DeformationMap, PenaltyParams, PinTarget, PinnedRegion, ReducedModel, Scene,
-    SimulationParams, Simulator, optimize_cubature,
+    DeformationMap, PenaltyParams, PinModulus, PinTarget, PinnedRegion, QuadratureRule,
+    ReducedModel, Scene, SimulationParams, Simulator,
 };
 use rkpm_core::sample_box_grid;
 use skin_eigen::{BasisParams, build_basis};
@@ -54,16 +56,30 @@ struct Args {
     /// Pin penalty factor.
     #[arg(long, default_value_t = PenaltyParams::default().pin_factor)]
     pin_factor: f64,
-    /// Integrate the elastic energy on an optimized cubature (default options).
+    /// The modulus the pin penalty scales with (default the library's).
+    #[arg(long, value_enum)]
+    pin_modulus: Option<PinModulusChoice>,
+    /// Integrate the elastic energy on every point (the paper's setting) instead of the
+    /// library's default cubature.
     #[arg(long)]
-    cubature: bool,
-    /// Carry the Hessian factorization across steps while it contracts (rate 0.5).
+    full_quadrature: bool,
+    /// Assemble a fresh Hessian every Newton iteration (the paper's setting) instead of the
+    /// library's default reuse.
     #[arg(long)]
-    hessian_reuse: bool,
+    fresh_hessians: bool,
     /// Assemble the exact material tangent instead of the PSD-projected one (a step whose
     /// Hessian is then not positive definite fails with a named error).
     #[arg(long)]
     exact_tangent: bool,
+}
+
+/// `--pin-modulus`.
+#[derive(Clone, Copy, clap::ValueEnum)]
+enum PinModulusChoice {
+    /// Young's modulus E.
+    Young,
+    /// λ + 2μ.
+    PWave,
 }
 
 const BEAM_MIN: Vector3<f64> = Vector3::new(0.0, 0.0, 0.0);
@@ -84,10 +100,16 @@ fn run() -> Result<(), String> {
         steps,
         tolerance,
         pin_factor,
-        cubature,
-        hessian_reuse,
+        pin_modulus,
+        full_quadrature,
+        fresh_hessians,
         exact_tangent,
     } = clap::Parser::parse();
+    let pin_modulus = match pin_modulus {
+        None => PenaltyParams::default().pin_modulus,
+        Some(PinModulusChoice::Young) => PinModulus::Young,
+        Some(PinModulusChoice::PWave) => PinModulus::PWave,
+    };
     if modes == 0 || kernels == 0 || basis_points == 0 || sim_points == 0 {
         return Err("--modes, --kernels, --basis-points and --points must be positive".into());
     }
@@ -120,16 +142,13 @@ fn run() -> Result<(), String> {
         StableNeoHookean,
     )
     .map_err(|e| e.to_string())?;
-    let (model, cubature_report) = if cubature {
-        let (quadrature, report) =
-            optimize_cubature(&model, &CubatureParams::default()).map_err(|e| e.to_string())?;
-        let model = model
-            .with_elastic_quadrature(quadrature)
-            .map_err(|e| e.to_string())?;
-        (model, Some(report))
+    let rule = if full_quadrature {
+        QuadratureRule::PAPER
     } else {
-        (model, None)
+        QuadratureRule::default()
     };
+    let (model, quadrature_report) = rule.apply(model).map_err(|e| e.to_string())?;
+    let cubature_report = quadrature_report.cubature;
     let pinned = model.points_where(|x| x.x <= 0.5);
     let scene = Scene {
         gravity: Some(Vector3::new(0.0, -9.8, 0.0)),
@@ -139,19 +158,20 @@ fn run() -> Result<(), String> {
         }],
         floor: None,
     };
+    let base = if fresh_hessians {
+        SimulationParams::paper_setting()
+    } else {
+        SimulationParams::default()
+    };
     let sim_params = SimulationParams {
         time_step: 0.01,
         newton: NewtonParams {
             tolerance,
-            hessian_reuse: if hessian_reuse {
-                HessianReuse::WhileContracting { contraction: 0.5 }
-            } else {
-                HessianReuse::Never
-            },
-            ..Default::default()
+            ..base.newton
         },
         penalty: PenaltyParams {
             pin_factor,
+            pin_modulus,
             ..Default::default()
         },
         tangent: if exact_tangent {
@@ -159,7 +179,7 @@ fn run() -> Result<(), String> {
         } else {
             Tangent::ProjectedPsd
         },
-        ..SimulationParams::default()
+        ..base
     };
     let mut sim = Simulator::new(model, &scene, sim_params).map_err(|e| e.to_string())?;
     let lattice: Vec<Vector3<f64>> = (0..11)
@@ -202,7 +222,8 @@ fn run() -> Result<(), String> {
              \"ms_per_step\": {:.4}, \"ms_assembly\": {:.4}, \"ms_solve\": {:.4}, \
              \"ms_line_search\": {:.4}, \"newton_iterations_mean\": {iterations_mean:.4}, \
              \"unconverged_steps\": {unconverged}, \"max_pin_deviation\": {pin_deviation:.4e}, \"basis_seconds\": {basis_seconds:.4}, \
-             \"setup_seconds\": {setup_seconds:.4}}}",
+             \"setup_seconds\": {setup_seconds:.4}, \
+             \"quadrature\": {{\"kind\": \"{}\", \"points\": {}}}}}",
             basis_grid.len(),
             sim.model().rest_positions().len(),
             tips.join(", "),
@@ -210,6 +231,8 @@ fn run() -> Result<(), String> {
             per_step(timings.assembly),
             per_step(timings.solve),
             per_step(timings.line_search),
+            quadrature_report.kind,
+            quadrature_report.points,
         );
     } else {
         println!(
@@ -217,7 +240,11 @@ fn run() -> Result<(), String> {
             basis_grid.len(),
             sim.model().rest_positions().len()
         );
-        println!("basis {basis_seconds:.2} s, model setup {setup_seconds:.2} s");
+        println!(
+            "basis {basis_seconds:.2} s, model setup {setup_seconds:.2} s; elastic energy on {} \
+             {} points",
+            quadrature_report.points, quadrature_report.kind
+        );
         if let Some(r) = &cubature_report {
             println!(
                 "cubature: {} points from {} training poses in {:.2} s, force error {:.2e} \

@@ -32,12 +32,9 @@ pub struct ReducedSettings {
     pub simulation_points: usize,
     /// Newton tolerance (default 1e-6, see `reduced_sim::NewtonParams`).
     pub tolerance: f64,
-    /// Pin penalty factor (default 1e3, see `reduced_sim::PenaltyParams`: κ = factor ·
-    /// max(λ+2μ) / L²). Chosen against the FEM ground truth, not the paper: on the beam Bend
-    /// at m = 16, 300 steps, the normalized MSE was 7.3e-4 / 5.6e-4 / 3.2e-3 for factors
-    /// 1e2 / 1e3 / 1e4 (`freeform bench`). 1e4, the library default, holds the pinned block so
-    /// stiffly that the global basis locks; 1e3 lets pinned points drift about a centimetre on
-    /// the 5 m beam (reported as `max_pin_deviation`).
+    /// Pin penalty factor (default the library's, [`PenaltyParams::default`]: 3e3 with
+    /// [`PinModulus::Young`], κ = factor · max E / L², chosen by `freeform pins` against the
+    /// FEM; the first tables used 1e3 with [`PinModulus::PWave`]).
     pub pin_factor: f64,
     /// Where the simulation integrates (default the grid; random points are Table 4's
     /// ablation).
@@ -53,8 +50,8 @@ pub struct ReducedSettings {
     /// [`ReducedSettings::library_default`] run [`QuadratureRule::Cubature`]).
     #[serde(default = "paper_quadrature")]
     pub quadrature: QuadratureRule,
-    /// The modulus the pin penalty scales with (default [`PinModulus::PWave`], the rule
-    /// `pin_factor` was chosen for; [`PinModulus::Young`] means the same at every ν).
+    /// The modulus the pin penalty scales with (default the library's, [`PinModulus::Young`]:
+    /// the same factor means the same drift at every ν).
     #[serde(default)]
     pub pin_modulus: PinModulus,
 }
@@ -116,6 +113,23 @@ fn paper_quadrature() -> QuadratureRule {
 }
 
 impl ReducedSettings {
+    /// The pin penalty in words, for table preambles: "κ_pin = 3e3 · max E / L² (the library
+    /// default, chosen against the FEM by `freeform pins`)".
+    pub fn pin_rule_label(&self) -> String {
+        let modulus = match self.pin_modulus {
+            PinModulus::Young => "max E",
+            PinModulus::PWave => "max (λ + 2μ)",
+        };
+        let default = PenaltyParams::default();
+        let origin =
+            if self.pin_factor == default.pin_factor && self.pin_modulus == default.pin_modulus {
+                " (the library default, chosen against the FEM by `freeform pins`)"
+            } else {
+                ""
+            };
+        format!("κ_pin = {:e} · {modulus} / L²{origin}", self.pin_factor)
+    }
+
     /// The defaults with the library's fast step instead of the paper's setting: the elastic
     /// energy on an optimized cubature ([`QuadratureRule::default`]) and the Hessian carried
     /// across steps ([`reduced_sim::SimulationParams::HESSIAN_REUSE`]).
@@ -162,11 +176,11 @@ impl Default for ReducedSettings {
             basis_points: 20_000,
             simulation_points: 5000,
             tolerance: NewtonParams::default().tolerance,
-            pin_factor: 1e3,
+            pin_factor: PenaltyParams::default().pin_factor,
             simulation_sampling: SimulationSampling::Grid,
             hessian_reuse: HessianReuse::Never,
             quadrature: QuadratureRule::PAPER,
-            pin_modulus: PinModulus::PWave,
+            pin_modulus: PenaltyParams::default().pin_modulus,
         }
     }
 }

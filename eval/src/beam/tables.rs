@@ -19,13 +19,12 @@ pub(crate) fn settings_lines(config: &BeamStudyConfig, fem: &[FemSummary]) -> St
     let mut out = format!(
         "Settings: beam 5×1×1 m, E = 5 MPa, ν = 0.45, ρ = 1000 kg/m³, h = 0.01 s; K = {} kernels, \
          basis on ≈{} grid points, simulation on ≈{} grid points, Newton tolerance {:e}, pin \
-         penalty factor {:e} (chosen against the FEM reference by `freeform bench`, see \
-         `ReducedSettings::pin_factor`). Elastic quadrature: {}; Hessians: {}.\n",
+         penalty {}. Elastic quadrature: {}; Hessians: {}.\n",
         s.kernels,
         s.basis_points,
         s.simulation_points,
         s.tolerance,
-        s.pin_factor,
+        s.pin_rule_label(),
         match s.quadrature {
             QuadratureRule::Full => "every simulation point (the paper's setting)".to_string(),
             QuadratureRule::RandomSubset { points, seed } => {

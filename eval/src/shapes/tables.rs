@@ -128,7 +128,7 @@ fn settings_lines(study: &ShapeStudy) -> String {
         "Settings: every mesh scaled so its largest bounding-box side is L = 1 m; ν = {}, ρ = {} \
          kg/m³, E per shape (10⁵ Pa organic, 10⁸ Pa manufactured; `eval::shapes::catalog`, shown \
          per shape below). m = {}, K = {} kernels; our basis and Simplicits on the same ≈{} grid \
-         points; simulation on ≈{} grid points; Newton tolerance {:e}; pin penalty factor {:e}.\n",
+         points; simulation on ≈{} grid points; Newton tolerance {:e}; pin penalty {}.\n",
         SHAPE_POISSON_RATIO,
         SHAPE_DENSITY,
         s.modes,
@@ -136,7 +136,7 @@ fn settings_lines(study: &ShapeStudy) -> String {
         s.basis_points,
         s.simulation_points,
         s.tolerance,
-        s.pin_factor
+        s.pin_rule_label()
     );
     let _ = writeln!(out, "Boundary conditions: {}", c.boundary.describe());
     let _ = writeln!(

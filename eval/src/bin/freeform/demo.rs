@@ -139,6 +139,7 @@ pub(crate) fn run(
         "fem_ms_per_step": 1e3 * reference.seconds_per_step,
         "basis_seconds": basis.seconds,
         "tip_y_final": {"ours": ours_tip.last().map(|p| p.1), "fem": fem_tip.last().map(|p| p.1)},
+        "tip_y_half_time": {"ours": ours_tip[steps / 2].1, "fem": fem_tip[steps / 2].1},
         "unconverged_steps": run.report.unconverged_steps,
         "quadrature": {"kind": quadrature.kind, "points": quadrature.points},
         "hessians_per_step": run.report.hessians_per_step,

@@ -13,7 +13,7 @@ use eval::progress::Progress;
 use eval::report::table::write_table;
 use eval::shapes::study::{ShapeStudyConfig, mesh_files, run_shape_study};
 use eval::shapes::tables::{table2, table7};
-use reduced_sim::{CubatureParams, QuadratureRule};
+use reduced_sim::{CubatureParams, PinModulus, QuadratureRule};
 
 /// Options of `freeform table`.
 #[derive(clap::Args)]
@@ -64,6 +64,22 @@ pub(crate) struct TableOptions {
     /// contract by 0.5 (the paper's setting assembles a fresh Hessian every iteration).
     #[arg(long)]
     hessian_reuse: bool,
+    /// Pin penalty factor (default the library's, 3e3; tables 1, 2, 5, 6, 7).
+    #[arg(long)]
+    pin_factor: Option<f64>,
+    /// The modulus the pin penalty scales with (default the library's, `young`; the first
+    /// tables used `p-wave` with factor 1e3).
+    #[arg(long, value_enum)]
+    pin_modulus: Option<PinModulusChoice>,
+}
+
+/// `--pin-modulus`.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, clap::ValueEnum)]
+pub(crate) enum PinModulusChoice {
+    /// Young's modulus E.
+    Young,
+    /// The p-wave modulus λ + 2μ.
+    PWave,
 }
 
 /// Where the beam runs integrate the elastic energy.
@@ -91,6 +107,8 @@ pub(crate) fn run(
         quadrature,
         cubature_tolerance,
         hessian_reuse,
+        pin_factor,
+        pin_modulus,
     }: TableOptions,
     out: &Path,
     cache: &Path,
@@ -130,6 +148,17 @@ pub(crate) fn run(
     if hessian_reuse {
         config.settings.hessian_reuse = eval::bench::HESSIAN_REUSE;
     }
+    if let Some(factor) = pin_factor {
+        if !(factor > 0.0 && factor.is_finite()) {
+            bail!("--pin-factor must be a positive number, got {factor}");
+        }
+        config.settings.pin_factor = factor;
+    }
+    match pin_modulus {
+        None => {}
+        Some(PinModulusChoice::Young) => config.settings.pin_modulus = PinModulus::Young,
+        Some(PinModulusChoice::PWave) => config.settings.pin_modulus = PinModulus::PWave,
+    }
     let wants = |group: &[u32]| numbers.iter().any(|n| group.contains(n));
     if let Some(steps) = simplicits_steps
         && let Some(params) = &mut config.simplicits
@@ -152,6 +181,8 @@ pub(crate) fn run(
         };
         shapes.default_youngs_modulus = young;
         shapes.jobs = jobs;
+        shapes.settings.pin_factor = config.settings.pin_factor;
+        shapes.settings.pin_modulus = config.settings.pin_modulus;
         if let Some(cells) = fem_cells {
             if cells == 0 {
                 bail!("--fem-cells must be at least 1");
