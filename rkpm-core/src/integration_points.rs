@@ -292,6 +292,23 @@ pub enum CloudVolume {
         /// Cell size in units of the mean nearest-neighbour distance (default 1.0).
         cell_factor: f64,
     },
+    /// The volume the cloud encloses, right for a solid whether the cloud samples its surface
+    /// (most 3DGS files) or its inside (the default): on a grid of spacing
+    /// `c = cell_factor × mean nearest-neighbour distance` the cells holding a point are
+    /// occupied; a morphological closing (dilate by 2 cells, flood the outside through faces,
+    /// erode by 2 cells) fills the inside and the sampling's gaps up to about 4 cells across;
+    /// then
+    ///
+    /// ```text
+    /// V_est = (solid inner cells + ½ · solid boundary cells) · c³
+    /// ```
+    ///
+    /// (a boundary cell has a face-neighbour outside the solid; the surface runs through it,
+    /// about half of it inside). Concavities narrower than about 4 cells are filled too.
+    FilledVoxels {
+        /// Cell size in units of the mean nearest-neighbour distance (default 2.0).
+        cell_factor: f64,
+    },
 }
 
 /// Options for [`sample_point_cloud`].
@@ -301,7 +318,7 @@ pub struct PointCloudSamplingParams {
     pub max_points: usize,
     /// Seed of the down-sampling (default 0).
     pub seed: u64,
-    /// Volume rule (default `VoxelEstimate { cell_factor: 1.0 }`).
+    /// Volume rule (default `FilledVoxels { cell_factor: 2.0 }`).
     pub volume: CloudVolume,
 }
 
@@ -310,7 +327,7 @@ impl Default for PointCloudSamplingParams {
         PointCloudSamplingParams {
             max_points: 100_000,
             seed: 0,
-            volume: CloudVolume::VoxelEstimate { cell_factor: 1.0 },
+            volume: CloudVolume::FilledVoxels { cell_factor: 2.0 },
         }
     }
 }
@@ -354,21 +371,7 @@ pub fn sample_point_cloud(
             });
         }
         CloudVolume::VoxelEstimate { cell_factor } => {
-            if !(cell_factor > 0.0 && cell_factor.is_finite()) {
-                return Err(SamplingError::InvalidParameter {
-                    name: "cell_factor",
-                    value: cell_factor,
-                    reason: "must be positive and finite",
-                });
-            }
-            let c = cell_factor * mean_nearest_neighbor_distance(&positions);
-            if !(c > 0.0) {
-                return Err(SamplingError::InvalidParameter {
-                    name: "volume",
-                    value: 0.0,
-                    reason: "the points coincide, so the cloud has no volume estimate",
-                });
-            }
+            let c = cloud_cell_size(&positions, cell_factor)?;
             let bbox = Aabb::from_points(&positions).expect("non-empty");
             let mut cells: Vec<[i64; 3]> = positions
                 .iter()
@@ -378,9 +381,141 @@ pub fn sample_point_cloud(
             cells.dedup();
             cells.len() as f64 * c * c * c
         }
+        CloudVolume::FilledVoxels { cell_factor } => {
+            let c = cloud_cell_size(&positions, cell_factor)?;
+            enclosed_voxel_volume(&positions, c)
+        }
     };
     let volumes = vec![volume / positions.len() as f64; positions.len()];
     IntegrationPoints::new(positions, volumes)
+}
+
+/// The cell size `cell_factor × mean nearest-neighbour distance` of a cloud's voxel estimate.
+fn cloud_cell_size(positions: &[Vector3<f64>], cell_factor: f64) -> Result<f64, SamplingError> {
+    if !(cell_factor > 0.0 && cell_factor.is_finite()) {
+        return Err(SamplingError::InvalidParameter {
+            name: "cell_factor",
+            value: cell_factor,
+            reason: "must be positive and finite",
+        });
+    }
+    let c = cell_factor * mean_nearest_neighbor_distance(positions);
+    if !(c > 0.0) {
+        return Err(SamplingError::InvalidParameter {
+            name: "volume",
+            value: 0.0,
+            reason: "the points coincide, so the cloud has no volume estimate",
+        });
+    }
+    Ok(c)
+}
+
+/// Cells of [`CloudVolume::FilledVoxels`]' closing (dilation and erosion radius, in cells).
+const CLOSING_RADIUS: usize = 2;
+
+/// [`CloudVolume::FilledVoxels`]' estimate (m³) on cells of size `c`.
+fn enclosed_voxel_volume(positions: &[Vector3<f64>], c: f64) -> f64 {
+    let bbox = Aabb::from_points(positions).expect("non-empty");
+    let r = CLOSING_RADIUS;
+    // Cells centred on the bounding box's faces (half a cell of offset), padded by r + 1
+    // empty cells on every side so the outside is connected after the dilation.
+    let pad = r + 1;
+    let grid = VoxelGrid {
+        dims: std::array::from_fn(|d| (bbox.extent()[d] / c + 0.5).floor() as usize + 1 + 2 * pad),
+    };
+    let mut occupied = vec![false; grid.len()];
+    for p in positions {
+        let cell: [usize; 3] =
+            std::array::from_fn(|d| ((p[d] - bbox.min[d]) / c + 0.5).floor() as usize + pad);
+        occupied[grid.index(cell)] = true;
+    }
+    // Closing: dilate, flood the outside through face-neighbours, erode what is not outside.
+    let dilated = grid.dilate(&occupied, r);
+    let mut outside = vec![false; grid.len()];
+    let mut stack = vec![[0usize; 3]];
+    outside[0] = true;
+    while let Some(cell) = stack.pop() {
+        for next in grid.face_neighbours(cell) {
+            let n = grid.index(next);
+            if !outside[n] && !dilated[n] {
+                outside[n] = true;
+                stack.push(next);
+            }
+        }
+    }
+    let solid: Vec<bool> = grid
+        .dilate(&outside, r)
+        .into_iter()
+        .map(|near_outside| !near_outside)
+        .collect();
+    let mut cells = 0.0;
+    for n in 0..grid.len() {
+        if solid[n] {
+            let boundary = grid
+                .face_neighbours(grid.cell(n))
+                .into_iter()
+                .any(|m| !solid[grid.index(m)]);
+            cells += if boundary { 0.5 } else { 1.0 };
+        }
+    }
+    cells * c * c * c
+}
+
+/// A box of voxels, x fastest.
+struct VoxelGrid {
+    dims: [usize; 3],
+}
+
+impl VoxelGrid {
+    fn len(&self) -> usize {
+        self.dims.iter().product()
+    }
+
+    fn index(&self, [i, j, k]: [usize; 3]) -> usize {
+        (k * self.dims[1] + j) * self.dims[0] + i
+    }
+
+    fn cell(&self, n: usize) -> [usize; 3] {
+        let (i, rest) = (n % self.dims[0], n / self.dims[0]);
+        [i, rest % self.dims[1], rest / self.dims[1]]
+    }
+
+    fn face_neighbours(&self, cell: [usize; 3]) -> Vec<[usize; 3]> {
+        let mut out = Vec::with_capacity(6);
+        for d in 0..3 {
+            if cell[d] > 0 {
+                let mut lower = cell;
+                lower[d] -= 1;
+                out.push(lower);
+            }
+            if cell[d] + 1 < self.dims[d] {
+                let mut upper = cell;
+                upper[d] += 1;
+                out.push(upper);
+            }
+        }
+        out
+    }
+
+    /// Cells within Chebyshev distance `r` of a set cell (three separable passes).
+    fn dilate(&self, set: &[bool], r: usize) -> Vec<bool> {
+        let mut current = set.to_vec();
+        for d in 0..3 {
+            let mut next = vec![false; current.len()];
+            for (n, value) in next.iter_mut().enumerate() {
+                let cell = self.cell(n);
+                let lo = cell[d].saturating_sub(r);
+                let hi = (cell[d] + r).min(self.dims[d] - 1);
+                *value = (lo..=hi).any(|x| {
+                    let mut other = cell;
+                    other[d] = x;
+                    current[self.index(other)]
+                });
+            }
+            current = next;
+        }
+        current
+    }
 }
 
 /// Uniform-grid integration points filling the box `[min, max]` exactly: `n_d` cells per
