@@ -406,3 +406,33 @@ fn basis_of_the_shared_3dgs_donut_is_built_from_its_splat_centres() {
     let basis = skin_eigen::SkinningBasis::load(&save).unwrap();
     assert_eq!(basis.modes(), 6);
 }
+
+#[test]
+fn render_draws_the_shared_donut_to_a_png_of_the_asked_size() {
+    let dir = scratch("donut-render");
+    let splat = test_support::fixtures::shared_splat();
+    let run = freeform(
+        &[
+            "render",
+            splat.to_str().unwrap(),
+            "--size",
+            "96",
+            "--up",
+            "z",
+        ],
+        &dir,
+    );
+    assert!(
+        run.status.success(),
+        "{}",
+        String::from_utf8_lossy(&run.stderr)
+    );
+    let png = std::fs::read(dir.join("out/render/donut_mipsplatting_fused.png")).unwrap();
+    // PNG signature, then the IHDR chunk: width and height, big-endian, at bytes 16..24.
+    assert_eq!(&png[..8], b"\x89PNG\r\n\x1a\n");
+    assert_eq!(&png[16..24], &[0, 0, 0, 96, 0, 0, 0, 96]);
+    // A missing file is a named error, not a panic.
+    let run = freeform(&["render", "no-such-file.ply"], &dir);
+    assert!(!run.status.success());
+    assert!(String::from_utf8_lossy(&run.stderr).contains("no-such-file.ply"));
+}

@@ -56,6 +56,7 @@ pub mod runner;
 pub mod scene;
 pub mod scene_file;
 pub mod simulate;
+pub mod splat_preview;
 pub mod splats;
 
 pub use frames::FrameWriter;
@@ -65,4 +66,7 @@ pub use runner::{Frame, ObserverResult, RunError, RunReport, Simulation, run};
 pub use scene::{Constraint, FloorSpec, Motion, Region, SceneSpec, SceneSpecError};
 pub use scene_file::{SceneFile, SceneFileError};
 pub use simulate::{SimulateError, SimulateReport, simulate_scene_file};
+pub use splat_preview::{
+    Camera, PreviewError, PreviewImage, PreviewParams, PreviewSplat, preview_splats, render_preview,
+};
 pub use splats::{SplatFileError, SplatTable};

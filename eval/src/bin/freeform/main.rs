@@ -23,6 +23,7 @@ mod bench;
 mod demo;
 mod mesh;
 mod pins;
+mod render;
 mod simulate;
 mod stress;
 mod table;
@@ -96,6 +97,15 @@ enum Command {
         /// Keep the file's units (default: scale so the largest side is 1).
         #[arg(long)]
         keep_units: bool,
+    },
+    /// Draw 3DGS files (e.g. frame 0 and the last frame of a splat scene) to PNG with a CPU
+    /// splatting preview, one camera framing the first file: `<out>/render/<stem>.png`.
+    Render {
+        /// 3DGS PLY files.
+        #[arg(required = true, num_args = 1..)]
+        files: Vec<PathBuf>,
+        #[command(flatten)]
+        options: render::RenderOptions,
     },
     /// Run a scene file (TOML or JSON; see `freeform::scene_file`) and write per-frame PLY and VTK.
     Simulate {
@@ -209,6 +219,7 @@ fn run(cli: Cli) -> Result<()> {
             keep_units,
         } => mesh::run(&surface, cells, volume_target, keep_units, &cli.out),
         Command::Simulate { scene } => simulate::run(&scene, &cli.out, &cache, progress),
+        Command::Render { files, options } => render::run(&files, &options, &cli.out),
         Command::Table { numbers, options } => {
             table::run(&numbers, options, &cli.out, &cache, &progress)
         }
