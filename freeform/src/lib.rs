@@ -56,6 +56,7 @@ pub mod runner;
 pub mod scene;
 pub mod scene_file;
 pub mod simulate;
+pub mod spherical_harmonics;
 pub mod splat_preview;
 pub mod splats;
 

@@ -4,13 +4,18 @@
 //! log-scales and a unit `(w, x, y, z)` quaternion in the same layout.
 //!
 //! Scope: binary little-endian PLY with one `vertex` element of scalar properties (what 3DGS
-//! trainers write). Opacity, DC colour and every other property pass through untouched;
-//! higher-order spherical harmonics (`f_rest_*`) are passed through unrotated (their rotation by
-//! the polar rotation of F is not implemented yet).
+//! trainers write). Higher-order spherical harmonics (`f_rest_*`, degree 1 to 3, channel-major
+//! as 3DGS writes them) are rotated by the polar rotation R of F (PhysGaussian's rule,
+//! [`crate::spherical_harmonics`]); opacity, DC colour and every other property pass through
+//! untouched.
 
 use std::path::{Path, PathBuf};
 
-use nalgebra::{Matrix3, Quaternion, SymmetricEigen, UnitQuaternion, Vector3};
+use nalgebra::{DVector, Matrix3, Quaternion, SymmetricEigen, UnitQuaternion, Vector3};
+
+use crate::spherical_harmonics::{
+    ShRotation, degree_of_rest_columns, polar_rotation, rest_coefficients,
+};
 use thiserror::Error;
 
 /// A 3DGS file could not be read, deformed or written.
@@ -120,6 +125,8 @@ struct Columns {
     position: [usize; 3],
     scale: [usize; 3],
     rotation: [usize; 4],
+    /// `f_rest_0, f_rest_1, …` in order, and their SH degree, when there are 9, 24 or 45.
+    sh_rest: Option<(Vec<usize>, usize)>,
 }
 
 impl SplatTable {
@@ -231,6 +238,15 @@ impl SplatTable {
                 find("rot_2")?,
                 find("rot_3")?,
             ],
+            sh_rest: {
+                let rest: Vec<usize> = (0..)
+                    .map_while(|k| {
+                        let name = format!("f_rest_{k}");
+                        properties.iter().position(|p| p.name == name)
+                    })
+                    .collect();
+                degree_of_rest_columns(rest.len()).map(|degree| (rest, degree))
+            },
         })
     }
 
@@ -337,6 +353,10 @@ impl SplatTable {
         let c = &self.columns;
         let mut out = self.clone();
         let mut inverted = 0;
+        let sh = c
+            .sh_rest
+            .as_ref()
+            .map(|(columns, degree)| (columns, *degree, ShRotation::new(*degree)));
         for (i, (sigma, (x, f))) in self
             .covariances()
             .into_iter()
@@ -354,6 +374,17 @@ impl SplatTable {
             let q = rotation.quaternion();
             for (k, v) in [q.w, q.i, q.j, q.k].into_iter().enumerate() {
                 out.set(i, c.rotation[k], v);
+            }
+            if let Some((columns, degree, rotation)) = &sh {
+                let t = rotation.matrix(&polar_rotation(f));
+                let n = rest_coefficients(*degree);
+                for channel in columns.chunks(n) {
+                    let coefficients =
+                        DVector::from_iterator(n, channel.iter().map(|&col| self.get(i, col)));
+                    for (&col, v) in channel.iter().zip((&t * coefficients).iter()) {
+                        out.set(i, col, *v);
+                    }
+                }
             }
         }
         Ok((out, inverted))

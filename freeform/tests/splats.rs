@@ -1,6 +1,7 @@
 //! The shared 3DGS donut through `SplatTable`: a byte-exact round trip, every untouched
 //! property kept, and `Σ' = F Σ Fᵀ` written back to within the file's float precision.
 
+use freeform::spherical_harmonics;
 use freeform::{SplatFileError, SplatTable};
 use nalgebra::{Matrix3, Vector3};
 use test_support::fixtures::{scratch_dir, shared_splat};
@@ -137,4 +138,92 @@ fn a_splat_scene_writes_deformed_3dgs_frames_in_the_input_layout() {
     for (p, q) in last.positions().iter().zip(input.positions()) {
         assert!((q.z - p.z - drop).abs() < 1e-5 && (p.xy() - q.xy()).norm() < 1e-5);
     }
+}
+
+/// A binary 3DGS PLY of `n` splats with degree-3 harmonics (`f_rest_0..44`), deterministic
+/// values, written under `dir`.
+fn degree_three_file(dir: &std::path::Path, n: usize) -> std::path::PathBuf {
+    let mut names: Vec<String> = ["x", "y", "z", "f_dc_0", "f_dc_1", "f_dc_2"]
+        .map(String::from)
+        .to_vec();
+    names.extend((0..45).map(|k| format!("f_rest_{k}")));
+    names.extend(
+        [
+            "opacity", "scale_0", "scale_1", "scale_2", "rot_0", "rot_1", "rot_2", "rot_3",
+        ]
+        .map(String::from),
+    );
+    let mut bytes = format!("ply\nformat binary_little_endian 1.0\nelement vertex {n}\n");
+    for name in &names {
+        bytes.push_str(&format!("property float {name}\n"));
+    }
+    bytes.push_str("end_header\n");
+    let mut bytes = bytes.into_bytes();
+    for i in 0..n {
+        for (k, name) in names.iter().enumerate() {
+            let v: f32 = match name.as_str() {
+                "scale_0" | "scale_1" | "scale_2" => -3.0,
+                "rot_0" => 1.0,
+                "rot_1" | "rot_2" | "rot_3" => 0.0,
+                _ => (((i * 31 + k * 17) % 23) as f32) / 11.0 - 1.0,
+            };
+            bytes.extend_from_slice(&v.to_le_bytes());
+        }
+    }
+    let path = dir.join("degree3.ply");
+    std::fs::write(&path, bytes).unwrap();
+    path
+}
+
+#[test]
+fn higher_order_harmonics_follow_the_polar_rotation_of_f() {
+    let dir = scratch_dir("splat-harmonics");
+    let table = SplatTable::read(&degree_three_file(&dir, 3)).unwrap();
+    let rest = |t: &SplatTable| -> Vec<Vec<f64>> {
+        (0..45)
+            .map(|k| t.column(&format!("f_rest_{k}")).unwrap())
+            .collect()
+    };
+    // The identity keeps them (to the file's f32 rounding).
+    let (same, _) = table
+        .deformed(&table.positions(), &vec![Matrix3::identity(); table.len()])
+        .unwrap();
+    let original = rest(&table);
+    for (a, b) in original.iter().zip(&rest(&same)) {
+        for (x, y) in a.iter().zip(b) {
+            assert!((x - y).abs() < 1e-6, "identity moved {x} to {y}");
+        }
+    }
+    // A stretched rotation: each channel's colour seen from d now is what was seen from Rᵀ d,
+    // R the polar rotation of F (PhysGaussian's rule), checked on the SH functions themselves.
+    let f = Matrix3::new(0.2, -1.1, 0.1, 0.9, 0.3, -0.2, 0.1, 0.2, 1.2);
+    let (deformed, _) = table
+        .deformed(&table.positions(), &vec![f; table.len()])
+        .unwrap();
+    let r = spherical_harmonics::polar_rotation(&f);
+    let rotated = rest(&deformed);
+    let colour = |coefficients: &[Vec<f64>], splat: usize, channel: usize, d: &Vector3<f64>| {
+        spherical_harmonics::real_sh_basis(3, d)
+            .iter()
+            .enumerate()
+            .map(|(k, y)| y * coefficients[channel * 15 + k][splat])
+            .sum::<f64>()
+    };
+    for splat in 0..table.len() {
+        for channel in 0..3 {
+            for d in [Vector3::new(0.3, -0.5, 0.8), Vector3::new(-1.0, 0.2, 0.1)] {
+                let d = d.normalize();
+                let (now, before) = (
+                    colour(&rotated, splat, channel, &d),
+                    colour(&original, splat, channel, &(r.transpose() * d)),
+                );
+                assert!(
+                    (now - before).abs() < 1e-5,
+                    "splat {splat}, channel {channel}: {now} vs {before}"
+                );
+            }
+        }
+    }
+    // Not the identity: the coefficients did change.
+    assert!(original.iter().zip(&rotated).any(|(a, b)| a != b));
 }
