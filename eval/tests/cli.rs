@@ -438,14 +438,15 @@ fn render_draws_the_shared_donut_to_a_png_of_the_asked_size() {
 }
 
 #[test]
-fn a_scene_file_runs_the_shared_donut_as_a_plain_point_cloud() {
+fn a_scene_file_runs_the_shared_donut_as_a_plain_point_cloud_filled_inside() {
     let dir = scratch("donut-points");
     let splat = test_support::fixtures::shared_splat();
     let scene = dir.join("donut_points.toml");
     std::fs::write(
         &scene,
         format!(
-            "[geometry]\npoints = \"{}\"\n[material]\nyoungs_modulus = 1e5\npoisson_ratio = 0.45\n\
+            "[geometry]\npoints = \"{}\"\nfill_interior = true\n[material]\n\
+             youngs_modulus = 1e5\npoisson_ratio = 0.45\n\
              density = 1000\n[basis]\nmodes = 4\nkernels = 100\npoints = 3000\n[simulation]\n\
              time_step = 0.01\nsteps = 3\npoints = 1000\n[scene]\ngravity = [0, 0, -9.8]\n",
             splat.display()
@@ -464,6 +465,9 @@ fn a_scene_file_runs_the_shared_donut_as_a_plain_point_cloud() {
         &std::fs::read_to_string(dir.join("out/donut_points/summary.json")).unwrap(),
     )
     .unwrap();
+    // 1000 of the splat centres, and as many again filling the inside.
+    let points = summary["simulation_points"].as_u64().unwrap();
+    assert!(points > 1500 && points < 3500, "{points} simulation points");
     let moved = summary["final_max_displacement"].as_f64().unwrap();
     let expected = 9.8 * 0.01 * 0.01 * 3.0 * 4.0 / 2.0;
     assert!((moved - expected).abs() < 1e-6, "{moved} vs {expected}");

@@ -101,12 +101,26 @@ impl Geometry {
     /// Integration points: about `points` grid points inside a surface
     /// ([`rkpm_core::sample_grid`], volumes summing to the grid's share of the enclosed
     /// volume), or at most `points` points of a cloud ([`rkpm_core::sample_point_cloud`] with
-    /// its default volume estimate).
+    /// its default volume estimate, the volume the cloud encloses).
     ///
     /// # Errors
     /// [`GeometryError::Sampling`]: `points` is zero, the shape is thinner than a grid cell,
     /// or the cloud is empty.
     pub fn integration_points(&self, points: usize) -> Result<IntegrationPoints, GeometryError> {
+        self.integration_points_filling(points, false)
+    }
+
+    /// [`Geometry::integration_points`]; for a cloud with `fill_interior`, about `points` more
+    /// inside it ([`rkpm_core::PointCloudSamplingParams::fill_interior`]), so that a cloud on a
+    /// surface (a 3DGS file) carries mass and elastic energy inside too. A surface ignores it.
+    ///
+    /// # Errors
+    /// As [`Geometry::integration_points`].
+    pub fn integration_points_filling(
+        &self,
+        points: usize,
+        fill_interior: bool,
+    ) -> Result<IntegrationPoints, GeometryError> {
         match self {
             Geometry::Surface(mesh) => sample_grid(
                 mesh,
@@ -118,6 +132,7 @@ impl Geometry {
                 cloud,
                 &PointCloudSamplingParams {
                     max_points: points,
+                    fill_interior,
                     ..Default::default()
                 },
             ),

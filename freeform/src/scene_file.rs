@@ -10,6 +10,7 @@
 //! # splats = "object.ply"                     # a 3DGS PLY: frames are deformed 3DGS files
 //! normalize = true                            # scale so the largest side is 1 m (default true;
 //!                                             # a box or cloud keeps its units)
+//! # fill_interior = true                      # points/splats: integration points inside too
 //!
 //! [material]                                  # SI units
 //! youngs_modulus = 1e5
@@ -103,6 +104,11 @@ pub struct GeometrySpec {
     /// keeps its units).
     #[serde(default = "yes")]
     pub normalize: bool,
+    /// For `points` and `splats`: add integration points inside the cloud (default false; a
+    /// 3DGS file samples only its surface, so without them mass and elastic energy sit on that
+    /// shell, see [`rkpm_core::PointCloudSamplingParams::fill_interior`]).
+    #[serde(default)]
+    pub fill_interior: bool,
 }
 
 /// An axis-aligned box.

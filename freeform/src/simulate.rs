@@ -103,7 +103,8 @@ pub fn simulate_scene_file(
         "basis: m = {}, K = {}, ≈{} grid points",
         file.basis.modes, file.basis.kernels, file.basis.points
     ));
-    let basis_points = geometry.integration_points(file.basis.points)?;
+    let fill = file.geometry.fill_interior;
+    let basis_points = geometry.integration_points_filling(file.basis.points, fill)?;
     let params = BasisParams::default()
         .with_modes(file.basis.modes)
         .with_kernels(file.basis.kernels);
@@ -111,7 +112,7 @@ pub fn simulate_scene_file(
         .map_err(SimulateError::Basis)?;
     let basis_seconds = start.elapsed().as_secs_f64();
 
-    let points = geometry.integration_points(file.simulation.points)?;
+    let points = geometry.integration_points_filling(file.simulation.points, fill)?;
     let writer = FrameWriter::new(out_dir, &geometry);
     let output =
         DeformationMap::new(&basis, writer.rest_positions()).map_err(SimulateError::OutputMap)?;

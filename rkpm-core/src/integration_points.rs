@@ -320,6 +320,12 @@ pub struct PointCloudSamplingParams {
     pub seed: u64,
     /// Volume rule (default `FilledVoxels { cell_factor: 2.0 }`).
     pub volume: CloudVolume,
+    /// With [`CloudVolume::FilledVoxels`]: add integration points inside, one per block of the
+    /// closing's empty inner cells (blocks about `(V / max_points)^⅓` across, the point at the
+    /// mean of the block's cell centres, volume the cells' total), the cloud's points sharing
+    /// the rest (default false). A cloud on a surface (a 3DGS file) then carries mass and
+    /// elastic energy inside as well, not only on its shell.
+    pub fill_interior: bool,
 }
 
 impl Default for PointCloudSamplingParams {
@@ -328,12 +334,14 @@ impl Default for PointCloudSamplingParams {
             max_points: 100_000,
             seed: 0,
             volume: CloudVolume::FilledVoxels { cell_factor: 2.0 },
+            fill_interior: false,
         }
     }
 }
 
 /// Integration points from a point cloud or 3DGS object: the points themselves (down-sampled
-/// to `max_points`), each with volume `V / N` (DESIGN 3.1).
+/// to `max_points`, a seeded random subset), each with volume `V / N` (DESIGN 3.1); with
+/// [`PointCloudSamplingParams::fill_interior`], also the empty inner cells of the voxel closing.
 ///
 /// # Errors
 /// [`SamplingError::Empty`] for an empty cloud, [`SamplingError::InvalidParameter`] for
@@ -383,7 +391,25 @@ pub fn sample_point_cloud(
         }
         CloudVolume::FilledVoxels { cell_factor } => {
             let c = cloud_cell_size(&positions, cell_factor)?;
-            enclosed_voxel_volume(&positions, c)
+            let closing = VoxelClosing::new(&positions, c);
+            if params.fill_interior {
+                // Inner points about as far apart as `max_points` points filling the volume;
+                // the cloud's points share what they do not hold.
+                let volume = closing.volume();
+                let spacing = (volume / params.max_points as f64).cbrt();
+                let stride = (spacing / c).round().max(1.0) as usize;
+                let inner = closing.empty_inner_blocks(stride);
+                let held: f64 = inner.iter().map(|(_, v)| v).sum();
+                let share = (volume - held) / positions.len() as f64;
+                let mut volumes = vec![share; positions.len()];
+                let mut all = positions;
+                for (x, v) in inner {
+                    all.push(x);
+                    volumes.push(v);
+                }
+                return IntegrationPoints::new(all, volumes);
+            }
+            closing.volume()
         }
     };
     let volumes = vec![volume / positions.len() as f64; positions.len()];
@@ -413,52 +439,106 @@ fn cloud_cell_size(positions: &[Vector3<f64>], cell_factor: f64) -> Result<f64, 
 /// Cells of [`CloudVolume::FilledVoxels`]' closing (dilation and erosion radius, in cells).
 const CLOSING_RADIUS: usize = 2;
 
-/// [`CloudVolume::FilledVoxels`]' estimate (m³) on cells of size `c`.
-fn enclosed_voxel_volume(positions: &[Vector3<f64>], c: f64) -> f64 {
-    let bbox = Aabb::from_points(positions).expect("non-empty");
-    let r = CLOSING_RADIUS;
-    // Cells centred on the bounding box's faces (half a cell of offset), padded by r + 1
-    // empty cells on every side so the outside is connected after the dilation.
-    let pad = r + 1;
-    let grid = VoxelGrid {
-        dims: std::array::from_fn(|d| (bbox.extent()[d] / c + 0.5).floor() as usize + 1 + 2 * pad),
-    };
-    let mut occupied = vec![false; grid.len()];
-    for p in positions {
-        let cell: [usize; 3] =
-            std::array::from_fn(|d| ((p[d] - bbox.min[d]) / c + 0.5).floor() as usize + pad);
-        occupied[grid.index(cell)] = true;
-    }
-    // Closing: dilate, flood the outside through face-neighbours, erode what is not outside.
-    let dilated = grid.dilate(&occupied, r);
-    let mut outside = vec![false; grid.len()];
-    let mut stack = vec![[0usize; 3]];
-    outside[0] = true;
-    while let Some(cell) = stack.pop() {
-        for next in grid.face_neighbours(cell) {
-            let n = grid.index(next);
-            if !outside[n] && !dilated[n] {
-                outside[n] = true;
-                stack.push(next);
+/// The voxel closing of [`CloudVolume::FilledVoxels`] on cells of size `c`: which cells are
+/// solid, which of those are on the boundary, and which hold a point of the cloud.
+struct VoxelClosing {
+    grid: VoxelGrid,
+    /// Centre of cell (0, 0, 0) (m).
+    origin: Vector3<f64>,
+    c: f64,
+    solid: Vec<bool>,
+    boundary: Vec<bool>,
+    occupied: Vec<bool>,
+}
+
+impl VoxelClosing {
+    fn new(positions: &[Vector3<f64>], c: f64) -> VoxelClosing {
+        let bbox = Aabb::from_points(positions).expect("non-empty");
+        let r = CLOSING_RADIUS;
+        // Cells centred on the bounding box's faces (half a cell of offset), padded by r + 1
+        // empty cells on every side so the outside is connected after the dilation.
+        let pad = r + 1;
+        let grid = VoxelGrid {
+            dims: std::array::from_fn(|d| {
+                (bbox.extent()[d] / c + 0.5).floor() as usize + 1 + 2 * pad
+            }),
+        };
+        let mut occupied = vec![false; grid.len()];
+        for p in positions {
+            let cell: [usize; 3] =
+                std::array::from_fn(|d| ((p[d] - bbox.min[d]) / c + 0.5).floor() as usize + pad);
+            occupied[grid.index(cell)] = true;
+        }
+        // Closing: dilate, flood the outside through face-neighbours, erode what is not outside.
+        let dilated = grid.dilate(&occupied, r);
+        let mut outside = vec![false; grid.len()];
+        let mut stack = vec![[0usize; 3]];
+        outside[0] = true;
+        while let Some(cell) = stack.pop() {
+            for next in grid.face_neighbours(cell) {
+                let n = grid.index(next);
+                if !outside[n] && !dilated[n] {
+                    outside[n] = true;
+                    stack.push(next);
+                }
             }
         }
-    }
-    let solid: Vec<bool> = grid
-        .dilate(&outside, r)
-        .into_iter()
-        .map(|near_outside| !near_outside)
-        .collect();
-    let mut cells = 0.0;
-    for n in 0..grid.len() {
-        if solid[n] {
-            let boundary = grid
-                .face_neighbours(grid.cell(n))
-                .into_iter()
-                .any(|m| !solid[grid.index(m)]);
-            cells += if boundary { 0.5 } else { 1.0 };
+        let solid: Vec<bool> = grid
+            .dilate(&outside, r)
+            .into_iter()
+            .map(|near_outside| !near_outside)
+            .collect();
+        let boundary = (0..grid.len())
+            .map(|n| {
+                solid[n]
+                    && grid
+                        .face_neighbours(grid.cell(n))
+                        .into_iter()
+                        .any(|m| !solid[grid.index(m)])
+            })
+            .collect();
+        VoxelClosing {
+            origin: bbox.min - Vector3::repeat(pad as f64 * c),
+            grid,
+            c,
+            solid,
+            boundary,
+            occupied,
         }
     }
-    cells * c * c * c
+
+    /// `(solid inner cells + ½ · solid boundary cells) · c³` (m³).
+    fn volume(&self) -> f64 {
+        let cells: f64 = (0..self.grid.len())
+            .filter(|&n| self.solid[n])
+            .map(|n| if self.boundary[n] { 0.5 } else { 1.0 })
+            .sum();
+        cells * self.c.powi(3)
+    }
+
+    /// The solid inner cells that hold no point of the cloud, gathered in blocks of
+    /// `stride³` cells: per block with any, the mean of their centres (m) and their volume
+    /// `count · c³` (m³).
+    fn empty_inner_blocks(&self, stride: usize) -> Vec<(Vector3<f64>, f64)> {
+        let stride = stride.max(1);
+        let mut blocks: std::collections::BTreeMap<[usize; 3], (Vector3<f64>, usize)> =
+            std::collections::BTreeMap::new();
+        for n in 0..self.grid.len() {
+            if self.solid[n] && !self.boundary[n] && !self.occupied[n] {
+                let cell = self.grid.cell(n);
+                let centre = self.origin + Vector3::from_fn(|d, _| cell[d] as f64 * self.c);
+                let entry = blocks
+                    .entry(cell.map(|i| i / stride))
+                    .or_insert((Vector3::zeros(), 0));
+                entry.0 += centre;
+                entry.1 += 1;
+            }
+        }
+        blocks
+            .into_values()
+            .map(|(sum, count)| (sum / count as f64, count as f64 * self.c.powi(3)))
+            .collect()
+    }
 }
 
 /// A box of voxels, x fastest.
