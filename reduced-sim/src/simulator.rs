@@ -52,7 +52,12 @@ pub struct SimulationParams {
     /// most steps one factorization is carried across (default 50). The factorization is also
     /// dropped when the set of points in contact with the floor changes between steps (the
     /// floor's Hessian term changes there), and after [`Simulator::set_state`].
+    #[serde(default = "default_hessian_max_age")]
     pub hessian_max_age: usize,
+}
+
+fn default_hessian_max_age() -> usize {
+    SimulationParams::default().hessian_max_age
 }
 
 impl SimulationParams {
