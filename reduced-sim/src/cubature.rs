@@ -39,6 +39,7 @@ use serde::{Deserialize, Serialize};
 use thiserror::Error;
 
 use crate::deformation_map::DeformationMap;
+use crate::elastic_energy::weighted_elastic_gradient;
 use crate::quadrature::{ElasticQuadrature, QuadratureError};
 use crate::reduced_model::ReducedModel;
 
@@ -647,7 +648,6 @@ pub fn force_error<M: HyperelasticMaterial>(
         .iter()
         .map(|&i| model.lame_parameters()[i])
         .collect();
-    let d = map.layout().len();
     let mut sum = 0.0;
     let mut count = 0usize;
     for z in poses {
@@ -661,13 +661,13 @@ pub fn force_error<M: HyperelasticMaterial>(
         if reference == 0.0 {
             continue;
         }
-        let forces = force_densities(model.material(), &map, &lame, z);
-        let mut approx = vec![0.0; d];
-        for (q, w) in quadrature.weights().iter().enumerate() {
-            for (x, g) in approx.iter_mut().zip(&forces[q * d..(q + 1) * d]) {
-                *x += w * g;
-            }
-        }
+        let approx = weighted_elastic_gradient(
+            model.material(),
+            &map,
+            &lame,
+            quadrature.weights(),
+            &map.deformation_gradients(z),
+        );
         let diff: Vec<f64> = approx
             .iter()
             .zip(&full)
@@ -682,30 +682,6 @@ pub fn force_error<M: HyperelasticMaterial>(
     } else {
         (sum / count as f64).sqrt()
     }
-}
-
-/// Per point of `map`, the force density `g_i(z) = ∂Ψ(F_i(z))/∂z` in z's layout:
-/// `g_i[r·4(m+1) + a] = Σ_s G_i[a, s] P_i[r, s]`. Returned point-major (`N × 12(m+1)`).
-fn force_densities<M: HyperelasticMaterial>(
-    material: &M,
-    map: &DeformationMap,
-    lame: &[LameParameters],
-    z: &[f64],
-) -> Vec<f64> {
-    let n4 = map.layout().block_len();
-    let d = 3 * n4;
-    let f = map.deformation_gradients(z);
-    let mut out = vec![0.0; map.len() * d];
-    out.par_chunks_mut(d).enumerate().for_each(|(i, gi)| {
-        let p = material.first_piola_kirchhoff(&lame[i], &f[i]);
-        let block = map.gradient_block(i);
-        for r in 0..3 {
-            for a in 0..n4 {
-                gi[r * n4 + a] = (0..3).map(|s| block[s * n4 + a] * p[(r, s)]).sum();
-            }
-        }
-    });
-    out
 }
 
 /// The factor t making the RMS Green strain `‖(FᵀF − I)/2‖_F` of `t·direction` over the

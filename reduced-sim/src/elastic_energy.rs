@@ -3,10 +3,11 @@
 
 use faer::linalg::matmul::triangular::{self, BlockStructure};
 use faer::{Accum, Mat, MatRef, Par};
-use hyperelastic::{HyperelasticMaterial, Matrix9, Tangent};
+use hyperelastic::{HyperelasticMaterial, LameParameters, Matrix9, Tangent};
 use nalgebra::Matrix3;
 use rayon::prelude::*;
 
+use crate::deformation_map::DeformationMap;
 use crate::reduced_model::ReducedModel;
 
 /// The three diagonal and three upper row-block pairs (r, q) of the reduced Hessian.
@@ -50,31 +51,13 @@ impl<M: HyperelasticMaterial> ReducedModel<M> {
     }
 
     pub(crate) fn elastic_gradient_at(&self, f: &[Matrix3<f64>]) -> Vec<f64> {
-        let n = f.len();
-        let material = self.material();
-        let lame = self.elastic_lame();
-        let volumes = self.elastic_weights();
-        // Per point, the column-major storage of v_i P_i: entry 3s + r is v_i P_i[r, s], so the
-        // whole buffer is P̃ᵀ as a column-major 3 × 3N matrix.
-        let mut stresses_t = vec![0.0; 9 * n];
-        stresses_t
-            .par_chunks_mut(9)
-            .enumerate()
-            .for_each(|(i, out)| {
-                let p = material.first_piola_kirchhoff(&lame[i], &f[i]) * volumes[i];
-                out.copy_from_slice(p.as_slice());
-            });
-        let n4 = self.elastic_map().layout().block_len();
-        let mut gradient = vec![0.0; 3 * n4];
-        faer::linalg::matmul::matmul(
-            faer::MatMut::from_column_major_slice_mut(&mut gradient, n4, 3),
-            Accum::Replace,
-            self.elastic_map().gradient_matrix(),
-            MatRef::from_column_major_slice(&stresses_t, 3, 3 * n).transpose(),
-            1.0,
-            Par::rayon(0),
-        );
-        gradient
+        weighted_elastic_gradient(
+            self.material(),
+            self.elastic_map(),
+            self.elastic_lame(),
+            self.elastic_weights(),
+            f,
+        )
     }
 
     /// Hessian `∂²E_el/∂z²` (`12(m+1) × 12(m+1)`, symmetric), exact or with PSD-projected
@@ -178,4 +161,40 @@ impl<M: HyperelasticMaterial> ReducedModel<M> {
             }
         }
     }
+}
+
+/// `Σ_i w_i G_i P_i(F_i)ᵀ` over the points of `map` (length 12(m + 1), z's layout), with
+/// Lamé parameters `lame`, weights `weights` (volumes or quadrature weights, m³) and
+/// deformation gradients `f`: the elastic gradient of [`ReducedModel::elastic_gradient`],
+/// computed as the product `G · P̃` with `P̃[3i + s, r] = w_i P_i[r, s]` (`4(m+1) × 3N` times
+/// `3N × 3`).
+pub(crate) fn weighted_elastic_gradient<M: HyperelasticMaterial>(
+    material: &M,
+    map: &DeformationMap,
+    lame: &[LameParameters],
+    weights: &[f64],
+    f: &[Matrix3<f64>],
+) -> Vec<f64> {
+    let n = f.len();
+    // Per point, the column-major storage of w_i P_i: entry 3s + r is w_i P_i[r, s], so the
+    // whole buffer is P̃ᵀ as a column-major 3 × 3N matrix.
+    let mut stresses_t = vec![0.0; 9 * n];
+    stresses_t
+        .par_chunks_mut(9)
+        .enumerate()
+        .for_each(|(i, out)| {
+            let p = material.first_piola_kirchhoff(&lame[i], &f[i]) * weights[i];
+            out.copy_from_slice(p.as_slice());
+        });
+    let n4 = map.layout().block_len();
+    let mut gradient = vec![0.0; 3 * n4];
+    faer::linalg::matmul::matmul(
+        faer::MatMut::from_column_major_slice_mut(&mut gradient, n4, 3),
+        Accum::Replace,
+        map.gradient_matrix(),
+        MatRef::from_column_major_slice(&stresses_t, 3, 3 * n).transpose(),
+        1.0,
+        Par::rayon(0),
+    );
+    gradient
 }
