@@ -1,32 +1,19 @@
 //! One reduced run of any skinning field on any scene, recorded at given output points (usually
 //! the FEM vertices) every step: the library's [`freeform::run`] with a recorder and a bar.
 
-use hyperelastic::{MaterialField, MaterialSample, StableNeoHookean};
+use hyperelastic::StableNeoHookean;
 use nalgebra::Vector3;
-use reduced_sim::{DeformationMap, QuadratureRule, SimulationParams, SkinningField};
-use rkpm_core::IntegrationPoints;
+use reduced_sim::{DeformationMap, SkinningField};
 
 use crate::EvalError;
 use crate::progress::Progress;
-use freeform::scene::SceneSpec;
 use freeform::{RunReport, Simulation, run};
 
-/// Everything one reduced run needs.
+/// Everything one reduced run needs: the library's [`Simulation`] (stable Neo-Hookean, as in
+/// every paper experiment) and where and how long to record it.
 pub struct ReducedProblem<'a, B: SkinningField + ?Sized> {
-    /// The skinning field (our basis or a baseline's network).
-    pub field: &'a B,
-    /// Integration points of the simulation (rest positions in m, volumes in m³).
-    pub points: &'a IntegrationPoints,
-    /// One homogeneous material (stable Neo-Hookean, as in every paper experiment).
-    pub material: MaterialSample,
-    /// What acts on the object.
-    pub scene: &'a SceneSpec,
-    /// Time step, Newton and penalty options.
-    pub params: SimulationParams,
-    /// Where the elastic energy is integrated.
-    pub quadrature: QuadratureRule,
-    /// Where a cubature is cached (`None`: optimized every run).
-    pub cache_dir: Option<&'a std::path::Path>,
+    /// The skinning field, points, material, scene, options, quadrature and cubature cache.
+    pub simulation: Simulation<'a, B, StableNeoHookean>,
     /// Rest positions (m) where positions are recorded every step.
     pub output_points: &'a [Vector3<f64>],
     /// Steps to run.
@@ -52,22 +39,12 @@ pub fn run_reduced<B: SkinningField + ?Sized>(
     label: &str,
     progress: &Progress,
 ) -> Result<ReducedRun, EvalError> {
-    let output =
-        DeformationMap::new(problem.field, problem.output_points).map_err(EvalError::OutputMap)?;
-    let simulation = Simulation {
-        field: problem.field,
-        points: problem.points,
-        material: &MaterialField::Uniform(problem.material),
-        material_model: StableNeoHookean,
-        scene: problem.scene,
-        params: problem.params,
-        quadrature: problem.quadrature,
-        cache_dir: problem.cache_dir,
-    };
+    let output = DeformationMap::new(problem.simulation.field, problem.output_points)
+        .map_err(EvalError::OutputMap)?;
     let steps = problem.steps;
     let bar = progress.bar(steps, label);
     let mut frames = Vec::with_capacity(steps + 1);
-    let report = run(&simulation, steps, |frame| {
+    let report = run(&problem.simulation, steps, |frame| {
         frames.push(output.positions(&frame.simulator.state().z));
         if frame.index > 0 {
             bar.inc(1);

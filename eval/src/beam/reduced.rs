@@ -4,7 +4,8 @@
 use std::path::Path;
 use std::time::Instant;
 
-use hyperelastic::{LameParameters, MaterialSample};
+use freeform::Simulation;
+use hyperelastic::{LameParameters, MaterialField, MaterialSample, StableNeoHookean};
 use nalgebra::Vector3;
 use optimize::{HessianReuse, NewtonParams};
 use reduced_sim::{PenaltyParams, PinModulus, QuadratureRule, SimulationParams, SkinningField};
@@ -280,13 +281,16 @@ pub fn run_reduced_beam_with<B: SkinningField + ?Sized>(
         .beam_points(settings.simulation_points)?;
     run_reduced(
         &ReducedProblem {
-            field: basis,
-            points: &points,
-            material,
-            scene: &test.scene(),
-            params: settings.simulation_params(BEAM_TIME_STEP),
-            quadrature: settings.quadrature,
-            cache_dir,
+            simulation: Simulation {
+                field: basis,
+                points: &points,
+                material: &MaterialField::Uniform(material),
+                material_model: StableNeoHookean,
+                scene: &test.scene(),
+                params: settings.simulation_params(BEAM_TIME_STEP),
+                quadrature: settings.quadrature,
+                cache_dir,
+            },
             output_points,
             steps,
         },

@@ -9,7 +9,7 @@
 //! the study goes on. FEM trajectories and trained networks are cached, so a rerun (or a run
 //! after an interruption) only computes what is missing.
 
-use hyperelastic::MaterialSample;
+use hyperelastic::{MaterialField, MaterialSample, StableNeoHookean};
 use optimize::NewtonParams;
 use std::path::{Path, PathBuf};
 use std::sync::Mutex;
@@ -37,6 +37,7 @@ use crate::shapes::catalog::{
     ShapeCollection, catalog_entry,
 };
 use crate::shapes::reference::{FemMeshSummary, ShapeFemParams, mesh_for_fem};
+use freeform::Simulation;
 use freeform::scene::SceneSpec;
 
 /// What the study runs.
@@ -546,14 +547,17 @@ impl BoundaryRun<'_> {
     ) -> Result<(MethodScores, Vec<usize>), EvalError> {
         let run = run_reduced(
             &ReducedProblem {
-                field,
-                points: self.points,
-                material: self.material,
-                scene: self.scene,
-                params: self.params,
-                // The paper's setting; Table 2 does not yet compare quadratures.
-                quadrature: QuadratureRule::Full,
-                cache_dir: None,
+                simulation: Simulation {
+                    field,
+                    points: self.points,
+                    material: &MaterialField::Uniform(self.material),
+                    material_model: StableNeoHookean,
+                    scene: self.scene,
+                    params: self.params,
+                    // The paper's setting; Table 2 does not yet compare quadratures.
+                    quadrature: QuadratureRule::Full,
+                    cache_dir: None,
+                },
                 output_points: self.fem.vertices(),
                 steps: self.steps,
             },
