@@ -124,15 +124,12 @@ pub fn simulate_scene_file(
         material: &MaterialField::Uniform(material),
         material_model: StableNeoHookean,
         scene: &file.scene,
-        params: if file.simulation.hessian_reuse {
-            SimulationParams {
-                time_step: file.simulation.time_step,
-                ..SimulationParams::default()
-            }
-        } else {
-            SimulationParams {
-                time_step: file.simulation.time_step,
-                ..SimulationParams::paper_setting()
+        params: SimulationParams {
+            time_step: file.simulation.time_step,
+            ..if file.simulation.hessian_reuse {
+                SimulationParams::default()
+            } else {
+                SimulationParams::paper_setting()
             }
         },
         quadrature: file.simulation.quadrature,

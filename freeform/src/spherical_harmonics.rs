@@ -10,6 +10,7 @@
 //! found by least squares on fixed sample directions, exact up to rounding because the
 //! degree-l functions span a rotation-invariant space.
 
+use hyperelastic::SignedSvd;
 use nalgebra::{DMatrix, Matrix3, Vector3};
 
 /// Coefficients per colour channel beyond the DC term for `degree` (3, 8 or 15).
@@ -139,16 +140,8 @@ impl ShRotation {
 /// The rotation of the polar decomposition `F = R S` (det R = +1, also for det F ≤ 0: the
 /// closest rotation to F).
 pub fn polar_rotation(f: &Matrix3<f64>) -> Matrix3<f64> {
-    let svd = f.svd(true, true);
-    let (Some(mut u), Some(v_t)) = (svd.u, svd.v_t) else {
-        return Matrix3::identity();
-    };
-    if (u * v_t).determinant() < 0.0 {
-        let smallest = svd.singular_values.imin();
-        let flipped = -u.column(smallest);
-        u.set_column(smallest, &flipped);
-    }
-    u * v_t
+    let svd = SignedSvd::new(f);
+    svd.u * svd.v.transpose()
 }
 
 #[cfg(test)]

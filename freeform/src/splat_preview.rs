@@ -13,6 +13,7 @@
 //! renderer: no higher-order spherical harmonics, no anti-aliasing beyond the low-pass.
 
 use nalgebra::{Matrix2, Matrix3, Vector2, Vector3};
+use rkpm_core::Aabb;
 use thiserror::Error;
 
 use crate::splats::SplatTable;
@@ -57,18 +58,9 @@ impl Camera {
         elevation_degrees: f64,
     ) -> Camera {
         let fov_y_degrees: f64 = 40.0;
-        let (min, max) = points.iter().fold(
-            (
-                Vector3::repeat(f64::INFINITY),
-                Vector3::repeat(f64::NEG_INFINITY),
-            ),
-            |(lo, hi), p| (lo.inf(p), hi.sup(p)),
-        );
-        let (center, radius) = if points.is_empty() {
-            (Vector3::zeros(), 1.0)
-        } else {
-            (0.5 * (min + max), (0.5 * (max - min).norm()).max(1e-9))
-        };
+        let (center, radius) = Aabb::from_points(points).map_or((Vector3::zeros(), 1.0), |b| {
+            (b.center(), (0.5 * b.extent().norm()).max(1e-9))
+        });
         let up = up.normalize();
         // Any direction normal to `up` as azimuth 0.
         let side = if up.x.abs() < 0.9 {
