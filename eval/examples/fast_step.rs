@@ -17,12 +17,11 @@ use clap::Parser;
 use eval::beam::reduced::{ReducedSettings, build_beam_basis, run_reduced_beam_with};
 use eval::beam::study::beam_length_scale;
 use eval::beam::{BeamTest, beam_material};
-use eval::bench::HESSIAN_REUSE;
 use eval::fem_reference::{FemResolution, run_fem_beam};
 use eval::metrics::trajectory_errors;
 use eval::progress::Progress;
 use optimize::{HessianReuse, NewtonParams};
-use reduced_sim::{CubatureParams, QuadratureRule};
+use reduced_sim::{CubatureParams, QuadratureRule, SimulationParams};
 
 #[derive(Parser)]
 struct Args {
@@ -70,7 +69,7 @@ fn main() -> anyhow::Result<()> {
     let reuses: &[HessianReuse] = if args.no_reuse {
         &[HessianReuse::Never]
     } else {
-        &[HessianReuse::Never, HESSIAN_REUSE]
+        &[HessianReuse::Never, SimulationParams::HESSIAN_REUSE]
     };
     println!(
         "| test | m | quadrature | points | cubature s | force err. (train/unseen) | Hessians \

@@ -23,12 +23,7 @@ use crate::progress::Progress;
 use crate::report::plot::{AxisScale, PlotSpec, Series};
 use artifact::write_atomically;
 use freeform::RunReport;
-use reduced_sim::{CubatureParams, QuadratureRule};
-
-/// The Hessian reuse of the bench's "Hessian reuse" series: the library default
-/// ([`reduced_sim::SimulationParams::HESSIAN_REUSE`], chord steps while each is at most half
-/// the previous one).
-pub const HESSIAN_REUSE: HessianReuse = reduced_sim::SimulationParams::HESSIAN_REUSE;
+use reduced_sim::{CubatureParams, QuadratureRule, SimulationParams};
 
 /// The cubature of the bench's cubature series: [`CubatureParams::default`] (relative force
 /// error 0.02 on the training poses, at most 400 points).
@@ -58,9 +53,17 @@ const FREEFORM_SERIES: [(&str, &str); 9] = [
 fn fast_step_runs(base: ReducedSettings, modes: &[usize]) -> Vec<(String, BenchMethod)> {
     let mut runs = Vec::new();
     for (knob, quadrature, hessian_reuse) in [
-        ("Hessian reuse", QuadratureRule::Full, HESSIAN_REUSE),
+        (
+            "Hessian reuse",
+            QuadratureRule::Full,
+            SimulationParams::HESSIAN_REUSE,
+        ),
         ("cubature", CUBATURE, HessianReuse::Never),
-        ("cubature + reuse", CUBATURE, HESSIAN_REUSE),
+        (
+            "cubature + reuse",
+            CUBATURE,
+            SimulationParams::HESSIAN_REUSE,
+        ),
     ] {
         for &m in modes {
             runs.push((

@@ -7,14 +7,13 @@ use std::path::PathBuf;
 
 use hyperelastic::MaterialSample;
 use optimize::NewtonParams;
-use reduced_sim::PinModulus;
+use reduced_sim::{PinModulus, SimulationParams};
 use serde::{Deserialize, Serialize};
 
 use crate::EvalError;
 use crate::beam::reduced::{ReducedSettings, build_beam_basis, run_reduced_beam_with};
 use crate::beam::study::beam_length_scale;
 use crate::beam::{BeamTest, beam_material};
-use crate::bench::HESSIAN_REUSE;
 use crate::fem_reference::{FemResolution, run_fem_beam_with};
 use crate::metrics::trajectory_errors;
 use crate::progress::Progress;
@@ -54,7 +53,7 @@ impl PinSweepConfig {
             factors: vec![1e2, 3e2, 1e3, 3e3, 1e4, 3e4],
             moduli: vec![PinModulus::PWave, PinModulus::Young],
             settings: ReducedSettings {
-                hessian_reuse: HESSIAN_REUSE,
+                hessian_reuse: SimulationParams::HESSIAN_REUSE,
                 ..ReducedSettings::default()
             },
             steps: None,
@@ -71,7 +70,7 @@ impl PinSweepConfig {
             settings: ReducedSettings {
                 kernels: 500,
                 basis_points: 10_000,
-                hessian_reuse: HESSIAN_REUSE,
+                hessian_reuse: SimulationParams::HESSIAN_REUSE,
                 ..ReducedSettings::default()
             },
             steps: Some(100),

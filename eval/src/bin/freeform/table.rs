@@ -146,7 +146,7 @@ pub(crate) fn run(
         }),
     };
     if hessian_reuse {
-        config.settings.hessian_reuse = eval::bench::HESSIAN_REUSE;
+        config.settings.hessian_reuse = reduced_sim::SimulationParams::HESSIAN_REUSE;
     }
     if let Some(factor) = pin_factor {
         if !(factor > 0.0 && factor.is_finite()) {
