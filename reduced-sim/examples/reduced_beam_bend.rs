@@ -157,6 +157,7 @@ fn run() -> Result<(), String> {
             target: PinTarget::Rest,
         }],
         floor: None,
+        pin_treatment: Default::default(),
     };
     let base = if fresh_hessians {
         SimulationParams::paper_setting()

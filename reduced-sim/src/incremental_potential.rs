@@ -33,6 +33,9 @@ pub struct IncrementalPotential<'a, M: HyperelasticMaterial> {
     pub(crate) targets: PinTargets,
     pub(crate) inertia: Option<Inertia<'a>>,
     pub(crate) tangent: Tangent,
+    /// With held regions ([`crate::PinTreatment::Subspace`]): the entries of z Newton solves
+    /// for; the others stay as prescribed.
+    pub(crate) free: Option<&'a [usize]>,
 }
 
 impl<M: HyperelasticMaterial> IncrementalPotential<'_, M> {
@@ -104,6 +107,9 @@ impl<M: HyperelasticMaterial> IncrementalPotential<'_, M> {
 /// The step's minimization problem for [`optimize::minimize`]: dense Hessian (12(m+1) square),
 /// dense Cholesky, and the step norm `sqrt(Δzᵀ M_z Δz / mass) / L` (L the largest side of the
 /// rest bounding box).
+///
+/// With held regions the gradient and Hessian are those of the free entries of z only (the
+/// prescribed ones eliminated), and steps are zero on the prescribed entries.
 impl<M: HyperelasticMaterial> NewtonObjective for IncrementalPotential<'_, M> {
     type Hessian = Mat<f64>;
     type Factor = Llt<f64>;
@@ -113,13 +119,24 @@ impl<M: HyperelasticMaterial> NewtonObjective for IncrementalPotential<'_, M> {
     }
 
     fn gradient(&self, z: &[f64]) -> Vec<f64> {
-        IncrementalPotential::gradient(self, z)
+        let gradient = IncrementalPotential::gradient(self, z);
+        match self.free {
+            None => gradient,
+            Some(free) => free.iter().map(|&i| gradient[i]).collect(),
+        }
     }
 
     /// One pass computes F once for both; a gradient already known is recomputed with the
     /// Hessian (bit-identical: `derivatives` and `gradient` sum in the same order).
     fn gradient_and_hessian(&self, z: &[f64], _gradient: Option<Vec<f64>>) -> (Vec<f64>, Mat<f64>) {
-        self.derivatives(z)
+        let (gradient, hessian) = self.derivatives(z);
+        match self.free {
+            None => (gradient, hessian),
+            Some(free) => (
+                free.iter().map(|&i| gradient[i]).collect(),
+                Mat::from_fn(free.len(), free.len(), |a, b| hessian[(free[a], free[b])]),
+            ),
+        }
     }
 
     fn factor(&self, hessian: Mat<f64>) -> Option<Llt<f64>> {
@@ -129,7 +146,23 @@ impl<M: HyperelasticMaterial> NewtonObjective for IncrementalPotential<'_, M> {
     fn solve(&self, factor: &Llt<f64>, gradient: &[f64]) -> Vec<f64> {
         let mut step = Mat::<f64>::from_fn(gradient.len(), 1, |i, _| -gradient[i]);
         factor.solve_in_place(step.as_mut());
-        (0..gradient.len()).map(|i| step[(i, 0)]).collect()
+        match self.free {
+            None => (0..gradient.len()).map(|i| step[(i, 0)]).collect(),
+            Some(free) => {
+                let mut full = vec![0.0; self.model.deformation_map().layout().len()];
+                for (a, &i) in free.iter().enumerate() {
+                    full[i] = step[(a, 0)];
+                }
+                full
+            }
+        }
+    }
+
+    fn directional_derivative(&self, gradient: &[f64], step: &[f64]) -> f64 {
+        match self.free {
+            None => gradient.iter().zip(step).map(|(g, s)| g * s).sum(),
+            Some(free) => free.iter().zip(gradient).map(|(&i, g)| g * step[i]).sum(),
+        }
     }
 
     fn step_norm(&self, dz: &[f64]) -> f64 {
@@ -191,6 +224,7 @@ mod tests {
                 normal: Vector3::new(0.0, 1.0, 0.0),
                 offset: 0.35,
             }),
+            pin_treatment: Default::default(),
         };
         let terms = SceneTerms::new(&model, &scene, &PenaltyParams::default()).unwrap();
         let len = model.deformation_map().layout().len();
@@ -204,6 +238,7 @@ mod tests {
                 inverse_step_squared: 1e4,
             }),
             tangent,
+            free: None,
         };
         let z = probe_z(len, 0.03);
         let (gradient, hessian) = potential.derivatives(&z);

@@ -6,7 +6,8 @@
 //!   (integration points, or output points such as FEM vertices and splat centers).
 //! - [`ReducedModel`]: integration points with volumes and materials, and the constant reduced
 //!   mass matrix; [`ReducedModel::elastic_energy`] with its gradient and Hessian.
-//! - [`Scene`]: gravity, pinned/moving regions, a floor; [`PenaltyParams`] for their stiffness.
+//! - [`Scene`]: gravity, pinned/moving regions, a floor; [`PenaltyParams`] for their stiffness;
+//!   [`PinTreatment::Subspace`] holds the regions exactly instead (with a basis built for them).
 //! - [`Simulator`]: backward Euler, each step minimized by the workspace's one Newton solver
 //!   ([`optimize::minimize`]); one [`optimize::NewtonReport`] per step.
 //!
@@ -25,6 +26,7 @@
 //!     gravity: Some(Vector3::new(0.0, -9.8, 0.0)),
 //!     pins: vec![PinnedRegion { points: pinned, target: PinTarget::Rest }],
 //!     floor: None,
+//!     pin_treatment: Default::default(),
 //! };
 //! let mut sim = Simulator::new(model, &scene, SimulationParams::default())?;
 //! for _ in 0..100 {
@@ -39,6 +41,7 @@ mod analytic_field;
 pub mod cubature;
 pub mod deformation_map;
 pub mod elastic_energy;
+mod held_regions;
 pub mod incremental_potential;
 pub mod quadrature;
 pub mod reduced_coordinates;
@@ -54,7 +57,9 @@ pub use incremental_potential::IncrementalPotential;
 pub use quadrature::{ElasticQuadrature, QuadratureError, QuadratureReport, QuadratureRule};
 pub use reduced_coordinates::ReducedLayout;
 pub use reduced_model::{ReducedModel, ReducedModelError};
-pub use scene::{Floor, PenaltyParams, PinModulus, PinTarget, PinnedRegion, Scene, TargetFunction};
+pub use scene::{
+    Floor, PenaltyParams, PinModulus, PinTarget, PinTreatment, PinnedRegion, Scene, TargetFunction,
+};
 pub use scene_terms::SceneError;
 pub use simulator::{ReducedState, SimulationParams, Simulator, StateError, StepError};
 pub use skinning_field::SkinningField;

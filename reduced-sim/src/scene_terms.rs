@@ -6,8 +6,9 @@ use hyperelastic::HyperelasticMaterial;
 use nalgebra::Vector3;
 use thiserror::Error;
 
+use crate::held_regions::HeldRegions;
 use crate::reduced_model::ReducedModel;
-use crate::scene::{Floor, PenaltyParams, PinModulus, PinTarget, Scene};
+use crate::scene::{Floor, PenaltyParams, PinModulus, PinTarget, PinTreatment, Scene};
 
 /// The scene does not fit the model.
 #[derive(Debug, Error, Clone, PartialEq)]
@@ -41,6 +42,36 @@ pub enum SceneError {
         /// The offset given.
         offset: f64,
     },
+    /// [`crate::PinTreatment::Subspace`] without any pinned region.
+    #[error("exact pin constraints (PinTreatment::Subspace) need at least one pinned region")]
+    NothingHeld,
+    /// [`crate::PinTreatment::Subspace`] with more regions than the basis has handles.
+    #[error(
+        "{regions} regions are held exactly, but the basis has only {handles} handles; build it with skin_eigen::build_basis_with_regions for these regions"
+    )]
+    TooFewHandles {
+        /// Pinned regions.
+        regions: usize,
+        /// Handles of the basis.
+        handles: usize,
+    },
+    /// [`crate::PinTreatment::Subspace`] with a basis that was not built for the scene's
+    /// regions.
+    #[error(
+        "pinned region {region} is not held by the basis: at point {point}, handle {handle} has weight {weight} instead of {expected}; build the basis with skin_eigen::build_basis_with_regions for the scene's regions, in the same order"
+    )]
+    RegionNotHeld {
+        /// Region index in [`Scene::pins`].
+        region: usize,
+        /// The point.
+        point: usize,
+        /// The handle.
+        handle: usize,
+        /// Its weight there.
+        weight: f64,
+        /// The weight of a held region (1 or 0).
+        expected: f64,
+    },
     /// A penalty factor is not finite and positive.
     #[error("penalty factors must be finite and positive, got pin {pin}, floor {floor}")]
     Penalty {
@@ -69,6 +100,8 @@ pub(crate) struct SceneTerms {
     pin_stiffness: f64,
     floor: Option<Floor>,
     floor_stiffness: f64,
+    /// With [`PinTreatment::Subspace`]: the held regions (the pins then carry no penalty).
+    held: Option<HeldRegions>,
 }
 
 /// Pin targets of every region at one time, evaluated once per step.
@@ -144,16 +177,18 @@ impl SceneTerms {
                 .zip(&volumes)
                 .flat_map(|(bi, v)| bi.iter().map(move |x| x * v * pin_stiffness))
                 .collect();
-            let block = pin_hessian_block.get_or_insert_with(|| Mat::zeros(n4, n4));
-            let p = pin.points.len();
-            faer::linalg::matmul::matmul(
-                block.as_mut(),
-                Accum::Add,
-                MatRef::from_column_major_slice(&scaled, n4, p),
-                MatRef::from_column_major_slice(&b, n4, p).transpose(),
-                1.0,
-                Par::rayon(0),
-            );
+            if scene.pin_treatment == PinTreatment::Penalty {
+                let block = pin_hessian_block.get_or_insert_with(|| Mat::zeros(n4, n4));
+                let p = pin.points.len();
+                faer::linalg::matmul::matmul(
+                    block.as_mut(),
+                    Accum::Add,
+                    MatRef::from_column_major_slice(&scaled, n4, p),
+                    MatRef::from_column_major_slice(&b, n4, p).transpose(),
+                    1.0,
+                    Par::rayon(0),
+                );
+            }
             pins.push(PinTerm {
                 rest: pin
                     .points
@@ -185,6 +220,20 @@ impl SceneTerms {
                 })
             }
         };
+        let held = match scene.pin_treatment {
+            PinTreatment::Penalty => None,
+            PinTreatment::Subspace => {
+                let regions: Vec<Vec<usize>> =
+                    scene.pins.iter().map(|p| p.points.clone()).collect();
+                Some(HeldRegions::new(
+                    map.layout(),
+                    &regions,
+                    map.rest_positions(),
+                    model.volumes(),
+                    |point, handle| map.position_row(point)[4 * handle + 3],
+                )?)
+            }
+        };
         Ok(SceneTerms {
             gravity_gradient,
             pins,
@@ -192,7 +241,33 @@ impl SceneTerms {
             pin_stiffness,
             floor,
             floor_stiffness: penalty.floor_factor * scale,
+            held,
         })
+    }
+
+    /// With held regions: the indices of z that Newton solves for; `None` when every entry is
+    /// free (pins by penalty).
+    pub(crate) fn free_coordinates(&self) -> Option<&[usize]> {
+        self.held.as_ref().map(HeldRegions::free_coordinates)
+    }
+
+    /// With held regions: writes the held handles' entries of z for `targets` (nothing
+    /// otherwise).
+    pub(crate) fn prescribe(&self, z: &mut [f64], targets: &PinTargets) {
+        if let Some(held) = &self.held {
+            let rest: Vec<Vec<Vector3<f64>>> = self.pins.iter().map(|p| p.rest.clone()).collect();
+            held.prescribe(z, &rest, &targets.0);
+        }
+    }
+
+    /// The pins held by the penalty (none with held regions).
+    fn penalized_pins(&self) -> impl Iterator<Item = &PinTerm> {
+        let count = if self.held.is_some() {
+            0
+        } else {
+            self.pins.len()
+        };
+        self.pins.iter().take(count)
     }
 
     /// The pin stiffness κ_pin (Pa/m²).
@@ -238,7 +313,7 @@ impl SceneTerms {
         if let Some(g) = &self.gravity_gradient {
             e += g.iter().zip(z).map(|(a, b)| a * b).sum::<f64>();
         }
-        for (pin, targets) in self.pins.iter().zip(&targets.0) {
+        for (pin, targets) in self.penalized_pins().zip(&targets.0) {
             let x = pinned_positions(model, pin, z);
             for ((x, t), v) in x.iter().zip(targets).zip(&pin.volumes) {
                 e += 0.5 * self.pin_stiffness * v * (x - t).norm_squared();
@@ -289,7 +364,7 @@ impl SceneTerms {
                 *a += b;
             }
         }
-        for (pin, targets) in self.pins.iter().zip(&targets.0) {
+        for (pin, targets) in self.penalized_pins().zip(&targets.0) {
             // ∂E/∂z_r = κ Σ v_i b_i (x_i - t_i)_r
             let x = pinned_positions(model, pin, z);
             for (i, (x, t)) in x.iter().zip(targets).enumerate() {

@@ -193,6 +193,18 @@ impl<M: HyperelasticMaterial> Simulator<M> {
         &self.state
     }
 
+    /// With held regions ([`crate::PinTreatment::Subspace`]): the entries of z Newton solves
+    /// for (ascending); `None` when all are free.
+    pub fn free_coordinates(&self) -> Option<&[usize]> {
+        self.terms.free_coordinates()
+    }
+
+    /// With held regions: sets the held handles' entries of `z` (length 12(m + 1)) to the
+    /// regions' transforms at time `time` (s); does nothing with penalty pins.
+    pub fn prescribe(&self, z: &mut [f64], time: f64) {
+        self.terms.prescribe(z, &self.terms.pin_targets(time));
+    }
+
     /// The pin penalty stiffness κ_pin in use (Pa/m², see [`PenaltyParams`]).
     pub fn pin_stiffness(&self) -> f64 {
         self.terms.pin_stiffness()
@@ -253,7 +265,9 @@ impl<M: HyperelasticMaterial> Simulator<M> {
         let predicted = self.predicted_coordinates();
         let next_time = self.state.time + h;
         let potential = self.step_potential(&predicted);
-        let mut z = predicted.clone();
+        let mut start = predicted.clone();
+        self.terms.prescribe(&mut start, &potential.targets);
+        let mut z = start.clone();
         let report = match self.params.newton.hessian_reuse {
             HessianReuse::Never => minimize(&potential, &mut z, &self.params.newton)?,
             HessianReuse::WhileContracting { .. } => {
@@ -266,7 +280,7 @@ impl<M: HyperelasticMaterial> Simulator<M> {
                     // that does not converge with reuse is solved again with fresh Hessians
                     // from the prediction, so reuse is never less robust than the paper's
                     // setting. The report counts both attempts.
-                    z.clone_from(&predicted);
+                    z.clone_from(&start);
                     factor = None;
                     let fresh = NewtonParams {
                         hessian_reuse: HessianReuse::Never,
@@ -315,7 +329,9 @@ impl<M: HyperelasticMaterial> Simulator<M> {
 
     /// The incremental potential E(z) that [`Simulator::step`] minimizes next: inertia about
     /// `predicted` (normally [`Simulator::predicted_coordinates`]), elasticity, and the scene's
-    /// terms at t + h.
+    /// terms at t + h. With held regions ([`crate::PinTreatment::Subspace`]) its
+    /// [`optimize::NewtonObjective`] gradient and Hessian are over the free entries of z only
+    /// ([`Simulator::free_coordinates`]); [`Simulator::prescribe`] sets the others.
     pub fn step_potential<'a>(&'a self, predicted: &'a [f64]) -> IncrementalPotential<'a, M> {
         let h = self.params.time_step;
         IncrementalPotential {
@@ -327,6 +343,7 @@ impl<M: HyperelasticMaterial> Simulator<M> {
                 inverse_step_squared: 1.0 / (h * h),
             }),
             tangent: self.params.tangent,
+            free: self.terms.free_coordinates(),
         }
     }
 
@@ -344,8 +361,10 @@ impl<M: HyperelasticMaterial> Simulator<M> {
             targets: self.terms.pin_targets(time),
             inertia: None,
             tangent: self.params.tangent,
+            free: self.terms.free_coordinates(),
         };
         let mut z = self.state.z.clone();
+        self.terms.prescribe(&mut z, &potential.targets);
         let report = minimize(&potential, &mut z, &self.params.newton)?;
         let layout = self.model.deformation_map().layout();
         self.factor = None;

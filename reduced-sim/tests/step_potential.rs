@@ -25,6 +25,7 @@ fn simulator(tangent: Tangent) -> Simulator<StableNeoHookean> {
             normal: Vector3::y(),
             offset: 0.08,
         }),
+        pin_treatment: Default::default(),
     };
     let params = SimulationParams {
         tangent,

@@ -12,7 +12,8 @@ use rkpm_core::{
 use serde::{Deserialize, Serialize};
 
 use crate::assembly::{AssemblyError, WeightSpaceMatrices, assemble_weight_space_matrices};
-use crate::generalized_eigen::{EigenError, EigenParams, solve_skinning_modes};
+use crate::generalized_eigen::{EigenError, EigenParams, EigenSolution, solve_skinning_modes};
+use crate::region_constraints::{RegionConstraintParams, RegionError, solve_constrained_modes};
 use crate::skinning_basis::{BasisMetadata, SkinningBasis};
 use crate::sparse_assembly::{SparseWeightSpaceMatrices, assemble_sparse_weight_space_matrices};
 use crate::subspace_iteration::{SubspaceParams, solve_skinning_modes_iteratively};
@@ -115,6 +116,25 @@ pub struct BasisReport {
     pub eigen_relative_residual: f64,
     /// `max |cᵀ𝓜c - I|`.
     pub orthonormality_error: f64,
+    /// For a basis with held regions ([`build_basis_with_regions`]): how exactly its weights
+    /// hold them.
+    #[serde(default)]
+    pub held_regions: Option<HeldRegionsReport>,
+}
+
+/// How exactly the weights of a basis with held regions hold them (issue 25).
+#[derive(Clone, Copy, Debug, PartialEq, Serialize, Deserialize)]
+pub struct HeldRegionsReport {
+    /// Number of regions R.
+    pub regions: usize,
+    /// Integration points in the regions.
+    pub points: usize,
+    /// `max |W_r − δ_r|` of the region weights on the region points.
+    pub max_region_weight_error: f64,
+    /// `max |W_j|` of the modes on the region points.
+    pub max_mode_value_on_regions: f64,
+    /// Dimension of the space of kernel weights that vanish on the regions (of K).
+    pub null_space_dimension: usize,
 }
 
 /// Basis construction failed; the variant says in which phase.
@@ -132,6 +152,17 @@ pub enum BasisError {
     /// Eigen solve.
     #[error("eigen solve: {0}")]
     Eigen(#[from] EigenError),
+    /// Held regions ([`build_basis_with_regions`]).
+    #[error("held regions: {0}")]
+    Regions(#[from] RegionError),
+    /// Held regions need the dense solver.
+    #[error(
+        "held regions are solved densely, but the options ask for the iterative solver (K = {kernels}); use EigenSolverChoice::Dense or at most {DENSE_SOLVER_MAX_KERNELS} kernels"
+    )]
+    RegionsNeedDenseSolver {
+        /// K.
+        kernels: usize,
+    },
 }
 
 /// Builds the skinning basis of an object given by integration points and per-point Lamé
@@ -145,6 +176,35 @@ pub fn build_basis(
     points: &IntegrationPoints,
     materials: &[LameParameters],
     params: &BasisParams,
+) -> Result<(SkinningBasis, BasisReport, AssembledMatrices), BasisError> {
+    build(points, materials, params, None)
+}
+
+/// [`build_basis`] for an object with R exactly held regions (issue 25): the basis carries one
+/// weight per region beyond the first (1 on its region, 0 on the others, the material-aware
+/// harmonic extension of H_w elsewhere) and m modes computed among the weights that vanish on
+/// every region ([`crate::solve_constrained_modes`]), so each region moves by the affine
+/// transform of its handles alone. `regions` are disjoint sets of integration point indices.
+///
+/// # Errors
+/// [`BasisError`] as for [`build_basis`]; [`BasisError::Regions`] for empty, overlapping or
+/// out-of-range regions and regions the kernels cannot separate;
+/// [`BasisError::RegionsNeedDenseSolver`] when the options select the iterative solver.
+pub fn build_basis_with_regions(
+    points: &IntegrationPoints,
+    materials: &[LameParameters],
+    params: &BasisParams,
+    regions: &[Vec<usize>],
+    region_params: &RegionConstraintParams,
+) -> Result<(SkinningBasis, BasisReport, AssembledMatrices), BasisError> {
+    build(points, materials, params, Some((regions, region_params)))
+}
+
+fn build(
+    points: &IntegrationPoints,
+    materials: &[LameParameters],
+    params: &BasisParams,
+    regions: Option<(&[Vec<usize>], &RegionConstraintParams)>,
 ) -> Result<(SkinningBasis, BasisReport, AssembledMatrices), BasisError> {
     let mut timings = PhaseTimings::default();
     let t = Instant::now();
@@ -162,13 +222,43 @@ pub fn build_basis(
         EigenSolverChoice::Auto | EigenSolverChoice::Dense => None,
         EigenSolverChoice::Iterative(subspace) => Some(subspace),
     };
+    if let (Some(_), Some(_)) = (regions, iterative) {
+        return Err(BasisError::RegionsNeedDenseSolver {
+            kernels: kernels.len(),
+        });
+    }
     let t = Instant::now();
+    let mut held = None;
     let (matrices, solution) = match iterative {
         None => {
             let matrices = assemble_weight_space_matrices(&shape, points.volumes(), materials)?;
             timings.assembly = t.elapsed().as_secs_f64();
             let t = Instant::now();
-            let solution = solve_skinning_modes(&matrices, &params.eigen)?;
+            let solution = match regions {
+                None => solve_skinning_modes(&matrices, &params.eigen)?,
+                Some((regions, region_params)) => {
+                    let constrained = solve_constrained_modes(
+                        &matrices,
+                        &shape,
+                        regions,
+                        &params.eigen,
+                        region_params,
+                    )?;
+                    let a = &constrained.region_coefficients;
+                    let report = HeldRegionsReport {
+                        regions: regions.len(),
+                        points: regions.iter().map(Vec::len).sum(),
+                        max_region_weight_error: constrained.max_region_weight_error,
+                        max_mode_value_on_regions: constrained.max_mode_value_on_regions,
+                        null_space_dimension: constrained.null_space_dimension,
+                    };
+                    held = Some((
+                        DMatrix::from_fn(a.nrows(), a.ncols() - 1, |i, j| a[(i, j + 1)]),
+                        report,
+                    ));
+                    EigenSolution::from_constrained(constrained)
+                }
+            };
             timings.eigen_solve = t.elapsed().as_secs_f64();
             (AssembledMatrices::Dense(matrices), solution)
         }
@@ -206,13 +296,17 @@ pub fn build_basis(
         discarded_mass_directions: solution.discarded_mass_directions,
         eigen_relative_residual: solution.max_relative_residual,
         orthonormality_error: solution.orthonormality_error,
+        held_regions: held.as_ref().map(|(_, report)| *report),
     };
-    let basis = SkinningBasis::new(
+    let mut basis = SkinningBasis::new(
         kernels,
         params.shape_functions,
         coefficients,
         solution.eigenvalues,
         metadata,
     );
+    if let Some((region_coefficients, _)) = held {
+        basis = basis.with_held_regions(region_coefficients);
+    }
     Ok((basis, report, matrices))
 }

@@ -185,6 +185,20 @@ pub(crate) fn smallest_generalized_eigenpairs(
 }
 
 impl EigenSolution {
+    /// The modes of a basis with held regions in this form (no constant mode was dropped:
+    /// `constant_eigenvalue` is 0).
+    pub(crate) fn from_constrained(modes: crate::region_constraints::ConstrainedModes) -> Self {
+        EigenSolution {
+            eigenvalues: modes.eigenvalues,
+            coefficients: modes.coefficients,
+            constant_eigenvalue: 0.0,
+            mass_condition_number: modes.mass_condition_number,
+            discarded_mass_directions: modes.discarded_mass_directions,
+            max_relative_residual: modes.max_relative_residual,
+            orthonormality_error: modes.orthonormality_error,
+        }
+    }
+
     /// Drops the constant (first) pair of a pencil solution and measures the accuracy from
     /// `hc = H_w c`, `mc = 𝓜 c` (all `count` columns) and `|H_w|_F`.
     pub(crate) fn from_pencil(pencil: Pencil, hc: &Mat<f64>, mc: &Mat<f64>, h_norm: f64) -> Self {

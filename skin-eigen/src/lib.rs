@@ -10,10 +10,15 @@
 //! [`solve_skinning_modes`]) and sparse iterative for larger K
 //! ([`assemble_sparse_weight_space_matrices`] + [`solve_skinning_modes_iteratively`]);
 //! [`build_basis`] picks by K (see [`EigenSolverChoice`]).
+//!
+//! For exactly held regions (issue 25), [`build_basis_with_regions`] adds one weight per region
+//! and computes the modes among the weights that vanish on the regions
+//! ([`solve_constrained_modes`]).
 
 pub mod assembly;
 pub mod basis_builder;
 pub mod generalized_eigen;
+pub mod region_constraints;
 pub mod skinning_basis;
 pub mod sparse_assembly;
 pub mod subspace_iteration;
@@ -21,9 +26,12 @@ pub mod subspace_iteration;
 pub use assembly::{AssemblyError, WeightSpaceMatrices, assemble_weight_space_matrices};
 pub use basis_builder::{
     AssembledMatrices, BasisError, BasisParams, BasisReport, DENSE_SOLVER_MAX_KERNELS,
-    EigenSolverChoice, PhaseTimings, build_basis,
+    EigenSolverChoice, HeldRegionsReport, PhaseTimings, build_basis, build_basis_with_regions,
 };
 pub use generalized_eigen::{EigenError, EigenParams, EigenSolution, solve_skinning_modes};
+pub use region_constraints::{
+    ConstrainedModes, RegionConstraintParams, RegionError, solve_constrained_modes,
+};
 pub use skinning_basis::{
     BASIS_FORMAT_VERSION, BasisFileError, BasisMetadata, SkinningBasis, SkinningWeights,
 };

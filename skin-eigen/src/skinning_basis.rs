@@ -11,8 +11,8 @@ use serde::{Deserialize, Serialize};
 /// File magic of a saved basis.
 const MAGIC: [u8; 8] = *b"FFBASIS\0";
 /// Format version; bump on any change of [`SkinningBasis`]'s serialized layout (2: the
-/// shape-function options carry the kernel window).
-pub const BASIS_FORMAT_VERSION: u32 = 2;
+/// shape-function options carry the kernel window; 3: region weights for exactly held regions).
+pub const BASIS_FORMAT_VERSION: u32 = 3;
 
 /// Saving or loading a basis failed.
 #[derive(Debug, thiserror::Error)]
@@ -64,11 +64,17 @@ pub struct BasisMetadata {
     pub mass_condition_number: f64,
     /// Near-null mass directions discarded before the solve.
     pub discarded_mass_directions: usize,
-    /// The dropped constant-mode eigenvalue.
+    /// The dropped constant-mode eigenvalue (0 for a basis with held regions, which drops none).
     pub constant_eigenvalue: f64,
 }
 
 /// m skinning weight fields `W^j(X) = Σ_k ϕ_k(X) c_kj` (Sec. 3.2), plus the constant handle.
+///
+/// A basis built for R exactly held regions ([`crate::build_basis_with_regions`], issue 25)
+/// also carries R − 1 region weights between the constant handle and the modes: handle r
+/// (1 ≤ r < R) is 1 on region r and 0 on the other regions, the modes vanish on every region,
+/// and region 0's weight is the constant minus the others. Handles, in order:
+/// `[1, a_1 … a_{R-1}, c_1 … c_m]`.
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
 pub struct SkinningBasis {
     kernels: Kernels,
@@ -76,11 +82,16 @@ pub struct SkinningBasis {
     /// c, K × m.
     coefficients: DMatrix<f64>,
     eigenvalues: Vec<f64>,
+    /// Number R of held regions (0 for a free basis).
+    held_regions: usize,
+    /// Region weights a_1 … a_{R-1}, K × (R − 1) (no columns for a free basis).
+    region_coefficients: DMatrix<f64>,
     metadata: BasisMetadata,
 }
 
 /// Weights and weight gradients at a set of points, with the constant handle first:
-/// column 0 is W⁰ ≡ 1 (∇W⁰ = 0), columns 1..=m the eigen-weights.
+/// column 0 is W⁰ ≡ 1 (∇W⁰ = 0), then the region weights of a basis with held regions (see
+/// [`SkinningBasis`]), then the m eigen-weights.
 #[derive(Clone, Debug, PartialEq)]
 pub struct SkinningWeights {
     /// W, N × (m + 1) (dimensionless).
@@ -111,13 +122,33 @@ impl SkinningBasis {
             eigenvalues.len(),
             "one coefficient column per mode"
         );
+        let region_coefficients = DMatrix::zeros(kernels.len(), 0);
         SkinningBasis {
             kernels,
             shape_params,
             coefficients,
             eigenvalues,
+            held_regions: 0,
+            region_coefficients,
             metadata,
         }
+    }
+
+    /// The same basis with R = `region_coefficients.ncols() + 1` held regions: the region
+    /// weights a_1 … a_{R-1} (K × (R − 1)) go between the constant handle and the modes, which
+    /// must vanish on every region (see [`crate::build_basis_with_regions`]).
+    ///
+    /// # Panics
+    /// If `region_coefficients` does not have one row per kernel.
+    pub fn with_held_regions(mut self, region_coefficients: DMatrix<f64>) -> Self {
+        assert_eq!(
+            region_coefficients.nrows(),
+            self.kernels.len(),
+            "one region coefficient row per kernel"
+        );
+        self.held_regions = region_coefficients.ncols() + 1;
+        self.region_coefficients = region_coefficients;
+        self
     }
 
     /// Number m of eigen-weights (the constant handle not counted, as in the paper).
@@ -125,9 +156,22 @@ impl SkinningBasis {
         self.eigenvalues.len()
     }
 
-    /// Number of handles the simulator uses, m + 1.
+    /// Number R of exactly held regions the basis was built for (0 for a free basis). Handles
+    /// `0 … R − 1` then carry the regions' transforms: region 0 moves with handle 0 alone,
+    /// region r ≥ 1 with handles 0 and r.
+    pub fn held_regions(&self) -> usize {
+        self.held_regions
+    }
+
+    /// Region weights a_1 … a_{R-1} (K × (R − 1); no columns for a free basis).
+    pub fn region_coefficients(&self) -> &DMatrix<f64> {
+        &self.region_coefficients
+    }
+
+    /// Number of handles the simulator uses: m + 1, plus R − 1 region weights for a basis with
+    /// held regions.
     pub fn handles(&self) -> usize {
-        self.modes() + 1
+        self.modes() + 1 + self.region_coefficients.ncols()
     }
 
     /// The kernels.
@@ -157,12 +201,13 @@ impl SkinningBasis {
     /// object) or is not finite.
     pub fn evaluate(&self, points: &[Vector3<f64>]) -> Result<SkinningWeights, ShapeFunctionError> {
         let shape = evaluate_shape_functions(&self.kernels, points, &self.shape_params)?;
-        let (n, m) = (points.len(), self.modes());
-        let mut weights = DMatrix::zeros(n, m + 1);
+        let (n, handles) = (points.len(), self.handles());
+        let first_mode = 1 + self.region_coefficients.ncols();
+        let mut weights = DMatrix::zeros(n, handles);
         let mut gradients = [
-            DMatrix::zeros(n, m + 1),
-            DMatrix::zeros(n, m + 1),
-            DMatrix::zeros(n, m + 1),
+            DMatrix::zeros(n, handles),
+            DMatrix::zeros(n, handles),
+            DMatrix::zeros(n, handles),
         ];
         for i in 0..n {
             weights[(i, 0)] = 1.0;
@@ -172,12 +217,18 @@ impl SkinningBasis {
                 .zip(shape.values(i))
                 .zip(shape.gradients(i))
             {
-                let row = self.coefficients.row(k as usize);
-                for j in 0..m {
-                    let c = row[j];
-                    weights[(i, j + 1)] += phi * c;
+                let k = k as usize;
+                let regions = self.region_coefficients.row(k);
+                let modes = self.coefficients.row(k);
+                for j in 1..handles {
+                    let c = if j < first_mode {
+                        regions[j - 1]
+                    } else {
+                        modes[j - first_mode]
+                    };
+                    weights[(i, j)] += phi * c;
                     for (d, g) in gradients.iter_mut().enumerate() {
-                        g[(i, j + 1)] += grad[d] * c;
+                        g[(i, j)] += grad[d] * c;
                     }
                 }
             }
@@ -236,6 +287,8 @@ impl SkinningBasis {
             })?;
         if basis.coefficients.nrows() != basis.kernels.len()
             || basis.coefficients.ncols() != basis.eigenvalues.len()
+            || basis.region_coefficients.nrows() != basis.kernels.len()
+            || basis.region_coefficients.ncols() != basis.held_regions.saturating_sub(1)
         {
             return Err(BasisFileError::Corrupt {
                 path: name,
