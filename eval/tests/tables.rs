@@ -44,6 +44,7 @@ fn tiny_study_fills_tables_1_5_6_with_paper_columns_and_consistent_json() {
             ..SimplicitsParams::default()
         }),
         cache_dir: dir.join("cache"),
+        exact_pins: false,
     };
     let study = run_beam_study(&config, &quiet()).unwrap();
     assert_eq!(study.rows.len(), 2);
@@ -144,6 +145,7 @@ fn a_reference_with_unconverged_frames_is_refused_by_the_tables_with_the_frames_
         },
         simplicits: None,
         cache_dir: dir.join("cache"),
+        exact_pins: false,
     };
     let study = run_beam_study(&config, &quiet()).unwrap();
     let twist = study
@@ -176,4 +178,47 @@ fn a_reference_with_unconverged_frames_is_refused_by_the_tables_with_the_frames_
     }
     assert!(twist_error_plot(&study).is_none());
     let _ = std::fs::remove_dir_all(&dir);
+}
+
+#[test]
+fn table1_runs_both_pin_treatments_and_the_exact_rows_hold_their_regions() {
+    let dir = std::env::temp_dir().join(format!("freeform-exact-{}", std::process::id()));
+    let config = BeamStudyConfig {
+        modes: vec![6],
+        tests: BeamTest::ALL.to_vec(),
+        // Kernels narrow enough (median radius ≈ 0.26 m) that the clamped end shrunk by 1.5
+        // radii still holds a layer of simulation points.
+        settings: ReducedSettings {
+            kernels: 600,
+            basis_points: 8000,
+            simulation_points: 2000,
+            ..ReducedSettings::default()
+        },
+        steps: Some(6),
+        fem: FemResolution {
+            order: ElementOrder::Quadratic,
+            cells_per_metre: 2,
+        },
+        fem_newton: NewtonParams::default(),
+        simplicits: None,
+        cache_dir: dir.join("cache"),
+        exact_pins: true,
+    };
+    let study = run_beam_study(&config, &quiet()).unwrap();
+    let t1 = table1(&study);
+    let rows = t1.json["rows"].as_array().unwrap();
+    assert_eq!(rows.len(), 2);
+    for row in rows {
+        let mse = row["exact_mse"].as_f64().unwrap();
+        let max = row["exact_max"].as_f64().unwrap();
+        assert!(mse > 0.0 && max * max >= mse && max.is_finite(), "{row}");
+        // The held points sit on their targets (≤ 1e-4 L, L = 5 m), the Twist's rotating end
+        // included; the penalty lets its points drift.
+        let held = row["exact_max_pin_deviation"].as_f64().unwrap();
+        assert!(held <= 5e-4, "exact pins drift {held} m: {row}");
+        assert!(row["max_pin_deviation"].as_f64().unwrap() > held, "{row}");
+        assert!(row["exact_region_drift"].as_f64().unwrap().is_finite());
+        assert!(row["exact_inset"].as_f64().unwrap() > 0.0);
+    }
+    assert!(t1.markdown.contains("Exact pins (issue 25)"), "{}", t1.markdown);
 }

@@ -43,6 +43,7 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
         params: Default::default(), // h = 0.01 s
         quadrature: Default::default(),
         cache_dir: None,
+        pin_hold: Default::default(),
     };
     let frames = FrameWriter::new(&out, &geometry);
     let surface = DeformationMap::new(&basis, frames.rest_positions())?;

@@ -7,7 +7,8 @@
 //!   loads itself); any [`reduced_sim::SkinningField`] runs.
 //! - [`scene`]: what acts on the object ([`SceneSpec`]: gravity, pinned and moving regions, a
 //!   floor), translated for the reduced simulator and for the FEM reference alike;
-//!   [`scene_file`]: the same as a TOML/JSON file with geometry, material, basis and time.
+//!   [`scene_file`]: the same as a TOML/JSON file with geometry, material, basis and time;
+//!   [`pin_hold`]: whether the reduced simulator holds the regions by a penalty or exactly.
 //! - [`runner`]: one loop ([`run`]) for any skinning field and any
 //!   [`hyperelastic::HyperelasticMaterial`], handing every frame to the caller.
 //! - [`frames`]: per-frame PLY and VTK ([`FrameWriter`]); [`splats`]: 3DGS files deformed
@@ -43,6 +44,7 @@
 //!     params: Default::default(),
 //!     quadrature: Default::default(), // every point; QuadratureRule::Cubature(..) is faster
 //!     cache_dir: None,
+//!     pin_hold: Default::default(), // the penalty; PinHold::Exact needs a basis built for it
 //! };
 //! let report = run(&simulation, 100, |_frame| Ok(()))?;
 //! println!("{:.2} ms per step", report.ms_per_step);
@@ -51,6 +53,7 @@
 
 pub mod frames;
 pub mod geometry;
+pub mod pin_hold;
 pub mod progress;
 pub mod runner;
 pub mod scene;
@@ -62,6 +65,7 @@ pub mod splats;
 
 pub use frames::FrameWriter;
 pub use geometry::{Geometry, GeometryError};
+pub use pin_hold::PinHold;
 pub use progress::{Progress, Silent};
 pub use runner::{Frame, ObserverResult, RunError, RunReport, Simulation, run};
 pub use scene::{Constraint, FloorSpec, Motion, Region, SceneSpec, SceneSpecError};

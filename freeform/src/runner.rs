@@ -15,6 +15,7 @@ use reduced_sim::{
 use rkpm_core::IntegrationPoints;
 use thiserror::Error;
 
+use crate::pin_hold::PinHold;
 use crate::scene::{SceneSpec, SceneSpecError};
 
 /// Everything one reduced run needs.
@@ -37,6 +38,9 @@ pub struct Simulation<'a, B: SkinningField + ?Sized, M> {
     /// Where an optimized cubature is cached by content (`<dir>/cubature/`), or `None` to
     /// optimize it every run.
     pub cache_dir: Option<&'a Path>,
+    /// How the constrained regions are held ([`PinHold::Penalty`] by default; exact holding
+    /// needs `field` built for [`PinHold::basis_regions`]).
+    pub pin_hold: PinHold,
 }
 
 /// The state after frame `index`, handed to the observer of [`run`].
@@ -71,7 +75,8 @@ pub struct RunReport {
     pub hessians_per_step: f64,
     /// Steps whose Newton solve stopped unconverged (the run goes on; the caller decides).
     pub unconverged_steps: usize,
-    /// Largest distance of a held integration point from its target over the run (m).
+    /// Largest distance of a held integration point from its target over the run (m; with
+    /// [`PinHold::Exact`], of the points inside the inset regions).
     pub max_pin_deviation: f64,
     /// Model and scene setup, quadrature included (s).
     pub setup_seconds: f64,
@@ -149,7 +154,11 @@ where
         .quadrature
         .apply_cached(model, simulation.cache_dir)
         .map_err(RunError::Quadrature)?;
-    let scene = simulation.scene.reduced_scene(model.rest_positions())?;
+    let mut scene = simulation
+        .pin_hold
+        .held_scene(simulation.scene)?
+        .reduced_scene(model.rest_positions())?;
+    scene.pin_treatment = simulation.pin_hold.treatment();
     let region_points = scene.pins.iter().map(|p| p.points.len()).collect();
     let mut sim = Simulator::new(model, &scene, simulation.params).map_err(RunError::Simulator)?;
     let setup_seconds = start.elapsed().as_secs_f64();

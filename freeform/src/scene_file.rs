@@ -31,6 +31,8 @@
 //!                                     # { kind = "full" }: every point, the paper's setting)
 //! hessian_reuse = true                # carry the Hessian across steps (default; false: a
 //!                                     # fresh Hessian every iteration, the paper's setting)
+//! pins = "penalty"                    # hold the constraints by a penalty (default); or
+//! # pins = { exact = { inset = 0.05 } }  # exactly, on each region shrunk by 0.05 m
 //!
 //! [scene]
 //! gravity = [0, -9.8, 0]
@@ -156,6 +158,10 @@ pub struct SimulationSpec {
     /// iteration, the paper's setting).
     #[serde(default = "yes")]
     pub hessian_reuse: bool,
+    /// How the constraints are held (default `"penalty"`; `{ exact = { inset = d } }` builds
+    /// the basis for the regions shrunk by d m, see [`crate::PinHold`]).
+    #[serde(default)]
+    pub pins: crate::PinHold,
 }
 
 fn one() -> usize {

@@ -10,11 +10,14 @@ use reduced_sim::{
 };
 use rkpm_core::PointCloud;
 use serde::{Deserialize, Serialize};
-use skin_eigen::{BasisError, BasisParams, build_basis};
+use skin_eigen::{
+    BasisError, BasisParams, RegionConstraintParams, build_basis, build_basis_with_regions,
+};
 use thiserror::Error;
 
 use crate::frames::FrameWriter;
 use crate::geometry::{Geometry, GeometryError};
+use crate::pin_hold::PinHold;
 use crate::progress::Progress;
 use crate::runner::RunError;
 use crate::runner::{Simulation, run};
@@ -105,14 +108,32 @@ pub fn simulate_scene_file(
     ));
     let fill = file.geometry.fill_interior;
     let basis_points = geometry.integration_points_filling(file.basis.points, fill)?;
-    let params = BasisParams::default()
-        .with_modes(file.basis.modes)
-        .with_kernels(file.basis.kernels);
-    let (basis, _, _) = build_basis(&basis_points, &vec![lame; basis_points.len()], &params)
-        .map_err(SimulateError::Basis)?;
+    let points = geometry.integration_points_filling(file.simulation.points, fill)?;
+    let hold = file.simulation.pins;
+    let params = hold.basis_params(
+        BasisParams::default()
+            .with_modes(file.basis.modes)
+            .with_kernels(file.basis.kernels),
+    );
+    let lame = vec![lame; basis_points.len()];
+    let (basis, _, _) = match hold {
+        PinHold::Penalty => build_basis(&basis_points, &lame, &params),
+        PinHold::Exact { .. } => {
+            let regions = hold
+                .basis_regions(&file.scene, &[basis_points.positions(), points.positions()])
+                .map_err(RunError::Scene)?;
+            build_basis_with_regions(
+                &basis_points,
+                &lame,
+                &params,
+                &regions,
+                &RegionConstraintParams::default(),
+            )
+        }
+    }
+    .map_err(SimulateError::Basis)?;
     let basis_seconds = start.elapsed().as_secs_f64();
 
-    let points = geometry.integration_points_filling(file.simulation.points, fill)?;
     let writer = FrameWriter::new(out_dir, &geometry);
     let output =
         DeformationMap::new(&basis, writer.rest_positions()).map_err(SimulateError::OutputMap)?;
@@ -134,6 +155,7 @@ pub fn simulate_scene_file(
         },
         quadrature: file.simulation.quadrature,
         cache_dir,
+        pin_hold: hold,
     };
     let mut frames_written = 0;
     let mut last_z = Vec::new();

@@ -49,6 +49,7 @@ fn rubber<'a>(
         },
         quadrature: Default::default(),
         cache_dir: None,
+        pin_hold: Default::default(),
     }
 }
 

@@ -38,11 +38,15 @@ fn held_basis(points: &IntegrationPoints, regions: &[Vec<usize>]) -> SkinningBas
     )
     .unwrap();
     let params = BasisParams::default().with_kernels(80).with_modes(6);
+    let at: Vec<Vec<Vector3<f64>>> = regions
+        .iter()
+        .map(|r| r.iter().map(|&i| points.positions()[i]).collect())
+        .collect();
     let (basis, _, _) = build_basis_with_regions(
         points,
         &vec![lame; points.len()],
         &params,
-        regions,
+        &at,
         &RegionConstraintParams::default(),
     )
     .unwrap();

@@ -4,7 +4,7 @@
 use std::time::Instant;
 
 use hyperelastic::LameParameters;
-use nalgebra::DMatrix;
+use nalgebra::{DMatrix, Vector3};
 use rkpm_core::{
     IntegrationPoints, KernelError, KernelParams, ShapeFunctionError, ShapeFunctionParams,
     evaluate_shape_functions, place_kernels,
@@ -127,7 +127,7 @@ pub struct BasisReport {
 pub struct HeldRegionsReport {
     /// Number of regions R.
     pub regions: usize,
-    /// Integration points in the regions.
+    /// Points the regions are held at.
     pub points: usize,
     /// `max |W_r − δ_r|` of the region weights on the region points.
     pub max_region_weight_error: f64,
@@ -184,17 +184,19 @@ pub fn build_basis(
 /// weight per region beyond the first (1 on its region, 0 on the others, the material-aware
 /// harmonic extension of H_w elsewhere) and m modes computed among the weights that vanish on
 /// every region ([`crate::solve_constrained_modes`]), so each region moves by the affine
-/// transform of its handles alone. `regions` are disjoint sets of integration point indices.
+/// transform of its handles alone. `regions` holds, per region, the rest points (m) it must be
+/// held at: at least the simulation's integration points in the region (those the simulator
+/// checks), ideally also this assembly's points there.
 ///
 /// # Errors
-/// [`BasisError`] as for [`build_basis`]; [`BasisError::Regions`] for empty, overlapping or
-/// out-of-range regions and regions the kernels cannot separate;
+/// [`BasisError`] as for [`build_basis`]; [`BasisError::Regions`] for empty regions, region
+/// points out of the kernels' reach and regions the kernels cannot separate;
 /// [`BasisError::RegionsNeedDenseSolver`] when the options select the iterative solver.
 pub fn build_basis_with_regions(
     points: &IntegrationPoints,
     materials: &[LameParameters],
     params: &BasisParams,
-    regions: &[Vec<usize>],
+    regions: &[Vec<Vector3<f64>>],
     region_params: &RegionConstraintParams,
 ) -> Result<(SkinningBasis, BasisReport, AssembledMatrices), BasisError> {
     build(points, materials, params, Some((regions, region_params)))
@@ -204,7 +206,7 @@ fn build(
     points: &IntegrationPoints,
     materials: &[LameParameters],
     params: &BasisParams,
-    regions: Option<(&[Vec<usize>], &RegionConstraintParams)>,
+    regions: Option<(&[Vec<Vector3<f64>>], &RegionConstraintParams)>,
 ) -> Result<(SkinningBasis, BasisReport, AssembledMatrices), BasisError> {
     let mut timings = PhaseTimings::default();
     let t = Instant::now();
@@ -239,7 +241,8 @@ fn build(
                 Some((regions, region_params)) => {
                     let constrained = solve_constrained_modes(
                         &matrices,
-                        &shape,
+                        &kernels,
+                        &params.shape_functions,
                         regions,
                         &params.eigen,
                         region_params,

@@ -1,8 +1,9 @@
 //! Skinning weights for exactly held regions (issue 25): one weight per region, 1 on its region
 //! and 0 on the others, and m eigenmodes that vanish on every region.
 //!
-//! With regions Ω_0 … Ω_{R-1} (sets of integration points) and `C` the P × K matrix of shape
-//! function values `ϕ_k(X_p)` at the region points:
+//! With regions Ω_0 … Ω_{R-1}, each given by rest points X_p (those that must be held: the
+//! simulation's integration points in the region, and as many more as the region should be
+//! held on), and `C` the P × K matrix of shape function values `ϕ_k(X_p)` at all of them:
 //!
 //! ```text
 //! region weights  a_r = argmin aᵀ H_w a   subject to  C a = δ_r        (harmonic extension)
@@ -28,7 +29,8 @@
 
 use faer::linalg::solvers::Solve;
 use faer::{Mat, MatRef, Side};
-use rkpm_core::ShapeFunctions;
+use nalgebra::Vector3;
+use rkpm_core::{Kernels, ShapeFunctionError, ShapeFunctionParams, evaluate_shape_functions};
 use serde::{Deserialize, Serialize};
 
 use crate::assembly::WeightSpaceMatrices;
@@ -68,26 +70,10 @@ pub enum RegionError {
         /// Its index.
         region: usize,
     },
-    /// A point index is out of range.
-    #[error("region {region} names point {point}, but there are only {points} integration points")]
-    PointOutOfRange {
-        /// The region.
-        region: usize,
-        /// The index.
-        point: usize,
-        /// Number of integration points.
-        points: usize,
-    },
-    /// A point belongs to two regions.
-    #[error("point {point} belongs to regions {first} and {second}")]
-    Overlap {
-        /// The point.
-        point: usize,
-        /// The first region naming it.
-        first: usize,
-        /// The second.
-        second: usize,
-    },
+    /// The shape functions could not be evaluated at a region point (outside the kernels'
+    /// reach, or not finite).
+    #[error("region points: {0}")]
+    ShapeFunctions(#[from] ShapeFunctionError),
     /// The kernels cannot make a weight that is 1 on one region and 0 on the others.
     #[error(
         "region {region}: the best weight is off by {error:e} on the regions (limit {limit:e}); the regions are too close for the kernels to separate them"
@@ -139,31 +125,41 @@ pub struct ConstrainedModes {
 }
 
 /// Region weights and the m modes that vanish on the regions (module docs for the method).
-/// `shape` holds the shape functions at the integration points the regions index.
+/// `matrices` are 𝓜 and H_w of `kernels` with shape functions `shape_params`; `regions` are the
+/// rest points (m) of each region.
 ///
 /// # Errors
-/// [`RegionError`]: no region, an empty or overlapping region, an index out of range, regions
-/// the kernels cannot separate, or a failed eigen solve (m larger than the free directions).
+/// [`RegionError`]: no region, an empty region, a region point the kernels do not reach,
+/// regions the kernels cannot separate, or a failed eigen solve (m larger than the free
+/// directions).
 pub fn solve_constrained_modes(
     matrices: &WeightSpaceMatrices,
-    shape: &ShapeFunctions,
-    regions: &[Vec<usize>],
+    kernels: &Kernels,
+    shape_params: &ShapeFunctionParams,
+    regions: &[Vec<Vector3<f64>>],
     eigen: &EigenParams,
     params: &RegionConstraintParams,
 ) -> Result<ConstrainedModes, RegionError> {
-    check_regions(regions, shape.point_count())?;
+    if regions.is_empty() {
+        return Err(RegionError::NoRegions);
+    }
+    if let Some(region) = regions.iter().position(Vec::is_empty) {
+        return Err(RegionError::EmptyRegion { region });
+    }
     if eigen.modes == 0 {
         return Err(EigenError::NoModes.into());
     }
-    let k = shape.kernel_count();
-    let rows: Vec<(usize, usize)> = regions
+    let k = kernels.len();
+    let region_points: Vec<Vector3<f64>> = regions.iter().flatten().copied().collect();
+    let shape = evaluate_shape_functions(kernels, &region_points, shape_params)?;
+    let rows: Vec<usize> = regions
         .iter()
         .enumerate()
-        .flat_map(|(r, points)| points.iter().map(move |&p| (r, p)))
+        .flat_map(|(r, points)| std::iter::repeat_n(r, points.len()))
         .collect();
     let mut c = Mat::<f64>::zeros(rows.len(), k);
-    for (row, &(_, p)) in rows.iter().enumerate() {
-        for (&kernel, &phi) in shape.kernels(p).iter().zip(shape.values(p)) {
+    for row in 0..rows.len() {
+        for (&kernel, &phi) in shape.kernels(row).iter().zip(shape.values(row)) {
             c[(row, kernel as usize)] = phi;
         }
     }
@@ -205,7 +201,7 @@ pub fn solve_constrained_modes(
             })?;
     let mut region_coefficients = Mat::<f64>::zeros(k, regions.len());
     for r in 0..regions.len() {
-        let delta = Mat::from_fn(rows.len(), 1, |row, _| f64::from(rows[row].0 == r));
+        let delta = Mat::from_fn(rows.len(), 1, |row, _| f64::from(rows[row] == r));
         let mut particular = Mat::<f64>::zeros(k, 1);
         for &i in &kept {
             let coefficient = (0..rows.len())
@@ -226,7 +222,7 @@ pub fn solve_constrained_modes(
     let mut max_region_weight_error = 0.0_f64;
     for r in 0..regions.len() {
         let error = (0..rows.len())
-            .map(|row| (on_regions[(row, r)] - f64::from(rows[row].0 == r)).abs())
+            .map(|row| (on_regions[(row, r)] - f64::from(rows[row] == r)).abs())
             .fold(0.0, f64::max);
         if !(error <= params.max_region_weight_error) {
             return Err(RegionError::NotSeparable {
@@ -265,37 +261,6 @@ pub fn solve_constrained_modes(
         mass_condition_number: pencil.mass_condition_number,
         discarded_mass_directions: pencil.discarded_mass_directions,
     })
-}
-
-/// Non-empty, in range, pairwise disjoint.
-fn check_regions(regions: &[Vec<usize>], points: usize) -> Result<(), RegionError> {
-    if regions.is_empty() {
-        return Err(RegionError::NoRegions);
-    }
-    let mut owner = vec![usize::MAX; points];
-    for (region, members) in regions.iter().enumerate() {
-        if members.is_empty() {
-            return Err(RegionError::EmptyRegion { region });
-        }
-        for &point in members {
-            if point >= points {
-                return Err(RegionError::PointOutOfRange {
-                    region,
-                    point,
-                    points,
-                });
-            }
-            if owner[point] != usize::MAX && owner[point] != region {
-                return Err(RegionError::Overlap {
-                    point,
-                    first: owner[point],
-                    second: region,
-                });
-            }
-            owner[point] = region;
-        }
-    }
-    Ok(())
 }
 
 fn symmetric(a: &Mat<f64>) -> Mat<f64> {

@@ -26,6 +26,14 @@ fn ends(points: &IntegrationPoints) -> Vec<Vec<usize>> {
     vec![select(&|x| x < 0.5), select(&|x| x > 4.5)]
 }
 
+/// The rest positions of the points `regions` index.
+fn at(points: &IntegrationPoints, regions: &[Vec<usize>]) -> Vec<Vec<Vector3<f64>>> {
+    regions
+        .iter()
+        .map(|r| r.iter().map(|&i| points.positions()[i]).collect())
+        .collect()
+}
+
 fn params() -> BasisParams {
     BasisParams::default().with_kernels(200).with_modes(6)
 }
@@ -41,8 +49,9 @@ fn region_weights_are_one_on_their_region_zero_on_the_others_and_sum_to_one() {
     let matrices = assemble_weight_space_matrices(&shape, points.volumes(), &materials).unwrap();
     let modes = solve_constrained_modes(
         &matrices,
-        &shape,
-        &regions,
+        &kernels,
+        &params.shape_functions,
+        &at(&points, &regions),
         &EigenParams {
             modes: 6,
             ..EigenParams::default()
@@ -109,7 +118,7 @@ fn a_basis_with_held_regions_evaluates_constant_region_weights_then_vanishing_mo
         &points,
         &materials,
         &params(),
-        &regions,
+        &at(&points, &regions),
         &RegionConstraintParams::default(),
     )
     .unwrap();
@@ -147,7 +156,7 @@ fn bad_regions_are_named() {
             &points,
             &materials,
             &params(),
-            regions,
+            &at(&points, regions),
             &RegionConstraintParams::default(),
         )
         .err()
@@ -160,13 +169,20 @@ fn bad_regions_are_named() {
         run(&[vec![0], vec![]]),
         Some(BasisError::Regions(RegionError::EmptyRegion { region: 1 }))
     ));
+    let far = build_basis_with_regions(
+        &points,
+        &materials,
+        &params(),
+        &[vec![Vector3::new(50.0, 0.0, 0.0)]],
+        &RegionConstraintParams::default(),
+    );
     assert!(matches!(
-        run(&[vec![points.len()]]),
-        Some(BasisError::Regions(RegionError::PointOutOfRange { .. }))
+        far,
+        Err(BasisError::Regions(RegionError::ShapeFunctions(_)))
     ));
     assert!(matches!(
         run(&[vec![0, 1], vec![1]]),
-        Some(BasisError::Regions(RegionError::Overlap { point: 1, .. }))
+        Some(BasisError::Regions(RegionError::NotSeparable { .. }))
     ));
     // Two slabs that touch cannot carry weights 1 and 0 across one point spacing.
     let slab = |lo: f64, hi: f64| -> Vec<usize> {

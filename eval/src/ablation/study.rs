@@ -39,6 +39,7 @@ impl AblationStudyConfig {
             base: BeamStudyConfig {
                 modes: vec![16],
                 simplicits: base.simplicits.or(Some(SimplicitsParams::default())),
+                exact_pins: false,
                 ..base
             },
             coefficient_ablations: true,

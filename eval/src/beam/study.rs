@@ -5,13 +5,18 @@ use optimize::NewtonParams;
 use std::path::{Path, PathBuf};
 
 use baselines::SimplicitsParams;
+use freeform::PinHold;
+use nalgebra::Vector3;
 use reduced_sim::{QuadratureReport, SkinningField};
 use serde::{Deserialize, Serialize};
 
 use crate::EvalError;
-use crate::beam::reduced::{ReducedSettings, build_beam_basis, run_reduced_beam_with};
+use crate::beam::reduced::{
+    ReducedSettings, build_beam_basis, build_beam_basis_for, exact_pin_hold,
+    run_reduced_beam_with,
+};
 use crate::beam::simplicits::train_beam_simplicits;
-use crate::beam::{BEAM_MAX, BEAM_MIN, BeamTest, beam_material};
+use crate::beam::{BEAM_MAX, BEAM_MIN, BEAM_TIME_STEP, BeamTest, beam_material};
 use crate::fem_reference::{FemResolution, FemRun, run_fem_beam};
 use crate::metrics::TrajectoryErrors;
 use crate::progress::Progress;
@@ -39,6 +44,10 @@ pub struct BeamStudyConfig {
     pub simplicits: Option<SimplicitsParams>,
     /// Cache folder (FEM trajectories under `fem/`, networks under `simplicits/`).
     pub cache_dir: PathBuf,
+    /// Also run every (test, m) with the pinned regions held exactly ([`exact_pin_hold`], a
+    /// basis per test), beside the penalty (issue 25).
+    #[serde(default)]
+    pub exact_pins: bool,
 }
 
 impl BeamStudyConfig {
@@ -54,6 +63,7 @@ impl BeamStudyConfig {
             fem_newton: NewtonParams::default(),
             simplicits: Some(SimplicitsParams::default()),
             cache_dir,
+            exact_pins: true,
         }
     }
 
@@ -113,12 +123,63 @@ pub struct BeamRow {
     pub quadrature: Option<QuadratureReport>,
     /// Steps that did not converge.
     pub unconverged_steps: usize,
-    /// Largest pinned-point drift (m).
+    /// Largest pinned-point drift (m): of the integration points the simulator holds.
     pub max_pin_deviation: f64,
+    /// Largest distance (m) of an FEM vertex in a constrained region from its target over the
+    /// run: the drift of what the FEM holds exactly.
+    #[serde(default)]
+    pub region_drift: f64,
+    /// The same run with the regions held exactly, if it was run.
+    #[serde(default)]
+    pub exact: Option<ExactRow>,
     /// Basis build time (s).
     pub basis_seconds: f64,
     /// The Simplicits baseline at the same m, if it was run.
     pub simplicits: Option<BaselineRow>,
+}
+
+/// A (test, m) run with the pinned regions held exactly ([`exact_pin_hold`]).
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+pub struct ExactRow {
+    /// The inset of the held regions (m).
+    pub inset: f64,
+    /// Normalized MSE against FEM.
+    pub mse: f64,
+    /// Normalized max error against FEM.
+    pub max: f64,
+    /// Largest drift of the held integration points (m).
+    pub max_pin_deviation: f64,
+    /// Largest drift of the FEM vertices in the (whole) constrained regions (m).
+    pub region_drift: f64,
+    /// Wall time per step (ms).
+    pub ms_per_step: f64,
+    /// Steps that did not converge.
+    pub unconverged_steps: usize,
+    /// Basis build time (s).
+    pub basis_seconds: f64,
+}
+
+/// The largest distance (m) of a vertex in one of `test`'s constrained regions from its target,
+/// over `frames` (frame f at t = f h) of positions at `vertices`.
+pub(crate) fn region_drift(
+    test: BeamTest,
+    vertices: &[Vector3<f64>],
+    frames: &[Vec<Vector3<f64>>],
+) -> f64 {
+    let scene = test.scene();
+    let mut drift: f64 = 0.0;
+    for c in &scene.constraints {
+        let inside: Vec<usize> = (0..vertices.len())
+            .filter(|&i| c.region.contains(&vertices[i]))
+            .collect();
+        for (f, frame) in frames.iter().enumerate() {
+            let t = f as f64 * BEAM_TIME_STEP;
+            for &i in &inside {
+                drift = drift.max((frame[i] - c.motion.at(&vertices[i], t)).norm());
+            }
+        }
+    }
+    drift
 }
 
 /// A baseline's result for one (test, m).
@@ -201,6 +262,14 @@ pub fn run_beam_study(
         };
         progress.status(format!("basis m = {m}, K = {}", settings.kernels));
         let basis = build_beam_basis(&settings)?;
+        let exact = if config.exact_pins {
+            Some(ReducedSettings {
+                pins: exact_pin_hold(&settings)?,
+                ..settings
+            })
+        } else {
+            None
+        };
         let simplicits = match &config.simplicits {
             Some(params) => Some(train_beam_simplicits(
                 &SimplicitsParams {
@@ -260,6 +329,13 @@ pub fn run_beam_study(
                 quadrature: Some(ours.run.report.quadrature.clone()),
                 unconverged_steps: ours.run.report.unconverged_steps,
                 max_pin_deviation: ours.run.report.max_pin_deviation,
+                region_drift: region_drift(*test, reference.vertices(), &ours.run.frames),
+                exact: match &exact {
+                    Some(exact) => Some(evaluate_exact(
+                        *test, exact, &settings, reference, steps, config, progress,
+                    )?),
+                    None => None,
+                },
                 basis_seconds: basis.seconds,
                 simplicits,
             });
@@ -331,6 +407,49 @@ pub(crate) struct FieldEvaluation {
     pub(crate) errors: TrajectoryErrors,
     pub(crate) per_frame_mse: Vec<f64>,
     pub(crate) fitting_residual: f64,
+}
+
+/// `test` with the regions held exactly (`exact.pins`): a basis built for the test's regions,
+/// run and scored against the reference.
+fn evaluate_exact(
+    test: BeamTest,
+    exact: &ReducedSettings,
+    settings: &ReducedSettings,
+    reference: &FemRun,
+    steps: usize,
+    config: &BeamStudyConfig,
+    progress: &Progress,
+) -> Result<ExactRow, EvalError> {
+    let PinHold::Exact { inset } = exact.pins else {
+        return Err(EvalError::InvalidInput(
+            "exact rows need PinHold::Exact settings".into(),
+        ));
+    };
+    progress.status(format!(
+        "basis m = {} held exactly for {} (inset {inset:.3} m)",
+        settings.modes,
+        test.name()
+    ));
+    let basis = build_beam_basis_for(test, exact)?;
+    let run = evaluate_field(
+        test,
+        &basis.basis,
+        exact,
+        reference,
+        steps,
+        &config.cache_dir,
+        progress,
+    )?;
+    Ok(ExactRow {
+        inset,
+        mse: run.errors.normalized_mse,
+        max: run.errors.normalized_max,
+        max_pin_deviation: run.run.report.max_pin_deviation,
+        region_drift: region_drift(test, reference.vertices(), &run.run.frames),
+        ms_per_step: run.run.report.ms_per_step,
+        unconverged_steps: run.run.report.unconverged_steps,
+        basis_seconds: basis.seconds,
+    })
 }
 
 /// Simulates `test` with `field` and scores it at the reference's vertices.

@@ -557,6 +557,7 @@ impl BoundaryRun<'_> {
                     // The paper's setting; Table 2 does not yet compare quadratures.
                     quadrature: QuadratureRule::Full,
                     cache_dir: None,
+                    pin_hold: Default::default(),
                 },
                 output_points: self.fem.vertices(),
                 steps: self.steps,

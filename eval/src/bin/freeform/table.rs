@@ -71,6 +71,10 @@ pub(crate) struct TableOptions {
     /// tables used `p-wave` with factor 1e3).
     #[arg(long, value_enum)]
     pin_modulus: Option<PinModulusChoice>,
+    /// Leave out Table 1's exact-pin columns (each (test, m) is run a second time with the
+    /// pinned regions held exactly, on a basis built for them).
+    #[arg(long)]
+    skip_exact: bool,
 }
 
 /// `--pin-modulus`.
@@ -109,6 +113,7 @@ pub(crate) fn run(
         hessian_reuse,
         pin_factor,
         pin_modulus,
+        skip_exact,
     }: TableOptions,
     out: &Path,
     cache: &Path,
@@ -129,6 +134,8 @@ pub(crate) fn run(
         // Timing only needs the Bend.
         config.tests = vec![BeamTest::Bend];
     }
+    // Only Table 1 prints the exact-pin columns.
+    config.exact_pins = !skip_exact && numbers.contains(&1);
     if let Some(modes) = &modes {
         if modes.contains(&0) {
             bail!("--modes: every m must be at least 1");
