@@ -220,7 +220,7 @@ fn short_training_lowers_the_loss_deterministically_and_the_field_simulates() {
             target: PinTarget::Rest,
         }],
         floor: None,
-        pin_treatment: Default::default(),
+        held: Vec::new(),
     };
     let mut sim = Simulator::new(model, &scene, SimulationParams::default()).unwrap();
     for _ in 0..3 {

@@ -11,8 +11,11 @@ use reduced_sim::{PinModulus, SimulationParams};
 use serde::{Deserialize, Serialize};
 
 use crate::EvalError;
-use crate::beam::reduced::{ReducedSettings, build_beam_basis, run_reduced_beam_with};
-use crate::beam::study::beam_length_scale;
+use crate::beam::reduced::{
+    EXACT_INSET_KERNEL_RADII, ReducedSettings, build_beam_basis, build_beam_basis_for,
+    exact_pin_hold, run_reduced_beam_with,
+};
+use crate::beam::study::{beam_length_scale, region_drift};
 use crate::beam::{BeamTest, beam_material};
 use crate::fem_reference::{FemResolution, run_fem_beam_with};
 use crate::metrics::trajectory_errors;
@@ -40,6 +43,10 @@ pub struct PinSweepConfig {
     pub fem: FemResolution,
     /// Cache folder.
     pub cache_dir: PathBuf,
+    /// Also run each (ν, test, m) with the regions held exactly, shrunk by this many median
+    /// kernel radii ([`exact_pin_hold`]); `None` leaves them out.
+    #[serde(default)]
+    pub exact_inset_radii: Option<f64>,
 }
 
 impl PinSweepConfig {
@@ -59,6 +66,7 @@ impl PinSweepConfig {
             steps: None,
             fem: FemResolution::GROUND_TRUTH,
             cache_dir,
+            exact_inset_radii: Some(EXACT_INSET_KERNEL_RADII),
         }
     }
 
@@ -108,11 +116,37 @@ pub struct PinSweepRow {
     pub failure: Option<String>,
 }
 
+/// One (ν, test, m) run with the regions held exactly.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+pub struct ExactSweepRow {
+    /// Poisson ratio.
+    pub poisson_ratio: f64,
+    /// Bend or Twist.
+    pub test: BeamTest,
+    /// Modes.
+    pub m: usize,
+    /// Normalized MSE against the FEM at the same ν.
+    pub mse: f64,
+    /// Normalized max error.
+    pub max: f64,
+    /// Largest drift of the exactly held points (m).
+    pub max_held_deviation: f64,
+    /// Largest drift of the FEM vertices in the whole constrained regions (m).
+    pub region_drift: f64,
+    /// Steps that did not converge.
+    pub unconverged_steps: usize,
+    /// Why the run stopped, when it did (then the errors are NaN).
+    pub failure: Option<String>,
+}
+
 /// The sweep's rows and the references it could not score against.
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
 pub struct PinSweep {
     /// One per (ν, test, m, modulus, factor) whose FEM reference converged.
     pub rows: Vec<PinSweepRow>,
+    /// One per (ν, test, m) with exact pins, when the sweep ran them.
+    #[serde(default)]
+    pub exact_rows: Vec<ExactSweepRow>,
     /// "ν = …, test: why" for each FEM reference with an unconverged step (its test has no rows
     /// at that ν).
     pub refused_references: Vec<String>,
@@ -126,6 +160,7 @@ pub struct PinSweep {
 /// `failure`.
 pub fn run_pin_sweep(config: &PinSweepConfig, progress: &Progress) -> Result<PinSweep, EvalError> {
     let mut rows = Vec::new();
+    let mut exact_rows = Vec::new();
     let mut refused_references = Vec::new();
     for &nu in &config.poisson_ratios {
         let material = MaterialSample {
@@ -156,6 +191,56 @@ pub fn run_pin_sweep(config: &PinSweepConfig, progress: &Progress) -> Result<Pin
                 };
                 // A uniform material scales the weight-space Hessian, not its eigenvectors: one
                 // basis serves every ν.
+                if let Some(radii) = config.exact_inset_radii {
+                    let exact = ReducedSettings {
+                        pins: exact_pin_hold(&base, radii)?,
+                        ..base
+                    };
+                    let basis = build_beam_basis_for(test, &exact)?;
+                    let run = run_reduced_beam_with(
+                        test,
+                        &basis.basis,
+                        &exact,
+                        material,
+                        Some(&config.cache_dir),
+                        fem.vertices(),
+                        steps,
+                        progress,
+                    );
+                    let mut row = ExactSweepRow {
+                        poisson_ratio: nu,
+                        test,
+                        m,
+                        mse: f64::NAN,
+                        max: f64::NAN,
+                        max_held_deviation: f64::NAN,
+                        region_drift: f64::NAN,
+                        unconverged_steps: 0,
+                        failure: None,
+                    };
+                    match run {
+                        Ok(run) => {
+                            let errors = trajectory_errors(
+                                &run.frames[1..],
+                                &reference[1..],
+                                beam_length_scale(),
+                            )?;
+                            row.mse = errors.normalized_mse;
+                            row.max = errors.normalized_max;
+                            row.max_held_deviation = run.report.max_held_deviation;
+                            row.region_drift = region_drift(test, fem.vertices(), &run.frames);
+                            row.unconverged_steps = run.report.unconverged_steps;
+                        }
+                        Err(e) => row.failure = Some(failure_chain(&e)),
+                    }
+                    progress.status(format!(
+                        "ν = {nu} {} m = {m} exact: MSE {:.3e}, held drift {:.2e} m",
+                        test.name(),
+                        row.mse,
+                        row.max_held_deviation
+                    ));
+                    exact_rows.push(row);
+                }
                 let basis = build_beam_basis(&base)?;
                 for &modulus in &config.moduli {
                     for &factor in &config.factors {
@@ -217,6 +302,7 @@ pub fn run_pin_sweep(config: &PinSweepConfig, progress: &Progress) -> Result<Pin
     }
     Ok(PinSweep {
         rows,
+        exact_rows,
         refused_references,
     })
 }
@@ -301,6 +387,67 @@ pub fn pin_sweep_table(config: &PinSweepConfig, sweep: &PinSweep) -> String {
     md
 }
 
+/// The exact-pin rows as Markdown beside the best penalty of each (test, m, ν) (empty when the
+/// sweep ran none).
+pub fn exact_sweep_table(config: &PinSweepConfig, sweep: &PinSweep) -> String {
+    let Some(radii) = config.exact_inset_radii else {
+        return String::new();
+    };
+    let mut md = format!(
+        "\n## Exact pins beside the best penalty\n\nRegions held exactly on the region shrunk by \
+         {radii} median kernel radii (compact kernels, a basis per test), the band between kept \
+         by the penalty. Drift: held points / FEM vertices of the whole region (m). Best \
+         penalty: the lowest MSE of the sweep's factors and moduli at that (test, m, ν).\n\n\
+         | test | m |"
+    );
+    for nu in &config.poisson_ratios {
+        let _ = write!(
+            md,
+            " exact MSE ν={nu} | drift ν={nu} | best penalty ν={nu} |"
+        );
+    }
+    md += "\n|---|---|";
+    md += &"---|---|---|".repeat(config.poisson_ratios.len());
+    md += "\n";
+    for &test in &config.tests {
+        for &m in &config.modes {
+            let _ = write!(md, "| {} | {m} |", test.name());
+            for &nu in &config.poisson_ratios {
+                let exact = sweep
+                    .exact_rows
+                    .iter()
+                    .find(|r| r.test == test && r.m == m && r.poisson_ratio == nu);
+                let best = sweep
+                    .rows
+                    .iter()
+                    .filter(|r| {
+                        r.test == test && r.m == m && r.poisson_ratio == nu && r.failure.is_none()
+                    })
+                    .map(|r| r.mse)
+                    .min_by(f64::total_cmp);
+                let best = best.map_or("—".to_string(), |v| format!("{v:.3e}"));
+                match exact {
+                    Some(r) if r.failure.is_some() => {
+                        let _ = write!(md, " failed | — | {best} |");
+                    }
+                    Some(r) => {
+                        let _ = write!(
+                            md,
+                            " {:.3e} | {:.1e} / {:.2e} | {best} |",
+                            r.mse, r.max_held_deviation, r.region_drift
+                        );
+                    }
+                    None => {
+                        let _ = write!(md, " — | — | {best} |");
+                    }
+                }
+            }
+            md += "\n";
+        }
+    }
+    md
+}
+
 /// "λ+2μ" or "E".
 fn modulus_name(modulus: PinModulus) -> &'static str {
     match modulus {
@@ -359,6 +506,17 @@ mod tests {
         ];
         let sweep = PinSweep {
             rows,
+            exact_rows: vec![ExactSweepRow {
+                poisson_ratio: 0.3,
+                test: BeamTest::Bend,
+                m: 16,
+                mse: 5e-5,
+                max: 1e-2,
+                max_held_deviation: 1e-12,
+                region_drift: 2e-2,
+                unconverged_steps: 0,
+                failure: None,
+            }],
             refused_references: vec!["ν = 0.3, twist: not converged".into()],
         };
         let md = pin_sweep_table(&config, &sweep);
@@ -376,6 +534,16 @@ mod tests {
         assert!(
             lines[1].contains("1.000e-4 ★") && lines[1].contains("failed"),
             "{md}"
+        );
+        // The exact row sits beside the best penalty of its (test, m, ν).
+        let exact = exact_sweep_table(&config, &sweep);
+        let line = exact
+            .lines()
+            .find(|l| l.starts_with("| bend | 16 |"))
+            .expect("an exact row");
+        assert!(
+            line.contains("5.000e-5 | 1.0e-12 / 2.00e-2 | 1.000e-4 |"),
+            "{exact}"
         );
     }
 }

@@ -44,7 +44,7 @@ fn tiny_study_fills_tables_1_5_6_with_paper_columns_and_consistent_json() {
             ..SimplicitsParams::default()
         }),
         cache_dir: dir.join("cache"),
-        exact_pins: false,
+        exact_pins: None,
     };
     let study = run_beam_study(&config, &quiet()).unwrap();
     assert_eq!(study.rows.len(), 2);
@@ -145,7 +145,7 @@ fn a_reference_with_unconverged_frames_is_refused_by_the_tables_with_the_frames_
         },
         simplicits: None,
         cache_dir: dir.join("cache"),
-        exact_pins: false,
+        exact_pins: None,
     };
     let study = run_beam_study(&config, &quiet()).unwrap();
     let twist = study
@@ -202,7 +202,7 @@ fn table1_runs_both_pin_treatments_and_the_exact_rows_hold_their_regions() {
         fem_newton: NewtonParams::default(),
         simplicits: None,
         cache_dir: dir.join("cache"),
-        exact_pins: true,
+        exact_pins: Some(1.5),
     };
     let study = run_beam_study(&config, &quiet()).unwrap();
     let t1 = table1(&study);

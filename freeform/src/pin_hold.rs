@@ -10,7 +10,7 @@
 //! free and drift by about as much as the penalty lets them (2 cm on the 5 m beam).
 
 use nalgebra::Vector3;
-use reduced_sim::PinTreatment;
+use reduced_sim::{PinnedRegion, Scene};
 use rkpm_core::{KernelWindow, ShapeFunctionParams};
 use skin_eigen::BasisParams;
 use serde::{Deserialize, Serialize};
@@ -24,9 +24,9 @@ pub enum PinHold {
     /// The penalty of [`reduced_sim::PenaltyParams`] on every point of each region (default).
     #[default]
     Penalty,
-    /// Exactly ([`PinTreatment::Subspace`]) on each region shrunk by `inset` (m); the basis must
-    /// be built for these regions ([`PinHold::basis_regions`] and
-    /// [`skin_eigen::build_basis_with_regions`]).
+    /// Exactly ([`Scene::held`]) on each region shrunk by `inset` (m), the rest of the region
+    /// by the penalty; the basis must be built for the shrunk regions
+    /// ([`PinHold::basis_regions`] and [`skin_eigen::build_basis_with_regions`]).
     Exact {
         /// How far inside each region's boundary the held points start (m, ≥ 0).
         inset: f64,
@@ -51,12 +51,45 @@ impl PinHold {
         }
     }
 
-    /// The simulator's treatment.
-    pub fn treatment(&self) -> PinTreatment {
-        match self {
-            PinHold::Penalty => PinTreatment::Penalty,
-            PinHold::Exact { .. } => PinTreatment::Subspace,
+    /// The reduced simulator's scene on integration points `points`: every constraint held by
+    /// the penalty ([`SceneSpec::reduced_scene`]); or, for exact holding, each constraint's
+    /// inset region in [`Scene::held`] and the band between the inset and the region's boundary
+    /// kept by the penalty in [`Scene::pins`] (bands without points left out).
+    ///
+    /// # Errors
+    /// As [`PinHold::held_scene`] and [`SceneSpec::select`] (a held region that selects no
+    /// integration point).
+    pub fn reduced_scene(
+        &self,
+        scene: &SceneSpec,
+        points: &[Vector3<f64>],
+    ) -> Result<Scene, SceneSpecError> {
+        let full = scene.reduced_scene(points)?;
+        if *self == PinHold::Penalty {
+            return Ok(full);
         }
+        let held = self.held_scene(scene)?.reduced_scene(points)?.pins;
+        let band = full
+            .pins
+            .into_iter()
+            .zip(&held)
+            .filter_map(|(region, inner)| {
+                let points: Vec<usize> = region
+                    .points
+                    .into_iter()
+                    .filter(|p| !inner.points.contains(p))
+                    .collect();
+                (!points.is_empty()).then_some(PinnedRegion {
+                    points,
+                    target: region.target,
+                })
+            })
+            .collect();
+        Ok(Scene {
+            pins: band,
+            held,
+            ..full
+        })
     }
 
     /// The scene whose constrained regions the simulator holds: `scene` itself for the penalty,
@@ -177,6 +210,31 @@ mod tests {
             })
         );
         assert_eq!(ball.inset(0.3), None);
+    }
+
+    #[test]
+    fn exact_holding_splits_each_region_into_a_held_core_and_a_penalized_band() {
+        let points = [
+            Vector3::new(0.1, 0.0, 0.0),
+            Vector3::new(0.45, 0.0, 0.0),
+            Vector3::new(2.0, 0.0, 0.0),
+        ];
+        let penalty = PinHold::Penalty.reduced_scene(&clamp(), &points).unwrap();
+        assert_eq!(penalty.pins[0].points, vec![0, 1]);
+        assert!(penalty.held.is_empty());
+        let exact = PinHold::Exact { inset: 0.1 }
+            .reduced_scene(&clamp(), &points)
+            .unwrap();
+        assert_eq!(exact.held.len(), 1);
+        assert_eq!(exact.held[0].points, vec![0]);
+        assert_eq!(exact.pins.len(), 1);
+        assert_eq!(exact.pins[0].points, vec![1]);
+        // No band left: no penalized region at all.
+        let whole = PinHold::Exact { inset: 0.0 }
+            .reduced_scene(&clamp(), &points)
+            .unwrap();
+        assert_eq!(whole.held[0].points, vec![0, 1]);
+        assert!(whole.pins.is_empty());
     }
 
     #[test]

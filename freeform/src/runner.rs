@@ -75,16 +75,19 @@ pub struct RunReport {
     pub hessians_per_step: f64,
     /// Steps whose Newton solve stopped unconverged (the run goes on; the caller decides).
     pub unconverged_steps: usize,
-    /// Largest distance of a held integration point from its target over the run (m; with
-    /// [`PinHold::Exact`], of the points inside the inset regions).
+    /// Largest distance of a constrained integration point from its target over the run (m).
     pub max_pin_deviation: f64,
+    /// The same for the exactly held points alone ([`PinHold::Exact`]'s inset regions; 0
+    /// without them).
+    pub max_held_deviation: f64,
     /// Model and scene setup, quadrature included (s).
     pub setup_seconds: f64,
     /// The elastic quadrature the run used (kind, points, cubature report).
     pub quadrature: QuadratureReport,
     /// Integration points simulated.
     pub simulation_points: usize,
-    /// Integration points held in each constrained region of the scene.
+    /// Integration points in each region of the reduced scene: those kept by the penalty, then
+    /// the exactly held ones.
     pub region_points: Vec<usize>,
 }
 
@@ -154,12 +157,15 @@ where
         .quadrature
         .apply_cached(model, simulation.cache_dir)
         .map_err(RunError::Quadrature)?;
-    let mut scene = simulation
+    let scene = simulation
         .pin_hold
-        .held_scene(simulation.scene)?
-        .reduced_scene(model.rest_positions())?;
-    scene.pin_treatment = simulation.pin_hold.treatment();
-    let region_points = scene.pins.iter().map(|p| p.points.len()).collect();
+        .reduced_scene(simulation.scene, model.rest_positions())?;
+    let region_points = scene
+        .pins
+        .iter()
+        .chain(&scene.held)
+        .map(|p| p.points.len())
+        .collect();
     let mut sim = Simulator::new(model, &scene, simulation.params).map_err(RunError::Simulator)?;
     let setup_seconds = start.elapsed().as_secs_f64();
 
@@ -178,7 +184,7 @@ where
     notify(&sim, 0, None)?;
     let (mut iterations, mut unconverged, mut hessians) = (0usize, 0usize, 0usize);
     let (mut stepping, mut assembly, mut solve, mut line_search) = (0.0, 0.0, 0.0, 0.0);
-    let mut max_pin_deviation: f64 = 0.0;
+    let (mut max_pin_deviation, mut max_held_deviation): (f64, f64) = (0.0, 0.0);
     for step in 1..=steps {
         let t = Instant::now();
         let report = sim
@@ -192,6 +198,7 @@ where
         hessians += report.hessian_assemblies;
         unconverged += usize::from(!report.converged());
         max_pin_deviation = max_pin_deviation.max(sim.max_pin_deviation().unwrap_or(0.0));
+        max_held_deviation = max_held_deviation.max(sim.max_held_deviation().unwrap_or(0.0));
         notify(&sim, step, Some(&report))?;
     }
     let n = steps.max(1) as f64;
@@ -205,6 +212,7 @@ where
         hessians_per_step: hessians as f64 / n,
         unconverged_steps: unconverged,
         max_pin_deviation,
+        max_held_deviation,
         setup_seconds,
         quadrature,
         simulation_points: points.len(),

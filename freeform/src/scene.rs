@@ -10,7 +10,7 @@ use std::sync::Arc;
 
 use fem_ref::{DirichletRegion, FemFloor, FemScene, NodeTarget};
 use nalgebra::{Rotation3, Unit, Vector3};
-use reduced_sim::{Floor, PinTarget, PinTreatment, PinnedRegion, Scene, TargetFunction};
+use reduced_sim::{Floor, PinTarget, PinnedRegion, Scene, TargetFunction};
 use serde::{Deserialize, Serialize};
 use thiserror::Error;
 
@@ -289,7 +289,7 @@ impl SceneSpec {
                 normal: f.normal.normalize(),
                 offset: f.offset,
             }),
-            pin_treatment: PinTreatment::Penalty,
+            held: Vec::new(),
         })
     }
 

@@ -33,6 +33,12 @@ pub struct SimulateReport {
     pub ms_per_step: f64,
     /// Steps that did not converge.
     pub unconverged_steps: usize,
+    /// Largest distance of a constrained integration point from its target over the run (m).
+    #[serde(default)]
+    pub max_pin_deviation: f64,
+    /// The same for the exactly held points alone (`pins = { exact = … }`; 0 otherwise).
+    #[serde(default)]
+    pub max_held_deviation: f64,
     /// Frames written.
     pub frames_written: usize,
     /// Integration points simulated.
@@ -196,6 +202,8 @@ pub fn simulate_scene_file(
     let report = SimulateReport {
         basis_seconds,
         ms_per_step: report.ms_per_step,
+        max_pin_deviation: report.max_pin_deviation,
+        max_held_deviation: report.max_held_deviation,
         unconverged_steps: report.unconverged_steps,
         frames_written,
         simulation_points: points.len(),

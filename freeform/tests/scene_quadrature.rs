@@ -97,3 +97,28 @@ fn a_falling_box_on_a_cubature_falls_exactly_as_on_every_point() {
         );
     }
 }
+
+#[test]
+fn a_scene_file_with_exact_pins_holds_its_clamped_end_on_target() {
+    let dir = scratch_dir("exact-pins");
+    let clamp = "[[scene.constraints]]\nregion = { below = { axis = 0, value = 0.3 } }\nmotion = \"rest\"\n";
+    let mut deviations = Vec::new();
+    for pins in ["pins = \"penalty\"", "pins = { exact = { inset = 0.0 } }"] {
+        let path = dir.join("scene.toml");
+        std::fs::write(&path, box_scene(pins) + clamp).unwrap();
+        let file = SceneFile::load(&path).unwrap();
+        let out = dir.join(if pins.contains("exact") { "exact" } else { "penalty" });
+        let report = simulate_scene_file(&file, &out, None, &Silent).unwrap();
+        assert_eq!(report.unconverged_steps, 0);
+        assert!(report.final_max_displacement > 1e-4, "the box sags");
+        deviations.push(if pins.contains("exact") {
+            report.max_held_deviation
+        } else {
+            report.max_pin_deviation
+        });
+    }
+    // The penalty lets the clamped end sag a little; the exact pins hold it (≤ 1e-4 L).
+    assert!(deviations[0] > 1e-6, "penalty drift {:e} m", deviations[0]);
+    assert!(deviations[1] <= 2e-4, "exact drift {:e} m", deviations[1]);
+    assert!(deviations[1] < 1e-3 * deviations[0], "{deviations:?}");
+}

@@ -24,7 +24,7 @@ use hyperelastic::{LameParameters, StableNeoHookean, Tangent};
 use nalgebra::Vector3;
 use optimize::{NewtonParams, NewtonTimings};
 use reduced_sim::{
-    DeformationMap, PenaltyParams, PinModulus, PinTarget, PinTreatment, PinnedRegion,
+    DeformationMap, PenaltyParams, PinModulus, PinTarget, PinnedRegion,
     QuadratureRule, ReducedModel, Scene, SimulationParams, Simulator,
 };
 use rkpm_core::sample_box_grid;
@@ -180,19 +180,26 @@ fn run() -> Result<(), String> {
     };
     let (model, quadrature_report) = rule.apply(model).map_err(|e| e.to_string())?;
     let cubature_report = quadrature_report.cubature;
-    let pinned = model.points_where(|x| x.x <= 0.5 - if exact { shrink } else { 0.0 });
+    let region = |keep: &dyn Fn(f64) -> bool| PinnedRegion {
+        points: model.points_where(|x| keep(x.x)),
+        target: PinTarget::Rest,
+    };
+    let band_penalty = std::env::var("FF_BAND").is_ok();
     let scene = Scene {
         gravity: Some(Vector3::new(0.0, -9.8, 0.0)),
-        pins: vec![PinnedRegion {
-            points: pinned,
-            target: PinTarget::Rest,
-        }],
-        floor: None,
-        pin_treatment: if exact {
-            PinTreatment::Subspace
+        pins: if !exact {
+            vec![region(&|x| x <= 0.5)]
+        } else if band_penalty {
+            vec![region(&|x| x > 0.5 - shrink && x <= 0.5)]
         } else {
-            PinTreatment::Penalty
+            Vec::new()
         },
+        held: if exact {
+            vec![region(&|x| x <= 0.5 - shrink)]
+        } else {
+            Vec::new()
+        },
+        floor: None,
     };
     let base = if fresh_hessians {
         SimulationParams::paper_setting()

@@ -1,4 +1,4 @@
-//! Exactly held regions (issue 25, [`crate::PinTreatment::Subspace`]): each pinned region moves
+//! Exactly held regions (issue 25, [`crate::Scene::held`]): each held region moves
 //! by an affine transform carried by its own handles, prescribed from the region's targets and
 //! eliminated from Newton.
 //!
@@ -15,7 +15,7 @@
 //!
 //! and every region point sits on its target whenever the targets are an affine motion of the
 //! region (rest, rigid motions, the Twist's rotating end); otherwise the residual of the fit is
-//! the drift [`crate::Simulator::max_pin_deviation`] reports.
+//! the drift [`crate::Simulator::max_held_deviation`] reports.
 
 use nalgebra::{Matrix3x4, Matrix4, Vector3, Vector4};
 
@@ -42,8 +42,7 @@ impl HeldRegions {
     /// described in the module docs, and prepares the fits.
     ///
     /// # Errors
-    /// [`SceneError::NothingHeld`] without regions, [`SceneError::TooFewHandles`] for fewer
-    /// handles than regions, [`SceneError::RegionNotHeld`] naming the first region point whose
+    /// [`SceneError::TooFewHandles`] for fewer handles than regions, [`SceneError::RegionNotHeld`] naming the first region point whose
     /// weights are not those of a held region.
     pub(crate) fn new(
         layout: ReducedLayout,
@@ -53,9 +52,6 @@ impl HeldRegions {
         weight: impl Fn(usize, usize) -> f64,
     ) -> Result<Self, SceneError> {
         let count = regions.len();
-        if count == 0 {
-            return Err(SceneError::NothingHeld);
-        }
         let handles = layout.handles();
         if handles < count {
             return Err(SceneError::TooFewHandles {

@@ -33,7 +33,7 @@ pub struct IncrementalPotential<'a, M: HyperelasticMaterial> {
     pub(crate) targets: PinTargets,
     pub(crate) inertia: Option<Inertia<'a>>,
     pub(crate) tangent: Tangent,
-    /// With held regions ([`crate::PinTreatment::Subspace`]): the entries of z Newton solves
+    /// With held regions ([`crate::Scene::held`]): the entries of z Newton solves
     /// for; the others stay as prescribed.
     pub(crate) free: Option<&'a [usize]>,
 }
@@ -224,7 +224,7 @@ mod tests {
                 normal: Vector3::new(0.0, 1.0, 0.0),
                 offset: 0.35,
             }),
-            pin_treatment: Default::default(),
+            held: Vec::new(),
         };
         let terms = SceneTerms::new(&model, &scene, &PenaltyParams::default()).unwrap();
         let len = model.deformation_map().layout().len();

@@ -7,7 +7,7 @@
 //! - [`ReducedModel`]: integration points with volumes and materials, and the constant reduced
 //!   mass matrix; [`ReducedModel::elastic_energy`] with its gradient and Hessian.
 //! - [`Scene`]: gravity, pinned/moving regions, a floor; [`PenaltyParams`] for their stiffness;
-//!   [`PinTreatment::Subspace`] holds the regions exactly instead (with a basis built for them).
+//!   [`Scene::held`] regions are held exactly instead (with a basis built for them).
 //! - [`Simulator`]: backward Euler, each step minimized by the workspace's one Newton solver
 //!   ([`optimize::minimize`]); one [`optimize::NewtonReport`] per step.
 //!
@@ -26,7 +26,7 @@
 //!     gravity: Some(Vector3::new(0.0, -9.8, 0.0)),
 //!     pins: vec![PinnedRegion { points: pinned, target: PinTarget::Rest }],
 //!     floor: None,
-//!     pin_treatment: Default::default(),
+//!     held: Vec::new(),
 //! };
 //! let mut sim = Simulator::new(model, &scene, SimulationParams::default())?;
 //! for _ in 0..100 {
@@ -58,7 +58,7 @@ pub use quadrature::{ElasticQuadrature, QuadratureError, QuadratureReport, Quadr
 pub use reduced_coordinates::ReducedLayout;
 pub use reduced_model::{ReducedModel, ReducedModelError};
 pub use scene::{
-    Floor, PenaltyParams, PinModulus, PinTarget, PinTreatment, PinnedRegion, Scene, TargetFunction,
+    Floor, PenaltyParams, PinModulus, PinTarget, PinnedRegion, Scene, TargetFunction,
 };
 pub use scene_terms::SceneError;
 pub use simulator::{ReducedState, SimulationParams, Simulator, StateError, StepError};

@@ -70,24 +70,13 @@ pub struct Scene {
     pub pins: Vec<PinnedRegion>,
     /// An optional floor.
     pub floor: Option<Floor>,
-    /// How the pinned regions are held (default [`PinTreatment::Penalty`]).
-    pub pin_treatment: PinTreatment,
-}
-
-/// How pinned regions are held (issue 25).
-#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Serialize, Deserialize)]
-#[serde(rename_all = "snake_case")]
-pub enum PinTreatment {
-    /// A penalty `κ_pin/2 Σ v_i |x_i − target_i|²` with κ_pin from [`PenaltyParams`] (default;
-    /// the paper's treatment). Works with any basis; the regions drift by roughly
-    /// `strain · L / pin_factor`.
-    #[default]
-    Penalty,
-    /// Exact: each region moves by the affine transform that best fits its targets, carried by
-    /// handles the basis holds for it and eliminated from Newton. Needs a basis built for the
-    /// scene's regions, in the same order ([`skin_eigen::build_basis_with_regions`]); the
-    /// regions then sit on their targets whenever these are an affine motion of each region.
-    Subspace,
+    /// Regions held exactly (issue 25): each moves by the affine transform that best fits its
+    /// targets, carried by handles the basis holds for it and eliminated from Newton, so the
+    /// region sits on its targets whenever they are an affine motion of it (rest, rigid
+    /// motions, the Twist's rotating end). Needs a basis built for these regions, in this order
+    /// ([`skin_eigen::build_basis_with_regions`]); empty by default. [`Scene::pins`] keep their
+    /// penalty beside them (e.g. on the band between a held region and the region's boundary).
+    pub held: Vec<PinnedRegion>,
 }
 
 impl Scene {

@@ -8,7 +8,7 @@ use thiserror::Error;
 
 use crate::held_regions::HeldRegions;
 use crate::reduced_model::ReducedModel;
-use crate::scene::{Floor, PenaltyParams, PinModulus, PinTarget, PinTreatment, Scene};
+use crate::scene::{Floor, PenaltyParams, PinModulus, PinTarget, Scene};
 
 /// The scene does not fit the model.
 #[derive(Debug, Error, Clone, PartialEq)]
@@ -16,7 +16,7 @@ pub enum SceneError {
     /// A pinned point index is not an integration point of the model.
     #[error("pinned region {region} names point {point}, but the model has {points} points")]
     PinOutOfRange {
-        /// Region index in [`Scene::pins`].
+        /// Region index in [`Scene::pins`], then [`Scene::held`] (counting on from the pins).
         region: usize,
         /// The bad index.
         point: usize,
@@ -42,10 +42,7 @@ pub enum SceneError {
         /// The offset given.
         offset: f64,
     },
-    /// [`crate::PinTreatment::Subspace`] without any pinned region.
-    #[error("exact pin constraints (PinTreatment::Subspace) need at least one pinned region")]
-    NothingHeld,
-    /// [`crate::PinTreatment::Subspace`] with more regions than the basis has handles.
+    /// More held regions ([`Scene::held`]) than the basis has handles.
     #[error(
         "{regions} regions are held exactly, but the basis has only {handles} handles; build it with skin_eigen::build_basis_with_regions for these regions"
     )]
@@ -55,13 +52,12 @@ pub enum SceneError {
         /// Handles of the basis.
         handles: usize,
     },
-    /// [`crate::PinTreatment::Subspace`] with a basis that was not built for the scene's
-    /// regions.
+    /// A held region ([`Scene::held`]) with a basis that was not built for it.
     #[error(
-        "pinned region {region} is not held by the basis: at point {point}, handle {handle} has weight {weight} instead of {expected}; build the basis with skin_eigen::build_basis_with_regions for the scene's regions, in the same order"
+        "held region {region} is not held by the basis: at point {point}, handle {handle} has weight {weight} instead of {expected}; build the basis with skin_eigen::build_basis_with_regions for the scene's held regions, in the same order"
     )]
     RegionNotHeld {
-        /// Region index in [`Scene::pins`].
+        /// Region index in [`Scene::held`].
         region: usize,
         /// The point.
         point: usize,
@@ -100,8 +96,10 @@ pub(crate) struct SceneTerms {
     pin_stiffness: f64,
     floor: Option<Floor>,
     floor_stiffness: f64,
-    /// With [`PinTreatment::Subspace`]: the held regions (the pins then carry no penalty).
+    /// The held regions ([`Scene::held`]), whose terms follow the penalized ones in `pins`.
     held: Option<HeldRegions>,
+    /// How many of `pins` carry the penalty (the first ones).
+    penalized: usize,
 }
 
 /// Pin targets of every region at one time, evaluated once per step.
@@ -155,7 +153,8 @@ impl SceneTerms {
         let pin_stiffness = penalty.pin_factor * pin_scale;
         let mut pins = Vec::with_capacity(scene.pins.len());
         let mut pin_hessian_block: Option<Mat<f64>> = None;
-        for (region, pin) in scene.pins.iter().enumerate() {
+        let penalized = scene.pins.len();
+        for (region, pin) in scene.pins.iter().chain(&scene.held).enumerate() {
             if pin.points.is_empty() {
                 return Err(SceneError::EmptyPin { region });
             }
@@ -177,7 +176,7 @@ impl SceneTerms {
                 .zip(&volumes)
                 .flat_map(|(bi, v)| bi.iter().map(move |x| x * v * pin_stiffness))
                 .collect();
-            if scene.pin_treatment == PinTreatment::Penalty {
+            if region < penalized {
                 let block = pin_hessian_block.get_or_insert_with(|| Mat::zeros(n4, n4));
                 let p = pin.points.len();
                 faer::linalg::matmul::matmul(
@@ -220,19 +219,17 @@ impl SceneTerms {
                 })
             }
         };
-        let held = match scene.pin_treatment {
-            PinTreatment::Penalty => None,
-            PinTreatment::Subspace => {
-                let regions: Vec<Vec<usize>> =
-                    scene.pins.iter().map(|p| p.points.clone()).collect();
-                Some(HeldRegions::new(
-                    map.layout(),
-                    &regions,
-                    map.rest_positions(),
-                    model.volumes(),
-                    |point, handle| map.position_row(point)[4 * handle + 3],
-                )?)
-            }
+        let held = if scene.held.is_empty() {
+            None
+        } else {
+            let regions: Vec<Vec<usize>> = scene.held.iter().map(|p| p.points.clone()).collect();
+            Some(HeldRegions::new(
+                map.layout(),
+                &regions,
+                map.rest_positions(),
+                model.volumes(),
+                |point, handle| map.position_row(point)[4 * handle + 3],
+            )?)
         };
         Ok(SceneTerms {
             gravity_gradient,
@@ -242,6 +239,7 @@ impl SceneTerms {
             floor,
             floor_stiffness: penalty.floor_factor * scale,
             held,
+            penalized,
         })
     }
 
@@ -255,8 +253,11 @@ impl SceneTerms {
     /// otherwise).
     pub(crate) fn prescribe(&self, z: &mut [f64], targets: &PinTargets) {
         if let Some(held) = &self.held {
-            let rest: Vec<Vec<Vector3<f64>>> = self.pins.iter().map(|p| p.rest.clone()).collect();
-            held.prescribe(z, &rest, &targets.0);
+            let rest: Vec<Vec<Vector3<f64>>> = self.pins[self.penalized..]
+                .iter()
+                .map(|p| p.rest.clone())
+                .collect();
+            held.prescribe(z, &rest, &targets.0[self.penalized..]);
         }
     }
 
@@ -285,15 +286,18 @@ impl SceneTerms {
         )
     }
 
-    /// The largest distance (m) of a pinned point from its target at z, or `None` without pins.
+    /// The largest distance (m) of a pinned point from its target at z, or `None` without pins:
+    /// of every pinned and held point, or (`held_only`) of the held ones.
     pub(crate) fn max_pin_deviation<M: HyperelasticMaterial>(
         &self,
         model: &ReducedModel<M>,
         z: &[f64],
         targets: &PinTargets,
+        held_only: bool,
     ) -> Option<f64> {
+        let skip = if held_only { self.penalized } else { 0 };
         let mut max: Option<f64> = None;
-        for (pin, targets) in self.pins.iter().zip(&targets.0) {
+        for (pin, targets) in self.pins.iter().zip(&targets.0).skip(skip) {
             for (x, t) in pinned_positions(model, pin, z).iter().zip(targets) {
                 let d = (x - t).norm();
                 max = Some(max.map_or(d, |m| m.max(d)));

@@ -193,7 +193,7 @@ impl<M: HyperelasticMaterial> Simulator<M> {
         &self.state
     }
 
-    /// With held regions ([`crate::PinTreatment::Subspace`]): the entries of z Newton solves
+    /// With held regions ([`crate::Scene::held`]): the entries of z Newton solves
     /// for (ascending); `None` when all are free.
     pub fn free_coordinates(&self) -> Option<&[usize]> {
         self.terms.free_coordinates()
@@ -210,13 +210,22 @@ impl<M: HyperelasticMaterial> Simulator<M> {
         self.terms.pin_stiffness()
     }
 
-    /// How far the pinned points are from their targets now: the largest distance (m), or
-    /// `None` without pins. The penalty lets them deviate; this is the number to watch when
+    /// How far the pinned and held points are from their targets now: the largest distance (m),
+    /// or `None` without pins. The penalty lets them deviate; this is the number to watch when
     /// choosing [`PenaltyParams::pin_factor`].
     pub fn max_pin_deviation(&self) -> Option<f64> {
         let targets = self.terms.pin_targets(self.state.time);
         self.terms
-            .max_pin_deviation(&self.model, &self.state.z, &targets)
+            .max_pin_deviation(&self.model, &self.state.z, &targets, false)
+    }
+
+    /// How far the exactly held points ([`crate::Scene::held`]) are from their targets now: the
+    /// largest distance (m), or `None` without held regions. Zero up to round-off and the fit of
+    /// an affine transform to targets that are not an affine motion.
+    pub fn max_held_deviation(&self) -> Option<f64> {
+        let targets = self.terms.pin_targets(self.state.time);
+        self.terms
+            .max_pin_deviation(&self.model, &self.state.z, &targets, true)
     }
 
     /// Replaces the state (e.g. to start with an initial velocity).
@@ -329,7 +338,7 @@ impl<M: HyperelasticMaterial> Simulator<M> {
 
     /// The incremental potential E(z) that [`Simulator::step`] minimizes next: inertia about
     /// `predicted` (normally [`Simulator::predicted_coordinates`]), elasticity, and the scene's
-    /// terms at t + h. With held regions ([`crate::PinTreatment::Subspace`]) its
+    /// terms at t + h. With held regions ([`crate::Scene::held`]) its
     /// [`optimize::NewtonObjective`] gradient and Hessian are over the free entries of z only
     /// ([`Simulator::free_coordinates`]); [`Simulator::prescribe`] sets the others.
     pub fn step_potential<'a>(&'a self, predicted: &'a [f64]) -> IncrementalPotential<'a, M> {

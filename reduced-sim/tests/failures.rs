@@ -29,7 +29,7 @@ fn bend_scene(model: &ReducedModel<StableNeoHookean>) -> Scene {
             target: PinTarget::Rest,
         }],
         floor: None,
-        pin_treatment: Default::default(),
+        held: Vec::new(),
     }
 }
 

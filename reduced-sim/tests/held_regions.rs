@@ -11,7 +11,7 @@ use hyperelastic::{LameParameters, StableNeoHookean, Tangent};
 use nalgebra::{DMatrix, Rotation3, Vector3};
 use optimize::NewtonObjective;
 use reduced_sim::{
-    PinTarget, PinTreatment, PinnedRegion, ReducedModel, ReducedState, Scene, SceneError,
+    PinTarget, PinnedRegion, ReducedModel, ReducedState, Scene, SceneError,
     SimulationParams, Simulator,
 };
 use rkpm_core::{IntegrationPoints, sample_box_grid};
@@ -70,7 +70,8 @@ fn twist_scene(
     let axis = Vector3::new(0.0, 0.25, 0.25);
     let scene = Scene {
         gravity: None,
-        pins: vec![
+        pins: Vec::new(),
+        held: vec![
             PinnedRegion {
                 points: regions[0].clone(),
                 target: PinTarget::Rest,
@@ -84,7 +85,6 @@ fn twist_scene(
             },
         ],
         floor: None,
-        pin_treatment: PinTreatment::Subspace,
     };
     (regions, scene)
 }
@@ -102,7 +102,7 @@ fn a_rotating_region_follows_its_rotation_at_every_step_to_90_360_and_648_degree
             Simulator::new(model(&basis, &points), &scene, SimulationParams::default()).unwrap();
         for step in 0..steps {
             let report = sim.step().unwrap();
-            let drift = sim.max_pin_deviation().unwrap();
+            let drift = sim.max_held_deviation().unwrap();
             assert!(
                 drift <= 1e-6 * LENGTH,
                 "{degrees}°: step {step} leaves the held regions {drift:e} m off their targets ({report:?})"
@@ -129,12 +129,12 @@ fn a_body_whose_only_region_translates_moves_rigidly_with_zero_elastic_energy() 
     let velocity = Vector3::new(0.3, -0.2, 0.1);
     let scene = Scene {
         gravity: None,
-        pins: vec![PinnedRegion {
+        pins: Vec::new(),
+        held: vec![PinnedRegion {
             points: regions[0].clone(),
             target: PinTarget::Moving(Arc::new(move |x, t| x + t * velocity)),
         }],
         floor: None,
-        pin_treatment: PinTreatment::Subspace,
     };
     let mut sim =
         Simulator::new(model(&basis, &points), &scene, SimulationParams::default()).unwrap();
@@ -167,7 +167,7 @@ fn a_body_whose_only_region_translates_moves_rigidly_with_zero_elastic_energy() 
 fn the_constrained_steps_gradient_and_hessian_match_finite_differences() {
     let points = bar();
     let (_, scene) = twist_scene(&points, |t| 3.0 * PI * t);
-    let regions: Vec<Vec<usize>> = scene.pins.iter().map(|p| p.points.clone()).collect();
+    let regions: Vec<Vec<usize>> = scene.held.iter().map(|p| p.points.clone()).collect();
     let basis = held_basis(&points, &regions);
     let params = SimulationParams {
         tangent: Tangent::Exact,
@@ -255,17 +255,12 @@ fn a_basis_not_built_for_the_regions_is_refused_by_name() {
         .err()
         .unwrap();
     assert!(matches!(err, SceneError::RegionNotHeld { .. }), "{err}");
-    let no_pins = Scene {
-        pins: Vec::new(),
-        pin_treatment: PinTreatment::Subspace,
-        ..Scene::default()
-    };
-    let err = Simulator::new(
-        model(&basis, &points),
-        &no_pins,
-        SimulationParams::default(),
-    )
-    .err()
-    .unwrap();
-    assert_eq!(err, SceneError::NothingHeld);
+    // Held regions beyond the basis's handles.
+    let mut many = scene.clone();
+    let first = many.held[0].clone();
+    many.held.extend(std::iter::repeat_n(first, 8));
+    let err = Simulator::new(model(&basis, &points), &many, SimulationParams::default())
+        .err()
+        .unwrap();
+    assert!(matches!(err, SceneError::TooFewHandles { regions: 10, .. }), "{err}");
 }

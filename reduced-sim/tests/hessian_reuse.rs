@@ -88,7 +88,7 @@ fn a_change_of_the_floor_contacts_forces_a_fresh_factorization() {
         gravity: Some(Vector3::new(0.0, -9.8, 0.0)),
         pins: Vec::new(),
         floor: Some(floor),
-        pin_treatment: Default::default(),
+        held: Vec::new(),
     };
     let params = SimulationParams {
         newton: NewtonParams {

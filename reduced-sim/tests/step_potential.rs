@@ -25,7 +25,7 @@ fn simulator(tangent: Tangent) -> Simulator<StableNeoHookean> {
             normal: Vector3::y(),
             offset: 0.08,
         }),
-        pin_treatment: Default::default(),
+        held: Vec::new(),
     };
     let params = SimulationParams {
         tangent,

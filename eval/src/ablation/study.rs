@@ -39,7 +39,7 @@ impl AblationStudyConfig {
             base: BeamStudyConfig {
                 modes: vec![16],
                 simplicits: base.simplicits.or(Some(SimplicitsParams::default())),
-                exact_pins: false,
+                exact_pins: None,
                 ..base
             },
             coefficient_ablations: true,

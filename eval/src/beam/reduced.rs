@@ -151,7 +151,7 @@ impl ReducedSettings {
                 format!("κ_pin = {:e} · {modulus} / L²{origin}", self.pin_factor)
             }
             PinHold::Exact { inset } => format!(
-                "exact (held regions shrunk by {inset:.3} m = {EXACT_INSET_KERNEL_RADII} median kernel radii, compact kernels)"
+                "exact (held regions shrunk by {inset:.3} m, compact kernels)"
             ),
         }
     }
@@ -260,19 +260,20 @@ pub fn build_beam_basis(settings: &ReducedSettings) -> Result<BeamBasis, EvalErr
     })
 }
 
-/// Exact holding for `settings`' beam basis: each region shrunk by [`EXACT_INSET_KERNEL_RADII`]
-/// times the median radius of the kernels placed on the basis grid.
+/// Exact holding for `settings`' beam basis: each region shrunk by `inset_radii` (default
+/// [`EXACT_INSET_KERNEL_RADII`]) times the median radius of the kernels placed on the basis
+/// grid.
 ///
 /// # Errors
 /// [`EvalError::Sampling`] / [`EvalError::Basis`] when the grid or the kernels cannot be made.
-pub fn exact_pin_hold(settings: &ReducedSettings) -> Result<PinHold, EvalError> {
+pub fn exact_pin_hold(settings: &ReducedSettings, inset_radii: f64) -> Result<PinHold, EvalError> {
     let (grid, _) = beam_basis_grid(settings.basis_points)?;
     let kernels = place_kernels(grid.positions(), &settings.basis_params().kernels)
         .map_err(|e| EvalError::Basis(BasisError::Kernels(e)))?;
     let mut radii = kernels.radii().to_vec();
     radii.sort_by(f64::total_cmp);
     Ok(PinHold::Exact {
-        inset: EXACT_INSET_KERNEL_RADII * radii[radii.len() / 2],
+        inset: inset_radii * radii[radii.len() / 2],
     })
 }
 

@@ -12,8 +12,8 @@ use serde::{Deserialize, Serialize};
 
 use crate::EvalError;
 use crate::beam::reduced::{
-    ReducedSettings, build_beam_basis, build_beam_basis_for, exact_pin_hold,
-    run_reduced_beam_with,
+    EXACT_INSET_KERNEL_RADII, ReducedSettings, build_beam_basis, build_beam_basis_for,
+    exact_pin_hold, run_reduced_beam_with,
 };
 use crate::beam::simplicits::train_beam_simplicits;
 use crate::beam::{BEAM_MAX, BEAM_MIN, BEAM_TIME_STEP, BeamTest, beam_material};
@@ -44,10 +44,11 @@ pub struct BeamStudyConfig {
     pub simplicits: Option<SimplicitsParams>,
     /// Cache folder (FEM trajectories under `fem/`, networks under `simplicits/`).
     pub cache_dir: PathBuf,
-    /// Also run every (test, m) with the pinned regions held exactly ([`exact_pin_hold`], a
-    /// basis per test), beside the penalty (issue 25).
+    /// Also run every (test, m) with the pinned regions held exactly, shrunk by this many
+    /// median kernel radii ([`exact_pin_hold`], a basis per test), beside the penalty (issue
+    /// 25); `None` to leave it out.
     #[serde(default)]
-    pub exact_pins: bool,
+    pub exact_pins: Option<f64>,
 }
 
 impl BeamStudyConfig {
@@ -63,7 +64,7 @@ impl BeamStudyConfig {
             fem_newton: NewtonParams::default(),
             simplicits: Some(SimplicitsParams::default()),
             cache_dir,
-            exact_pins: true,
+            exact_pins: Some(EXACT_INSET_KERNEL_RADII),
         }
     }
 
@@ -262,13 +263,12 @@ pub fn run_beam_study(
         };
         progress.status(format!("basis m = {m}, K = {}", settings.kernels));
         let basis = build_beam_basis(&settings)?;
-        let exact = if config.exact_pins {
-            Some(ReducedSettings {
-                pins: exact_pin_hold(&settings)?,
+        let exact = match config.exact_pins {
+            Some(radii) => Some(ReducedSettings {
+                pins: exact_pin_hold(&settings, radii)?,
                 ..settings
-            })
-        } else {
-            None
+            }),
+            None => None,
         };
         let simplicits = match &config.simplicits {
             Some(params) => Some(train_beam_simplicits(
@@ -444,7 +444,7 @@ fn evaluate_exact(
         inset,
         mse: run.errors.normalized_mse,
         max: run.errors.normalized_max,
-        max_pin_deviation: run.run.report.max_pin_deviation,
+        max_pin_deviation: run.run.report.max_held_deviation,
         region_drift: region_drift(test, reference.vertices(), &run.run.frames),
         ms_per_step: run.run.report.ms_per_step,
         unconverged_steps: run.run.report.unconverged_steps,

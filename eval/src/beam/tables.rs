@@ -209,16 +209,16 @@ fn exact_line(study: &BeamStudy) -> String {
         .rows
         .iter()
         .find_map(|r| r.exact.as_ref().map(|e| e.inset));
-    match inset {
-        None => "Exact pins: not run.\n".into(),
-        Some(inset) => format!(
+    match (inset, study.config.exact_pins) {
+        (Some(inset), Some(radii)) => format!(
             "Exact pins (issue 25): each pinned or twisted region held exactly by its own handles \
              (a basis per test, built for the regions on compact B-spline kernels, modes vanishing \
              there), on the region shrunk by {inset:.3} m ({} median kernel radii); the points \
              between are free. Drift: held = the held integration points, region = the FEM \
              vertices of the whole region (what the FEM holds exactly).\n",
-            crate::beam::reduced::EXACT_INSET_KERNEL_RADII
+            radii
         ),
+        _ => "Exact pins: not run.\n".into(),
     }
 }
 

@@ -64,6 +64,6 @@ pub fn cantilever_scene<M: hyperelastic::HyperelasticMaterial>(
             target: reduced_sim::PinTarget::Rest,
         }],
         floor: None,
-        pin_treatment: Default::default(),
+        held: Vec::new(),
     }
 }

@@ -135,8 +135,8 @@ enum Command {
         json: bool,
     },
     /// Pin sweep (issue 25): the beam tests at several Poisson ratios and m, every pin factor
-    /// under both pin moduli (λ + 2μ, E), against the FEM at the same material; prints MSE and
-    /// pin drift per run and writes pins.md / pins.json.
+    /// under both pin moduli (λ + 2μ, E) and the exact pins, against the FEM at the same
+    /// material; prints MSE and pin drift per run and writes pins.md / pins.json.
     Pins {
         /// ν ∈ {0.3, 0.49}, m = 16, 100 Bend steps, FEM P2 res 4 (minutes).
         #[arg(long)]
@@ -144,6 +144,9 @@ enum Command {
         /// Print JSON instead of Markdown.
         #[arg(long)]
         json: bool,
+        /// Run only the exact pins (no penalty factors).
+        #[arg(long)]
+        exact_only: bool,
     },
     /// Error-vs-time sweep on the beam Bend; writes CSV and a log-log plot with the Pareto front.
     Bench {
@@ -224,7 +227,11 @@ fn run(cli: Cli) -> Result<()> {
             table::run(&numbers, options, &cli.out, &cache, &progress)
         }
         Command::Stress { quick, json } => stress::run(quick, json, &cli.out, &progress),
-        Command::Pins { quick, json } => pins::run(quick, json, cache, &cli.out, &progress),
+        Command::Pins {
+            quick,
+            json,
+            exact_only,
+        } => pins::run(quick, json, exact_only, cache, &cli.out, &progress),
         Command::Bench {
             quick,
             skip_simplicits,

@@ -4,24 +4,29 @@ use std::path::{Path, PathBuf};
 
 use anyhow::Result;
 use artifact::write_atomically;
-use eval::pins::{PinSweepConfig, pin_sweep_table, run_pin_sweep};
+use eval::pins::{PinSweepConfig, exact_sweep_table, pin_sweep_table, run_pin_sweep};
 use eval::progress::Progress;
 
 /// Runs the sweep, prints its table (or JSON) and writes `pins.md` and `pins.json` under `out`.
 pub(crate) fn run(
     quick: bool,
     json: bool,
+    exact_only: bool,
     cache: PathBuf,
     out: &Path,
     progress: &Progress,
 ) -> Result<()> {
-    let config = if quick {
+    let mut config = if quick {
         PinSweepConfig::quick(cache)
     } else {
         PinSweepConfig::full(cache)
     };
+    if exact_only {
+        config.factors.clear();
+    }
     let sweep = run_pin_sweep(&config, progress)?;
-    let md = pin_sweep_table(&config, &sweep);
+    let mut md = pin_sweep_table(&config, &sweep);
+    md += &exact_sweep_table(&config, &sweep);
     let data =
         serde_json::to_string_pretty(&serde_json::json!({"config": config, "sweep": sweep}))?;
     std::fs::create_dir_all(out)?;

@@ -75,6 +75,10 @@ pub(crate) struct TableOptions {
     /// pinned regions held exactly, on a basis built for them).
     #[arg(long)]
     skip_exact: bool,
+    /// Table 1's exact pins: hold each region shrunk by this many median kernel radii
+    /// (default 1.5; 0 holds the whole region).
+    #[arg(long, default_value_t = eval::beam::reduced::EXACT_INSET_KERNEL_RADII)]
+    exact_inset_radii: f64,
 }
 
 /// `--pin-modulus`.
@@ -114,6 +118,7 @@ pub(crate) fn run(
         pin_factor,
         pin_modulus,
         skip_exact,
+        exact_inset_radii,
     }: TableOptions,
     out: &Path,
     cache: &Path,
@@ -135,7 +140,10 @@ pub(crate) fn run(
         config.tests = vec![BeamTest::Bend];
     }
     // Only Table 1 prints the exact-pin columns.
-    config.exact_pins = !skip_exact && numbers.contains(&1);
+    if !(exact_inset_radii >= 0.0 && exact_inset_radii.is_finite()) {
+        bail!("--exact-inset-radii must be a non-negative number, got {exact_inset_radii}");
+    }
+    config.exact_pins = (!skip_exact && numbers.contains(&1)).then_some(exact_inset_radii);
     if let Some(modes) = &modes {
         if modes.contains(&0) {
             bail!("--modes: every m must be at least 1");
