@@ -12,17 +12,18 @@ use serde::{Deserialize, Serialize};
 
 use crate::EvalError;
 use crate::beam::reduced::{
-    ReducedSettings, build_beam_basis, run_reduced_beam, run_reduced_beam_with,
+    EXACT_INSET_KERNEL_RADII, ReducedSettings, build_beam_basis_for, exact_pin_hold,
+    run_reduced_beam, run_reduced_beam_with,
 };
 use crate::beam::simplicits::train_beam_simplicits;
-use crate::beam::study::beam_length_scale;
+use crate::beam::study::{beam_length_scale, region_drift};
 use crate::beam::{BeamTest, beam_material};
 use crate::fem_reference::{FemResolution, run_fem_beam};
 use crate::metrics::trajectory_errors;
 use crate::progress::Progress;
 use crate::report::plot::{AxisScale, PlotSpec, Series};
 use artifact::write_atomically;
-use freeform::RunReport;
+use freeform::{PinHold, RunReport};
 use reduced_sim::{CubatureParams, QuadratureRule, SimulationParams};
 
 /// The cubature of the bench's cubature series: [`CubatureParams::default`] (relative force
@@ -30,7 +31,7 @@ use reduced_sim::{CubatureParams, QuadratureRule, SimulationParams};
 pub const CUBATURE: QuadratureRule = QuadratureRule::Cubature(CubatureParams::DEFAULT);
 
 /// The bench's knob names with their plot labels, in plot order.
-const FREEFORM_SERIES: [(&str, &str); 9] = [
+const FREEFORM_SERIES: [(&str, &str); 10] = [
     ("m", "FreeForm, varying m"),
     ("K", "FreeForm, varying K"),
     ("points", "FreeForm, varying points"),
@@ -45,6 +46,10 @@ const FREEFORM_SERIES: [(&str, &str); 9] = [
     (
         "quadrature points",
         "FreeForm m=16 on fewer points (cubature tolerance, random subsets)",
+    ),
+    (
+        "exact pins",
+        "FreeForm, exact pins, cubature with Hessian reuse, varying m",
     ),
 ];
 
@@ -85,6 +90,9 @@ fn fast_step_runs(base: ReducedSettings, modes: &[usize]) -> Vec<(String, BenchM
 pub enum BenchMethod {
     /// FreeForm with these settings.
     FreeForm(ReducedSettings),
+    /// FreeForm with these settings and the clamped end held exactly, on the end shrunk by this
+    /// many median kernel radii ([`exact_pin_hold`]).
+    FreeFormExact(ReducedSettings, f64),
     /// The FEM at a coarser resolution than the ground truth.
     Fem(FemResolution),
     /// The Simplicits baseline (network trained on the basis grid of the settings, cached),
@@ -119,6 +127,18 @@ impl BenchConfig {
             ));
         }
         runs.extend(fast_step_runs(base, &[6, 9, 16, 32]));
+        for m in [6, 9, 16, 32] {
+            runs.push((
+                "exact pins".into(),
+                BenchMethod::FreeFormExact(
+                    ReducedSettings {
+                        modes: m,
+                        ..ReducedSettings::library_default()
+                    },
+                    EXACT_INSET_KERNEL_RADII,
+                ),
+            ));
+        }
         for tolerance in [0.05, 0.005] {
             runs.push((
                 "quadrature points".into(),
@@ -276,6 +296,10 @@ pub struct BenchResult {
     pub normalized_mse: f64,
     /// Normalized max error.
     pub normalized_max: f64,
+    /// Largest distance (m) of a ground-truth vertex in the clamped end from its rest position
+    /// over the run (0 for the FEM, which holds them).
+    #[serde(default)]
+    pub region_drift: f64,
     /// On the Pareto front of (ms per step, MSE).
     pub pareto: bool,
 }
@@ -313,9 +337,21 @@ pub fn run_bench(config: &BenchConfig, progress: &Progress) -> Result<Vec<BenchR
     let length = beam_length_scale();
     let mut results = Vec::new();
     for (knob, method) in &config.runs {
+        let exact;
+        let method = match method {
+            BenchMethod::FreeFormExact(s, radii) => {
+                exact = BenchMethod::FreeForm(ReducedSettings {
+                    pins: exact_pin_hold(s, *radii)?,
+                    ..*s
+                });
+                &exact
+            }
+            method => method,
+        };
+        let mut drift = 0.0;
         let (name, label, timing, setup, frames) = match method {
             BenchMethod::FreeForm(s) => {
-                let basis = build_beam_basis(s)?;
+                let basis = build_beam_basis_for(BeamTest::Bend, s)?;
                 let run = run_reduced_beam_with(
                     BeamTest::Bend,
                     &basis.basis,
@@ -326,15 +362,19 @@ pub fn run_bench(config: &BenchConfig, progress: &Progress) -> Result<Vec<BenchR
                     config.steps,
                     progress,
                 )?;
+                drift = region_drift(BeamTest::Bend, &vertices, &run.frames);
                 (
                     "freeform",
                     format!(
-                        "m={} K={} pts={} tol={:e} pin={:e}{}{}",
+                        "m={} K={} pts={} tol={:e} pin={}{}{}",
                         s.modes,
                         s.kernels,
                         run.report.simulation_points,
                         s.tolerance,
-                        s.pin_factor,
+                        match s.pins {
+                            PinHold::Penalty => format!("{:e}", s.pin_factor),
+                            PinHold::Exact { inset } => format!("exact(inset {inset:.3} m)"),
+                        },
                         match s.hessian_reuse {
                             HessianReuse::Never => String::new(),
                             HessianReuse::WhileContracting { contraction } => {
@@ -367,9 +407,13 @@ pub fn run_bench(config: &BenchConfig, progress: &Progress) -> Result<Vec<BenchR
                     ),
                     Timing::of(&run.report),
                     net.trained.report.seconds,
-                    run.frames,
+                    {
+                        drift = region_drift(BeamTest::Bend, &vertices, &run.frames);
+                        run.frames
+                    },
                 )
             }
+            BenchMethod::FreeFormExact(..) => unreachable!("resolved to FreeForm above"),
             BenchMethod::Fem(r) => {
                 let run = run_fem_beam(
                     BeamTest::Bend,
@@ -410,6 +454,7 @@ pub fn run_bench(config: &BenchConfig, progress: &Progress) -> Result<Vec<BenchR
             setup_seconds: setup,
             normalized_mse: errors.normalized_mse,
             normalized_max: errors.normalized_max,
+            region_drift: drift,
             pareto: false,
         });
     }
@@ -465,11 +510,11 @@ pub fn write_bench(
     dir: &Path,
 ) -> Result<(String, Vec<PathBuf>), EvalError> {
     let mut csv = String::from(
-        "method,knob,label,ms_per_step,ms_assembly,ms_solve,ms_line_search,hessians_per_step,quadrature_points,setup_seconds,normalized_mse,normalized_max,pareto\n",
+        "method,knob,label,ms_per_step,ms_assembly,ms_solve,ms_line_search,hessians_per_step,quadrature_points,setup_seconds,normalized_mse,normalized_max,region_drift,pareto\n",
     );
     let mut md = format!(
         "## Error vs time, beam Bend ({} steps; ground truth FEM {}; {} threads)\n\n\
-         | method | knob | settings | ms/step | assembly / solve / line search | Hessians/step | setup s | MSE | max | Pareto |\n|---|---|---|---|---|---|---|---|---|---|\n",
+         | method | knob | settings | ms/step | assembly / solve / line search | Hessians/step | setup s | MSE | max | clamp drift (mm) | Pareto |\n|---|---|---|---|---|---|---|---|---|---|---|\n",
         config.steps,
         config.ground_truth.label(),
         rayon::current_num_threads()
@@ -477,7 +522,7 @@ pub fn write_bench(
     for r in results {
         let _ = writeln!(
             csv,
-            "{},{},\"{}\",{},{},{},{},{},{},{},{:e},{:e},{}",
+            "{},{},\"{}\",{},{},{},{},{},{},{},{:e},{:e},{:e},{}",
             r.method,
             r.knob,
             r.label,
@@ -490,11 +535,12 @@ pub fn write_bench(
             r.setup_seconds,
             r.normalized_mse,
             r.normalized_max,
+            r.region_drift,
             r.pareto
         );
         let _ = writeln!(
             md,
-            "| {} | {} | {} | {:.2} | {:.2} / {:.2} / {:.2} | {:.2} | {:.1} | {:.2e} | {:.2e} | {} |",
+            "| {} | {} | {} | {:.2} | {:.2} / {:.2} / {:.2} | {:.2} | {:.1} | {:.2e} | {:.2e} | {:.1} | {} |",
             r.method,
             r.knob,
             r.label,
@@ -506,6 +552,7 @@ pub fn write_bench(
             r.setup_seconds,
             r.normalized_mse,
             r.normalized_max,
+            1e3 * r.region_drift,
             if r.pareto { "★" } else { "" }
         );
     }

@@ -11,11 +11,13 @@
 //! and `--pin-modulus young|p-wave` (default the library's, [`PenaltyParams::default`]),
 //! `--full-quadrature` and `--fresh-hessians` (the paper's setting instead of the library's
 //! default cubature and Hessian reuse), `--exact-tangent`, `--exact` (hold the pinned end
-//! exactly, [`PinTreatment::Subspace`], instead of by the penalty), `--json`.
+//! exactly, [`Scene::held`], instead of by the penalty) with `--exact-inset METRES`, `--json`.
 //!
 //! Output: `tip_y` at t = 0.5 s and 1.0 s — the y displacement (m) of the end face x = 5,
 //! averaged over an 11 × 11 lattice of points on it — plus ms per step (and its split into
-//! assembly / solve / line search) and mean Newton iterations.
+//! assembly / solve / line search), mean Newton iterations, the largest drift of the pinned
+//! points (`max_pin_deviation`), of the exactly held ones (`max_held_deviation`) and of every
+//! point of the clamped end x ≤ 0.5 (`end_drift`), all in m.
 
 use hyperelastic::MaterialSample;
 use std::time::Instant;
@@ -27,7 +29,7 @@ use reduced_sim::{
     DeformationMap, PenaltyParams, PinModulus, PinTarget, PinnedRegion,
     QuadratureRule, ReducedModel, Scene, SimulationParams, Simulator,
 };
-use rkpm_core::sample_box_grid;
+use rkpm_core::{KernelWindow, place_kernels, sample_box_grid};
 use skin_eigen::{BasisParams, RegionConstraintParams, build_basis, build_basis_with_regions};
 
 /// Command-line options.
@@ -72,10 +74,14 @@ struct Args {
     /// Hessian is then not positive definite fails with a named error).
     #[arg(long)]
     exact_tangent: bool,
-    /// Hold the pinned end exactly (a basis built for it, `PinTreatment::Subspace`) instead of
-    /// by the penalty.
+    /// Hold the pinned end exactly (a basis built for it, `Scene::held`) instead of by the
+    /// penalty.
     #[arg(long)]
     exact: bool,
+    /// With `--exact`: hold x ≤ 0.5 − inset (m) exactly and the band up to 0.5 by the penalty
+    /// (default 1.5 median kernel radii).
+    #[arg(long)]
+    exact_inset: Option<f64>,
 }
 
 /// `--pin-modulus`.
@@ -110,6 +116,7 @@ fn run() -> Result<(), String> {
         fresh_hessians,
         exact_tangent,
         exact,
+        exact_inset,
     } = clap::Parser::parse();
     let pin_modulus = match pin_modulus {
         None => PenaltyParams::default().pin_modulus,
@@ -137,11 +144,22 @@ fn run() -> Result<(), String> {
         .with_modes(modes)
         .with_kernels(kernels);
     let mut params = params;
-    if std::env::var("FF_BSPLINE").is_ok() {
-        params.shape_functions.window = rkpm_core::KernelWindow::CubicBSpline;
+    // Exact pins: compact kernels, and the clamped end held on x ≤ 0.5 − inset (by default 1.5
+    // median kernel radii, as `eval`'s EXACT_INSET_KERNEL_RADII), the band beyond by the penalty.
+    let mut inset = 0.0;
+    if exact {
+        params.shape_functions.window = KernelWindow::CubicBSpline;
+        inset = match exact_inset {
+            Some(inset) => inset,
+            None => {
+                let kernels = place_kernels(basis_grid.positions(), &params.kernels)
+                    .map_err(|e| e.to_string())?;
+                let mut radii = kernels.radii().to_vec();
+                radii.sort_by(f64::total_cmp);
+                1.5 * radii[radii.len() / 2]
+            }
+        };
     }
-    let shrink: f64 = std::env::var("FF_SHRINK").map(|v| v.parse().unwrap()).unwrap_or(0.0);
-    let null: f64 = std::env::var("FF_NULL").map(|v| v.parse().unwrap()).unwrap_or(1e-7);
     let materials = vec![lame; basis_grid.len()];
     let (basis, _, _) = if exact {
         // Held on both point sets: the basis grid's and the simulation's points in the end.
@@ -149,7 +167,7 @@ fn run() -> Result<(), String> {
             .positions()
             .iter()
             .chain(points.positions())
-            .filter(|x| x.x <= 0.5 - shrink)
+            .filter(|x| x.x <= 0.5 - inset)
             .copied()
             .collect();
         build_basis_with_regions(
@@ -157,7 +175,7 @@ fn run() -> Result<(), String> {
             &materials,
             &params,
             &[region],
-            &RegionConstraintParams { null_tolerance: null, ..Default::default() },
+            &RegionConstraintParams::default(),
         )
     } else {
         build_basis(&basis_grid, &materials, &params)
@@ -184,18 +202,17 @@ fn run() -> Result<(), String> {
         points: model.points_where(|x| keep(x.x)),
         target: PinTarget::Rest,
     };
-    let band_penalty = std::env::var("FF_BAND").is_ok();
     let scene = Scene {
         gravity: Some(Vector3::new(0.0, -9.8, 0.0)),
         pins: if !exact {
             vec![region(&|x| x <= 0.5)]
-        } else if band_penalty {
-            vec![region(&|x| x > 0.5 - shrink && x <= 0.5)]
+        } else if inset > 0.0 {
+            vec![region(&|x| x > 0.5 - inset && x <= 0.5)]
         } else {
             Vec::new()
         },
         held: if exact {
-            vec![region(&|x| x <= 0.5 - shrink)]
+            vec![region(&|x| x <= 0.5 - inset)]
         } else {
             Vec::new()
         },
@@ -235,8 +252,9 @@ fn run() -> Result<(), String> {
     let mut iterations = 0usize;
     let mut unconverged = 0usize;
     let mut tip_y = Vec::new();
-    let mut pin_deviation: f64 = 0.0;
-    let mut band_drift: f64 = 0.0;
+    let (mut pin_deviation, mut held_deviation): (f64, f64) = (0.0, 0.0);
+    // Drift of every point of the clamped end x ≤ 0.5 (held, band or penalized) from rest.
+    let mut end_drift: f64 = 0.0;
     let t = Instant::now();
     for step in 1..=steps {
         let report = sim.step().map_err(|e| format!("step {step} failed: {e}"))?;
@@ -246,12 +264,13 @@ fn run() -> Result<(), String> {
         timings.solve += report.timings.solve;
         timings.line_search += report.timings.line_search;
         pin_deviation = pin_deviation.max(sim.max_pin_deviation().unwrap_or(0.0));
+        held_deviation = held_deviation.max(sim.max_held_deviation().unwrap_or(0.0));
         {
             let x = sim.model().deformation_map().positions(&sim.state().z);
             let rest = sim.model().rest_positions();
             for i in 0..x.len() {
                 if rest[i].x <= 0.5 {
-                    band_drift = band_drift.max((x[i] - rest[i]).norm());
+                    end_drift = end_drift.max((x[i] - rest[i]).norm());
                 }
             }
         }
@@ -274,7 +293,7 @@ fn run() -> Result<(), String> {
              \"simulation_points\": {}, \"steps\": {steps}, \"tip_y\": {{{}}}, \
              \"ms_per_step\": {:.4}, \"ms_assembly\": {:.4}, \"ms_solve\": {:.4}, \
              \"ms_line_search\": {:.4}, \"newton_iterations_mean\": {iterations_mean:.4}, \
-             \"unconverged_steps\": {unconverged}, \"max_pin_deviation\": {pin_deviation:.4e}, \"band_drift\": {band_drift:.4e}, \"basis_seconds\": {basis_seconds:.4}, \
+             \"unconverged_steps\": {unconverged}, \"max_pin_deviation\": {pin_deviation:.4e}, \"max_held_deviation\": {held_deviation:.4e}, \"end_drift\": {end_drift:.4e}, \"exact_inset\": {inset:.4}, \"basis_seconds\": {basis_seconds:.4}, \
              \"setup_seconds\": {setup_seconds:.4}, \
              \"quadrature\": {{\"kind\": \"{}\", \"points\": {}}}}}",
             basis_grid.len(),
