@@ -214,8 +214,11 @@ fn exact_line(study: &BeamStudy) -> String {
             "Exact pins (issue 25): each pinned or twisted region held exactly by its own handles \
              (a basis per test, built for the regions on compact B-spline kernels, modes vanishing \
              there), on the region shrunk by {inset:.3} m ({} median kernel radii); the points \
-             between are free. Drift: held = the held integration points, region = the FEM \
-             vertices of the whole region (what the FEM holds exactly).\n",
+             between are kept by the penalty. Drift: held = the held integration points (penalty \
+             columns: every pinned point), region = the FEM vertices of the whole region (what \
+             the FEM holds exactly). The library's default is the penalty: across `freeform pins` \
+             (Bend and Twist, m = 16 / 32, three ν) the exact pins are more accurate only on the \
+             Bend at ν = 0.45 (README).\n",
             radii
         ),
         _ => "Exact pins: not run.\n".into(),
