@@ -9,7 +9,7 @@
 //! the study goes on. FEM trajectories and trained networks are cached, so a rerun (or a run
 //! after an interruption) only computes what is missing.
 
-use hyperelastic::{MaterialField, MaterialSample, StableNeoHookean};
+use hyperelastic::{LameParameters, MaterialField, MaterialSample, StableNeoHookean};
 use optimize::NewtonParams;
 use std::path::{Path, PathBuf};
 use std::sync::Mutex;
@@ -22,10 +22,12 @@ use rkpm_core::{
     GridSamplingParams, IntegrationPoints, TriangleMesh, read_triangle_mesh, sample_grid,
 };
 use serde::{Deserialize, Serialize};
-use skin_eigen::build_basis;
+use skin_eigen::{
+    RegionConstraintParams, SkinningBasis, build_basis, build_basis_with_regions,
+};
 
 use crate::EvalError;
-use crate::beam::reduced::ReducedSettings;
+use crate::beam::reduced::{EXACT_INSET_KERNEL_RADII, ReducedSettings};
 use crate::beam::simplicits::train_cached_simplicits;
 use crate::fem_reference::{FemProblem, FemRun, run_fem};
 use crate::model_cache::model_path;
@@ -37,7 +39,7 @@ use crate::shapes::catalog::{
     ShapeCollection, catalog_entry,
 };
 use crate::shapes::reference::{FemMeshSummary, ShapeFemParams, mesh_for_fem};
-use freeform::Simulation;
+use freeform::{PinHold, Simulation};
 use freeform::scene::SceneSpec;
 
 /// What the study runs.
@@ -63,6 +65,11 @@ pub struct ShapeStudyConfig {
     pub jobs: usize,
     /// Cache folder (FEM trajectories under `fem/`, networks under `simplicits/`).
     pub cache_dir: PathBuf,
+    /// Also run every (shape, boundary condition) with its regions held exactly, shrunk by this
+    /// many median kernel radii (a basis per condition, [`PinHold::Exact`]); `None` leaves it
+    /// out.
+    #[serde(default)]
+    pub exact_pins: Option<f64>,
 }
 
 impl ShapeStudyConfig {
@@ -81,6 +88,7 @@ impl ShapeStudyConfig {
             default_youngs_modulus: DEFAULT_SHAPE_YOUNGS_MODULUS,
             jobs: 1,
             cache_dir,
+            exact_pins: Some(EXACT_INSET_KERNEL_RADII),
         }
     }
 
@@ -109,6 +117,8 @@ impl ShapeStudyConfig {
                 steps: 30,
                 ..SimplicitsParams::default()
             }),
+            // Its 120 kernels are too wide for the inset regions to keep points.
+            exact_pins: None,
             ..full
         }
     }
@@ -128,7 +138,7 @@ pub struct MethodScores {
     /// Steps whose Newton solve did not converge.
     pub unconverged_steps: usize,
     /// Largest distance of a constrained integration point from its target (m): how far the
-    /// penalty lets held and pulled regions drift.
+    /// penalty lets held and pulled regions drift (exact pins: of the exactly held points).
     pub max_pin_deviation: f64,
 }
 
@@ -162,6 +172,13 @@ pub struct ShapeRow {
     pub ours: Option<MethodScores>,
     /// Simplicits' scores, if it was trained and the run finished.
     pub simplicits: Option<MethodScores>,
+    /// Our scores with the regions held exactly (inset), if that ran and finished.
+    #[serde(default)]
+    pub exact: Option<MethodScores>,
+    /// Why the exact run is missing when it was asked for (e.g. an inset that leaves a region
+    /// without points).
+    #[serde(default)]
+    pub exact_error: Option<String>,
     /// Reduced integration points in each constrained region.
     pub region_points: Vec<usize>,
     /// Why something is missing.
@@ -450,6 +467,8 @@ fn run_shape_into(
             fem: None,
             ours: None,
             simplicits: None,
+            exact: None,
+            exact_error: None,
             region_points: Vec::new(),
             error: None,
         };
@@ -492,11 +511,17 @@ fn run_shape_into(
                 label: &label,
                 progress,
             };
-            let (scores, region_points) = run.score(&ours, "FreeForm")?;
+            let (scores, region_points) = run.score(&ours, "FreeForm", PinHold::Penalty)?;
             row.ours = Some(scores);
             row.region_points = region_points;
+            if let Some(radii) = config.exact_pins {
+                match run_exact(&run, &ours, &basis_points, &lames, settings, radii) {
+                    Ok(scores) => row.exact = Some(scores),
+                    Err(e) => row.exact_error = Some(e.to_string()),
+                }
+            }
             if let Some(net) = &simplicits {
-                row.simplicits = Some(run.score(net, "Simplicits")?.0);
+                row.simplicits = Some(run.score(net, "Simplicits", PinHold::Penalty)?.0);
             }
             Ok(())
         });
@@ -507,6 +532,33 @@ fn run_shape_into(
     }
     result.fem_seconds = Some(fem_seconds);
     Ok(())
+}
+
+/// `run` with its regions held exactly: the inset from `radii` times the median radius of
+/// `ours`' kernels, a basis built for the inset regions on `basis_points`, scored like ours.
+fn run_exact(
+    run: &BoundaryRun<'_>,
+    ours: &SkinningBasis,
+    basis_points: &IntegrationPoints,
+    lames: &[LameParameters],
+    settings: &ReducedSettings,
+    radii: f64,
+) -> Result<MethodScores, EvalError> {
+    let mut sorted = ours.kernels().radii().to_vec();
+    sorted.sort_by(f64::total_cmp);
+    let hold = PinHold::Exact {
+        inset: radii * sorted[sorted.len() / 2],
+    };
+    let regions = hold.basis_regions(run.scene, &[basis_points.positions(), run.points.positions()])?;
+    let (basis, _, _) = build_basis_with_regions(
+        basis_points,
+        lames,
+        &hold.basis_params(settings.basis_params()),
+        &regions,
+        &RegionConstraintParams::default(),
+    )
+    .map_err(EvalError::Basis)?;
+    Ok(run.score(&basis, "FreeForm exact", hold)?.0)
 }
 
 /// A grid of about `target` points inside `surface`.
@@ -538,12 +590,13 @@ struct BoundaryRun<'a> {
 }
 
 impl BoundaryRun<'_> {
-    /// Simulates `field` (labelled `method`) at the FEM vertices and scores it; also returns
-    /// the integration points held in each constrained region.
+    /// Simulates `field` (labelled `method`, its regions held by `pin_hold`) at the FEM
+    /// vertices and scores it; also returns the integration points in each constrained region.
     fn score<B: SkinningField + ?Sized>(
         &self,
         field: &B,
         method: &str,
+        pin_hold: PinHold,
     ) -> Result<(MethodScores, Vec<usize>), EvalError> {
         let run = run_reduced(
             &ReducedProblem {
@@ -557,7 +610,7 @@ impl BoundaryRun<'_> {
                     // The paper's setting; Table 2 does not yet compare quadratures.
                     quadrature: QuadratureRule::Full,
                     cache_dir: None,
-                    pin_hold: Default::default(),
+                    pin_hold,
                 },
                 output_points: self.fem.vertices(),
                 steps: self.steps,
@@ -572,7 +625,10 @@ impl BoundaryRun<'_> {
             fitting_residual: scores.fitting_residual,
             ms_per_step: run.report.ms_per_step,
             unconverged_steps: run.report.unconverged_steps,
-            max_pin_deviation: run.report.max_pin_deviation,
+            max_pin_deviation: match pin_hold {
+                PinHold::Penalty => run.report.max_pin_deviation,
+                PinHold::Exact { .. } => run.report.max_held_deviation,
+            },
         };
         Ok((scores, run.report.region_points))
     }

@@ -120,6 +120,23 @@ fn average(
     }
 }
 
+/// Over the (shape, `boundary`) rows where both our penalty and exact-pin runs finished: the
+/// ratio of the mean exact MSE (and max) to the mean penalty MSE (and max).
+fn exact_average(shapes: &[&ShapeResult], boundary: ShapeBoundary) -> [Option<f64>; 2] {
+    let pairs: Vec<(MethodScores, MethodScores)> = shapes
+        .iter()
+        .flat_map(|s| s.rows.iter())
+        .filter(|r| r.boundary == boundary)
+        .filter_map(|r| Some((r.ours?, r.exact?)))
+        .collect();
+    let ratio = |pick: fn(&MethodScores) -> f64| {
+        let penalty: f64 = pairs.iter().map(|p| pick(&p.0)).sum();
+        let exact: f64 = pairs.iter().map(|p| pick(&p.1)).sum();
+        (!pairs.is_empty() && penalty > 0.0).then(|| exact / penalty)
+    };
+    [ratio(|s| s.mse), ratio(|s| s.max)]
+}
+
 /// The settings preamble shared by Tables 2 and 7.
 fn settings_lines(study: &ShapeStudy) -> String {
     let c = &study.config;
@@ -244,6 +261,21 @@ pub fn table2(study: &ShapeStudy) -> RenderedTable {
             line("improvement", &|a| percent(a.improvement_percent));
             line("wins", &|a| format!("{}/{}", a.wins, a.shapes));
         }
+        if study.config.exact_pins.is_some() {
+            let exact: Vec<[Option<f64>; 2]> = ShapeBoundary::ALL
+                .iter()
+                .map(|&b| exact_average(&shapes, b))
+                .collect();
+            let cells: Vec<String> = exact
+                .iter()
+                .flat_map(|r| r.map(|v| v.map_or("—".into(), |v| format!("{v:.2}×"))))
+                .collect();
+            let _ = writeln!(
+                md,
+                "| {collection} | FreeForm exact pins ÷ penalty (mean over the same shapes) | {} | |",
+                cells.join(" | ")
+            );
+        }
         for (m, x) in mse.into_iter().zip(max) {
             averages.push(json!({
                 "collection": collection,
@@ -323,7 +355,7 @@ pub fn table2(study: &ShapeStudy) -> RenderedTable {
         );
     }
 
-    md += "\n### Per shape\n\n| shape | E (Pa) | FEM mesh | BC | FreeForm MSE | FreeForm max | Simplicits MSE | Simplicits max | lower MSE | held FEM nodes / points | FEM max displ. / L | basis s | training s | FEM s |\n|---|---|---|---|---|---|---|---|---|---|---|---|---|---|\n";
+    md += "\n### Per shape\n\n| shape | E (Pa) | FEM mesh | BC | FreeForm MSE | FreeForm max | pin drift (mm) | exact MSE | exact max | exact drift (mm) | Simplicits MSE | Simplicits max | lower MSE | held FEM nodes / points | FEM max displ. / L | basis s | training s | FEM s |\n|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|\n";
     let mut csv = String::from(
         "name,bc,ours_mse,ours_max,simplicits_mse,simplicits_max,ours_fit,simplicits_fit,error\n",
     );
@@ -350,6 +382,13 @@ pub fn table2(study: &ShapeStudy) -> RenderedTable {
             let row = shape.rows.iter().find(|r| r.boundary == boundary);
             let ours = row.and_then(|r| r.ours);
             let theirs = row.and_then(|r| r.simplicits);
+            let exact = row.and_then(|r| r.exact);
+            let exact_cell = |v: Option<f64>| match (v, row.and_then(|r| r.exact_error.as_ref())) {
+                (Some(v), _) => format!("{v:.2e}"),
+                (None, Some(e)) => format!("failed: {e}"),
+                (None, None) => "not run".into(),
+            };
+            let mm = |v: Option<f64>| v.map_or("—".into(), |v| format!("{:.2}", 1e3 * v));
             let error = row_error(shape, boundary);
             let join = |v: &[usize]| v.iter().map(usize::to_string).collect::<Vec<_>>().join("+");
             let held = match row {
@@ -371,7 +410,7 @@ pub fn table2(study: &ShapeStudy) -> RenderedTable {
             };
             let _ = writeln!(
                 md,
-                "| {} ({}) | {:.0e} | {mesh} | {} | {} | {} | {} | {} | {lower} | {held} | {} | {} | {} | {} |",
+                "| {} ({}) | {:.0e} | {mesh} | {} | {} | {} | {} | {} | {} | {} | {} | {} | {lower} | {held} | {} | {} | {} | {} |",
                 shape.name,
                 shape.title,
                 shape.youngs_modulus,
@@ -381,6 +420,10 @@ pub fn table2(study: &ShapeStudy) -> RenderedTable {
                     .filter(|_| ours.is_none())
                     .map_or_else(|| sci(ours.map(|s| s.mse)), |e| format!("failed: {e}")),
                 sci(ours.map(|s| s.max)),
+                mm(ours.map(|s| s.max_pin_deviation)),
+                exact_cell(exact.map(|s| s.mse)),
+                exact_cell(exact.map(|s| s.max)),
+                mm(exact.map(|s| s.max_pin_deviation)),
                 not_run_or(theirs.map(|s| s.mse)),
                 not_run_or(theirs.map(|s| s.max)),
                 sci(row.and_then(|r| r.fem.as_ref()).map(|f| f.max_displacement)),
@@ -420,6 +463,10 @@ pub fn table2(study: &ShapeStudy) -> RenderedTable {
                 "ours_unconverged_steps": ours.map(|s| s.unconverged_steps),
                 "simplicits_unconverged_steps": theirs.map(|s| s.unconverged_steps),
                 "ours_max_pin_deviation": ours.map(|s| s.max_pin_deviation),
+                "exact_mse": exact.map(|s| s.mse),
+                "exact_max": exact.map(|s| s.max),
+                "exact_max_pin_deviation": exact.map(|s| s.max_pin_deviation),
+                "exact_error": row.and_then(|r| r.exact_error.clone()),
                 "simplicits_max_pin_deviation": theirs.map(|s| s.max_pin_deviation),
                 "fem": row.and_then(|r| r.fem.clone()),
                 "region_points": row.map(|r| r.region_points.clone()),
