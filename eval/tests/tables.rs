@@ -112,7 +112,9 @@ fn tiny_study_fills_tables_1_5_6_with_paper_columns_and_consistent_json() {
     assert_eq!(files.len(), 3);
     let csv = std::fs::read_to_string(&files[2]).unwrap();
     assert!(
-        csv.starts_with("test,m,ours_mse,ours_max,simplicits_mse,simplicits_max,paper_ours_mse")
+        csv.starts_with(
+            "test,m,ours_mse,ours_max,exact_mse,exact_max,exact_max_pin_deviation,simplicits_mse,simplicits_max,paper_ours_mse"
+        )
     );
     assert_eq!(csv.lines().count(), 3);
 
@@ -220,5 +222,9 @@ fn table1_runs_both_pin_treatments_and_the_exact_rows_hold_their_regions() {
         assert!(row["exact_region_drift"].as_f64().unwrap().is_finite());
         assert!(row["exact_inset"].as_f64().unwrap() > 0.0);
     }
-    assert!(t1.markdown.contains("Exact pins (issue 25)"), "{}", t1.markdown);
+    assert!(
+        t1.markdown.contains("Exact pins (issue 25)"),
+        "{}",
+        t1.markdown
+    );
 }

@@ -17,8 +17,8 @@
 use nalgebra::Vector3;
 use reduced_sim::{PinnedRegion, Scene};
 use rkpm_core::{KernelWindow, ShapeFunctionParams};
-use skin_eigen::BasisParams;
 use serde::{Deserialize, Serialize};
+use skin_eigen::BasisParams;
 
 use crate::scene::{Region, SceneSpec, SceneSpecError};
 
@@ -197,12 +197,22 @@ mod tests {
             value: 0.5,
         };
         assert!(below.contains(&Vector3::new(0.45, 0.0, 0.0)));
-        assert!(!below.inset(0.1).unwrap().contains(&Vector3::new(0.45, 0.0, 0.0)));
+        assert!(
+            !below
+                .inset(0.1)
+                .unwrap()
+                .contains(&Vector3::new(0.45, 0.0, 0.0))
+        );
         let above = Region::Above {
             axis: 1,
             value: 1.0,
         };
-        assert!(!above.inset(0.2).unwrap().contains(&Vector3::new(0.0, 1.1, 0.0)));
+        assert!(
+            !above
+                .inset(0.2)
+                .unwrap()
+                .contains(&Vector3::new(0.0, 1.1, 0.0))
+        );
         let ball = Region::Ball {
             center: Vector3::zeros(),
             radius: 0.3,
@@ -249,7 +259,12 @@ mod tests {
         let hold = PinHold::Exact { inset: 0.1 };
         let regions = hold.basis_regions(&clamp(), &[&a, &b]).unwrap();
         assert_eq!(regions, vec![vec![a[0], b[0]]]);
-        assert!(PinHold::Penalty.basis_regions(&clamp(), &[&a]).unwrap().is_empty());
+        assert!(
+            PinHold::Penalty
+                .basis_regions(&clamp(), &[&a])
+                .unwrap()
+                .is_empty()
+        );
         assert!(matches!(
             PinHold::Exact { inset: -1.0 }.held_scene(&clamp()),
             Err(SceneSpecError::Invalid(_))

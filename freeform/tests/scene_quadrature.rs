@@ -107,7 +107,11 @@ fn a_scene_file_with_exact_pins_holds_its_clamped_end_on_target() {
         let path = dir.join("scene.toml");
         std::fs::write(&path, box_scene(pins) + clamp).unwrap();
         let file = SceneFile::load(&path).unwrap();
-        let out = dir.join(if pins.contains("exact") { "exact" } else { "penalty" });
+        let out = dir.join(if pins.contains("exact") {
+            "exact"
+        } else {
+            "penalty"
+        });
         let report = simulate_scene_file(&file, &out, None, &Silent).unwrap();
         assert_eq!(report.unconverged_steps, 0);
         assert!(report.final_max_displacement > 1e-4, "the box sags");

@@ -26,8 +26,8 @@ use hyperelastic::{LameParameters, StableNeoHookean, Tangent};
 use nalgebra::Vector3;
 use optimize::{NewtonParams, NewtonTimings};
 use reduced_sim::{
-    DeformationMap, PenaltyParams, PinModulus, PinTarget, PinnedRegion,
-    QuadratureRule, ReducedModel, Scene, SimulationParams, Simulator,
+    DeformationMap, PenaltyParams, PinModulus, PinTarget, PinnedRegion, QuadratureRule,
+    ReducedModel, Scene, SimulationParams, Simulator,
 };
 use rkpm_core::{KernelWindow, place_kernels, sample_box_grid};
 use skin_eigen::{BasisParams, RegionConstraintParams, build_basis, build_basis_with_regions};

@@ -57,9 +57,7 @@ pub use incremental_potential::IncrementalPotential;
 pub use quadrature::{ElasticQuadrature, QuadratureError, QuadratureReport, QuadratureRule};
 pub use reduced_coordinates::ReducedLayout;
 pub use reduced_model::{ReducedModel, ReducedModelError};
-pub use scene::{
-    Floor, PenaltyParams, PinModulus, PinTarget, PinnedRegion, Scene, TargetFunction,
-};
+pub use scene::{Floor, PenaltyParams, PinModulus, PinTarget, PinnedRegion, Scene, TargetFunction};
 pub use scene_terms::SceneError;
 pub use simulator::{ReducedState, SimulationParams, Simulator, StateError, StepError};
 pub use skinning_field::SkinningField;

@@ -11,8 +11,8 @@ use hyperelastic::{LameParameters, StableNeoHookean, Tangent};
 use nalgebra::{DMatrix, Rotation3, Vector3};
 use optimize::NewtonObjective;
 use reduced_sim::{
-    PinTarget, PinnedRegion, ReducedModel, ReducedState, Scene, SceneError,
-    SimulationParams, Simulator,
+    PinTarget, PinnedRegion, ReducedModel, ReducedState, Scene, SceneError, SimulationParams,
+    Simulator,
 };
 use rkpm_core::{IntegrationPoints, sample_box_grid};
 use skin_eigen::{BasisParams, RegionConstraintParams, SkinningBasis, build_basis_with_regions};
@@ -262,5 +262,8 @@ fn a_basis_not_built_for_the_regions_is_refused_by_name() {
     let err = Simulator::new(model(&basis, &points), &many, SimulationParams::default())
         .err()
         .unwrap();
-    assert!(matches!(err, SceneError::TooFewHandles { regions: 10, .. }), "{err}");
+    assert!(
+        matches!(err, SceneError::TooFewHandles { regions: 10, .. }),
+        "{err}"
+    );
 }

@@ -90,7 +90,9 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
              the modes reach 1% of their peak {:.3} m and 10% {:.3} m beyond x = 0.5",
             radii[radii.len() / 2],
             region.len(),
-            report.held_regions.map_or(f64::NAN, |h| h.max_mode_value_on_regions),
+            report
+                .held_regions
+                .map_or(f64::NAN, |h| h.max_mode_value_on_regions),
             reach(0.01),
             reach(0.1),
         );

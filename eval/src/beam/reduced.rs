@@ -150,9 +150,9 @@ impl ReducedSettings {
             PinHold::Penalty => {
                 format!("κ_pin = {:e} · {modulus} / L²{origin}", self.pin_factor)
             }
-            PinHold::Exact { inset } => format!(
-                "exact (held regions shrunk by {inset:.3} m, compact kernels)"
-            ),
+            PinHold::Exact { inset } => {
+                format!("exact (held regions shrunk by {inset:.3} m, compact kernels)")
+            }
         }
     }
 

@@ -22,9 +22,7 @@ use rkpm_core::{
     GridSamplingParams, IntegrationPoints, TriangleMesh, read_triangle_mesh, sample_grid,
 };
 use serde::{Deserialize, Serialize};
-use skin_eigen::{
-    RegionConstraintParams, SkinningBasis, build_basis, build_basis_with_regions,
-};
+use skin_eigen::{RegionConstraintParams, SkinningBasis, build_basis, build_basis_with_regions};
 
 use crate::EvalError;
 use crate::beam::reduced::{EXACT_INSET_KERNEL_RADII, ReducedSettings};
@@ -39,8 +37,8 @@ use crate::shapes::catalog::{
     ShapeCollection, catalog_entry,
 };
 use crate::shapes::reference::{FemMeshSummary, ShapeFemParams, mesh_for_fem};
-use freeform::{PinHold, Simulation};
 use freeform::scene::SceneSpec;
+use freeform::{PinHold, Simulation};
 
 /// What the study runs.
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
@@ -549,7 +547,10 @@ fn run_exact(
     let hold = PinHold::Exact {
         inset: radii * sorted[sorted.len() / 2],
     };
-    let regions = hold.basis_regions(run.scene, &[basis_points.positions(), run.points.positions()])?;
+    let regions = hold.basis_regions(
+        run.scene,
+        &[basis_points.positions(), run.points.positions()],
+    )?;
     let (basis, _, _) = build_basis_with_regions(
         basis_points,
         lames,

@@ -71,12 +71,12 @@ pub(crate) struct TableOptions {
     /// tables used `p-wave` with factor 1e3).
     #[arg(long, value_enum)]
     pin_modulus: Option<PinModulusChoice>,
-    /// Leave out Table 1's exact-pin columns (each (test, m) is run a second time with the
-    /// pinned regions held exactly, on a basis built for them).
+    /// Leave out the exact-pin columns of Tables 1 and 2 (each row is run a second time with
+    /// the pinned regions held exactly, on a basis built for them).
     #[arg(long)]
     skip_exact: bool,
-    /// Table 1's exact pins: hold each region shrunk by this many median kernel radii
-    /// (default 1.5; 0 holds the whole region).
+    /// The exact pins of Tables 1 and 2: hold each region shrunk by this many median kernel
+    /// radii (default 1.5; 0 holds the whole region, as thin shape regions need).
     #[arg(long, default_value_t = eval::beam::reduced::EXACT_INSET_KERNEL_RADII)]
     exact_inset_radii: f64,
 }
@@ -195,6 +195,11 @@ pub(crate) fn run(
             ShapeStudyConfig::full(files, cache.to_path_buf())
         };
         shapes.default_youngs_modulus = young;
+        if skip_exact {
+            shapes.exact_pins = None;
+        } else if shapes.exact_pins.is_some() {
+            shapes.exact_pins = Some(exact_inset_radii);
+        }
         shapes.jobs = jobs;
         shapes.settings.pin_factor = config.settings.pin_factor;
         shapes.settings.pin_modulus = config.settings.pin_modulus;
