@@ -6,9 +6,11 @@ use std::fmt::Write as _;
 use std::path::PathBuf;
 
 use hyperelastic::MaterialSample;
+use nalgebra::Vector3;
 use optimize::NewtonParams;
 use reduced_sim::{PinModulus, SimulationParams};
 use serde::{Deserialize, Serialize};
+use skin_eigen::SkinningBasis;
 
 use crate::EvalError;
 use crate::beam::reduced::{
@@ -18,8 +20,9 @@ use crate::beam::reduced::{
 use crate::beam::study::{beam_length_scale, region_drift};
 use crate::beam::{BeamTest, beam_material};
 use crate::fem_reference::{FemResolution, run_fem_beam_with};
-use crate::metrics::trajectory_errors;
+use crate::metrics::{TrajectoryErrors, trajectory_errors};
 use crate::progress::Progress;
+use crate::reduced_run::ReducedRun;
 
 /// What the sweep runs.
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
@@ -184,29 +187,26 @@ pub fn run_pin_sweep(config: &PinSweepConfig, progress: &Progress) -> Result<Pin
                 continue;
             }
             let reference = fem.vertex_frames();
+            let scored = ScoredRuns {
+                test,
+                material,
+                vertices: fem.vertices(),
+                reference: &reference,
+                steps,
+                config,
+                progress,
+            };
             for &m in &config.modes {
                 let base = ReducedSettings {
                     modes: m,
                     ..config.settings
                 };
-                // A uniform material scales the weight-space Hessian, not its eigenvectors: one
-                // basis serves every ν.
                 if let Some(radii) = config.exact_inset_radii {
                     let exact = ReducedSettings {
                         pins: exact_pin_hold(&base, radii)?,
                         ..base
                     };
                     let basis = build_beam_basis_for(test, &exact)?;
-                    let run = run_reduced_beam_with(
-                        test,
-                        &basis.basis,
-                        &exact,
-                        material,
-                        Some(&config.cache_dir),
-                        fem.vertices(),
-                        steps,
-                        progress,
-                    );
                     let mut row = ExactSweepRow {
                         poisson_ratio: nu,
                         test,
@@ -218,20 +218,15 @@ pub fn run_pin_sweep(config: &PinSweepConfig, progress: &Progress) -> Result<Pin
                         unconverged_steps: 0,
                         failure: None,
                     };
-                    match run {
-                        Ok(run) => {
-                            let errors = trajectory_errors(
-                                &run.frames[1..],
-                                &reference[1..],
-                                beam_length_scale(),
-                            )?;
+                    match scored.run(&basis.basis, &exact)? {
+                        Ok((errors, run)) => {
                             row.mse = errors.normalized_mse;
                             row.max = errors.normalized_max;
                             row.max_held_deviation = run.report.max_held_deviation;
                             row.region_drift = region_drift(test, fem.vertices(), &run.frames);
                             row.unconverged_steps = run.report.unconverged_steps;
                         }
-                        Err(e) => row.failure = Some(failure_chain(&e)),
+                        Err(why) => row.failure = Some(why),
                     }
                     progress.status(format!(
                         "ν = {nu} {} m = {m} exact: MSE {:.3e}, held drift {:.2e} m",
@@ -241,6 +236,8 @@ pub fn run_pin_sweep(config: &PinSweepConfig, progress: &Progress) -> Result<Pin
                     ));
                     exact_rows.push(row);
                 }
+                // A uniform material scales the weight-space Hessian, not its eigenvectors: the
+                // basis is the same at every ν.
                 let basis = build_beam_basis(&base)?;
                 for &modulus in &config.moduli {
                     for &factor in &config.factors {
@@ -249,16 +246,6 @@ pub fn run_pin_sweep(config: &PinSweepConfig, progress: &Progress) -> Result<Pin
                             pin_modulus: modulus,
                             ..base
                         };
-                        let run = run_reduced_beam_with(
-                            test,
-                            &basis.basis,
-                            &settings,
-                            material,
-                            Some(&config.cache_dir),
-                            fem.vertices(),
-                            steps,
-                            progress,
-                        );
                         let mut row = PinSweepRow {
                             poisson_ratio: nu,
                             test,
@@ -271,20 +258,15 @@ pub fn run_pin_sweep(config: &PinSweepConfig, progress: &Progress) -> Result<Pin
                             unconverged_steps: 0,
                             failure: None,
                         };
-                        match run {
-                            Ok(run) => {
-                                let errors = trajectory_errors(
-                                    &run.frames[1..],
-                                    &reference[1..],
-                                    beam_length_scale(),
-                                )?;
+                        match scored.run(&basis.basis, &settings)? {
+                            Ok((errors, run)) => {
                                 row.mse = errors.normalized_mse;
                                 row.max = errors.normalized_max;
                                 row.max_pin_deviation = run.report.max_pin_deviation;
                                 row.unconverged_steps = run.report.unconverged_steps;
                             }
                             // A pin too soft or too stiff for the step: reported in its row.
-                            Err(e) => row.failure = Some(failure_chain(&e)),
+                            Err(why) => row.failure = Some(why),
                         }
                         progress.status(format!(
                             "ν = {nu} {} m = {m} {} factor {factor:e}: MSE {:.3e}, pin drift \
@@ -305,6 +287,50 @@ pub fn run_pin_sweep(config: &PinSweepConfig, progress: &Progress) -> Result<Pin
         exact_rows,
         refused_references,
     })
+}
+
+/// Reduced runs of one (ν, test) scored against its FEM reference.
+struct ScoredRuns<'a> {
+    test: BeamTest,
+    material: MaterialSample,
+    vertices: &'a [Vector3<f64>],
+    reference: &'a [Vec<Vector3<f64>>],
+    steps: usize,
+    config: &'a PinSweepConfig,
+    progress: &'a Progress,
+}
+
+impl ScoredRuns<'_> {
+    /// `basis` under `settings`, with its errors against the reference; `Ok(Err(why))` when the
+    /// run stopped (a pin too soft or too stiff for the step), which the sweep reports in its
+    /// row.
+    ///
+    /// # Errors
+    /// [`EvalError`] from the metric.
+    fn run(
+        &self,
+        basis: &SkinningBasis,
+        settings: &ReducedSettings,
+    ) -> Result<Result<(TrajectoryErrors, ReducedRun), String>, EvalError> {
+        let run = run_reduced_beam_with(
+            self.test,
+            basis,
+            settings,
+            self.material,
+            Some(&self.config.cache_dir),
+            self.vertices,
+            self.steps,
+            self.progress,
+        );
+        match run {
+            Ok(run) => {
+                let errors =
+                    trajectory_errors(&run.frames[1..], &self.reference[1..], beam_length_scale())?;
+                Ok(Ok((errors, run)))
+            }
+            Err(e) => Ok(Err(failure_chain(&e))),
+        }
+    }
 }
 
 /// The sweep as Markdown: one row per (test, m, modulus, factor), one MSE and pin-drift column
