@@ -25,7 +25,7 @@ use serde::{Deserialize, Serialize};
 use skin_eigen::{RegionConstraintParams, SkinningBasis, build_basis, build_basis_with_regions};
 
 use crate::EvalError;
-use crate::beam::reduced::{EXACT_INSET_KERNEL_RADII, ReducedSettings};
+use crate::beam::reduced::ReducedSettings;
 use crate::beam::simplicits::train_cached_simplicits;
 use crate::fem_reference::{FemProblem, FemRun, run_fem};
 use crate::model_cache::model_path;
@@ -86,7 +86,9 @@ impl ShapeStudyConfig {
             default_youngs_modulus: DEFAULT_SHAPE_YOUNGS_MODULUS,
             jobs: 1,
             cache_dir,
-            exact_pins: Some(EXACT_INSET_KERNEL_RADII),
+            // The shapes' held regions (a slab, small balls) are thinner than the beam's
+            // 1.5-radius inset: the whole region is held.
+            exact_pins: Some(0.0),
         }
     }
 

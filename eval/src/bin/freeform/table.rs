@@ -76,9 +76,10 @@ pub(crate) struct TableOptions {
     #[arg(long)]
     skip_exact: bool,
     /// The exact pins of Tables 1 and 2: hold each region shrunk by this many median kernel
-    /// radii (default 1.5; 0 holds the whole region, as thin shape regions need).
-    #[arg(long, default_value_t = eval::beam::reduced::EXACT_INSET_KERNEL_RADII)]
-    exact_inset_radii: f64,
+    /// radii (default 1.5 on the beam; 0 on the shapes, whose regions are thinner than that:
+    /// the whole region is held).
+    #[arg(long)]
+    exact_inset_radii: Option<f64>,
 }
 
 /// `--pin-modulus`.
@@ -140,10 +141,13 @@ pub(crate) fn run(
         config.tests = vec![BeamTest::Bend];
     }
     // Only Table 1 prints the exact-pin columns.
-    if !(exact_inset_radii >= 0.0 && exact_inset_radii.is_finite()) {
-        bail!("--exact-inset-radii must be a non-negative number, got {exact_inset_radii}");
+    if let Some(radii) = exact_inset_radii
+        && !(radii >= 0.0 && radii.is_finite())
+    {
+        bail!("--exact-inset-radii must be a non-negative number, got {radii}");
     }
-    config.exact_pins = (!skip_exact && numbers.contains(&1)).then_some(exact_inset_radii);
+    config.exact_pins = (!skip_exact && numbers.contains(&1))
+        .then_some(exact_inset_radii.unwrap_or(eval::beam::reduced::EXACT_INSET_KERNEL_RADII));
     if let Some(modes) = &modes {
         if modes.contains(&0) {
             bail!("--modes: every m must be at least 1");
@@ -197,8 +201,8 @@ pub(crate) fn run(
         shapes.default_youngs_modulus = young;
         if skip_exact {
             shapes.exact_pins = None;
-        } else if shapes.exact_pins.is_some() {
-            shapes.exact_pins = Some(exact_inset_radii);
+        } else if let Some(radii) = exact_inset_radii {
+            shapes.exact_pins = Some(radii);
         }
         shapes.jobs = jobs;
         shapes.settings.pin_factor = config.settings.pin_factor;
