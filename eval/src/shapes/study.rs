@@ -63,11 +63,19 @@ pub struct ShapeStudyConfig {
     pub jobs: usize,
     /// Cache folder (FEM trajectories under `fem/`, networks under `simplicits/`).
     pub cache_dir: PathBuf,
+    /// The quality gate of the FEM reference (issue 19): a row is scored only when the
+    /// reference's tet mesh keeps the surface's volume within this fraction (default 0.03).
+    #[serde(default = "default_reference_volume_gate")]
+    pub max_reference_volume_error: f64,
     /// Also run every (shape, boundary condition) with its regions held exactly, shrunk by this
     /// many median kernel radii (a basis per condition, [`PinHold::Exact`]); `None` leaves it
     /// out.
     #[serde(default)]
     pub exact_pins: Option<f64>,
+}
+
+fn default_reference_volume_gate() -> f64 {
+    0.03
 }
 
 impl ShapeStudyConfig {
@@ -89,6 +97,7 @@ impl ShapeStudyConfig {
             // The shapes' held regions (a slab, small balls) are thinner than the beam's
             // 1.5-radius inset: the whole region is held.
             exact_pins: Some(0.0),
+            max_reference_volume_error: default_reference_volume_gate(),
         }
     }
 
@@ -212,6 +221,32 @@ pub struct ShapeResult {
     pub rows: Vec<ShapeRow>,
     /// Why the shape could not be run at all.
     pub error: Option<String>,
+}
+
+impl ShapeResult {
+    /// Why `row`'s FEM reference cannot be trusted, or `None` when it passes the quality gate:
+    /// its tet mesh keeps the surface's volume within `max_volume_error` (relative) and its
+    /// every step converged. Convergence under mesh refinement is not checked yet.
+    pub fn untrusted_reference(&self, row: &ShapeRow, max_volume_error: f64) -> Option<String> {
+        let Some(mesh) = &self.fem_mesh else {
+            return Some("no FEM mesh".into());
+        };
+        if !(mesh.relative_volume_error.abs() <= max_volume_error) {
+            return Some(format!(
+                "the FEM mesh has {:+.1}% of the surface's volume (gate ±{:.0}%)",
+                100.0 * mesh.relative_volume_error,
+                100.0 * max_volume_error
+            ));
+        }
+        match &row.fem {
+            None => Some("no FEM run".into()),
+            Some(fem) if fem.unconverged_steps > 0 => Some(format!(
+                "the FEM run left {} steps unconverged",
+                fem.unconverged_steps
+            )),
+            Some(_) => None,
+        }
+    }
 }
 
 /// Everything Tables 2 and 7 print.

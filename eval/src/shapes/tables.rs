@@ -3,8 +3,11 @@
 //! (shape, boundary condition); `"averages"`) and CSV.
 //!
 //! Averages are means over the shapes where every method in the row finished the boundary
-//! condition (`n` says how many); "improvement" is `(S − F) / S` of those averages, and "wins"
-//! counts the shapes where our value is the lower one.
+//! condition and the FEM reference passed the quality gate
+//! ([`ShapeResult::untrusted_reference`]: volume kept within
+//! `ShapeStudyConfig::max_reference_volume_error`, every step converged; `n` says how many);
+//! "improvement" is `(S − F) / S` of those averages, and "wins" counts the shapes where our
+//! value is the lower one.
 
 use std::fmt::Write as _;
 
@@ -15,7 +18,7 @@ use crate::report::paper;
 use crate::report::table::{RenderedTable, not_run_or, sci};
 use crate::shapes::boundary::ShapeBoundary;
 use crate::shapes::catalog::{SHAPE_DENSITY, SHAPE_POISSON_RATIO, ShapeCollection};
-use crate::shapes::study::{MethodScores, ShapeResult, ShapeStudy};
+use crate::shapes::study::{MethodScores, ShapeResult, ShapeRow, ShapeStudy};
 
 /// Which number of a method's scores a table reports.
 #[derive(Clone, Copy)]
@@ -88,11 +91,9 @@ fn average(
     boundary: ShapeBoundary,
     measure: Measure,
     with_simplicits: bool,
+    gate: f64,
 ) -> ShapeAverage {
-    let pairs: Vec<(f64, Option<f64>)> = shapes
-        .iter()
-        .flat_map(|s| s.rows.iter())
-        .filter(|r| r.boundary == boundary)
+    let pairs: Vec<(f64, Option<f64>)> = trusted_rows(shapes, boundary, gate)
         .filter_map(|r| {
             let ours = measure.of(r.ours.as_ref()?);
             let theirs = r.simplicits.as_ref().map(|s| measure.of(s));
@@ -120,13 +121,23 @@ fn average(
     }
 }
 
+/// The `boundary` rows of `shapes` whose FEM reference passes the quality gate.
+fn trusted_rows<'a>(
+    shapes: &'a [&'a ShapeResult],
+    boundary: ShapeBoundary,
+    gate: f64,
+) -> impl Iterator<Item = &'a ShapeRow> {
+    shapes.iter().flat_map(move |s| {
+        s.rows
+            .iter()
+            .filter(move |r| r.boundary == boundary && s.untrusted_reference(r, gate).is_none())
+    })
+}
+
 /// Over the (shape, `boundary`) rows where both our penalty and exact-pin runs finished: the
 /// ratio of the mean exact MSE (and max) to the mean penalty MSE (and max).
-fn exact_average(shapes: &[&ShapeResult], boundary: ShapeBoundary) -> [Option<f64>; 2] {
-    let pairs: Vec<(MethodScores, MethodScores)> = shapes
-        .iter()
-        .flat_map(|s| s.rows.iter())
-        .filter(|r| r.boundary == boundary)
+fn exact_average(shapes: &[&ShapeResult], boundary: ShapeBoundary, gate: f64) -> [Option<f64>; 2] {
+    let pairs: Vec<(MethodScores, MethodScores)> = trusted_rows(shapes, boundary, gate)
         .filter_map(|r| Some((r.ours?, r.exact?)))
         .collect();
     let ratio = |pick: fn(&MethodScores) -> f64| {
@@ -166,6 +177,24 @@ fn settings_lines(study: &ShapeStudy) -> String {
         c.fem.first_cells_across,
         c.fem.max_cells_across,
         100.0 * c.fem.volume_tolerance
+    );
+    let gate = c.max_reference_volume_error;
+    let rows: Vec<(&ShapeResult, &ShapeRow)> = study
+        .shapes
+        .iter()
+        .flat_map(|s| s.rows.iter().map(move |r| (s, r)))
+        .collect();
+    let trusted = rows
+        .iter()
+        .filter(|(s, r)| s.untrusted_reference(r, gate).is_none())
+        .count();
+    let _ = writeln!(
+        out,
+        "Quality gate (issue 19): a (shape, BC) row is scored, and averaged, only if its FEM mesh \
+         keeps the surface's volume within ±{:.0}% and every FEM step converged: {trusted} of {} \
+         rows pass. Convergence of the reference under refinement is not checked yet.",
+        100.0 * gate,
+        rows.len()
     );
     let _ = writeln!(
         out,
@@ -222,6 +251,7 @@ fn row_error(shape: &ShapeResult, boundary: ShapeBoundary) -> Option<String> {
 /// Table 2: averages per boundary condition and collection, training times, per-shape rows.
 pub fn table2(study: &ShapeStudy) -> RenderedTable {
     let with_simplicits = study.config.simplicits.is_some();
+    let gate = study.config.max_reference_volume_error;
     let mut md = String::from("## Table 2: shapes, normalized MSE and max error against FEM\n\n");
     md += &settings_lines(study);
     md += "\n### Averages\n\n| shapes | method | ";
@@ -233,11 +263,11 @@ pub fn table2(study: &ShapeStudy) -> RenderedTable {
     for (collection, shapes) in groups(study) {
         let mse: Vec<ShapeAverage> = ShapeBoundary::ALL
             .iter()
-            .map(|&b| average(&collection, &shapes, b, Measure::Mse, with_simplicits))
+            .map(|&b| average(&collection, &shapes, b, Measure::Mse, with_simplicits, gate))
             .collect();
         let max: Vec<ShapeAverage> = ShapeBoundary::ALL
             .iter()
-            .map(|&b| average(&collection, &shapes, b, Measure::Max, with_simplicits))
+            .map(|&b| average(&collection, &shapes, b, Measure::Max, with_simplicits, gate))
             .collect();
         let counts: Vec<String> = mse.iter().map(|a| a.shapes.to_string()).collect();
         let counts = counts.join("/");
@@ -264,7 +294,7 @@ pub fn table2(study: &ShapeStudy) -> RenderedTable {
         if study.config.exact_pins.is_some() {
             let exact: Vec<[Option<f64>; 2]> = ShapeBoundary::ALL
                 .iter()
-                .map(|&b| exact_average(&shapes, b))
+                .map(|&b| exact_average(&shapes, b, gate))
                 .collect();
             let cells: Vec<String> = exact
                 .iter()
@@ -383,6 +413,7 @@ pub fn table2(study: &ShapeStudy) -> RenderedTable {
             let ours = row.and_then(|r| r.ours);
             let theirs = row.and_then(|r| r.simplicits);
             let exact = row.and_then(|r| r.exact);
+            let untrusted = row.and_then(|r| shape.untrusted_reference(r, gate));
             let exact_cell = |v: Option<f64>| match (v, row.and_then(|r| r.exact_error.as_ref())) {
                 (Some(v), _) => format!("{v:.2e}"),
                 (None, Some(e)) => format!("failed: {e}"),
@@ -403,10 +434,11 @@ pub fn table2(study: &ShapeStudy) -> RenderedTable {
                 ),
                 _ => "—".into(),
             };
-            let lower = match (ours, theirs) {
-                (Some(o), Some(t)) if o.mse < t.mse => "FreeForm",
-                (Some(_), Some(_)) => "Simplicits",
-                _ => "—",
+            let lower = match (&untrusted, ours, theirs) {
+                (Some(why), Some(_), _) => format!("no trustworthy reference: {why}"),
+                (None, Some(o), Some(t)) if o.mse < t.mse => "FreeForm".into(),
+                (None, Some(_), Some(_)) => "Simplicits".into(),
+                _ => "—".into(),
             };
             let _ = writeln!(
                 md,
@@ -463,6 +495,11 @@ pub fn table2(study: &ShapeStudy) -> RenderedTable {
                 "ours_unconverged_steps": ours.map(|s| s.unconverged_steps),
                 "simplicits_unconverged_steps": theirs.map(|s| s.unconverged_steps),
                 "ours_max_pin_deviation": ours.map(|s| s.max_pin_deviation),
+                "fem_volume_error": shape.fem_mesh.map(|m| m.relative_volume_error),
+                "trusted": row.is_some() && untrusted.is_none(),
+                "why_untrusted": untrusted,
+                // Convergence of the reference under refinement is not checked yet (issue 19).
+                "reference_change": Value::Null,
                 "exact_mse": exact.map(|s| s.mse),
                 "exact_max": exact.map(|s| s.max),
                 "exact_max_pin_deviation": exact.map(|s| s.max_pin_deviation),
@@ -508,6 +545,7 @@ pub fn table2(study: &ShapeStudy) -> RenderedTable {
 /// deformation map, averaged per boundary condition and per shape.
 pub fn table7(study: &ShapeStudy) -> RenderedTable {
     let with_simplicits = study.config.simplicits.is_some();
+    let gate = study.config.max_reference_volume_error;
     let mut md =
         String::from("## Table 7: shapes, basis fitting residual of the FEM trajectory\n\n");
     md += &settings_lines(study);
@@ -517,7 +555,7 @@ pub fn table7(study: &ShapeStudy) -> RenderedTable {
     let mut averages = Vec::new();
     for (collection, shapes) in groups(study) {
         for b in ShapeBoundary::ALL {
-            let a = average(&collection, &shapes, b, Measure::Fit, with_simplicits);
+            let a = average(&collection, &shapes, b, Measure::Fit, with_simplicits, gate);
             let _ = writeln!(
                 md,
                 "| {collection} | {} | {} | {} | {} | {}/{} | {} |",
@@ -581,5 +619,120 @@ pub fn table7(study: &ShapeStudy) -> RenderedTable {
             "settings": serde_json::to_value(&study.config).unwrap_or(Value::Null),
         }),
         csv,
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use std::path::PathBuf;
+
+    use super::*;
+    use crate::shapes::reference::FemMeshSummary;
+    use crate::shapes::study::{FemRunSummary, ShapeStudyConfig};
+
+    fn scores(mse: f64) -> MethodScores {
+        MethodScores {
+            mse,
+            max: mse.sqrt(),
+            fitting_residual: 0.1 * mse,
+            ms_per_step: 1.0,
+            unconverged_steps: 0,
+            max_pin_deviation: 0.0,
+        }
+    }
+
+    /// A shape with one row per boundary condition, its FEM mesh off by `volume_error` and its
+    /// FEM runs leaving `unconverged` steps, our MSE `mse` everywhere.
+    fn shape(name: &str, volume_error: f64, unconverged: usize, mse: f64) -> ShapeResult {
+        ShapeResult {
+            name: name.into(),
+            title: name.into(),
+            collection: ShapeCollection::Other,
+            class: None,
+            youngs_modulus: 1e5,
+            basis_points: 1000,
+            basis_seconds: Some(1.0),
+            training_seconds: None,
+            fem_mesh: Some(FemMeshSummary {
+                cells_across: 8,
+                vertices: 100,
+                tets: 300,
+                relative_volume_error: volume_error,
+                dropped_pieces: 0,
+                dropped_volume_fraction: 0.0,
+            }),
+            fem_seconds: Some(1.0),
+            rows: ShapeBoundary::ALL
+                .iter()
+                .map(|&boundary| ShapeRow {
+                    boundary,
+                    fem: Some(FemRunSummary {
+                        region_nodes: vec![10],
+                        max_displacement: 0.1,
+                        dofs: 300,
+                        seconds_per_step: 0.01,
+                        iterations_per_step: 2.0,
+                        unconverged_steps: unconverged,
+                        cached: false,
+                    }),
+                    ours: Some(scores(mse)),
+                    simplicits: None,
+                    exact: None,
+                    exact_error: None,
+                    region_points: vec![5],
+                    error: None,
+                })
+                .collect(),
+            error: None,
+        }
+    }
+
+    #[test]
+    fn references_that_lost_volume_or_did_not_converge_are_named_and_left_out_of_the_averages() {
+        let mut config = ShapeStudyConfig::full(Vec::new(), PathBuf::from("unused"));
+        config.simplicits = None;
+        let study = ShapeStudy {
+            config,
+            shapes: vec![
+                shape("good", -0.02, 0, 1e-4),
+                shape("thin", -0.40, 0, 1e-1),
+                shape("stalled", 0.01, 2, 1e-2),
+            ],
+            seconds: 1.0,
+        };
+        let t2 = table2(&study);
+        let rows = t2.json["shapes"].as_array().unwrap();
+        let of = |name: &str| rows.iter().find(|r| r["name"] == name).unwrap();
+        assert_eq!(of("good")["trusted"], true);
+        assert_eq!(of("thin")["trusted"], false);
+        assert!(
+            of("thin")["why_untrusted"]
+                .as_str()
+                .unwrap()
+                .contains("-40.0% of the surface's volume"),
+            "{}",
+            of("thin")
+        );
+        assert!((of("thin")["fem_volume_error"].as_f64().unwrap() + 0.4).abs() < 1e-12);
+        assert!(
+            of("stalled")["why_untrusted"]
+                .as_str()
+                .unwrap()
+                .contains("2 steps unconverged")
+        );
+        // Only the trusted shape enters the averages: its MSE, over one shape.
+        for average in t2.json["averages"].as_array().unwrap() {
+            assert_eq!(average["shapes"], 1, "{average}");
+            assert_eq!(average["ours_mse"].as_f64(), Some(1e-4), "{average}");
+        }
+        assert!(t2.markdown.contains("no trustworthy reference"));
+        let t7 = table7(&study);
+        assert!(
+            t7.json["averages"]
+                .as_array()
+                .unwrap()
+                .iter()
+                .all(|a| a["shapes"] == 1)
+        );
     }
 }
