@@ -356,4 +356,17 @@ impl FemRun {
             .map(|f| interpolation.interpolate(f))
             .collect())
     }
+
+    /// This run's frames interpolated at those of `points` (rest positions, m) that lie inside
+    /// its mesh, with their indices (points outside are skipped, e.g. the vertices of a coarser
+    /// mesh of the same shape whose boundary sticks out).
+    pub fn frames_inside(&self, points: &[Vector3<f64>]) -> (Vec<usize>, Vec<Vec<Vector3<f64>>>) {
+        let (interpolation, inside) = PointInterpolation::inside(&self.mesh, points);
+        let frames = self
+            .frames
+            .iter()
+            .map(|f| interpolation.interpolate(f))
+            .collect();
+        (inside, frames)
+    }
 }

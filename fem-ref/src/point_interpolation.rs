@@ -17,6 +17,9 @@ pub struct PointLocationError {
     pub tolerance: f64,
 }
 
+/// Barycentric tolerance within which a point on an element's face counts as inside.
+const LOCATION_TOLERANCE: f64 = 1e-9;
+
 /// For each query point: its element and shape-function values, so that
 /// `x(p) = Σ_a N_a(p) x_a` is a cheap sum per frame.
 #[derive(Clone, Debug)]
@@ -31,12 +34,30 @@ impl PointInterpolation {
     /// # Errors
     /// [`PointLocationError`] for the first point outside the mesh.
     pub fn new(mesh: &FemMesh, points: &[Vector3<f64>]) -> Result<Self, PointLocationError> {
-        let tolerance = 1e-9;
+        let (interpolation, inside) = PointInterpolation::inside(mesh, points);
+        match (0..points.len()).zip(&inside).find(|(i, j)| i != *j) {
+            None if inside.len() == points.len() => Ok(interpolation),
+            found => {
+                let point = found.map_or(inside.len(), |(i, _)| i);
+                Err(PointLocationError {
+                    point,
+                    position: points[point].into(),
+                    tolerance: LOCATION_TOLERANCE,
+                })
+            }
+        }
+    }
+
+    /// The points of `points` inside `mesh` (as [`PointInterpolation::new`] locates them) and
+    /// their indices, ascending; points outside are skipped (e.g. to compare two meshes of one
+    /// shape whose boundaries differ).
+    pub fn inside(mesh: &FemMesh, points: &[Vector3<f64>]) -> (Self, Vec<usize>) {
         let tets = mesh.tet_mesh();
         let inverses: Vec<_> = (0..mesh.element_count())
             .map(|e| tets.edge_matrix(e).try_inverse().expect("positive volume"))
             .collect();
         let mut entries = Vec::with_capacity(points.len());
+        let mut inside = Vec::with_capacity(points.len());
         for (i, p) in points.iter().enumerate() {
             let mut best: Option<(usize, Vector4<f64>, f64)> = None;
             for (e, inv) in inverses.iter().enumerate() {
@@ -48,21 +69,17 @@ impl PointInterpolation {
                     best = Some((e, lambda, worst));
                 }
             }
-            match best {
-                Some((e, lambda, worst)) if worst >= -tolerance => entries.push((
+            if let Some((e, lambda, worst)) = best
+                && worst >= -LOCATION_TOLERANCE
+            {
+                entries.push((
                     mesh.element(e).to_vec(),
                     shape_values(mesh.order(), &lambda),
-                )),
-                _ => {
-                    return Err(PointLocationError {
-                        point: i,
-                        position: (*p).into(),
-                        tolerance,
-                    });
-                }
+                ));
+                inside.push(i);
             }
         }
-        Ok(PointInterpolation { entries })
+        (PointInterpolation { entries }, inside)
     }
 
     /// Interpolated positions from node positions (m).

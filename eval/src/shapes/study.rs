@@ -9,7 +9,9 @@
 //! the study goes on. FEM trajectories and trained networks are cached, so a rerun (or a run
 //! after an interruption) only computes what is missing.
 
+use fem_ref::{LatticeMesherParams, tetrahedralize};
 use hyperelastic::{LameParameters, MaterialField, MaterialSample, StableNeoHookean};
+use nalgebra::Vector3;
 use optimize::NewtonParams;
 use std::path::{Path, PathBuf};
 use std::sync::Mutex;
@@ -28,6 +30,7 @@ use crate::EvalError;
 use crate::beam::reduced::ReducedSettings;
 use crate::beam::simplicits::train_cached_simplicits;
 use crate::fem_reference::{FemProblem, FemRun, run_fem};
+use crate::metrics::trajectory_errors;
 use crate::model_cache::model_path;
 use crate::progress::Progress;
 use crate::reduced_run::{ReducedProblem, run_reduced};
@@ -67,6 +70,11 @@ pub struct ShapeStudyConfig {
     /// reference's tet mesh keeps the surface's volume within this fraction (default 0.03).
     #[serde(default = "default_reference_volume_gate")]
     pub max_reference_volume_error: f64,
+    /// Check each reference's convergence (issue 19): run the FEM again on the lattice 1.5×
+    /// finer and measure how much the trajectory changes at the reference's vertices (default
+    /// false: it multiplies the FEM time by about 5).
+    #[serde(default)]
+    pub check_convergence: bool,
     /// Also run every (shape, boundary condition) with its regions held exactly, shrunk by this
     /// many median kernel radii (a basis per condition, [`PinHold::Exact`]); `None` leaves it
     /// out.
@@ -98,6 +106,7 @@ impl ShapeStudyConfig {
             // 1.5-radius inset: the whole region is held.
             exact_pins: Some(0.0),
             max_reference_volume_error: default_reference_volume_gate(),
+            check_convergence: false,
         }
     }
 
@@ -188,6 +197,14 @@ pub struct ShapeRow {
     /// without points).
     #[serde(default)]
     pub exact_error: Option<String>,
+    /// With [`ShapeStudyConfig::check_convergence`]: the normalized MSE (the table's metric)
+    /// between this reference and the one on the 1.5× finer lattice, at this reference's
+    /// vertices inside the finer mesh.
+    #[serde(default)]
+    pub reference_change: Option<f64>,
+    /// Why the convergence check could not be made, when it was asked for.
+    #[serde(default)]
+    pub reference_check_error: Option<String>,
     /// Reduced integration points in each constrained region.
     pub region_points: Vec<usize>,
     /// Why something is missing.
@@ -225,8 +242,9 @@ pub struct ShapeResult {
 
 impl ShapeResult {
     /// Why `row`'s FEM reference cannot be trusted, or `None` when it passes the quality gate:
-    /// its tet mesh keeps the surface's volume within `max_volume_error` (relative) and its
-    /// every step converged. Convergence under mesh refinement is not checked yet.
+    /// its tet mesh keeps the surface's volume within `max_volume_error` (relative), its every
+    /// step converged, and, when the convergence check ran, the 1.5× finer reference changes it
+    /// by less than a tenth of the smaller of the methods' MSEs.
     pub fn untrusted_reference(&self, row: &ShapeRow, max_volume_error: f64) -> Option<String> {
         let Some(mesh) = &self.fem_mesh else {
             return Some("no FEM mesh".into());
@@ -239,12 +257,29 @@ impl ShapeResult {
             ));
         }
         match &row.fem {
-            None => Some("no FEM run".into()),
-            Some(fem) if fem.unconverged_steps > 0 => Some(format!(
-                "the FEM run left {} steps unconverged",
-                fem.unconverged_steps
+            None => return Some("no FEM run".into()),
+            Some(fem) if fem.unconverged_steps > 0 => {
+                return Some(format!(
+                    "the FEM run left {} steps unconverged",
+                    fem.unconverged_steps
+                ));
+            }
+            Some(_) => {}
+        }
+        if let Some(why) = &row.reference_check_error {
+            return Some(format!("the convergence check failed: {why}"));
+        }
+        let smallest = [row.ours, row.simplicits]
+            .iter()
+            .flatten()
+            .map(|s| s.mse)
+            .fold(f64::INFINITY, f64::min);
+        match row.reference_change {
+            Some(change) if !(change < 0.1 * smallest) => Some(format!(
+                "the 1.5× finer reference changes it by {change:.2e} (MSE), not below a tenth of \
+                 the smallest method error {smallest:.2e}"
             )),
-            Some(_) => None,
+            _ => None,
         }
     }
 }
@@ -494,6 +529,24 @@ fn run_shape_into(
         dropped_volume_fraction: dropped / report.surface_volume,
     });
     let points = sample_on(&surface, settings.simulation_points, "simulation points")?;
+    let finer = if config.check_convergence {
+        let cells = (1.5 * length / report.cell_size).round() as usize;
+        Some(
+            tetrahedralize(
+                &surface,
+                &LatticeMesherParams {
+                    cells_across: cells,
+                    ..Default::default()
+                },
+            )
+            .map_err(EvalError::FemMesh)?
+            .0
+            .largest_component()
+            .0,
+        )
+    } else {
+        None
+    };
 
     let mut fem_seconds = 0.0;
     for boundary in ShapeBoundary::ALL {
@@ -504,6 +557,8 @@ fn run_shape_into(
             simplicits: None,
             exact: None,
             exact_error: None,
+            reference_change: None,
+            reference_check_error: None,
             region_points: Vec::new(),
             error: None,
         };
@@ -535,6 +590,21 @@ fn run_shape_into(
                 cached: fem.cached,
             });
             fem.check_converged(NewtonParams::default().max_iterations)?;
+            if let Some(finer) = &finer {
+                let problem = FemProblem {
+                    tets: finer.clone(),
+                    order: config.fem.order,
+                    material,
+                    scene: &scene,
+                    time_step: config.boundary.time_step,
+                    newton: NewtonParams::default(),
+                    steps: config.boundary.steps,
+                };
+                match reference_change(&fem, &problem, length, &label, config, progress) {
+                    Ok(change) => row.reference_change = Some(change),
+                    Err(e) => row.reference_check_error = Some(e.to_string()),
+                }
+            }
             let run = BoundaryRun {
                 points: &points,
                 material,
@@ -567,6 +637,41 @@ fn run_shape_into(
     }
     result.fem_seconds = Some(fem_seconds);
     Ok(())
+}
+
+/// The normalized MSE between `coarse` and the run of `finer` (the same problem on a finer
+/// mesh), at the coarse vertices inside the finer mesh over frames 1..T.
+///
+/// # Errors
+/// [`EvalError`] from the finer run (refused when a step did not converge) or the metric;
+/// [`EvalError::InvalidInput`] when no coarse vertex lies inside the finer mesh.
+fn reference_change(
+    coarse: &FemRun,
+    finer: &FemProblem<'_>,
+    length: f64,
+    label: &str,
+    config: &ShapeStudyConfig,
+    progress: &Progress,
+) -> Result<f64, EvalError> {
+    let fine = run_fem(
+        finer,
+        &format!("{label} finer"),
+        &config.cache_dir,
+        progress,
+    )?;
+    fine.check_converged(NewtonParams::default().max_iterations)?;
+    let (inside, fine_frames) = fine.frames_inside(coarse.vertices());
+    if inside.is_empty() {
+        return Err(EvalError::InvalidInput(
+            "no vertex of the reference lies inside the finer mesh".into(),
+        ));
+    }
+    let coarse_frames: Vec<Vec<Vector3<f64>>> = coarse
+        .vertex_frames()
+        .iter()
+        .map(|f| inside.iter().map(|&i| f[i]).collect())
+        .collect();
+    Ok(trajectory_errors(&coarse_frames[1..], &fine_frames[1..], length)?.normalized_mse)
 }
 
 /// `run` with its regions held exactly: the inset from `radii` times the median radius of

@@ -191,9 +191,15 @@ fn settings_lines(study: &ShapeStudy) -> String {
     let _ = writeln!(
         out,
         "Quality gate (issue 19): a (shape, BC) row is scored, and averaged, only if its FEM mesh \
-         keeps the surface's volume within ±{:.0}% and every FEM step converged: {trusted} of {} \
-         rows pass. Convergence of the reference under refinement is not checked yet.",
+         keeps the surface's volume within ±{:.0}%, every FEM step converged{}: {trusted} of {} \
+         rows pass.",
         100.0 * gate,
+        if c.check_convergence {
+            ", and the 1.5× finer reference changes it by less than a tenth of the smaller method \
+             MSE"
+        } else {
+            " (convergence under refinement not checked: `--check-convergence`)"
+        },
         rows.len()
     );
     let _ = writeln!(
@@ -498,8 +504,8 @@ pub fn table2(study: &ShapeStudy) -> RenderedTable {
                 "fem_volume_error": shape.fem_mesh.map(|m| m.relative_volume_error),
                 "trusted": row.is_some() && untrusted.is_none(),
                 "why_untrusted": untrusted,
-                // Convergence of the reference under refinement is not checked yet (issue 19).
-                "reference_change": Value::Null,
+                "reference_change": row.and_then(|r| r.reference_change),
+                "reference_check_error": row.and_then(|r| r.reference_check_error.clone()),
                 "exact_mse": exact.map(|s| s.mse),
                 "exact_max": exact.map(|s| s.max),
                 "exact_max_pin_deviation": exact.map(|s| s.max_pin_deviation),
@@ -679,6 +685,8 @@ mod tests {
                     simplicits: None,
                     exact: None,
                     exact_error: None,
+                    reference_change: None,
+                    reference_check_error: None,
                     region_points: vec![5],
                     error: None,
                 })
@@ -688,15 +696,27 @@ mod tests {
     }
 
     #[test]
-    fn references_that_lost_volume_or_did_not_converge_are_named_and_left_out_of_the_averages() {
+    fn references_that_lost_volume_stalled_or_change_under_refinement_are_named_and_left_out_of_the_averages()
+     {
         let mut config = ShapeStudyConfig::full(Vec::new(), PathBuf::from("unused"));
         config.simplicits = None;
+        // A reference 1.5× finer changes "coarse" by half its method error: not converged;
+        // "good" by a hundredth of it.
+        let mut coarse = shape("coarse", 0.0, 0, 1e-3);
+        for row in &mut coarse.rows {
+            row.reference_change = Some(5e-4);
+        }
+        let mut good = shape("good", -0.02, 0, 1e-4);
+        for row in &mut good.rows {
+            row.reference_change = Some(1e-6);
+        }
         let study = ShapeStudy {
             config,
             shapes: vec![
-                shape("good", -0.02, 0, 1e-4),
+                good,
                 shape("thin", -0.40, 0, 1e-1),
                 shape("stalled", 0.01, 2, 1e-2),
+                coarse,
             ],
             seconds: 1.0,
         };
@@ -720,6 +740,15 @@ mod tests {
                 .unwrap()
                 .contains("2 steps unconverged")
         );
+        assert!(
+            of("coarse")["why_untrusted"]
+                .as_str()
+                .unwrap()
+                .contains("finer reference changes it by 5.00e-4"),
+            "{}",
+            of("coarse")
+        );
+        assert_eq!(of("good")["reference_change"].as_f64(), Some(1e-6));
         // Only the trusted shape enters the averages: its MSE, over one shape.
         for average in t2.json["averages"].as_array().unwrap() {
             assert_eq!(average["shapes"], 1, "{average}");
