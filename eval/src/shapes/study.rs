@@ -9,7 +9,7 @@
 //! the study goes on. FEM trajectories and trained networks are cached, so a rerun (or a run
 //! after an interruption) only computes what is missing.
 
-use fem_ref::{LatticeMesherParams, tetrahedralize};
+use fem_ref::{LatticeMesherParams, TetMesh, tetrahedralize};
 use hyperelastic::{LameParameters, MaterialField, MaterialSample, StableNeoHookean};
 use nalgebra::Vector3;
 use optimize::NewtonParams;
@@ -564,72 +564,60 @@ fn run_shape_into(
         };
         let scene = boundary.scene(&surface, tets.vertices(), &config.boundary);
         let label = format!("{} {}", result.name, boundary.title());
-        let outcome = run_fem(
-            &FemProblem {
-                tets: tets.clone(),
-                order: config.fem.order,
-                material,
-                scene: &scene,
-                time_step: config.boundary.time_step,
-                newton: NewtonParams::default(),
-                steps: config.boundary.steps,
-            },
-            &label,
-            &config.cache_dir,
-            progress,
-        )
-        .and_then(|fem| {
-            fem_seconds += fem.seconds_per_step * config.boundary.steps as f64;
-            row.fem = Some(FemRunSummary {
-                region_nodes: fem.region_nodes.clone(),
-                max_displacement: fem.max_vertex_displacement() / length,
-                dofs: fem.dofs,
-                seconds_per_step: fem.seconds_per_step,
-                iterations_per_step: fem.iterations_per_step,
-                unconverged_steps: fem.unconverged_steps,
-                cached: fem.cached,
-            });
-            fem.check_converged(NewtonParams::default().max_iterations)?;
-            if let Some(finer) = &finer {
-                let problem = FemProblem {
-                    tets: finer.clone(),
-                    order: config.fem.order,
+        let problem = |tets: &TetMesh| FemProblem {
+            tets: tets.clone(),
+            order: config.fem.order,
+            material,
+            scene: &scene,
+            time_step: config.boundary.time_step,
+            newton: NewtonParams::default(),
+            steps: config.boundary.steps,
+        };
+        let outcome =
+            run_fem(&problem(&tets), &label, &config.cache_dir, progress).and_then(|fem| {
+                fem_seconds += fem.seconds_per_step * config.boundary.steps as f64;
+                row.fem = Some(FemRunSummary {
+                    region_nodes: fem.region_nodes.clone(),
+                    max_displacement: fem.max_vertex_displacement() / length,
+                    dofs: fem.dofs,
+                    seconds_per_step: fem.seconds_per_step,
+                    iterations_per_step: fem.iterations_per_step,
+                    unconverged_steps: fem.unconverged_steps,
+                    cached: fem.cached,
+                });
+                fem.check_converged(NewtonParams::default().max_iterations)?;
+                if let Some(finer) = &finer {
+                    match reference_change(&fem, &problem(finer), length, &label, config, progress)
+                    {
+                        Ok(change) => row.reference_change = Some(change),
+                        Err(e) => row.reference_check_error = Some(e.to_string()),
+                    }
+                }
+                let run = BoundaryRun {
+                    points: &points,
                     material,
                     scene: &scene,
-                    time_step: config.boundary.time_step,
-                    newton: NewtonParams::default(),
+                    params: settings.simulation_params(config.boundary.time_step),
+                    fem: &fem,
                     steps: config.boundary.steps,
+                    length,
+                    label: &label,
+                    progress,
                 };
-                match reference_change(&fem, &problem, length, &label, config, progress) {
-                    Ok(change) => row.reference_change = Some(change),
-                    Err(e) => row.reference_check_error = Some(e.to_string()),
+                let (scores, region_points) = run.score(&ours, "FreeForm", PinHold::Penalty)?;
+                row.ours = Some(scores);
+                row.region_points = region_points;
+                if let Some(radii) = config.exact_pins {
+                    match run_exact(&run, &ours, &basis_points, &lames, settings, radii) {
+                        Ok(scores) => row.exact = Some(scores),
+                        Err(e) => row.exact_error = Some(e.to_string()),
+                    }
                 }
-            }
-            let run = BoundaryRun {
-                points: &points,
-                material,
-                scene: &scene,
-                params: settings.simulation_params(config.boundary.time_step),
-                fem: &fem,
-                steps: config.boundary.steps,
-                length,
-                label: &label,
-                progress,
-            };
-            let (scores, region_points) = run.score(&ours, "FreeForm", PinHold::Penalty)?;
-            row.ours = Some(scores);
-            row.region_points = region_points;
-            if let Some(radii) = config.exact_pins {
-                match run_exact(&run, &ours, &basis_points, &lames, settings, radii) {
-                    Ok(scores) => row.exact = Some(scores),
-                    Err(e) => row.exact_error = Some(e.to_string()),
+                if let Some(net) = &simplicits {
+                    row.simplicits = Some(run.score(net, "Simplicits", PinHold::Penalty)?.0);
                 }
-            }
-            if let Some(net) = &simplicits {
-                row.simplicits = Some(run.score(net, "Simplicits", PinHold::Penalty)?.0);
-            }
-            Ok(())
-        });
+                Ok(())
+            });
         if let Err(e) = outcome {
             row.error = Some(e.to_string());
         }
