@@ -317,8 +317,22 @@ fn a_quick_shape_run_fills_tables_2_and_7_reports_a_broken_mesh_and_reuses_its_c
         .filter(|a| a["collection"] == "all")
         .collect();
     assert_eq!(all.len(), 3);
+    // The quality gate: a bunny row is trusted exactly when its (coarse, 6-cell) FEM mesh keeps
+    // the volume within 3% (its FEM converged), and only trusted rows are averaged.
     for a in &all {
-        assert_eq!(a["shapes"], 1, "only the bunny is averaged: {a}");
+        let bunny = rows
+            .iter()
+            .find(|r| r["name"] == "bunny.obj" && r["bc"] == a["bc"])
+            .unwrap();
+        let volume_error = bunny["fem_volume_error"].as_f64().unwrap();
+        let trusted = volume_error.abs() <= 0.03;
+        assert_eq!(bunny["trusted"], trusted, "{bunny}");
+        assert_eq!(bunny["why_untrusted"].is_null(), trusted, "{bunny}");
+        assert_eq!(
+            a["shapes"],
+            usize::from(trusted),
+            "only the bunny can be averaged: {a}"
+        );
     }
     let t7 = table(&tables, 7);
     let fits: Vec<f64> = t7["shapes"]
