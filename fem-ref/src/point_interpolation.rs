@@ -96,3 +96,33 @@ impl PointInterpolation {
             .collect()
     }
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::element::ElementOrder;
+    use crate::tet_mesh::TetMesh;
+
+    #[test]
+    fn inside_skips_points_outside_and_interpolates_the_others_exactly() {
+        let tets = TetMesh::cuboid(Vector3::zeros(), Vector3::new(2.0, 1.0, 1.0), [4, 2, 2])
+            .expect("a valid box");
+        let mesh = FemMesh::new(tets, ElementOrder::Quadratic);
+        let points = [
+            Vector3::new(0.3, 0.2, 0.7),
+            Vector3::new(2.5, 0.5, 0.5),
+            Vector3::new(1.9, 1.0, 0.0),
+            Vector3::new(-0.1, 0.5, 0.5),
+        ];
+        let (interpolation, inside) = PointInterpolation::inside(&mesh, &points);
+        assert_eq!(inside, vec![0, 2]);
+        // P2 reproduces any quadratic field exactly: here x ↦ (x², yz, x + z).
+        let field = |p: &Vector3<f64>| Vector3::new(p.x * p.x, p.y * p.z, p.x + p.z);
+        let nodes: Vec<Vector3<f64>> = mesh.nodes().iter().map(field).collect();
+        for (value, &i) in interpolation.interpolate(&nodes).iter().zip(&inside) {
+            assert!((value - field(&points[i])).norm() < 1e-12, "{value:?}");
+        }
+        let error = PointInterpolation::new(&mesh, &points).err().unwrap();
+        assert_eq!(error.point, 1);
+    }
+}
