@@ -14,6 +14,8 @@
 //! the 10 scored runs (Bend at ν = 0.45) and less accurate in 8, by 1.8× in geometric mean; on
 //! the Twist the band lags the rotating end (up to 0.3 m at the FEM's held vertices).
 
+use std::collections::HashSet;
+
 use nalgebra::Vector3;
 use reduced_sim::{PinnedRegion, Scene};
 use rkpm_core::{KernelWindow, ShapeFunctionParams};
@@ -79,10 +81,11 @@ impl PinHold {
             .into_iter()
             .zip(&held)
             .filter_map(|(region, inner)| {
+                let held: HashSet<usize> = inner.points.iter().copied().collect();
                 let points: Vec<usize> = region
                     .points
                     .into_iter()
-                    .filter(|p| !inner.points.contains(p))
+                    .filter(|p| !held.contains(p))
                     .collect();
                 (!points.is_empty()).then_some(PinnedRegion {
                     points,

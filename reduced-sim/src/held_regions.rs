@@ -101,11 +101,15 @@ impl HeldRegions {
                     .collect()
             })
             .collect();
-        let held: Vec<usize> = (0..count)
-            .flat_map(|j| (0..3).flat_map(move |r| (0..4).map(move |c| (j, r, c))))
-            .map(|(j, r, c)| layout.index(j, r, c))
-            .collect();
-        let free = (0..layout.len()).filter(|i| !held.contains(i)).collect();
+        let mut is_held = vec![false; layout.len()];
+        for j in 0..count {
+            for r in 0..3 {
+                for c in 0..4 {
+                    is_held[layout.index(j, r, c)] = true;
+                }
+            }
+        }
+        let free = (0..layout.len()).filter(|&i| !is_held[i]).collect();
         Ok(HeldRegions { layout, fits, free })
     }
 
