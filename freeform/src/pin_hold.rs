@@ -64,8 +64,8 @@ impl PinHold {
     /// kept by the penalty in [`Scene::pins`] (bands without points left out).
     ///
     /// # Errors
-    /// As [`PinHold::held_scene`] and [`SceneSpec::select`] (a held region that selects no
-    /// integration point).
+    /// As [`PinHold::held_scene`] and [`SceneSpec::select`]; a held region the inset left without
+    /// integration points is [`SceneSpecError::Invalid`] naming the inset.
     pub fn reduced_scene(
         &self,
         scene: &SceneSpec,
@@ -75,7 +75,11 @@ impl PinHold {
         if *self == PinHold::Penalty {
             return Ok(full);
         }
-        let held = self.held_scene(scene)?.reduced_scene(points)?.pins;
+        let held = self
+            .held_scene(scene)?
+            .reduced_scene(points)
+            .map_err(|e| self.explain(e))?
+            .pins;
         let band = full
             .pins
             .into_iter()
@@ -134,8 +138,8 @@ impl PinHold {
     /// simulation's integration points). Empty for the penalty.
     ///
     /// # Errors
-    /// As [`PinHold::held_scene`], and [`SceneSpecError::EmptyRegion`] for a held region that
-    /// holds none of the points.
+    /// As [`PinHold::held_scene`], and [`SceneSpecError::Invalid`] naming the inset for a held
+    /// region that holds none of the points.
     pub fn basis_regions(
         &self,
         scene: &SceneSpec,
@@ -146,11 +150,34 @@ impl PinHold {
         }
         let held = self.held_scene(scene)?;
         let all: Vec<Vector3<f64>> = point_sets.iter().flat_map(|s| s.iter().copied()).collect();
-        let selected = held.select(&all, "basis and integration points")?;
+        let selected = held
+            .select(&all, "basis and integration points")
+            .map_err(|e| self.explain(e))?;
         Ok(selected
             .into_iter()
             .map(|indices| indices.into_iter().map(|i| all[i]).collect())
             .collect())
+    }
+}
+
+impl PinHold {
+    /// `error` with a hint when it is an exact hold's inset that emptied a region.
+    fn explain(&self, error: SceneSpecError) -> SceneSpecError {
+        match (self, error) {
+            (
+                PinHold::Exact { inset },
+                SceneSpecError::EmptyRegion {
+                    index,
+                    region,
+                    what,
+                    available,
+                },
+            ) => SceneSpecError::Invalid(format!(
+                "constraints[{index}] shrunk by the exact pins' inset of {inset} m ({region:?}) holds \
+                 none of the {available} {what}: use a smaller inset (0 holds the whole region)"
+            )),
+            (_, error) => error,
+        }
     }
 }
 
@@ -272,9 +299,12 @@ mod tests {
             PinHold::Exact { inset: -1.0 }.held_scene(&clamp()),
             Err(SceneSpecError::Invalid(_))
         ));
-        assert!(matches!(
-            PinHold::Exact { inset: 0.45 }.basis_regions(&clamp(), &[&a]),
-            Err(SceneSpecError::EmptyRegion { .. })
-        ));
+        let emptied = PinHold::Exact { inset: 0.45 }.basis_regions(&clamp(), &[&a]);
+        match emptied {
+            Err(SceneSpecError::Invalid(message)) => {
+                assert!(message.contains("use a smaller inset"), "{message}");
+            }
+            other => panic!("expected the inset to be named, got {other:?}"),
+        }
     }
 }
