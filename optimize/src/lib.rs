@@ -7,7 +7,7 @@
 //! of a 12(m+1)-square Hessian) and `fem-ref` for the FEM reference (sparse Cholesky on the
 //! free DOFs). A user's own solver plugs in by implementing [`NewtonObjective`].
 //!
-//! - [`nnls`]: non-negative least squares (Lawson–Hanson), for cubature weights.
+//! - [`mod@nnls`]: non-negative least squares (Lawson–Hanson), for cubature weights.
 //! - [`NewtonObjective`]: what an objective provides.
 //! - [`minimize`]: the solver; [`NewtonParams`] in, [`NewtonReport`] out, [`NewtonError`]
 //!   when it cannot go on; [`minimize_reusing`] carries the Hessian factorization from one
