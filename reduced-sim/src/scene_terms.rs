@@ -261,14 +261,9 @@ impl SceneTerms {
         }
     }
 
-    /// The pins held by the penalty (none with held regions).
+    /// The pins held by the penalty ([`Scene::pins`]; the held regions follow them).
     fn penalized_pins(&self) -> impl Iterator<Item = &PinTerm> {
-        let count = if self.held.is_some() {
-            0
-        } else {
-            self.pins.len()
-        };
-        self.pins.iter().take(count)
+        self.pins.iter().take(self.penalized)
     }
 
     /// The pin stiffness κ_pin (Pa/m²).

@@ -166,9 +166,14 @@ fn a_body_whose_only_region_translates_moves_rigidly_with_zero_elastic_energy() 
 #[test]
 fn the_constrained_steps_gradient_and_hessian_match_finite_differences() {
     let points = bar();
-    let (_, scene) = twist_scene(&points, |t| 3.0 * PI * t);
+    let (_, mut scene) = twist_scene(&points, |t| 3.0 * PI * t);
     let regions: Vec<Vec<usize>> = scene.held.iter().map(|p| p.points.clone()).collect();
     let basis = held_basis(&points, &regions);
+    // A penalized band beside the held end, as `freeform::PinHold::Exact` sets up.
+    scene.pins.push(PinnedRegion {
+        points: select(&points, |x| x.x > 0.25 && x.x <= 0.5),
+        target: PinTarget::Rest,
+    });
     let params = SimulationParams {
         tangent: Tangent::Exact,
         ..SimulationParams::default()
