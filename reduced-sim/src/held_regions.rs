@@ -30,9 +30,9 @@ pub(crate) const HELD_WEIGHT_TOLERANCE: f64 = 1e-5;
 /// The regions' transforms, prepared once.
 pub(crate) struct HeldRegions {
     layout: ReducedLayout,
-    /// Per region, per point: `v_p G_r⁺ X̄_p` with `G_r = Σ v X̄ X̄ᵀ`, so that
-    /// `D_r = Σ_p d_p g_pᵀ` for displacements `d_p`.
-    fits: Vec<Vec<Vector4<f64>>>,
+    /// Per region: per point `g_p = v_p G_r⁺ X̄_p` with `G_r = Σ v X̄ X̄ᵀ`, and the rest term
+    /// `Σ_p X_p g_pᵀ`, so that `D_r = Σ_p t_p g_pᵀ − Σ_p X_p g_pᵀ` for targets `t_p`.
+    fits: Vec<(Vec<Vector4<f64>>, Matrix3x4<f64>)>,
     /// Indices of z not prescribed (ascending).
     free: Vec<usize>,
 }
@@ -95,10 +95,16 @@ impl HeldRegions {
                 let inverse = moment
                     .pseudo_inverse(1e-12 * moment.norm())
                     .unwrap_or_else(|_| Matrix4::zeros());
-                points
+                let fit: Vec<Vector4<f64>> = points
                     .iter()
                     .map(|&p| volumes[p] * (inverse * rest[p].push(1.0)))
-                    .collect()
+                    .collect();
+                let rest_term = points
+                    .iter()
+                    .zip(&fit)
+                    .map(|(&p, g)| rest[p] * g.transpose())
+                    .sum();
+                (fit, rest_term)
             })
             .collect();
         let mut is_held = vec![false; layout.len()];
@@ -118,21 +124,16 @@ impl HeldRegions {
         &self.free
     }
 
-    /// Writes the held handles' entries of z for the targets `targets[r][p]` of every region
-    /// point (m), whose rest positions are `rest[r][p]`.
-    pub(crate) fn prescribe(
-        &self,
-        z: &mut [f64],
-        rest: &[Vec<Vector3<f64>>],
-        targets: &[Vec<Vector3<f64>>],
-    ) {
+    /// Writes the held handles' entries of z for the targets `targets[r][p]` (m) of every region
+    /// point, in the order the regions' points were given to [`HeldRegions::new`].
+    pub(crate) fn prescribe(&self, z: &mut [f64], targets: &[Vec<Vector3<f64>>]) {
         let displacement = |r: usize| -> Matrix3x4<f64> {
-            self.fits[r]
-                .iter()
-                .zip(&rest[r])
+            let (fit, rest_term) = &self.fits[r];
+            fit.iter()
                 .zip(&targets[r])
-                .map(|((g, x), t)| (t - x) * g.transpose())
-                .sum()
+                .map(|(g, t)| t * g.transpose())
+                .sum::<Matrix3x4<f64>>()
+                - rest_term
         };
         let base = displacement(0);
         for region in 0..self.fits.len() {

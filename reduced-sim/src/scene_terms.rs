@@ -253,11 +253,7 @@ impl SceneTerms {
     /// otherwise).
     pub(crate) fn prescribe(&self, z: &mut [f64], targets: &PinTargets) {
         if let Some(held) = &self.held {
-            let rest: Vec<Vec<Vector3<f64>>> = self.pins[self.penalized..]
-                .iter()
-                .map(|p| p.rest.clone())
-                .collect();
-            held.prescribe(z, &rest, &targets.0[self.penalized..]);
+            held.prescribe(z, &targets.0[self.penalized..]);
         }
     }
 
