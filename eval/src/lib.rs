@@ -134,6 +134,15 @@ pub enum EvalError {
     },
 }
 
+impl From<freeform::HeldBasisError> for EvalError {
+    fn from(error: freeform::HeldBasisError) -> Self {
+        match error {
+            freeform::HeldBasisError::Scene(e) => EvalError::Scene(e),
+            freeform::HeldBasisError::Basis(e) => EvalError::Basis(e),
+        }
+    }
+}
+
 impl EvalError {
     /// An I/O error on `path`.
     pub fn io(path: &Path, source: std::io::Error) -> Self {

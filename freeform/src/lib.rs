@@ -65,7 +65,7 @@ pub mod splats;
 
 pub use frames::FrameWriter;
 pub use geometry::{Geometry, GeometryError};
-pub use pin_hold::PinHold;
+pub use pin_hold::{HeldBasisError, PinHold};
 pub use progress::{Progress, Silent};
 pub use runner::{Frame, ObserverResult, RunError, RunReport, Simulation, run};
 pub use scene::{Constraint, FloorSpec, Motion, Region, SceneSpec, SceneSpecError};

@@ -16,13 +16,29 @@
 
 use std::collections::HashSet;
 
+use hyperelastic::LameParameters;
 use nalgebra::Vector3;
 use reduced_sim::{PinnedRegion, Scene};
-use rkpm_core::{KernelWindow, ShapeFunctionParams};
+use rkpm_core::{IntegrationPoints, KernelWindow, ShapeFunctionParams};
 use serde::{Deserialize, Serialize};
-use skin_eigen::BasisParams;
+use skin_eigen::{
+    BasisError, BasisParams, BasisReport, RegionConstraintParams, SkinningBasis, build_basis,
+    build_basis_with_regions,
+};
 
 use crate::scene::{Region, SceneSpec, SceneSpecError};
+
+/// [`PinHold::build_basis`] failed.
+#[derive(Debug, thiserror::Error)]
+pub enum HeldBasisError {
+    /// The held regions could not be selected (an inset that empties a region, an invalid
+    /// scene).
+    #[error(transparent)]
+    Scene(#[from] SceneSpecError),
+    /// The basis builder failed.
+    #[error("building the basis failed")]
+    Basis(#[from] BasisError),
+}
 
 /// How the reduced simulator holds the scene's constrained regions.
 #[derive(Clone, Copy, Debug, Default, PartialEq, Serialize, Deserialize)]
@@ -158,9 +174,42 @@ impl PinHold {
             .map(|indices| indices.into_iter().map(|i| all[i]).collect())
             .collect())
     }
-}
 
-impl PinHold {
+    /// The basis of `basis_points` (with Lamé parameters `materials` and options `params`) for
+    /// this hold: [`skin_eigen::build_basis`] for the penalty; for exact holding,
+    /// [`skin_eigen::build_basis_with_regions`] on the hold's compact kernels
+    /// ([`PinHold::basis_params`]) for `scene`'s regions shrunk by the inset, held at the basis
+    /// points and at `simulation_points` (the integration points the simulator will check).
+    ///
+    /// # Errors
+    /// [`HeldBasisError::Scene`] as [`PinHold::basis_regions`]; [`HeldBasisError::Basis`] from
+    /// the builder.
+    pub fn build_basis(
+        &self,
+        scene: &SceneSpec,
+        basis_points: &IntegrationPoints,
+        materials: &[LameParameters],
+        simulation_points: &[Vector3<f64>],
+        params: BasisParams,
+    ) -> Result<(SkinningBasis, BasisReport), HeldBasisError> {
+        let params = self.basis_params(params);
+        let (basis, report, _) = match self {
+            PinHold::Penalty => build_basis(basis_points, materials, &params)?,
+            PinHold::Exact { .. } => {
+                let regions =
+                    self.basis_regions(scene, &[basis_points.positions(), simulation_points])?;
+                build_basis_with_regions(
+                    basis_points,
+                    materials,
+                    &params,
+                    &regions,
+                    &RegionConstraintParams::default(),
+                )?
+            }
+        };
+        Ok((basis, report))
+    }
+
     /// `error` with a hint when it is an exact hold's inset that emptied a region.
     fn explain(&self, error: SceneSpecError) -> SceneSpecError {
         match (self, error) {

@@ -10,14 +10,12 @@ use reduced_sim::{
 };
 use rkpm_core::PointCloud;
 use serde::{Deserialize, Serialize};
-use skin_eigen::{
-    BasisError, BasisParams, RegionConstraintParams, build_basis, build_basis_with_regions,
-};
+use skin_eigen::{BasisError, BasisParams};
 use thiserror::Error;
 
 use crate::frames::FrameWriter;
 use crate::geometry::{Geometry, GeometryError};
-use crate::pin_hold::PinHold;
+use crate::pin_hold::HeldBasisError;
 use crate::progress::Progress;
 use crate::runner::RunError;
 use crate::runner::{Simulation, run};
@@ -116,28 +114,20 @@ pub fn simulate_scene_file(
     let basis_points = geometry.integration_points_filling(file.basis.points, fill)?;
     let points = geometry.integration_points_filling(file.simulation.points, fill)?;
     let hold = file.simulation.pins;
-    let params = hold.basis_params(
-        BasisParams::default()
-            .with_modes(file.basis.modes)
-            .with_kernels(file.basis.kernels),
-    );
-    let lame = vec![lame; basis_points.len()];
-    let (basis, _, _) = match hold {
-        PinHold::Penalty => build_basis(&basis_points, &lame, &params),
-        PinHold::Exact { .. } => {
-            let regions = hold
-                .basis_regions(&file.scene, &[basis_points.positions(), points.positions()])
-                .map_err(RunError::Scene)?;
-            build_basis_with_regions(
-                &basis_points,
-                &lame,
-                &params,
-                &regions,
-                &RegionConstraintParams::default(),
-            )
-        }
-    }
-    .map_err(SimulateError::Basis)?;
+    let (basis, _) = hold
+        .build_basis(
+            &file.scene,
+            &basis_points,
+            &vec![lame; basis_points.len()],
+            points.positions(),
+            BasisParams::default()
+                .with_modes(file.basis.modes)
+                .with_kernels(file.basis.kernels),
+        )
+        .map_err(|e| match e {
+            HeldBasisError::Scene(e) => SimulateError::Run(RunError::Scene(e)),
+            HeldBasisError::Basis(e) => SimulateError::Basis(e),
+        })?;
     let basis_seconds = start.elapsed().as_secs_f64();
 
     let writer = FrameWriter::new(out_dir, &geometry);

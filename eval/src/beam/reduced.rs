@@ -10,14 +10,11 @@ use nalgebra::Vector3;
 use optimize::{HessianReuse, NewtonParams};
 use reduced_sim::{PenaltyParams, PinModulus, QuadratureRule, SimulationParams, SkinningField};
 use rkpm_core::{
-    IntegrationPoints, RandomSamplingParams, TriangleMesh, place_kernels, sample_box_grid,
+    IntegrationPoints, Kernels, RandomSamplingParams, TriangleMesh, place_kernels, sample_box_grid,
     sample_random,
 };
 use serde::{Deserialize, Serialize};
-use skin_eigen::{
-    BasisError, BasisParams, BasisReport, RegionConstraintParams, SkinningBasis, build_basis,
-    build_basis_with_regions,
-};
+use skin_eigen::{BasisError, BasisParams, BasisReport, SkinningBasis, build_basis};
 
 use crate::EvalError;
 use crate::beam::{BEAM_MAX, BEAM_MIN, BEAM_TIME_STEP, BeamTest, beam_grid_spacing, beam_material};
@@ -272,16 +269,14 @@ pub fn exact_pin_hold(settings: &ReducedSettings, inset_radii: f64) -> Result<Pi
     let (grid, _) = beam_basis_grid(settings.basis_points)?;
     let kernels = place_kernels(grid.positions(), &settings.basis_params().kernels)
         .map_err(|e| EvalError::Basis(BasisError::Kernels(e)))?;
-    let mut radii = kernels.radii().to_vec();
-    radii.sort_by(f64::total_cmp);
     Ok(PinHold::Exact {
-        inset: inset_radii * radii[radii.len() / 2],
+        inset: inset_radii * median_kernel_radius(&kernels),
     })
 }
 
 /// The beam's basis for `test` under `settings`: [`build_beam_basis`] for the penalty; for
-/// exact holding, built for the test's held regions (at the basis grid's and the simulation's
-/// points, [`PinHold::basis_regions`]) on the hold's compact kernels.
+/// exact holding, built for the test's held regions at the basis grid's and the simulation's
+/// points ([`PinHold::build_basis`]).
 ///
 /// # Errors
 /// [`EvalError::Basis`] from the builder, [`EvalError::Scene`] for a held region that holds no
@@ -298,23 +293,25 @@ pub fn build_beam_basis_for(
     let points = settings
         .simulation_sampling
         .beam_points(settings.simulation_points)?;
-    let regions = settings
-        .pins
-        .basis_regions(&test.scene(), &[grid.positions(), points.positions()])?;
-    let params = settings.pins.basis_params(settings.basis_params());
-    let (basis, report, _) = build_basis_with_regions(
+    let (basis, report) = settings.pins.build_basis(
+        &test.scene(),
         &grid,
         &lame,
-        &params,
-        &regions,
-        &RegionConstraintParams::default(),
-    )
-    .map_err(EvalError::Basis)?;
+        points.positions(),
+        settings.basis_params(),
+    )?;
     Ok(BeamBasis {
         basis,
         report,
         seconds: start.elapsed().as_secs_f64(),
     })
+}
+
+/// The median radius (m) of `kernels`: the length exact holding's inset is measured in.
+pub(crate) fn median_kernel_radius(kernels: &Kernels) -> f64 {
+    let mut radii = kernels.radii().to_vec();
+    radii.sort_by(f64::total_cmp);
+    radii[radii.len() / 2]
 }
 
 /// Simulates `steps` steps of `test` with `basis` (ours, or any other skinning field) on about

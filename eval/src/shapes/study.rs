@@ -24,10 +24,10 @@ use rkpm_core::{
     GridSamplingParams, IntegrationPoints, TriangleMesh, read_triangle_mesh, sample_grid,
 };
 use serde::{Deserialize, Serialize};
-use skin_eigen::{RegionConstraintParams, SkinningBasis, build_basis, build_basis_with_regions};
+use skin_eigen::{SkinningBasis, build_basis};
 
 use crate::EvalError;
-use crate::beam::reduced::ReducedSettings;
+use crate::beam::reduced::{ReducedSettings, median_kernel_radius};
 use crate::beam::simplicits::train_cached_simplicits;
 use crate::fem_reference::{FemProblem, FemRun, run_fem};
 use crate::metrics::trajectory_errors;
@@ -672,23 +672,16 @@ fn run_exact(
     settings: &ReducedSettings,
     radii: f64,
 ) -> Result<MethodScores, EvalError> {
-    let mut sorted = ours.kernels().radii().to_vec();
-    sorted.sort_by(f64::total_cmp);
     let hold = PinHold::Exact {
-        inset: radii * sorted[sorted.len() / 2],
+        inset: radii * median_kernel_radius(ours.kernels()),
     };
-    let regions = hold.basis_regions(
+    let (basis, _) = hold.build_basis(
         run.scene,
-        &[basis_points.positions(), run.points.positions()],
-    )?;
-    let (basis, _, _) = build_basis_with_regions(
         basis_points,
         lames,
-        &hold.basis_params(settings.basis_params()),
-        &regions,
-        &RegionConstraintParams::default(),
-    )
-    .map_err(EvalError::Basis)?;
+        run.points.positions(),
+        settings.basis_params(),
+    )?;
     Ok(run.score(&basis, "FreeForm exact", hold)?.0)
 }
 
