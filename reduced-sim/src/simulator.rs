@@ -223,6 +223,8 @@ impl<M: HyperelasticMaterial> Simulator<M> {
     /// largest distance (m), or `None` without held regions. Zero up to round-off and the fit of
     /// an affine transform to targets that are not an affine motion.
     pub fn max_held_deviation(&self) -> Option<f64> {
+        // Without held regions, skip evaluating every pin's targets (callers ask every step).
+        self.terms.free_coordinates()?;
         let targets = self.terms.pin_targets(self.state.time);
         self.terms
             .max_pin_deviation(&self.model, &self.state.z, &targets, true)
