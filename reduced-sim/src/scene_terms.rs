@@ -171,12 +171,12 @@ impl SceneTerms {
                 .flat_map(|&i| map.position_row(i).iter().copied())
                 .collect();
             let volumes: Vec<f64> = pin.points.iter().map(|&i| model.volumes()[i]).collect();
-            let scaled: Vec<f64> = b
-                .chunks_exact(n4)
-                .zip(&volumes)
-                .flat_map(|(bi, v)| bi.iter().map(move |x| x * v * pin_stiffness))
-                .collect();
             if region < penalized {
+                let scaled: Vec<f64> = b
+                    .chunks_exact(n4)
+                    .zip(&volumes)
+                    .flat_map(|(bi, v)| bi.iter().map(move |x| x * v * pin_stiffness))
+                    .collect();
                 let block = pin_hessian_block.get_or_insert_with(|| Mat::zeros(n4, n4));
                 let p = pin.points.len();
                 faer::linalg::matmul::matmul(
