@@ -6,13 +6,13 @@
 //! support beyond it, and a beam clamped that way is stiffer than the FEM's (beam Bend, m = 32,
 //! compact B-spline kernels: tip 7% / 29% short of the FEM at t = 0.5 / 1.0 s). Holding the
 //! region shrunk by an inset of about 1.5 kernel radii puts the band back inside the region
-//! (tip within 0.3% / 1.3%); the points between the inset and the region's boundary are then
-//! kept by the penalty and drift by about as much as it lets them (2 cm on the 5 m beam).
+//! (tip within 0.4% / 2.0%); the points between the inset and the region's boundary are then
+//! kept by the penalty and drift by about as much as it lets them (1.4 cm on the 5 m beam).
 //!
 //! The default is the penalty: across the pin sweep (`freeform pins`: beam Bend and Twist,
 //! m = 16 and 32, ν = 0.3 / 0.45 / 0.49) exact holding with that inset is more accurate in 2 of
-//! the 10 scored runs (Bend at ν = 0.45) and less accurate in 8, by 1.8× in geometric mean; on
-//! the Twist the band lags the rotating end (up to 0.3 m at the FEM's held vertices).
+//! the 10 scored runs and less accurate in 8, by 1.46× in geometric mean; on the Twist the band
+//! lags the rotating end (up to 0.17 m at the FEM's held vertices).
 
 use std::collections::HashSet;
 

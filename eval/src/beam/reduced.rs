@@ -66,12 +66,12 @@ pub struct ReducedSettings {
 /// kernels): [`exact_pin_hold`]'s rule.
 ///
 /// Chosen against the converged FEM on the beam Bend (`reduced_beam_bend --exact`, K = 1000,
-/// compact kernels, median radius ≈ 0.2 m): holding the whole clamped end leaves the tip 7.3% /
-/// 29% short of the FEM at t = 0.5 / 1.0 s at m = 32 (10.6% / 41% at m = 16); insets of 0.1,
-/// 0.2 and 0.3 m give 4.0 / 16%, 2.8 / 12% and 0.3 / 1.3% at m = 32 (1.9 / 8.0% at m = 16 for
-/// 0.3 m); 0.4 m overshoots (+1.1 / +4.3%). Table 1 (MSE at m = 16 / 32) agrees but shows the
-/// optimum is sharp: Bend 1.95e-3 / 6.5e-4, 3.1e-4 / 5.7e-6, 1.6e-4 / 1.3e-4 and Twist 1.4e-4 /
-/// 1.5e-4, 8.6e-5 / 7.0e-5, 2.4e-4 / 2.6e-4 at 1.0, 1.5 and 2.0 radii.
+/// compact kernels, median radius ≈ 0.19 m) while the band's penalty was, by a bug since
+/// fixed, not applied: holding the whole clamped end left the tip 7.3% / 29% short of the FEM
+/// at t = 0.5 / 1.0 s at m = 32; insets of 0.1, 0.2, 0.3 and 0.4 m gave −4.0 / −16%,
+/// −2.8 / −12%, +0.3 / +1.3% and +1.1 / +4.3%, and Table 1 at 1.0 / 1.5 / 2.0 radii showed a
+/// sharp optimum at 1.5. With the band penalized the rule gives −0.4 / −2.0% at m = 32 and
+/// −2.5 / −10.5% at m = 16; it has not been re-swept.
 pub const EXACT_INSET_KERNEL_RADII: f64 = 1.5;
 
 /// How the simulation's integration points are placed.

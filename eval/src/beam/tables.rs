@@ -217,8 +217,8 @@ fn exact_line(study: &BeamStudy) -> String {
              between are kept by the penalty. Drift: held = the held integration points (penalty \
              columns: every pinned point), region = the FEM vertices of the whole region (what \
              the FEM holds exactly). The library's default is the penalty: across `freeform pins` \
-             (Bend and Twist, m = 16 / 32, three ν) the exact pins are more accurate only on the \
-             Bend at ν = 0.45 (README).\n",
+             (Bend and Twist, m = 16 / 32, three ν) the exact pins are more accurate in 2 of 10 \
+             runs (README).\n",
             radii
         ),
         _ => "Exact pins: not run.\n".into(),
