@@ -10,12 +10,15 @@
 //!   by Adam on the Simplicits loss or on the penalized Hessian objective, on random or grid
 //!   points, giving an ordinary `skin_eigen::SkinningBasis`.
 //!
-//! Still to come: MPM and SPH.
+//! - [`mpm`]: the explicit APIC Material Point Method of Tables 1 and 5 (warp-mpm's scheme).
+//!
+//! Still to come: SPH.
 
 pub mod adam;
 pub mod coefficient_training;
 pub mod mlp;
 pub mod model_file;
+pub mod mpm;
 pub mod simplicits;
 
 pub use adam::{Adam, AdamParams};
