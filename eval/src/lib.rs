@@ -91,6 +91,9 @@ pub enum EvalError {
     /// The FEM simulator refused the scene.
     #[error("setting up the FEM simulator failed")]
     FemSetup(#[source] fem_ref::FemSetupError),
+    /// The MPM baseline refused its options or its run failed.
+    #[error("the MPM baseline failed")]
+    Mpm(#[from] baselines::mpm::MpmError),
     /// The FEM reference failed to run or to use its cache.
     #[error("the FEM reference failed")]
     Fem(#[source] fem_ref::FemRunError),

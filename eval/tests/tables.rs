@@ -2,6 +2,7 @@
 //! numbers sit beside ours, and Table 5's ratio is FEM time over ours.
 
 use baselines::SimplicitsParams;
+use eval::beam::mpm::MpmStudyConfig;
 use eval::beam::BeamTest;
 use eval::beam::reduced::ReducedSettings;
 use eval::beam::study::{BeamStudyConfig, run_beam_study};
@@ -45,6 +46,10 @@ fn tiny_study_fills_tables_1_5_6_with_paper_columns_and_consistent_json() {
         }),
         cache_dir: dir.join("cache"),
         exact_pins: None,
+        mpm: Some(MpmStudyConfig {
+            spacings: vec![0.25],
+            ..MpmStudyConfig::default()
+        }),
     };
     let study = run_beam_study(&config, &quiet()).unwrap();
     assert_eq!(study.rows.len(), 2);
@@ -95,12 +100,29 @@ fn tiny_study_fills_tables_1_5_6_with_paper_columns_and_consistent_json() {
         "x is t = frame · h"
     );
 
+    // MPM on both tests at the one spacing, scored at the FEM vertices like the rest.
+    let particles = t1.json["particle_baselines"].as_array().unwrap();
+    assert_eq!(particles.len(), 2, "{particles:?}");
+    for p in particles {
+        assert_eq!(p["method"], "mpm");
+        assert_eq!(p["spacing"].as_f64(), Some(0.25));
+        let mse = p["mse"].as_f64().unwrap();
+        let max = p["max"].as_f64().unwrap();
+        assert!(mse > 0.0 && max * max >= mse && max.is_finite(), "{p}");
+        assert!(p["ms_per_step"].as_f64().unwrap() > 0.0);
+        assert_eq!(p["substeps_per_step"].as_u64(), Some(100), "Δt = 1e-4 s in 0.01 s frames");
+    }
+    assert!(t1.markdown.contains("### MPM (ours, issue 22)"));
+
     let t5 = table5(&study);
     let r = &t5.json["rows"][0];
     let fem_ms = t5.json["fem_ms_per_step"].as_f64().unwrap();
     let ratio = r["fem_over_ours"].as_f64().unwrap();
     assert!((ratio - fem_ms / r["ours_ms_per_step"].as_f64().unwrap()).abs() < 1e-9 * ratio);
     assert_eq!(r["paper_ours_ms"].as_f64(), Some(3.01));
+    let mpm = t5.json["particle_baselines"].as_array().unwrap();
+    assert_eq!(mpm.len(), 1, "Table 5 times the Bend only");
+    assert_eq!(t5.json["paper_mpm_ms"].as_f64(), Some(23.1));
 
     let t6 = table6(&study);
     let residual = t6.json["rows"][0]["ours_fitting_residual"]
@@ -121,6 +143,11 @@ fn tiny_study_fills_tables_1_5_6_with_paper_columns_and_consistent_json() {
     // A second study loads the network from the cache: the same Simplicits numbers.
     let again = run_beam_study(&config, &quiet()).unwrap();
     assert_eq!(table1(&again).json["rows"], t1.json["rows"]);
+    assert_eq!(
+        table1(&again).json["particle_baselines"],
+        t1.json["particle_baselines"],
+        "MPM trajectories come back from the cache"
+    );
 }
 
 #[test]
@@ -148,6 +175,7 @@ fn a_reference_with_unconverged_frames_is_refused_by_the_tables_with_the_frames_
         simplicits: None,
         cache_dir: dir.join("cache"),
         exact_pins: None,
+        mpm: None,
     };
     let study = run_beam_study(&config, &quiet()).unwrap();
     let twist = study
@@ -205,6 +233,7 @@ fn table1_runs_both_pin_treatments_and_the_exact_rows_hold_their_regions() {
         simplicits: None,
         cache_dir: dir.join("cache"),
         exact_pins: Some(1.5),
+        mpm: None,
     };
     let study = run_beam_study(&config, &quiet()).unwrap();
     let t1 = table1(&study);

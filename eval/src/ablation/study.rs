@@ -40,6 +40,7 @@ impl AblationStudyConfig {
                 modes: vec![16],
                 simplicits: base.simplicits.or(Some(SimplicitsParams::default())),
                 exact_pins: None,
+                mpm: None,
                 ..base
             },
             coefficient_ablations: true,

@@ -5,8 +5,10 @@
 //!
 //! - [`study`]: Tables 1, 5, 6's run (ours and Simplicits against the FEM at each m);
 //!   [`tables`]: their rendering; [`reduced`]: the beam's basis and integration points;
-//!   [`simplicits`]: the Simplicits baseline trained (and cached) on the beam.
+//!   [`simplicits`]: the Simplicits baseline trained (and cached) on the beam; [`mpm`]: the MPM
+//!   baseline run (and cached) on the beam.
 
+pub mod mpm;
 pub mod reduced;
 pub mod simplicits;
 pub mod study;

@@ -15,6 +15,7 @@ use crate::beam::reduced::{
     EXACT_INSET_KERNEL_RADII, ReducedSettings, build_beam_basis, build_beam_basis_for,
     exact_pin_hold, run_reduced_beam_with,
 };
+use crate::beam::mpm::{MpmStudyConfig, ParticleBaselineRow, run_mpm_beam};
 use crate::beam::simplicits::train_beam_simplicits;
 use crate::beam::{BEAM_MAX, BEAM_MIN, BEAM_TIME_STEP, BeamTest, beam_material};
 use crate::fem_reference::{FemResolution, FemRun, run_fem_beam};
@@ -49,6 +50,10 @@ pub struct BeamStudyConfig {
     /// 25); `None` to leave it out.
     #[serde(default)]
     pub exact_pins: Option<f64>,
+    /// The MPM baseline (issue 22) at each of its grid spacings on every test, or `None` to
+    /// leave it out.
+    #[serde(default)]
+    pub mpm: Option<MpmStudyConfig>,
 }
 
 impl BeamStudyConfig {
@@ -65,11 +70,12 @@ impl BeamStudyConfig {
             simplicits: Some(SimplicitsParams::default()),
             cache_dir,
             exact_pins: Some(EXACT_INSET_KERNEL_RADII),
+            mpm: Some(MpmStudyConfig::default()),
         }
     }
 
     /// A few-minute version: m ∈ {6, 16}, K = 500 on 10k basis points, 100 Bend steps (Twist
-    /// keeps its 30), FEM P2 res 4, Simplicits trained for 500 steps instead of 10 000.
+    /// keeps its 30), FEM P2 res 4, Simplicits trained for 500 steps instead of 10 000, no MPM.
     pub fn quick(cache_dir: PathBuf) -> Self {
         BeamStudyConfig {
             modes: vec![6, 16],
@@ -87,6 +93,7 @@ impl BeamStudyConfig {
                 steps: 500,
                 ..SimplicitsParams::default()
             }),
+            mpm: None,
             ..BeamStudyConfig::full(cache_dir)
         }
     }
@@ -239,6 +246,9 @@ pub struct BeamStudy {
     pub rows: Vec<BeamRow>,
     /// One summary per test.
     pub fem: Vec<FemSummary>,
+    /// The particle baselines (MPM) per (test, spacing), if run.
+    #[serde(default)]
+    pub particle_baselines: Vec<ParticleBaselineRow>,
 }
 
 /// Largest side of the beam's rest box, the normalization length L (m).
@@ -342,10 +352,43 @@ pub fn run_beam_study(
         }
     }
     rows.sort_by_key(|r| (r.test != BeamTest::Bend, r.m));
+    let mut particle_baselines = Vec::new();
+    if let Some(mpm) = &config.mpm {
+        // Cheapest first (particles × frames), so that the long runs come last.
+        let mut runs: Vec<(&FemReference, f64)> = references
+            .iter()
+            .flat_map(|r| mpm.spacings.iter().map(move |&h| (r, h)))
+            .collect();
+        runs.sort_by(|a, b| {
+            let cost = |(r, h): &(&FemReference, f64)| config.steps_of(r.0) as f64 / h.powi(3);
+            cost(a).total_cmp(&cost(b))
+        });
+        for ((test, reference), spacing) in runs {
+            {
+                let row = run_mpm_beam(
+                    *test,
+                    spacing,
+                    mpm,
+                    config.steps_of(*test),
+                    reference,
+                    &config.cache_dir,
+                    progress,
+                )?;
+                progress.status(format!(
+                    "MPM {} Δx = {spacing} m: MSE {:.2e}, {:.1} ms per 0.01 s",
+                    test.name(),
+                    row.mse,
+                    row.ms_per_step
+                ));
+                particle_baselines.push(row);
+            }
+        }
+    }
     Ok(BeamStudy {
         config: config.clone(),
         rows,
         fem,
+        particle_baselines,
     })
 }
 

@@ -4,6 +4,7 @@ use crate::plot_or_warn;
 use std::path::{Path, PathBuf};
 
 use anyhow::{Result, bail};
+use eval::beam::mpm::MpmStudyConfig;
 use eval::ablation::study::{AblationStudyConfig, run_ablation_study};
 use eval::ablation::tables::{table3, table4};
 use eval::beam::BeamTest;
@@ -85,6 +86,13 @@ pub(crate) struct TableOptions {
     /// the whole region is held).
     #[arg(long)]
     exact_inset_radii: Option<f64>,
+    /// Leave out the MPM baseline of Tables 1 and 5 (its Bend run at Δx = 0.05 m takes most of
+    /// an hour on 2 cores the first time; trajectories are cached).
+    #[arg(long)]
+    skip_mpm: bool,
+    /// The MPM grid spacings (m, comma-separated; default 0.1,0.05).
+    #[arg(long, value_delimiter = ',')]
+    mpm_spacings: Option<Vec<f64>>,
 }
 
 /// `--pin-modulus`.
@@ -126,6 +134,8 @@ pub(crate) fn run(
         skip_exact,
         exact_inset_radii,
         check_convergence,
+        skip_mpm,
+        mpm_spacings,
     }: TableOptions,
     out: &Path,
     cache: &Path,
@@ -154,6 +164,24 @@ pub(crate) fn run(
     }
     config.exact_pins = (!skip_exact && numbers.contains(&1))
         .then_some(exact_inset_radii.unwrap_or(eval::beam::reduced::EXACT_INSET_KERNEL_RADII));
+    if let Some(spacings) = &mpm_spacings
+        && let Some(bad) = spacings.iter().find(|h| !(**h > 0.0 && h.is_finite()))
+    {
+        bail!("--mpm-spacings: every spacing must be a positive number of metres, got {bad}");
+    }
+    // Only Tables 1 and 5 print the MPM baseline.
+    config.mpm = if skip_mpm || !numbers.iter().any(|&n| n == 1 || n == 5) {
+        None
+    } else {
+        // `--quick` leaves MPM out unless spacings are given.
+        match (config.mpm.take(), mpm_spacings) {
+            (mpm, Some(spacings)) => Some(MpmStudyConfig {
+                spacings,
+                ..mpm.unwrap_or_default()
+            }),
+            (mpm, None) => mpm,
+        }
+    };
     if let Some(modes) = &modes {
         if modes.contains(&0) {
             bail!("--modes: every m must be at least 1");
