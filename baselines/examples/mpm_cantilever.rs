@@ -49,7 +49,7 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
         ..MpmParams::default()
     };
     let mut sim = MpmSimulator::new(&points, &[material], &scene, params)?
-        .with_tracers(&[Vector3::new(length, h / 2.0, h / 4.0)])?;
+        .with_tracers(&[Vector3::new(length, h / 2.0, h / 4.0)], &[])?;
     let e = material.youngs_modulus;
     let static_deflection = 1.5 * material.density * g * length.powi(4) / (e * h * h);
     let omega = 1.875f64.powi(2) * (e * h * h / (12.0 * material.density * length.powi(4))).sqrt();

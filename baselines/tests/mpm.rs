@@ -232,7 +232,7 @@ fn cantilever_tip_deflection_matches_euler_bernoulli_at_the_finer_grid() {
     let tip = vec![Vector3::new(length, h / 2.0, h / 4.0)];
     let mut sim = MpmSimulator::new(&points, &[material], &scene, params(spacing, dt))
         .unwrap()
-        .with_tracers(&tip)
+        .with_tracers(&tip, &[])
         .unwrap();
     let e = material.youngs_modulus;
     let static_deflection = 1.5 * material.density * g * length.powi(4) / (e * h * h);

@@ -10,6 +10,7 @@ use baselines::SimplicitsParams;
 use fem_ref::ElementOrder;
 use serde::{Deserialize, Serialize};
 
+use crate::beam::mpm::{MpmStudyConfig, run_mpm_beam};
 use crate::EvalError;
 use crate::beam::reduced::{
     EXACT_INSET_KERNEL_RADII, ReducedSettings, build_beam_basis_for, exact_pin_hold,
@@ -98,6 +99,9 @@ pub enum BenchMethod {
     /// The Simplicits baseline (network trained on the basis grid of the settings, cached),
     /// simulated with these settings.
     Simplicits(ReducedSettings, SimplicitsParams),
+    /// The MPM baseline at this grid spacing (m), otherwise [`MpmStudyConfig::default`]
+    /// (trajectories cached, shared with Table 1).
+    Mpm(f64),
 }
 
 /// What to sweep.
@@ -201,6 +205,9 @@ impl BenchConfig {
                     },
                 ),
             ));
+        }
+        for spacing in MpmStudyConfig::default().spacings {
+            runs.push(("MPM Δx".into(), BenchMethod::Mpm(spacing)));
         }
         for (order, r) in [
             (ElementOrder::Linear, 2),
@@ -413,6 +420,37 @@ pub fn run_bench(config: &BenchConfig, progress: &Progress) -> Result<Vec<BenchR
                     },
                 )
             }
+            BenchMethod::Mpm(spacing) => {
+                let (row, frames) = run_mpm_beam(
+                    BeamTest::Bend,
+                    *spacing,
+                    &MpmStudyConfig::default(),
+                    config.steps,
+                    &truth,
+                    &config.cache_dir,
+                    progress,
+                )?;
+                if let Some(why) = &row.failure {
+                    progress.status(format!("MPM Δx = {spacing} m left out: {why}"));
+                    continue;
+                }
+                drift = row.max_pin_deviation;
+                (
+                    "mpm",
+                    format!(
+                        "Δx={} m ({} particles, {} substeps/step)",
+                        row.spacing, row.particles, row.substeps_per_step
+                    ),
+                    Timing {
+                        ms_per_step: row.ms_per_step,
+                        split: [0.0; 3],
+                        hessians_per_step: 0.0,
+                        quadrature_points: 0,
+                    },
+                    0.0,
+                    frames,
+                )
+            }
             BenchMethod::FreeFormExact(..) => unreachable!("resolved to FreeForm above"),
             BenchMethod::Fem(r) => {
                 let run = run_fem_beam(
@@ -613,6 +651,19 @@ pub fn bench_plot(results: &[BenchResult], config: &BenchConfig) -> PlotSpec {
             points: fem,
             line: false,
             color: 6,
+        });
+    }
+    let mpm: Vec<(f64, f64)> = results
+        .iter()
+        .filter(|r| r.method == "mpm")
+        .map(|r| (r.ms_per_step, r.normalized_mse))
+        .collect();
+    if !mpm.is_empty() {
+        series.push(Series {
+            label: "MPM (Δx = 0.1, 0.05 m)".into(),
+            points: mpm,
+            line: false,
+            color: 13,
         });
     }
     let mut front: Vec<(f64, f64)> = results

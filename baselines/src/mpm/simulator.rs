@@ -13,15 +13,17 @@
 //!    F_p ← (I + Δt ∇v_p) F_p, x_p ← x_p + Δt v_p.
 //!
 //! Tracers (massless points, e.g. the FEM vertices where the metrics are taken) move with the
-//! grid velocity interpolated from the nodes that carry mass, Σ' w v_i / Σ' w, so a tracer on
-//! the surface is not slowed by empty nodes.
+//! mass-weighted grid velocity Σ w m_i v_i / Σ w m_i: inside the material (equal node masses)
+//! the ordinary interpolation Σ w v_i, while a tracer on the surface is neither slowed by empty
+//! nodes nor thrown by the fringe nodes whose tiny mass makes their velocity meaningless (a
+//! plain normalization Σ' w v_i / Σ' w over nodes with mass did exactly that on the beam).
 
 use std::time::Instant;
 
 use hyperelastic::{LameParameters, MaterialSample};
 use nalgebra::{Matrix3, Vector3};
 use rayon::prelude::*;
-use reduced_sim::Scene;
+use reduced_sim::{PinnedRegion, Scene};
 use rkpm_core::IntegrationPoints;
 use serde::{Deserialize, Serialize};
 use thiserror::Error;
@@ -187,6 +189,8 @@ pub struct MpmSimulator {
     volumes: Vec<f64>,
     lame: Vec<LameParameters>,
     tracers: Vec<Vector3<f64>>,
+    tracer_rest: Vec<Vector3<f64>>,
+    tracer_regions: Vec<PinnedRegion>,
     grid: BackgroundGrid,
     buckets: Vec<Vec<usize>>,
     time: f64,
@@ -285,6 +289,8 @@ impl MpmSimulator {
             volumes: points.volumes().to_vec(),
             lame,
             tracers: Vec::new(),
+            tracer_rest: Vec::new(),
+            tracer_regions: Vec::new(),
             grid: BackgroundGrid::default(),
             buckets: Vec::new(),
             time: 0.0,
@@ -293,21 +299,39 @@ impl MpmSimulator {
         })
     }
 
-    /// Adds massless tracers at rest positions `points` (m); they must lie in or next to the
-    /// material (a tracer with no node of mass around it stops the run).
+    /// Adds massless tracers at rest positions `points` (m), moved each substep with the
+    /// mass-weighted grid velocity (module documentation); they must lie in or next to the
+    /// material (a tracer with no node of mass around it stops the run). Tracers named by
+    /// `regions` (indices into `points`) belong to a constrained region and are moved like its
+    /// particles: onto their target at the end of each substep.
     ///
     /// # Errors
-    /// [`MpmError::InvalidInput`] for a non-finite point or a simulator that already ran.
-    pub fn with_tracers(mut self, points: &[Vector3<f64>]) -> Result<Self, MpmError> {
-        if self.time > 0.0 {
+    /// [`MpmError::InvalidInput`] for a non-finite point, a region naming a missing tracer, or
+    /// a simulator that already ran or already has tracers.
+    pub fn with_tracers(
+        mut self,
+        points: &[Vector3<f64>],
+        regions: &[PinnedRegion],
+    ) -> Result<Self, MpmError> {
+        if self.time > 0.0 || !self.tracers.is_empty() {
             return Err(MpmError::InvalidInput(
-                "tracers must be added before the first substep".into(),
+                "tracers must be added once, before the first substep".into(),
             ));
         }
         if let Some(i) = points.iter().position(|p| !p.iter().all(|c| c.is_finite())) {
             return Err(MpmError::InvalidInput(format!("tracer {i} is not finite")));
         }
-        self.tracers.extend_from_slice(points);
+        for (r, region) in regions.iter().enumerate() {
+            if let Some(&t) = region.points.iter().find(|&&t| t >= points.len()) {
+                return Err(MpmError::InvalidInput(format!(
+                    "tracer region {r} names tracer {t} of {}",
+                    points.len()
+                )));
+            }
+        }
+        self.tracers = points.to_vec();
+        self.tracer_rest = points.to_vec();
+        self.tracer_regions = regions.to_vec();
         Ok(self)
     }
 
@@ -516,15 +540,13 @@ impl MpmSimulator {
                     for j in 0..3 {
                         for k in 0..3 {
                             let node = &grid.nodes[grid.layout.index(&stencil, [i, j, k])];
-                            if node[3] > floor_mass {
-                                let w = stencil.weight(i, j, k);
-                                sum += w * Vector3::new(node[0], node[1], node[2]);
-                                weight += w;
-                            }
+                            let wm = stencil.weight(i, j, k) * node[3];
+                            sum += wm * Vector3::new(node[0], node[1], node[2]);
+                            weight += wm;
                         }
                     }
                 }
-                if weight > 0.0 {
+                if weight > floor_mass {
                     *x += dt * sum / weight;
                     None
                 } else {
@@ -533,7 +555,13 @@ impl MpmSimulator {
             })
             .collect();
         let time = self.time + dt;
-        if let Some(tracer) = lost.into_iter().flatten().next() {
+        for region in &self.tracer_regions {
+            for &t in &region.points {
+                self.tracers[t] = region.target.at(&self.tracer_rest[t], time);
+            }
+        }
+        let held = |t: usize| self.tracer_regions.iter().any(|r| r.points.contains(&t));
+        if let Some(tracer) = lost.into_iter().flatten().find(|&t| !held(t)) {
             return Err(MpmError::TracerLost { tracer, time });
         }
         let limit = spacing / dt;
@@ -569,6 +597,19 @@ impl MpmSimulator {
             });
         }
         Ok(())
+    }
+
+    /// The largest distance (m) of a particle in a constrained region from its target now:
+    /// how well particle velocity enforcement holds the regions.
+    pub fn max_pin_deviation(&self) -> f64 {
+        let mut worst: f64 = 0.0;
+        for region in &self.scene.pins {
+            for &p in &region.points {
+                let target = region.target.at(&self.rest[p], self.time);
+                worst = worst.max((self.positions[p] - target).norm());
+            }
+        }
+        worst
     }
 
     /// Simulated time (s).

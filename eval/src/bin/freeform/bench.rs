@@ -11,6 +11,7 @@ use eval::progress::Progress;
 pub(crate) fn run(
     quick: bool,
     skip_simplicits: bool,
+    skip_mpm: bool,
     cache: PathBuf,
     out: &Path,
     progress: &Progress,
@@ -24,6 +25,11 @@ pub(crate) fn run(
         config
             .runs
             .retain(|(_, method)| !matches!(method, BenchMethod::Simplicits(..)));
+    }
+    if skip_mpm {
+        config
+            .runs
+            .retain(|(_, method)| !matches!(method, BenchMethod::Mpm(..)));
     }
     let results = run_bench(&config, progress)?;
     let (md, files) = write_bench(&results, &config, out)?;

@@ -4,6 +4,7 @@ use crate::plot_or_warn;
 use std::path::{Path, PathBuf};
 
 use anyhow::{Result, bail};
+use baselines::mpm::MpmMaterial;
 use eval::beam::mpm::MpmStudyConfig;
 use eval::ablation::study::{AblationStudyConfig, run_ablation_study};
 use eval::ablation::tables::{table3, table4};
@@ -93,6 +94,19 @@ pub(crate) struct TableOptions {
     /// The MPM grid spacings (m, comma-separated; default 0.1,0.05).
     #[arg(long, value_delimiter = ',')]
     mpm_spacings: Option<Vec<f64>>,
+    /// The MPM particles' elastic model (default fixed corotated, warp-mpm's and the paper's
+    /// run; `stable-neo-hookean` is the FEM's and ours).
+    #[arg(long, value_enum)]
+    mpm_material: Option<MpmMaterialChoice>,
+}
+
+/// `--mpm-material`.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, clap::ValueEnum)]
+pub(crate) enum MpmMaterialChoice {
+    /// τ = 2μ(F − R)Fᵀ + λJ(J − 1)I.
+    FixedCorotated,
+    /// The project's stable Neo-Hookean.
+    StableNeoHookean,
 }
 
 /// `--pin-modulus`.
@@ -136,6 +150,7 @@ pub(crate) fn run(
         check_convergence,
         skip_mpm,
         mpm_spacings,
+        mpm_material,
     }: TableOptions,
     out: &Path,
     cache: &Path,
@@ -174,13 +189,21 @@ pub(crate) fn run(
         None
     } else {
         // `--quick` leaves MPM out unless spacings are given.
-        match (config.mpm.take(), mpm_spacings) {
+        let mpm = match (config.mpm.take(), mpm_spacings) {
             (mpm, Some(spacings)) => Some(MpmStudyConfig {
                 spacings,
                 ..mpm.unwrap_or_default()
             }),
             (mpm, None) => mpm,
-        }
+        };
+        mpm.map(|mpm| MpmStudyConfig {
+            material: match mpm_material {
+                Some(MpmMaterialChoice::FixedCorotated) => MpmMaterial::FixedCorotated,
+                Some(MpmMaterialChoice::StableNeoHookean) => MpmMaterial::StableNeoHookean,
+                None => mpm.material,
+            },
+            ..mpm
+        })
     };
     if let Some(modes) = &modes {
         if modes.contains(&0) {
