@@ -91,9 +91,18 @@ fn tiny_study_fills_tables_1_5_6_with_paper_columns_and_consistent_json() {
         let mean = s.per_frame_mse.iter().sum::<f64>() / s.per_frame_mse.len() as f64;
         assert!((mean - s.mse).abs() <= 1e-12 * s.mse);
     }
+    for p in &study.particle_baselines {
+        let mse = p.mse.expect("scored");
+        let mean = p.per_frame_mse.iter().sum::<f64>() / p.per_frame_mse.len() as f64;
+        assert_eq!(p.per_frame_mse.len(), 8);
+        assert!((mean - mse).abs() <= 1e-12 * mse, "{mean} vs {mse}");
+    }
     let plot = twist_error_plot(&study).expect("a Twist row to plot");
     let labels: Vec<&str> = plot.series.iter().map(|s| s.label.as_str()).collect();
-    assert_eq!(labels, ["FreeForm m = 6", "Simplicits m = 6"]);
+    assert_eq!(
+        labels,
+        ["FreeForm m = 6", "Simplicits m = 6", "MPM Δx = 0.25 m"]
+    );
     assert_eq!(plot.series[0].points.len(), 8);
     assert!(
         (plot.series[0].points[7].0 - 0.08).abs() < 1e-12,
@@ -111,6 +120,7 @@ fn tiny_study_fills_tables_1_5_6_with_paper_columns_and_consistent_json() {
         assert!(mse > 0.0 && max * max >= mse && max.is_finite(), "{p}");
         assert!(p["ms_per_step"].as_f64().unwrap() > 0.0);
         assert_eq!(p["substeps_per_step"].as_u64(), Some(100), "Δt = 1e-4 s in 0.01 s frames");
+        assert!(p["failure"].is_null(), "{p}");
     }
     assert!(t1.markdown.contains("### MPM (ours, issue 22)"));
 

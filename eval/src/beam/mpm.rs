@@ -21,7 +21,7 @@ use crate::EvalError;
 use crate::beam::study::beam_length_scale;
 use crate::beam::{BEAM_MAX, BEAM_MIN, BEAM_TIME_STEP, BeamTest, beam_material};
 use crate::fem_reference::FemRun;
-use crate::metrics::trajectory_errors;
+use crate::metrics::{per_frame_mse, trajectory_errors};
 use crate::progress::Progress;
 
 /// Cache file kind and format version of an MPM beam trajectory.
@@ -69,6 +69,8 @@ pub struct ParticleBaselineRow {
     pub mse: Option<f64>,
     /// Normalized max error; `None` for a failed run.
     pub max: Option<f64>,
+    /// Normalized MSE of each frame 1..T (empty for a failed run).
+    pub per_frame_mse: Vec<f64>,
     /// Largest distance of a particle in a constrained region from its target over the run
     /// (m): how well particle velocity enforcement holds the regions (the tracers in them are
     /// put on target like the particles).
@@ -222,6 +224,10 @@ pub fn run_mpm_beam(
             beam_length_scale(),
         )?),
     };
+    let per_frame = match &run.failure {
+        Some(_) => Vec::new(),
+        None => per_frame_mse(&frames[1..], &truth[1..], beam_length_scale())?,
+    };
     let t = &run.timings;
     let total = t.total().max(f64::MIN_POSITIVE);
     if let Some(why) = &run.failure {
@@ -235,6 +241,7 @@ pub fn run_mpm_beam(
         substeps_per_step: t.substeps / completed.max(1),
         mse: scores.map(|s| s.normalized_mse),
         max: scores.map(|s| s.normalized_max),
+        per_frame_mse: per_frame,
         max_pin_deviation: run.max_pin_deviation,
         failure: run.failure.clone(),
         steps_completed: completed,

@@ -459,6 +459,19 @@ pub fn twist_error_plot(study: &BeamStudy) -> Option<PlotSpec> {
             });
         }
     }
+    for (k, p) in study
+        .particle_baselines
+        .iter()
+        .filter(|p| p.test == BeamTest::Twist && !p.per_frame_mse.is_empty())
+        .enumerate()
+    {
+        series.push(Series {
+            label: format!("MPM Δx = {} m", p.spacing),
+            points: curve(&p.per_frame_mse),
+            line: true,
+            color: 13 + k,
+        });
+    }
     (!series.is_empty()).then(|| PlotSpec {
         title: "Beam Twist: error per frame against the FEM".into(),
         x_label: "t (s)".into(),
