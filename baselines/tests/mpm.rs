@@ -73,6 +73,21 @@ fn free_fall_matches_the_closed_form_of_the_scheme() {
     }
 }
 
+/// Every tracer of `sim` (started at `rest`) is closer than `bound` (m) to some particle.
+fn assert_tracers_near_material(sim: &MpmSimulator, rest: &[Vector3<f64>], bound: f64) {
+    for (x, x0) in sim.tracer_positions().iter().zip(rest) {
+        let nearest = sim
+            .positions()
+            .iter()
+            .map(|p| (p - x).norm())
+            .fold(f64::INFINITY, f64::min);
+        assert!(
+            nearest < bound,
+            "the tracer from {x0:?} is {nearest:.4} m from the nearest particle"
+        );
+    }
+}
+
 /// A block with random velocities and affine velocities, no gravity, no boundaries.
 fn tumbling_block(spin: Vector3<f64>) -> MpmSimulator {
     let points = cube(0.2, 0.025);
@@ -157,18 +172,8 @@ fn surface_tracers_move_with_the_material_of_a_stressed_block() {
     .collect();
     let mut sim = sim.with_tracers(&tracers, &[]).unwrap();
     sim.advance(0.1).unwrap();
-    for (x, x0) in sim.tracer_positions().iter().zip(&tracers) {
-        let nearest = sim
-            .positions()
-            .iter()
-            .map(|p| (p - x).norm())
-            .fold(f64::INFINITY, f64::min);
-        // At rest a corner tracer is √3 · 0.0125 = 0.022 m from the nearest particle.
-        assert!(
-            nearest < 0.03,
-            "the tracer from {x0:?} is {nearest:.4} m from the nearest particle"
-        );
-    }
+    // At rest a corner tracer is √3 · 0.0125 = 0.022 m from the nearest particle.
+    assert_tracers_near_material(&sim, &tracers, 0.03);
 }
 
 #[test]
@@ -351,17 +356,7 @@ fn cantilever_tip_deflection_matches_euler_bernoulli_at_the_finer_grid() {
         deflection.push(h / 2.0 - sim.tracer_positions()[0].y);
     }
     let mean = deflection[..2 * (peak + 1)].iter().sum::<f64>() / (2 * (peak + 1)) as f64;
-    for (x, x0) in sim.tracer_positions().iter().zip(&tracers) {
-        let nearest = sim
-            .positions()
-            .iter()
-            .map(|p| (p - x).norm())
-            .fold(f64::INFINITY, f64::min);
-        assert!(
-            nearest < 0.5 * spacing,
-            "the tracer from {x0:?} is {nearest:.4} m from the nearest particle"
-        );
-    }
+    assert_tracers_near_material(&sim, &tracers, 0.5 * spacing);
     let error = (mean - static_deflection).abs() / static_deflection;
     assert!(
         error < 0.05,
