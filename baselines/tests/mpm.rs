@@ -66,7 +66,10 @@ fn free_fall_matches_the_closed_form_of_the_scheme() {
         assert!((v - g * (n as f64 * dt)).norm() <= 1e-9 * g.norm() * n as f64 * dt);
     }
     for (x, x0) in sim.tracer_positions().iter().zip(&tracers) {
-        assert!((x - (x0 + drop)).norm() <= 1e-9 * drop.norm(), "tracer at {x0:?}");
+        assert!(
+            (x - (x0 + drop)).norm() <= 1e-9 * drop.norm(),
+            "tracer at {x0:?}"
+        );
     }
     for f in sim.deformation_gradients() {
         assert!((f - Matrix3::identity()).norm() < 1e-12, "F = {f}");
@@ -202,8 +205,14 @@ fn a_block_dropped_on_the_floor_stays_above_it() {
         .map(|x| x.y)
         .fold(f64::NEG_INFINITY, f64::max);
     assert!(lowest > -0.025, "a particle sank to y = {lowest} m");
-    assert!(lowest < 0.05, "the block never reached the floor (lowest y = {lowest} m)");
-    assert!(highest > 0.15, "the block was crushed: top at y = {highest} m");
+    assert!(
+        lowest < 0.05,
+        "the block never reached the floor (lowest y = {lowest} m)"
+    );
+    assert!(
+        highest > 0.15,
+        "the block was crushed: top at y = {highest} m"
+    );
 }
 
 #[test]

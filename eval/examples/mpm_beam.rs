@@ -53,7 +53,11 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
     for frame in 1..=frames {
         sim.advance(0.01)?;
         if frame % 5 == 0 {
-            let speed = sim.velocities().iter().map(|v| v.norm()).fold(0.0, f64::max);
+            let speed = sim
+                .velocities()
+                .iter()
+                .map(|v| v.norm())
+                .fold(0.0, f64::max);
             let (jmin, jmax) = sim
                 .deformation_gradients()
                 .iter()

@@ -8,7 +8,7 @@
 
 use std::path::PathBuf;
 
-use eval::beam::mpm::{MpmStudyConfig, run_mpm_beam};
+use eval::beam::mpm::{MpmBeamRun, MpmStudyConfig, run_mpm_beam};
 use eval::beam::study::beam_length_scale;
 use eval::beam::{BEAM_MAX, BEAM_MIN, BEAM_TIME_STEP, BeamTest, beam_material};
 use eval::fem_reference::{FemProblem, run_fem};
@@ -46,7 +46,10 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
     };
     let coarse = run(BEAM_TIME_STEP, 1)?;
     let fine = run(BEAM_TIME_STEP / 10.0, 10)?;
-    let (mpm, mpm_frames) = run_mpm_beam(
+    let MpmBeamRun {
+        row: mpm,
+        frames: mpm_frames,
+    } = run_mpm_beam(
         test,
         0.1,
         &MpmStudyConfig::default(),

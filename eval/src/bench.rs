@@ -10,8 +10,8 @@ use baselines::SimplicitsParams;
 use fem_ref::ElementOrder;
 use serde::{Deserialize, Serialize};
 
-use crate::beam::mpm::{MpmStudyConfig, run_mpm_beam};
 use crate::EvalError;
+use crate::beam::mpm::{MpmBeamRun, MpmStudyConfig, run_mpm_beam};
 use crate::beam::reduced::{
     EXACT_INSET_KERNEL_RADII, ReducedSettings, build_beam_basis_for, exact_pin_hold,
     run_reduced_beam, run_reduced_beam_with,
@@ -421,7 +421,7 @@ pub fn run_bench(config: &BenchConfig, progress: &Progress) -> Result<Vec<BenchR
                 )
             }
             BenchMethod::Mpm(spacing) => {
-                let (row, frames) = run_mpm_beam(
+                let MpmBeamRun { row, frames } = run_mpm_beam(
                     BeamTest::Bend,
                     *spacing,
                     &MpmStudyConfig::default(),

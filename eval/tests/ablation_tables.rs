@@ -17,6 +17,7 @@ use optimize::NewtonParams;
 fn tiny_config(cache: std::path::PathBuf) -> AblationStudyConfig {
     AblationStudyConfig::full(BeamStudyConfig {
         exact_pins: None,
+        mpm: None,
         modes: vec![4],
         tests: BeamTest::ALL.to_vec(),
         settings: ReducedSettings {

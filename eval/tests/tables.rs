@@ -2,8 +2,8 @@
 //! numbers sit beside ours, and Table 5's ratio is FEM time over ours.
 
 use baselines::SimplicitsParams;
-use eval::beam::mpm::MpmStudyConfig;
 use eval::beam::BeamTest;
+use eval::beam::mpm::MpmStudyConfig;
 use eval::beam::reduced::ReducedSettings;
 use eval::beam::study::{BeamStudyConfig, run_beam_study};
 use eval::beam::tables::{table1, table5, table6, twist_error_plot};
@@ -119,7 +119,11 @@ fn tiny_study_fills_tables_1_5_6_with_paper_columns_and_consistent_json() {
         let max = p["max"].as_f64().unwrap();
         assert!(mse > 0.0 && max * max >= mse && max.is_finite(), "{p}");
         assert!(p["ms_per_step"].as_f64().unwrap() > 0.0);
-        assert_eq!(p["substeps_per_step"].as_u64(), Some(100), "Δt = 1e-4 s in 0.01 s frames");
+        assert_eq!(
+            p["substeps_per_step"].as_u64(),
+            Some(100),
+            "Δt = 1e-4 s in 0.01 s frames"
+        );
         assert!(p["failure"].is_null(), "{p}");
     }
     assert!(t1.markdown.contains("### MPM (ours, issue 22)"));

@@ -87,6 +87,15 @@ pub struct ParticleBaselineRow {
     pub cached: bool,
 }
 
+/// A scored MPM run and its tracer positions per frame (frame 0 = rest; fewer frames than
+/// asked for when the run stopped early).
+pub struct MpmBeamRun {
+    /// The scores and timings.
+    pub row: ParticleBaselineRow,
+    /// Tracer (FEM vertex) positions per frame (m).
+    pub frames: Vec<Vec<Vector3<f64>>>,
+}
+
 /// What the cache keeps of a run.
 #[derive(Serialize, Deserialize)]
 struct CachedMpmRun {
@@ -99,8 +108,7 @@ struct CachedMpmRun {
 }
 
 /// Runs (or loads) MPM on `test` for `steps` frames at grid spacing `spacing`, with tracers at
-/// `reference`'s vertices, and scores it; returns the row and the tracer positions per frame
-/// (frame 0 = rest).
+/// `reference`'s vertices, and scores it.
 ///
 /// # Errors
 /// [`EvalError::Mpm`] from the solver (the CFL refusal, an unstable run),
@@ -114,7 +122,7 @@ pub fn run_mpm_beam(
     reference: &FemRun,
     cache_dir: &Path,
     progress: &Progress,
-) -> Result<(ParticleBaselineRow, Vec<Vec<Vector3<f64>>>), EvalError> {
+) -> Result<MpmBeamRun, EvalError> {
     let particles = sample_box_grid(
         BEAM_MIN,
         BEAM_MAX,
@@ -136,7 +144,11 @@ pub fn run_mpm_beam(
     key.str("mpm beam")
         .u64(MPM_CACHE_VERSION as u64)
         .str(&scene.label())
-        .str(&format!("{params:?} {config:?}"))
+        // The run's own options only: not the list of spacings it came from.
+        .str(&format!(
+            "{params:?} particles_per_cell={}",
+            config.particles_per_cell
+        ))
         .u64(particles.len() as u64)
         .u64(steps as u64)
         .f64s(&[BEAM_TIME_STEP]);
@@ -178,7 +190,10 @@ pub fn run_mpm_beam(
                 if let Err(e) = sim.advance(BEAM_TIME_STEP) {
                     let at = match e {
                         MpmError::TracerLost { tracer, .. } => {
-                            format!(" (tracer at rest position {:?} m)", vertices[tracer].as_slice())
+                            format!(
+                                " (tracer at rest position {:?} m)",
+                                vertices[tracer].as_slice()
+                            )
                         }
                         _ => String::new(),
                     };
@@ -231,7 +246,9 @@ pub fn run_mpm_beam(
     let t = &run.timings;
     let total = t.total().max(f64::MIN_POSITIVE);
     if let Some(why) = &run.failure {
-        progress.status(format!("{label}: not scored, stopped after {completed} steps: {why}"));
+        progress.status(format!(
+            "{label}: not scored, stopped after {completed} steps: {why}"
+        ));
     }
     let row = ParticleBaselineRow {
         method: "mpm".into(),
@@ -254,5 +271,5 @@ pub fn run_mpm_beam(
         ],
         cached: was_cached,
     };
-    Ok((row, frames))
+    Ok(MpmBeamRun { row, frames })
 }

@@ -11,11 +11,11 @@ use reduced_sim::{QuadratureReport, SkinningField};
 use serde::{Deserialize, Serialize};
 
 use crate::EvalError;
+use crate::beam::mpm::{MpmStudyConfig, ParticleBaselineRow, run_mpm_beam};
 use crate::beam::reduced::{
     EXACT_INSET_KERNEL_RADII, ReducedSettings, build_beam_basis, build_beam_basis_for,
     exact_pin_hold, run_reduced_beam_with,
 };
-use crate::beam::mpm::{MpmStudyConfig, ParticleBaselineRow, run_mpm_beam};
 use crate::beam::simplicits::train_beam_simplicits;
 use crate::beam::{BEAM_MAX, BEAM_MIN, BEAM_TIME_STEP, BeamTest, beam_material};
 use crate::fem_reference::{FemResolution, FemRun, run_fem_beam};
@@ -365,7 +365,7 @@ pub fn run_beam_study(
         });
         for ((test, reference), spacing) in runs {
             {
-                let (row, _) = run_mpm_beam(
+                let row = run_mpm_beam(
                     *test,
                     spacing,
                     mpm,
@@ -373,7 +373,8 @@ pub fn run_beam_study(
                     reference,
                     &config.cache_dir,
                     progress,
-                )?;
+                )?
+                .row;
                 if let Some(mse) = row.mse {
                     progress.status(format!(
                         "MPM {} Δx = {spacing} m: MSE {mse:.2e}, {:.1} ms per 0.01 s",

@@ -5,10 +5,10 @@ use std::path::{Path, PathBuf};
 
 use anyhow::{Result, bail};
 use baselines::mpm::MpmMaterial;
-use eval::beam::mpm::MpmStudyConfig;
 use eval::ablation::study::{AblationStudyConfig, run_ablation_study};
 use eval::ablation::tables::{table3, table4};
 use eval::beam::BeamTest;
+use eval::beam::mpm::MpmStudyConfig;
 use eval::beam::study::{BeamStudyConfig, run_beam_study};
 use eval::beam::tables::{table1, table5, table6, twist_error_plot};
 use eval::progress::Progress;
