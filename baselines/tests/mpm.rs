@@ -298,8 +298,8 @@ fn cantilever_tip_deflection_matches_euler_bernoulli_at_the_finer_grid() {
     // Clamp 0.2 m of a 1.2 × 0.1 × 0.05 m bar (free length L = 1 m, thickness h = 0.1 m,
     // width h/2: plane stress, so E-B's E applies) and drop gravity on it, at Δx = h/6 with 8
     // particles per cell. The error is first order in Δx (the particle-enforced clamp sits
-    // about half a cell behind x = 0): +14.9% at h/Δx = 2, +6.0% at 4, +4.0% at 6 (square
-    // section; `examples/mpm_cantilever.rs`). Undamped, the tip oscillates about the static deflection
+    // about half a cell behind x = 0): +13.7% at h/Δx = 2, +5.6% at 4, +3.4% at 6
+    // (`examples/mpm_cantilever.rs`). Undamped, the tip oscillates about the static deflection
     // δ = q L⁴ / (8 E I) = 1.5 ρ g L⁴ / (E h²); its mean over one period of the first bending
     // mode (ω₁ = 1.875² √(E I / (ρ A L⁴))) is compared with δ.
     let (length, clamp, h) = (1.0, 0.2, 0.1);
