@@ -297,8 +297,9 @@ fn results_do_not_depend_on_the_number_of_threads() {
 fn cantilever_tip_deflection_matches_euler_bernoulli_at_the_finer_grid() {
     // Clamp 0.2 m of a 1.2 × 0.1 × 0.05 m bar (free length L = 1 m, thickness h = 0.1 m,
     // width h/2: plane stress, so E-B's E applies) and drop gravity on it, at Δx = h/6 with 8
-    // particles per cell. The error is first order in Δx (the particle-enforced clamp sits
-    // about half a cell behind x = 0): +13.7% at h/Δx = 2, +5.6% at 4, +3.4% at 6
+    // particles per cell. MPM is too soft by about a first-order term in Δx (the clamp is
+    // enforced on particles only, so the grid nodes at x = 0 are not held), plus ~1% of shear
+    // that Euler-Bernoulli leaves out: +13.7% at h/Δx = 2, +5.6% at 4, +3.4% at 6
     // (`examples/mpm_cantilever.rs`). Undamped, the tip oscillates about the static deflection
     // δ = q L⁴ / (8 E I) = 1.5 ρ g L⁴ / (E h²); its mean over one period of the first bending
     // mode (ω₁ = 1.875² √(E I / (ρ A L⁴))) is compared with δ.
