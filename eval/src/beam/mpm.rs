@@ -5,7 +5,7 @@
 //! particles, the others with the grid velocity), scored by the metrics of DESIGN 4.3. A run
 //! that stops (a tracer left the material, an instability) is reported with its reason and
 //! not scored. Trajectories are cached under
-//! `<cache>/mpm/`: a Bend run at Δx = 0.05 m takes most of an hour on 2 cores.
+//! `<cache>/mpm/`: a Bend run at Δx = 0.05 m takes more than 80 min on 2 cores.
 
 use std::path::Path;
 use std::time::Instant;

@@ -157,8 +157,8 @@ enum Command {
         /// 2 cores the first time, then are cached).
         #[arg(long)]
         skip_simplicits: bool,
-        /// Leave out the MPM baseline (its Δx = 0.05 m run takes most of an hour on 2 cores
-        /// the first time, then is cached, shared with Table 1).
+        /// Leave out the MPM baseline (Δx = 0.2 and 0.1 m: about 10 min on 2 cores the first
+        /// time, then cached, shared with Table 1).
         #[arg(long)]
         skip_mpm: bool,
     },

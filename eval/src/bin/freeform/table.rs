@@ -87,8 +87,8 @@ pub(crate) struct TableOptions {
     /// the whole region is held).
     #[arg(long)]
     exact_inset_radii: Option<f64>,
-    /// Leave out the MPM baseline of Tables 1 and 5 (its Bend run at Δx = 0.05 m takes most of
-    /// an hour on 2 cores the first time; trajectories are cached).
+    /// Leave out the MPM baseline of Tables 1 and 5 (its Bend run at Δx = 0.05 m takes more
+    /// than 80 min on 2 cores the first time; trajectories are cached).
     #[arg(long)]
     skip_mpm: bool,
     /// The MPM grid spacings (m, comma-separated; default 0.1,0.05).
