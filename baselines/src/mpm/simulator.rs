@@ -157,12 +157,11 @@ pub fn p_wave_speed(material: &MaterialSample) -> Result<f64, MpmError> {
     Ok((lame.p_wave_modulus() / material.density).sqrt())
 }
 
-/// The largest Δt (s) `params.cfl_number` accepts on grid spacing `params.grid_spacing` for
-/// the fastest of `materials`: `cfl · Δx / max c`.
+/// The largest P-wave speed (m/s) of `materials`.
 ///
 /// # Errors
 /// [`MpmError::InvalidInput`] for invalid elastic parameters or no material.
-pub fn stable_time_step(params: &MpmParams, materials: &[MaterialSample]) -> Result<f64, MpmError> {
+fn fastest_p_wave_speed(materials: &[MaterialSample]) -> Result<f64, MpmError> {
     let mut fastest: f64 = 0.0;
     for m in materials {
         fastest = fastest.max(p_wave_speed(m)?);
@@ -172,7 +171,16 @@ pub fn stable_time_step(params: &MpmParams, materials: &[MaterialSample]) -> Res
             "no material to take a wave speed of".into(),
         ));
     }
-    Ok(params.cfl_number * params.grid_spacing / fastest)
+    Ok(fastest)
+}
+
+/// The largest Δt (s) `params.cfl_number` accepts on grid spacing `params.grid_spacing` for
+/// the fastest of `materials`: `cfl · Δx / max c`.
+///
+/// # Errors
+/// [`MpmError::InvalidInput`] for invalid elastic parameters or no material.
+pub fn stable_time_step(params: &MpmParams, materials: &[MaterialSample]) -> Result<f64, MpmError> {
+    Ok(params.cfl_number * params.grid_spacing / fastest_p_wave_speed(materials)?)
 }
 
 /// An explicit APIC MPM simulation of one body, with optional tracer points.
@@ -232,12 +240,9 @@ impl MpmSimulator {
                 materials.len()
             )));
         }
-        let limit = stable_time_step(&params, materials)?;
+        let wave_speed = fastest_p_wave_speed(materials)?;
+        let limit = params.cfl_number * params.grid_spacing / wave_speed;
         if params.time_step > limit {
-            let mut wave_speed: f64 = 0.0;
-            for m in materials {
-                wave_speed = wave_speed.max(p_wave_speed(m)?);
-            }
             return Err(MpmError::TimeStepAboveCfl {
                 time_step: params.time_step,
                 limit,

@@ -231,17 +231,16 @@ pub fn run_mpm_beam(
         .collect();
     let truth = reference.vertex_frames();
     let completed = frames.len() - 1;
-    let scores = match &run.failure {
-        Some(_) => None,
-        None => Some(trajectory_errors(
-            &frames[1..],
-            &truth[1..],
-            beam_length_scale(),
-        )?),
-    };
-    let per_frame = match &run.failure {
-        Some(_) => Vec::new(),
-        None => per_frame_mse(&frames[1..], &truth[1..], beam_length_scale())?,
+    let (scores, per_frame) = match &run.failure {
+        Some(_) => (None, Vec::new()),
+        None => (
+            Some(trajectory_errors(
+                &frames[1..],
+                &truth[1..],
+                beam_length_scale(),
+            )?),
+            per_frame_mse(&frames[1..], &truth[1..], beam_length_scale())?,
+        ),
     };
     let t = &run.timings;
     let total = t.total().max(f64::MIN_POSITIVE);

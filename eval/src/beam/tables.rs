@@ -216,7 +216,7 @@ pub fn table1(study: &BeamStudy) -> RenderedTable {
                 "failure": p.failure, "steps_completed": p.steps_completed,
                 "particles": p.particles, "substeps_per_step": p.substeps_per_step,
                 "max_pin_deviation": p.max_pin_deviation,
-                "paper_mse": paper::TABLE1_PARTICLE.iter().find(|q| q.0 == p.test.name()).map(|q| q.1)})
+                "paper_mse": paper::table1_mpm(p.test.name())})
         })
         .collect();
     RenderedTable {
@@ -267,10 +267,7 @@ fn particle_baselines_section(study: &BeamStudy) -> String {
             p.ms_per_step,
             if p.cached { " (cached)" } else { "" },
             p.substeps_per_step,
-            sci(paper::TABLE1_PARTICLE
-                .iter()
-                .find(|q| q.0 == p.test.name())
-                .map(|q| q.1)),
+            sci(paper::table1_mpm(p.test.name())),
         );
     }
     md

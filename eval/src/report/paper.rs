@@ -71,6 +71,11 @@ pub fn table1_ours(test: &str, m: usize) -> Option<f64> {
     TABLE1.iter().find(|r| r.0 == test && r.1 == m).map(|r| r.3)
 }
 
+/// The paper's Table 1 MPM MSE for `test` (its m = 9 row), if it has one.
+pub fn table1_mpm(test: &str) -> Option<f64> {
+    TABLE1_PARTICLE.iter().find(|r| r.0 == test).map(|r| r.1)
+}
+
 /// The paper's Table 1 Simplicits MSE for (test, m), if it has one.
 pub fn table1_simplicits(test: &str, m: usize) -> Option<f64> {
     TABLE1.iter().find(|r| r.0 == test && r.1 == m).map(|r| r.2)
