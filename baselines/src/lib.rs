@@ -12,7 +12,7 @@
 //!
 //! - [`mpm`]: the explicit APIC Material Point Method of Tables 1 and 5 (warp-mpm's scheme).
 //!
-//! Still to come: SPH.
+//! - [`sph`]: the implicit corotated SPH solid of Tables 1 and 5 (Kugelstadt et al. 2021).
 
 pub mod adam;
 pub mod coefficient_training;
@@ -20,6 +20,7 @@ pub mod mlp;
 pub mod model_file;
 pub mod mpm;
 pub mod simplicits;
+pub mod sph;
 
 pub use adam::{Adam, AdamParams};
 pub use coefficient_training::{

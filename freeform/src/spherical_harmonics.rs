@@ -10,7 +10,6 @@
 //! found by least squares on fixed sample directions, exact up to rounding because the
 //! degree-l functions span a rotation-invariant space.
 
-use hyperelastic::SignedSvd;
 use nalgebra::{DMatrix, Matrix3, Vector3};
 
 /// Coefficients per colour channel beyond the DC term for `degree` (3, 8 or 15).
@@ -137,16 +136,10 @@ impl ShRotation {
     }
 }
 
-/// The rotation of the polar decomposition `F = R S` (det R = +1, also for det F ≤ 0: the
-/// closest rotation to F).
-pub fn polar_rotation(f: &Matrix3<f64>) -> Matrix3<f64> {
-    let svd = SignedSvd::new(f);
-    svd.u * svd.v.transpose()
-}
-
 #[cfg(test)]
 mod tests {
     use super::*;
+    use hyperelastic::polar_rotation;
     use nalgebra::{Rotation3, Unit};
 
     #[test]

@@ -11,11 +11,10 @@
 
 use std::path::{Path, PathBuf};
 
+use hyperelastic::polar_rotation;
 use nalgebra::{DVector, Matrix3, Quaternion, SymmetricEigen, UnitQuaternion, Vector3};
 
-use crate::spherical_harmonics::{
-    ShRotation, degree_of_rest_columns, polar_rotation, rest_coefficients,
-};
+use crate::spherical_harmonics::{ShRotation, degree_of_rest_columns, rest_coefficients};
 use thiserror::Error;
 
 /// A 3DGS file could not be read, deformed or written.

@@ -200,7 +200,7 @@ fn higher_order_harmonics_follow_the_polar_rotation_of_f() {
     let (deformed, _) = table
         .deformed(&table.positions(), &vec![f; table.len()])
         .unwrap();
-    let r = spherical_harmonics::polar_rotation(&f);
+    let r = hyperelastic::polar_rotation(&f);
     let rotated = rest(&deformed);
     let colour = |coefficients: &[Vec<f64>], splat: usize, channel: usize, d: &Vector3<f64>| {
         spherical_harmonics::real_sh_basis(3, d)

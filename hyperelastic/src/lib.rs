@@ -26,6 +26,7 @@ pub mod material;
 #[cfg(any(test, feature = "checks"))]
 pub mod material_checks;
 pub mod material_sample;
+pub mod polar_rotation;
 pub mod psd_projection;
 pub mod signed_svd;
 pub mod stable_neo_hookean;
@@ -40,6 +41,7 @@ pub use material_checks::{
     MaterialCheckError, MaterialCheckParams, MaterialCheckReport, check_material,
 };
 pub use material_sample::{MaterialField, MaterialFunction, MaterialSample, lame_parameters_of};
+pub use polar_rotation::polar_rotation;
 pub use psd_projection::project_to_psd;
 pub use signed_svd::SignedSvd;
 pub use stable_neo_hookean::StableNeoHookean;

@@ -32,7 +32,7 @@ pub mod grid;
 pub mod quadratic_stencil;
 pub mod simulator;
 
-pub use constitutive::{MpmMaterial, fixed_corotated_energy_density, polar_rotation};
+pub use constitutive::{MpmMaterial, fixed_corotated_energy_density};
 pub use grid::{BackgroundGrid, GridLayout, SLAB_CELLS};
 pub use quadratic_stencil::{QuadraticStencil, apic_inertia};
 pub use simulator::{
