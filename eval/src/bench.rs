@@ -11,12 +11,14 @@ use fem_ref::ElementOrder;
 use serde::{Deserialize, Serialize};
 
 use crate::EvalError;
-use crate::beam::mpm::{MpmBeamRun, MpmStudyConfig, run_mpm_beam};
+use crate::beam::mpm::{MpmStudyConfig, run_mpm_beam};
+use crate::beam::particle_baseline::{ParticleBeamRun, ParticleMethod};
 use crate::beam::reduced::{
     EXACT_INSET_KERNEL_RADII, ReducedSettings, build_beam_basis_for, exact_pin_hold,
     run_reduced_beam, run_reduced_beam_with,
 };
 use crate::beam::simplicits::train_beam_simplicits;
+use crate::beam::sph::{SphStudyConfig, run_sph_beam};
 use crate::beam::study::{beam_length_scale, region_drift};
 use crate::beam::{BeamTest, beam_material};
 use crate::fem_reference::{FemResolution, run_fem_beam};
@@ -102,6 +104,9 @@ pub enum BenchMethod {
     /// The MPM baseline at this grid spacing (m), otherwise [`MpmStudyConfig::default`]
     /// (trajectories cached, shared with Table 1).
     Mpm(f64),
+    /// The SPH baseline at this particle spacing (m), otherwise [`SphStudyConfig::default`]
+    /// (trajectories cached, shared with Table 1).
+    Sph(f64),
 }
 
 /// What to sweep.
@@ -209,6 +214,10 @@ impl BenchConfig {
         // Δx = 0.05 m would add more than an hour (Table 1 runs it).
         for spacing in [0.2, 0.1] {
             runs.push(("MPM Δx".into(), BenchMethod::Mpm(spacing)));
+        }
+        // 0.05 m (40 000 particles) takes about 3 min for the 300 steps; Table 1 runs it.
+        for spacing in [0.2, 0.1] {
+            runs.push(("SPH spacing".into(), BenchMethod::Sph(spacing)));
         }
         for (order, r) in [
             (ElementOrder::Linear, 2),
@@ -421,26 +430,48 @@ pub fn run_bench(config: &BenchConfig, progress: &Progress) -> Result<Vec<BenchR
                     },
                 )
             }
-            BenchMethod::Mpm(spacing) => {
-                let MpmBeamRun { row, frames } = run_mpm_beam(
-                    BeamTest::Bend,
-                    *spacing,
-                    &MpmStudyConfig::default(),
-                    config.steps,
-                    &truth,
-                    &config.cache_dir,
-                    progress,
-                )?;
+            BenchMethod::Mpm(spacing) | BenchMethod::Sph(spacing) => {
+                let method = match method {
+                    BenchMethod::Mpm(_) => ParticleMethod::Mpm,
+                    _ => ParticleMethod::Sph,
+                };
+                let ParticleBeamRun { row, frames } = match method {
+                    ParticleMethod::Mpm => run_mpm_beam(
+                        BeamTest::Bend,
+                        *spacing,
+                        &MpmStudyConfig::default(),
+                        config.steps,
+                        &truth,
+                        &config.cache_dir,
+                        progress,
+                    )?,
+                    ParticleMethod::Sph => run_sph_beam(
+                        BeamTest::Bend,
+                        *spacing,
+                        &SphStudyConfig::default(),
+                        config.steps,
+                        &truth,
+                        &config.cache_dir,
+                        progress,
+                    )?,
+                };
                 if let Some(why) = &row.failure {
-                    progress.status(format!("MPM Δx = {spacing} m left out: {why}"));
+                    progress.status(format!(
+                        "{} {} = {spacing} m left out: {why}",
+                        method.label(),
+                        method.spacing_name()
+                    ));
                     continue;
                 }
                 drift = row.max_pin_deviation;
                 (
-                    "mpm",
+                    method.key(),
                     format!(
-                        "Δx={} m ({} particles, {} substeps/step)",
-                        row.spacing, row.particles, row.substeps_per_step
+                        "{}={} m ({} particles, {} steps per 0.01 s)",
+                        method.spacing_name(),
+                        row.spacing,
+                        row.particles,
+                        row.substeps_per_step
                     ),
                     Timing {
                         ms_per_step: row.ms_per_step,
@@ -448,7 +479,7 @@ pub fn run_bench(config: &BenchConfig, progress: &Progress) -> Result<Vec<BenchR
                         hessians_per_step: 0.0,
                         quadrature_points: 0,
                     },
-                    0.0,
+                    row.setup_seconds,
                     frames,
                 )
             }
@@ -654,18 +685,20 @@ pub fn bench_plot(results: &[BenchResult], config: &BenchConfig) -> PlotSpec {
             color: 6,
         });
     }
-    let mpm: Vec<(f64, f64)> = results
-        .iter()
-        .filter(|r| r.method == "mpm")
-        .map(|r| (r.ms_per_step, r.normalized_mse))
-        .collect();
-    if !mpm.is_empty() {
-        series.push(Series {
-            label: "MPM, varying Δx".into(),
-            points: mpm,
-            line: false,
-            color: 13,
-        });
+    for (method, color) in [(ParticleMethod::Mpm, 13), (ParticleMethod::Sph, 14)] {
+        let points: Vec<(f64, f64)> = results
+            .iter()
+            .filter(|r| r.method == method.key())
+            .map(|r| (r.ms_per_step, r.normalized_mse))
+            .collect();
+        if !points.is_empty() {
+            series.push(Series {
+                label: format!("{}, varying {}", method.label(), method.spacing_name()),
+                points,
+                line: false,
+                color,
+            });
+        }
     }
     let mut front: Vec<(f64, f64)> = results
         .iter()

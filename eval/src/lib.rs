@@ -94,6 +94,9 @@ pub enum EvalError {
     /// The MPM baseline refused its options or its run failed.
     #[error("the MPM baseline failed")]
     Mpm(#[from] baselines::mpm::MpmError),
+    /// The SPH baseline refused its options or its setup failed.
+    #[error("the SPH baseline failed")]
+    Sph(#[from] baselines::sph::SphError),
     /// The FEM reference failed to run or to use its cache.
     #[error("the FEM reference failed")]
     Fem(#[source] fem_ref::FemRunError),

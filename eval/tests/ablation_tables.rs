@@ -18,6 +18,7 @@ fn tiny_config(cache: std::path::PathBuf) -> AblationStudyConfig {
     AblationStudyConfig::full(BeamStudyConfig {
         exact_pins: None,
         mpm: None,
+        sph: None,
         modes: vec![4],
         tests: BeamTest::ALL.to_vec(),
         settings: ReducedSettings {

@@ -4,7 +4,9 @@
 use baselines::SimplicitsParams;
 use eval::beam::BeamTest;
 use eval::beam::mpm::MpmStudyConfig;
+use eval::beam::particle_baseline::ParticleMethod;
 use eval::beam::reduced::ReducedSettings;
+use eval::beam::sph::SphStudyConfig;
 use eval::beam::study::{BeamStudyConfig, run_beam_study};
 use eval::beam::tables::{table1, table5, table6, twist_error_plot};
 use eval::fem_reference::FemResolution;
@@ -49,6 +51,10 @@ fn tiny_study_fills_tables_1_5_6_with_paper_columns_and_consistent_json() {
         mpm: Some(MpmStudyConfig {
             spacings: vec![0.25],
             ..MpmStudyConfig::default()
+        }),
+        sph: Some(SphStudyConfig {
+            spacings: vec![0.25],
+            ..SphStudyConfig::default()
         }),
     };
     let study = run_beam_study(&config, &quiet()).unwrap();
@@ -101,7 +107,12 @@ fn tiny_study_fills_tables_1_5_6_with_paper_columns_and_consistent_json() {
     let labels: Vec<&str> = plot.series.iter().map(|s| s.label.as_str()).collect();
     assert_eq!(
         labels,
-        ["FreeForm m = 6", "Simplicits m = 6", "MPM Δx = 0.25 m"]
+        [
+            "FreeForm m = 6",
+            "Simplicits m = 6",
+            "MPM Δx = 0.25 m",
+            "SPH spacing = 0.25 m"
+        ]
     );
     assert_eq!(plot.series[0].points.len(), 8);
     assert!(
@@ -109,24 +120,40 @@ fn tiny_study_fills_tables_1_5_6_with_paper_columns_and_consistent_json() {
         "x is t = frame · h"
     );
 
-    // MPM on both tests at the one spacing, scored at the FEM vertices like the rest.
+    // MPM and SPH on both tests at the one spacing, scored at the FEM vertices like the rest.
     let particles = t1.json["particle_baselines"].as_array().unwrap();
-    assert_eq!(particles.len(), 2, "{particles:?}");
+    assert_eq!(particles.len(), 4, "{particles:?}");
     for p in particles {
-        assert_eq!(p["method"], "mpm");
         assert_eq!(p["spacing"].as_f64(), Some(0.25));
         let mse = p["mse"].as_f64().unwrap();
         let max = p["max"].as_f64().unwrap();
         assert!(mse > 0.0 && max * max >= mse && max.is_finite(), "{p}");
         assert!(p["ms_per_step"].as_f64().unwrap() > 0.0);
-        assert_eq!(
-            p["substeps_per_step"].as_u64(),
-            Some(100),
-            "Δt = 1e-4 s in 0.01 s frames"
-        );
+        let (substeps, paper) = match p["method"].as_str() {
+            // Δt = 1e-4 s in 0.01 s frames.
+            Some("mpm") => (100, [1.42e-3, 2.34e-5]),
+            // One implicit step per frame, with its conjugate-gradient iterations counted.
+            Some("sph") => {
+                assert!(p["iterations_per_step"].as_f64().unwrap() >= 1.0, "{p}");
+                (1, [6.57e-4, 1.33e-4])
+            }
+            other => panic!("unexpected method {other:?}"),
+        };
+        assert_eq!(p["substeps_per_step"].as_u64(), Some(substeps), "{p}");
+        let test = usize::from(p["test"] == "twist");
+        assert_eq!(p["paper_mse"].as_f64(), Some(paper[test]), "{p}");
         assert!(p["failure"].is_null(), "{p}");
     }
     assert!(t1.markdown.contains("### MPM (ours, issue 22)"));
+    assert!(t1.markdown.contains("### SPH (ours, issue 23)"));
+    assert_eq!(
+        study
+            .particle_baselines
+            .iter()
+            .filter(|p| p.method == ParticleMethod::Sph)
+            .count(),
+        2
+    );
 
     let t5 = table5(&study);
     let r = &t5.json["rows"][0];
@@ -134,9 +161,14 @@ fn tiny_study_fills_tables_1_5_6_with_paper_columns_and_consistent_json() {
     let ratio = r["fem_over_ours"].as_f64().unwrap();
     assert!((ratio - fem_ms / r["ours_ms_per_step"].as_f64().unwrap()).abs() < 1e-9 * ratio);
     assert_eq!(r["paper_ours_ms"].as_f64(), Some(3.01));
-    let mpm = t5.json["particle_baselines"].as_array().unwrap();
-    assert_eq!(mpm.len(), 1, "Table 5 times the Bend only");
+    let particles = t5.json["particle_baselines"].as_array().unwrap();
+    assert_eq!(
+        particles.len(),
+        2,
+        "Table 5 times the Bend only, once per method"
+    );
     assert_eq!(t5.json["paper_mpm_ms"].as_f64(), Some(23.1));
+    assert_eq!(t5.json["paper_sph_ms"].as_f64(), Some(37.8));
 
     let t6 = table6(&study);
     let residual = t6.json["rows"][0]["ours_fitting_residual"]
@@ -160,7 +192,7 @@ fn tiny_study_fills_tables_1_5_6_with_paper_columns_and_consistent_json() {
     assert_eq!(
         table1(&again).json["particle_baselines"],
         t1.json["particle_baselines"],
-        "MPM trajectories come back from the cache"
+        "MPM and SPH trajectories come back from the cache"
     );
 }
 
@@ -190,6 +222,7 @@ fn a_reference_with_unconverged_frames_is_refused_by_the_tables_with_the_frames_
         cache_dir: dir.join("cache"),
         exact_pins: None,
         mpm: None,
+        sph: None,
     };
     let study = run_beam_study(&config, &quiet()).unwrap();
     let twist = study
@@ -248,6 +281,7 @@ fn table1_runs_both_pin_treatments_and_the_exact_rows_hold_their_regions() {
         cache_dir: dir.join("cache"),
         exact_pins: Some(1.5),
         mpm: None,
+        sph: None,
     };
     let study = run_beam_study(&config, &quiet()).unwrap();
     let t1 = table1(&study);

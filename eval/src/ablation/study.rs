@@ -41,6 +41,7 @@ impl AblationStudyConfig {
                 simplicits: base.simplicits.or(Some(SimplicitsParams::default())),
                 exact_pins: None,
                 mpm: None,
+                sph: None,
                 ..base
             },
             coefficient_ablations: true,

@@ -9,8 +9,10 @@
 //!   baseline run (and cached) on the beam.
 
 pub mod mpm;
+pub mod particle_baseline;
 pub mod reduced;
 pub mod simplicits;
+pub mod sph;
 pub mod study;
 pub mod tables;
 

@@ -13,15 +13,15 @@ use std::time::Instant;
 use artifact::{load_framed, save_framed};
 use baselines::mpm::{MpmError, MpmMaterial, MpmParams, MpmSimulator, MpmTimings};
 use fem_ref::trajectory_key_builder;
-use nalgebra::Vector3;
 use rkpm_core::sample_box_grid;
 use serde::{Deserialize, Serialize};
 
 use crate::EvalError;
-use crate::beam::study::beam_length_scale;
+use crate::beam::particle_baseline::{
+    ParticleBeamRun, ParticleMethod, ParticleTrajectory, score_particle_run,
+};
 use crate::beam::{BEAM_MAX, BEAM_MIN, BEAM_TIME_STEP, BeamTest, beam_material};
 use crate::fem_reference::FemRun;
-use crate::metrics::{per_frame_mse, trajectory_errors};
 use crate::progress::Progress;
 
 /// Cache file kind and format version of an MPM beam trajectory.
@@ -52,50 +52,6 @@ impl Default for MpmStudyConfig {
     }
 }
 
-/// One particle-method run of one test, scored against the FEM.
-#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
-pub struct ParticleBaselineRow {
-    /// "mpm".
-    pub method: String,
-    /// Bend or Twist.
-    pub test: BeamTest,
-    /// Grid spacing Δx (m).
-    pub spacing: f64,
-    /// Particles.
-    pub particles: usize,
-    /// Substeps per 0.01 s frame.
-    pub substeps_per_step: usize,
-    /// Normalized MSE against the FEM at its vertices (tracers); `None` for a failed run.
-    pub mse: Option<f64>,
-    /// Normalized max error; `None` for a failed run.
-    pub max: Option<f64>,
-    /// Normalized MSE of each frame 1..T (empty for a failed run).
-    pub per_frame_mse: Vec<f64>,
-    /// Largest distance of a particle in a constrained region from its target over the run
-    /// (m): how well particle velocity enforcement holds the regions (the tracers in them are
-    /// put on target like the particles).
-    pub max_pin_deviation: f64,
-    /// Why the run stopped early, if it did.
-    pub failure: Option<String>,
-    /// Frames (0.01 s steps) completed.
-    pub steps_completed: usize,
-    /// Wall time per 0.01 s of simulated time (ms).
-    pub ms_per_step: f64,
-    /// Share of the time in stress / P2G / grid / G2P.
-    pub split: [f64; 4],
-    /// Loaded from the cache.
-    pub cached: bool,
-}
-
-/// A scored MPM run and its tracer positions per frame (frame 0 = rest; fewer frames than
-/// asked for when the run stopped early).
-pub struct MpmBeamRun {
-    /// The scores and timings.
-    pub row: ParticleBaselineRow,
-    /// Tracer (FEM vertex) positions per frame (m).
-    pub frames: Vec<Vec<Vector3<f64>>>,
-}
-
 /// What the cache keeps of a run.
 #[derive(Serialize, Deserialize)]
 struct CachedMpmRun {
@@ -122,7 +78,7 @@ pub fn run_mpm_beam(
     reference: &FemRun,
     cache_dir: &Path,
     progress: &Progress,
-) -> Result<MpmBeamRun, EvalError> {
+) -> Result<ParticleBeamRun, EvalError> {
     let particles = sample_box_grid(
         BEAM_MIN,
         BEAM_MAX,
@@ -224,51 +180,30 @@ pub fn run_mpm_beam(
             (run, false)
         }
     };
-    let frames: Vec<Vec<Vector3<f64>>> = run
-        .frames
-        .iter()
-        .map(|f| f.iter().map(|p| Vector3::from(*p)).collect())
-        .collect();
-    let truth = reference.vertex_frames();
-    let completed = frames.len() - 1;
-    let (scores, per_frame) = match &run.failure {
-        Some(_) => (None, Vec::new()),
-        None => (
-            Some(trajectory_errors(
-                &frames[1..],
-                &truth[1..],
-                beam_length_scale(),
-            )?),
-            per_frame_mse(&frames[1..], &truth[1..], beam_length_scale())?,
-        ),
-    };
-    let t = &run.timings;
+    let t = run.timings;
     let total = t.total().max(f64::MIN_POSITIVE);
-    if let Some(why) = &run.failure {
-        progress.status(format!(
-            "{label}: not scored, stopped after {completed} steps: {why}"
-        ));
-    }
-    let row = ParticleBaselineRow {
-        method: "mpm".into(),
-        test,
-        spacing,
-        particles: run.particles,
-        substeps_per_step: t.substeps / completed.max(1),
-        mse: scores.map(|s| s.normalized_mse),
-        max: scores.map(|s| s.normalized_max),
-        per_frame_mse: per_frame,
-        max_pin_deviation: run.max_pin_deviation,
-        failure: run.failure.clone(),
-        steps_completed: completed,
-        ms_per_step: 1e3 * run.seconds / completed.max(1) as f64,
-        split: [
-            t.stress / total,
-            t.particle_to_grid / total,
-            t.grid_update / total,
-            t.grid_to_particle / total,
-        ],
-        cached: was_cached,
-    };
-    Ok(MpmBeamRun { row, frames })
+    score_particle_run(
+        ParticleTrajectory {
+            method: ParticleMethod::Mpm,
+            test,
+            spacing,
+            particles: run.particles,
+            frames: run.frames,
+            failure: run.failure,
+            max_pin_deviation: run.max_pin_deviation,
+            seconds: run.seconds,
+            setup_seconds: 0.0,
+            substeps: t.substeps,
+            split: vec![
+                ("stress".into(), t.stress / total),
+                ("particle to grid".into(), t.particle_to_grid / total),
+                ("grid".into(), t.grid_update / total),
+                ("grid to particle".into(), t.grid_to_particle / total),
+            ],
+            iterations: None,
+            cached: was_cached,
+        },
+        reference,
+        progress,
+    )
 }

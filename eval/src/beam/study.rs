@@ -11,12 +11,14 @@ use reduced_sim::{QuadratureReport, SkinningField};
 use serde::{Deserialize, Serialize};
 
 use crate::EvalError;
-use crate::beam::mpm::{MpmStudyConfig, ParticleBaselineRow, run_mpm_beam};
+use crate::beam::mpm::{MpmStudyConfig, run_mpm_beam};
+use crate::beam::particle_baseline::{ParticleBaselineRow, ParticleMethod};
 use crate::beam::reduced::{
     EXACT_INSET_KERNEL_RADII, ReducedSettings, build_beam_basis, build_beam_basis_for,
     exact_pin_hold, run_reduced_beam_with,
 };
 use crate::beam::simplicits::train_beam_simplicits;
+use crate::beam::sph::{SphStudyConfig, run_sph_beam};
 use crate::beam::{BEAM_MAX, BEAM_MIN, BEAM_TIME_STEP, BeamTest, beam_material};
 use crate::fem_reference::{FemResolution, FemRun, run_fem_beam};
 use crate::metrics::TrajectoryErrors;
@@ -54,6 +56,10 @@ pub struct BeamStudyConfig {
     /// leave it out.
     #[serde(default)]
     pub mpm: Option<MpmStudyConfig>,
+    /// The SPH baseline (issue 23) at each of its particle spacings on every test, or `None` to
+    /// leave it out.
+    #[serde(default)]
+    pub sph: Option<SphStudyConfig>,
 }
 
 impl BeamStudyConfig {
@@ -71,11 +77,13 @@ impl BeamStudyConfig {
             cache_dir,
             exact_pins: Some(EXACT_INSET_KERNEL_RADII),
             mpm: Some(MpmStudyConfig::default()),
+            sph: Some(SphStudyConfig::default()),
         }
     }
 
     /// A few-minute version: m ∈ {6, 16}, K = 500 on 10k basis points, 100 Bend steps (Twist
-    /// keeps its 30), FEM P2 res 4, Simplicits trained for 500 steps instead of 10 000, no MPM.
+    /// keeps its 30), FEM P2 res 4, Simplicits trained for 500 steps instead of 10 000, no MPM
+    /// or SPH.
     pub fn quick(cache_dir: PathBuf) -> Self {
         BeamStudyConfig {
             modes: vec![6, 16],
@@ -94,6 +102,7 @@ impl BeamStudyConfig {
                 ..SimplicitsParams::default()
             }),
             mpm: None,
+            sph: None,
             ..BeamStudyConfig::full(cache_dir)
         }
     }
@@ -246,7 +255,7 @@ pub struct BeamStudy {
     pub rows: Vec<BeamRow>,
     /// One summary per test.
     pub fem: Vec<FemSummary>,
-    /// The particle baselines (MPM) per (test, spacing), if run.
+    /// The particle baselines (MPM, SPH) per (method, test, spacing), if run.
     #[serde(default)]
     pub particle_baselines: Vec<ParticleBaselineRow>,
 }
@@ -353,39 +362,79 @@ pub fn run_beam_study(
     }
     rows.sort_by_key(|r| (r.test != BeamTest::Bend, r.m));
     let mut particle_baselines = Vec::new();
-    if let Some(mpm) = &config.mpm {
-        // Cheapest first (particles × frames), so that the long runs come last.
-        let mut runs: Vec<(&FemReference, f64)> = references
-            .iter()
-            .flat_map(|r| mpm.spacings.iter().map(move |&h| (r, h)))
-            .collect();
-        runs.sort_by(|a, b| {
-            let cost = |(r, h): &(&FemReference, f64)| config.steps_of(r.0) as f64 / h.powi(3);
-            cost(a).total_cmp(&cost(b))
-        });
-        for ((test, reference), spacing) in runs {
-            {
-                let row = run_mpm_beam(
+    // Every (method, test, spacing), cheapest first (particles × frames, SPH's implicit step
+    // counted as 50 MPM substeps' worth), so that the long runs come last.
+    let mut runs: Vec<(ParticleMethod, &FemReference, f64)> = Vec::new();
+    for reference in &references {
+        if let Some(mpm) = &config.mpm {
+            runs.extend(
+                mpm.spacings
+                    .iter()
+                    .map(|&h| (ParticleMethod::Mpm, reference, h)),
+            );
+        }
+        if let Some(sph) = &config.sph {
+            runs.extend(
+                sph.spacings
+                    .iter()
+                    .map(|&h| (ParticleMethod::Sph, reference, h)),
+            );
+        }
+    }
+    let cost = |(method, r, h): &(ParticleMethod, &FemReference, f64)| {
+        let particles = match method {
+            ParticleMethod::Mpm => 8.0 / h.powi(3) * 100.0,
+            ParticleMethod::Sph => 50.0 / h.powi(3),
+        };
+        config.steps_of(r.0) as f64 * particles
+    };
+    runs.sort_by(|a, b| cost(a).total_cmp(&cost(b)));
+    for (method, (test, reference), spacing) in runs {
+        let steps = config.steps_of(*test);
+        let row = match (method, &config.mpm, &config.sph) {
+            (ParticleMethod::Mpm, Some(mpm), _) => {
+                run_mpm_beam(
                     *test,
                     spacing,
                     mpm,
-                    config.steps_of(*test),
+                    steps,
                     reference,
                     &config.cache_dir,
                     progress,
                 )?
-                .row;
-                if let Some(mse) = row.mse {
-                    progress.status(format!(
-                        "MPM {} Δx = {spacing} m: MSE {mse:.2e}, {:.1} ms per 0.01 s",
-                        test.name(),
-                        row.ms_per_step
-                    ));
-                }
-                particle_baselines.push(row);
+                .row
             }
+            (ParticleMethod::Sph, _, Some(sph)) => {
+                run_sph_beam(
+                    *test,
+                    spacing,
+                    sph,
+                    steps,
+                    reference,
+                    &config.cache_dir,
+                    progress,
+                )?
+                .row
+            }
+            _ => unreachable!("runs are listed only for configured methods"),
+        };
+        if let Some(mse) = row.mse {
+            progress.status(format!(
+                "{} {} {} = {spacing} m: MSE {mse:.2e}, {:.1} ms per 0.01 s",
+                method.label(),
+                test.name(),
+                method.spacing_name(),
+                row.ms_per_step
+            ));
         }
+        particle_baselines.push(row);
     }
+    // Reported by method, test, then coarsest first, whatever order they ran in.
+    particle_baselines.sort_by(|a, b| {
+        (a.method, a.test != BeamTest::Bend)
+            .cmp(&(b.method, b.test != BeamTest::Bend))
+            .then(b.spacing.total_cmp(&a.spacing))
+    });
     Ok(BeamStudy {
         config: config.clone(),
         rows,

@@ -7,6 +7,7 @@ use optimize::HessianReuse;
 use reduced_sim::QuadratureRule;
 use serde_json::{Value, json};
 
+use crate::beam::particle_baseline::ParticleMethod;
 use crate::beam::study::{BeamStudy, BeamStudyConfig, FemSummary, beam_length_scale};
 use crate::beam::{BEAM_TIME_STEP, BeamTest};
 use crate::report::paper;
@@ -121,8 +122,8 @@ pub fn table1(study: &BeamStudy) -> RenderedTable {
     let mut md = String::from("## Table 1: normalized MSE against FEM (beam)\n\n");
     md += &settings_lines(&study.config, &study.fem);
     md += &exact_line(study);
-    md += "\n| test | m | ours MSE | ours max | pin drift held / region (mm) | exact MSE | exact max | exact drift held / region (mm) | paper FreeForm | paper Simplicits | Simplicits (ours) | MPM (ours, m = 9 rows) | MPM (paper) | SPH (paper) |\n";
-    md += "|---|---|---|---|---|---|---|---|---|---|---|---|---|---|\n";
+    md += "\n| test | m | ours MSE | ours max | pin drift held / region (mm) | exact MSE | exact max | exact drift held / region (mm) | paper FreeForm | paper Simplicits | Simplicits (ours) | MPM (ours, m = 9 rows) | MPM (paper) | SPH (ours, m = 9 rows) | SPH (paper) |\n";
+    md += "|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|\n";
     let mut csv = String::from(
         "test,m,ours_mse,ours_max,exact_mse,exact_max,exact_max_pin_deviation,simplicits_mse,simplicits_max,paper_ours_mse,paper_simplicits_mse\n",
     );
@@ -135,21 +136,31 @@ pub fn table1(study: &BeamStudy) -> RenderedTable {
             .iter()
             .find(|p| p.0 == name && r.m == 9);
         let exact = r.exact.as_ref();
-        // MPM does not depend on m: its finest scored spacing goes beside the paper's m = 9 value.
-        let mpm = match (r.m, &study.config.mpm) {
-            (9, Some(_)) => study
+        // The particle methods do not depend on m: each one's finest scored spacing goes
+        // beside the paper's m = 9 value.
+        let particle_ours = |method: ParticleMethod, configured: bool| -> String {
+            if r.m != 9 || !configured {
+                return String::new();
+            }
+            study
                 .particle_baselines
                 .iter()
-                .filter(|p| p.test == r.test && p.mse.is_some())
+                .filter(|p| p.method == method && p.test == r.test && p.mse.is_some())
                 .min_by(|a, b| a.spacing.total_cmp(&b.spacing))
                 .map_or("not scored".into(), |p| {
-                    format!("{:.2e} (Δx {} m)", p.mse.unwrap_or(f64::NAN), p.spacing)
-                }),
-            _ => String::new(),
+                    format!(
+                        "{:.2e} ({} {} m)",
+                        p.mse.unwrap_or(f64::NAN),
+                        method.spacing_name(),
+                        p.spacing
+                    )
+                })
         };
+        let mpm = particle_ours(ParticleMethod::Mpm, study.config.mpm.is_some());
+        let sph = particle_ours(ParticleMethod::Sph, study.config.sph.is_some());
         let _ = writeln!(
             md,
-            "| {name} | {} | {:.2e} | {:.2e} | {:.1} / {:.1} | {} | {} | {} | {} | {} | {} | {mpm} | {} | {} |",
+            "| {name} | {} | {:.2e} | {:.2e} | {:.1} / {:.1} | {} | {} | {} | {} | {} | {} | {mpm} | {} | {sph} | {} |",
             r.m,
             r.ours_mse,
             r.ours_max,
@@ -205,7 +216,6 @@ pub fn table1(study: &BeamStudy) -> RenderedTable {
         }));
     }
     md += &simplicits_line(study);
-    md += "SPH has not been run here (its issue is open); the paper's values are shown.\n";
     md += &particle_baselines_section(study);
     let particle_baselines: Vec<Value> = study
         .particle_baselines
@@ -216,7 +226,9 @@ pub fn table1(study: &BeamStudy) -> RenderedTable {
                 "failure": p.failure, "steps_completed": p.steps_completed,
                 "particles": p.particles, "substeps_per_step": p.substeps_per_step,
                 "max_pin_deviation": p.max_pin_deviation,
-                "paper_mse": paper::table1_mpm(p.test.name())})
+                "iterations_per_step": p.iterations_per_step,
+                "setup_seconds": p.setup_seconds,
+                "paper_mse": p.method.paper_mse(p.test.name())})
         })
         .collect();
     RenderedTable {
@@ -228,24 +240,67 @@ pub fn table1(study: &BeamStudy) -> RenderedTable {
     }
 }
 
-/// Table 1's MPM section: how it was run and one row per (test, Δx), or that it was not run.
+/// Table 1's particle-baseline sections (MPM, SPH): how each was run and one row per
+/// (test, spacing), or that it was not run.
 fn particle_baselines_section(study: &BeamStudy) -> String {
-    let Some(mpm) = &study.config.mpm else {
-        return "MPM (ours): not run (`--skip-mpm`); the paper's values are shown.\n".into();
-    };
+    let mut md = String::new();
+    match &study.config.mpm {
+        None => md += "MPM (ours): not run (`--skip-mpm`); the paper's values are shown.\n",
+        Some(mpm) => {
+            let _ = write!(
+                md,
+                "\n### MPM (ours, issue 22)\n\nExplicit APIC MPM as warp-mpm runs it (quadratic \
+                 B-splines, {}, Δt = {:e} s), {} particles per grid cell on the beam grid, pinned \
+                 and twisted regions by particle velocity enforcement; positions read at tracers \
+                 placed at the FEM vertices (moved with the grid velocity; those in a pinned or \
+                 twisted region onto its target, like the region's particles), scored like every \
+                 other method. The paper's MPM is its m = 9 column.\n\n",
+                mpm.material.name(),
+                mpm.time_step,
+                mpm.particles_per_cell.pow(3)
+            );
+            md += &particle_rows(study, ParticleMethod::Mpm);
+        }
+    }
+    match &study.config.sph {
+        None => md += "SPH (ours): not run (`--skip-sph`); the paper's values are shown.\n",
+        Some(sph) => {
+            let _ = write!(
+                md,
+                "\n### SPH (ours, issue 23)\n\nImplicit corotated SPH of Kugelstadt et al. 2021 as \
+                 SPlisHSPlasH runs it (cubic spline kernel, support {} × the particle spacing, \
+                 corrected gradients fixed at rest, stretching solved against a matrix factored \
+                 once, volume by conjugate gradients to {:e}, zero-energy-mode control α = {}, one \
+                 step of Δt = {} s per frame), particles on a lattice at the stated spacing, pinned \
+                 and twisted regions as prescribed particle positions; the FEM vertices carried by \
+                 the particles' displacements through a linearly consistent interpolant (those in a \
+                 pinned or twisted region put on its target), scored like every other method. The \
+                 paper's SPH is its m = 9 column.\n\n",
+                sph.params.support_over_spacing,
+                sph.params.volume_tolerance,
+                sph.params.zero_energy_alpha,
+                sph.params.time_step
+            );
+            md += &particle_rows(study, ParticleMethod::Sph);
+        }
+    }
+    md
+}
+
+/// One particle method's rows of Table 1's section.
+fn particle_rows(study: &BeamStudy, method: ParticleMethod) -> String {
     let mut md = format!(
-        "\n### MPM (ours, issue 22)\n\nExplicit APIC MPM as warp-mpm runs it (quadratic B-splines, \
-         {}, Δt = {:e} s), {} particles per grid cell on the beam grid, pinned and twisted regions \
-         by particle velocity enforcement; positions read at tracers placed at the FEM vertices \
-         (moved with the grid velocity; those in a pinned or twisted region onto its target, like \
-         the region's particles), scored like every other method. The paper's MPM is \
-         its m = 9 column.\n\n| test | Δx (m) | particles | MSE | max | pinned particles' drift (mm) | ms per \
-         0.01 s | substeps per 0.01 s | paper MPM MSE |\n|---|---|---|---|---|---|---|---|---|\n",
-        mpm.material.name(),
-        mpm.time_step,
-        mpm.particles_per_cell.pow(3)
+        "| test | {} (m) | particles | MSE | max | pinned particles' drift (mm) | ms per 0.01 s | \
+         steps per 0.01 s | solver iterations per step | setup (s) | paper {} MSE |\n\
+         |---|---|---|---|---|---|---|---|---|---|---|\n",
+        method.spacing_name(),
+        method.label()
     );
-    for p in &study.particle_baselines {
+    for p in study
+        .particle_baselines
+        .iter()
+        .filter(|p| p.method == method)
+    {
         let (mse, max) = match (&p.failure, p.mse, p.max) {
             (None, Some(mse), Some(max)) => (format!("{mse:.2e}"), format!("{max:.2e}")),
             (why, ..) => (
@@ -259,7 +314,7 @@ fn particle_baselines_section(study: &BeamStudy) -> String {
         };
         let _ = writeln!(
             md,
-            "| {} | {} | {} | {mse} | {max} | {:.1} | {:.0}{} | {} | {} |",
+            "| {} | {} | {} | {mse} | {max} | {:.1} | {:.0}{} | {} | {} | {:.1} | {} |",
             p.test.name(),
             p.spacing,
             p.particles,
@@ -267,7 +322,10 @@ fn particle_baselines_section(study: &BeamStudy) -> String {
             p.ms_per_step,
             if p.cached { " (cached)" } else { "" },
             p.substeps_per_step,
-            sci(paper::table1_mpm(p.test.name())),
+            p.iterations_per_step
+                .map_or("—".into(), |i| format!("{i:.0}")),
+            p.setup_seconds,
+            sci(method.paper_mse(p.test.name())),
         );
     }
     md
@@ -361,38 +419,49 @@ pub fn table5(study: &BeamStudy) -> RenderedTable {
         .iter()
         .filter(|p| p.test == BeamTest::Bend)
     {
+        let method = p.method;
         let _ = writeln!(
             md,
-            "| MPM Δx = {} m ({} particles, {} substeps) | {:.1} | | | | {:.1} (paper MPM) | |",
+            "| {} {} = {} m ({} particles, {} steps) | {:.1} | | | | {:.1} (paper {}) | |",
+            method.label(),
+            method.spacing_name(),
             p.spacing,
             p.particles,
             p.substeps_per_step,
             p.ms_per_step,
-            paper::TABLE5_MPM_MS
+            method.paper_ms(),
+            method.label()
         );
         let _ = writeln!(
             csv,
-            "mpm {},{},{},{},,",
+            "{} {},{},{},{},,",
+            method.key(),
             p.spacing,
             p.ms_per_step,
             fem_ms.unwrap_or(f64::NAN),
             fem_ms.map_or(f64::NAN, |f| f / p.ms_per_step)
         );
-        particle_baselines.push(json!({"method": p.method, "spacing": p.spacing,
+        particle_baselines.push(json!({"method": method, "spacing": p.spacing,
             "ms_per_step": p.ms_per_step, "particles": p.particles,
-            "substeps_per_step": p.substeps_per_step,
-            "split_stress_p2g_grid_g2p": p.split,
-            "fem_over_mpm": fem_ms.map(|f| f / p.ms_per_step)}));
+            "substeps_per_step": p.substeps_per_step, "split": p.split,
+            "iterations_per_step": p.iterations_per_step, "setup_seconds": p.setup_seconds,
+            "fem_over_baseline": fem_ms.map(|f| f / p.ms_per_step),
+            "paper_ms": method.paper_ms()}));
     }
     if study.config.mpm.is_some() {
         md += "MPM: ms per 0.01 s of simulated time (its substeps of the stated Δt together).\n";
+    }
+    if study.config.sph.is_some() {
+        md += "SPH: ms per 0.01 s step (one implicit step), setup (neighbourhoods, factorization) \
+               left out.\n";
     }
     RenderedTable {
         number: 5,
         markdown: md,
         json: json!({"table": 5, "rows": rows, "fem_ms_per_step": fem_ms,
             "paper_fem_ms": paper::TABLE5_FEM_MS, "particle_baselines": particle_baselines,
-            "paper_mpm_ms": paper::TABLE5_MPM_MS, "settings": settings_json(study)}),
+            "paper_mpm_ms": paper::TABLE5_MPM_MS, "paper_sph_ms": paper::TABLE5_SPH_MS,
+            "settings": settings_json(study)}),
         csv,
     }
 }
@@ -475,7 +544,12 @@ pub fn twist_error_plot(study: &BeamStudy) -> Option<PlotSpec> {
         .enumerate()
     {
         series.push(Series {
-            label: format!("MPM Δx = {} m", p.spacing),
+            label: format!(
+                "{} {} = {} m",
+                p.method.label(),
+                p.method.spacing_name(),
+                p.spacing
+            ),
             points: curve(&p.per_frame_mse),
             line: true,
             color: 13 + k,

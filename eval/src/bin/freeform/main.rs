@@ -150,17 +150,8 @@ enum Command {
     },
     /// Error-vs-time sweep on the beam Bend; writes CSV and a log-log plot with the Pareto front.
     Bench {
-        /// One-minute sweep.
-        #[arg(long)]
-        quick: bool,
-        /// Leave out the Simplicits baseline (its networks train for about 10 min per m on
-        /// 2 cores the first time, then are cached).
-        #[arg(long)]
-        skip_simplicits: bool,
-        /// Leave out the MPM baseline (Δx = 0.2 and 0.1 m: about 10 min on 2 cores the first
-        /// time, then cached, shared with Table 1).
-        #[arg(long)]
-        skip_mpm: bool,
+        #[command(flatten)]
+        options: bench::BenchOptions,
     },
 }
 
@@ -236,11 +227,7 @@ fn run(cli: Cli) -> Result<()> {
             json,
             exact_only,
         } => pins::run(quick, json, exact_only, cache, &cli.out, &progress),
-        Command::Bench {
-            quick,
-            skip_simplicits,
-            skip_mpm,
-        } => bench::run(quick, skip_simplicits, skip_mpm, cache, &cli.out, &progress),
+        Command::Bench { options } => bench::run(options, cache, &cli.out, &progress),
     }
 }
 

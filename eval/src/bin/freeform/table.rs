@@ -5,10 +5,12 @@ use std::path::{Path, PathBuf};
 
 use anyhow::{Result, bail};
 use baselines::mpm::MpmMaterial;
+use baselines::sph::SphParams;
 use eval::ablation::study::{AblationStudyConfig, run_ablation_study};
 use eval::ablation::tables::{table3, table4};
 use eval::beam::BeamTest;
 use eval::beam::mpm::MpmStudyConfig;
+use eval::beam::sph::SphStudyConfig;
 use eval::beam::study::{BeamStudyConfig, run_beam_study};
 use eval::beam::tables::{table1, table5, table6, twist_error_plot};
 use eval::progress::Progress;
@@ -98,6 +100,17 @@ pub(crate) struct TableOptions {
     /// run; `stable-neo-hookean` is the FEM's and ours).
     #[arg(long, value_enum)]
     mpm_material: Option<MpmMaterialChoice>,
+    /// Leave out the SPH baseline of Tables 1 and 5 (spacing 0.05 m: about 4 min for Bend and
+    /// Twist on 2 cores the first time; trajectories are cached).
+    #[arg(long)]
+    skip_sph: bool,
+    /// The SPH particle spacings (m, comma-separated; default 0.1,0.05).
+    #[arg(long, value_delimiter = ',')]
+    sph_spacings: Option<Vec<f64>>,
+    /// The SPH zero-energy-mode coefficient α (default 0.1, SPlisHSPlasH's beam scene; 0 turns
+    /// the control off).
+    #[arg(long)]
+    sph_alpha: Option<f64>,
 }
 
 /// `--mpm-material`.
@@ -151,6 +164,9 @@ pub(crate) fn run(
         skip_mpm,
         mpm_spacings,
         mpm_material,
+        skip_sph,
+        sph_spacings,
+        sph_alpha,
     }: TableOptions,
     out: &Path,
     cache: &Path,
@@ -203,6 +219,36 @@ pub(crate) fn run(
                 None => mpm.material,
             },
             ..mpm
+        })
+    };
+    if let Some(spacings) = &sph_spacings
+        && let Some(bad) = spacings.iter().find(|h| !(**h > 0.0 && h.is_finite()))
+    {
+        bail!("--sph-spacings: every spacing must be a positive number of metres, got {bad}");
+    }
+    if let Some(alpha) = sph_alpha
+        && !(alpha >= 0.0 && alpha.is_finite())
+    {
+        bail!("--sph-alpha must be a non-negative number, got {alpha}");
+    }
+    // Only Tables 1 and 5 print the SPH baseline; `--quick` leaves it out unless spacings are
+    // given.
+    config.sph = if skip_sph || !numbers.iter().any(|&n| n == 1 || n == 5) {
+        None
+    } else {
+        match (config.sph.take(), sph_spacings) {
+            (sph, Some(spacings)) => Some(SphStudyConfig {
+                spacings,
+                ..sph.unwrap_or_default()
+            }),
+            (sph, None) => sph,
+        }
+        .map(|sph| SphStudyConfig {
+            params: SphParams {
+                zero_energy_alpha: sph_alpha.unwrap_or(sph.params.zero_energy_alpha),
+                ..sph.params
+            },
+            ..sph
         })
     };
     if let Some(modes) = &modes {

@@ -1,0 +1,189 @@
+//! The SPH baseline on the beam (Tables 1 and 5, issue 23): particles on the beam at the
+//! study's spacing, the test's scene on those particles (pinned and twisted regions as
+//! prescribed particle positions), one implicit step per 0.01 s frame (the paper's Δt), the
+//! FEM vertices' positions from the particles' displacements by the linear interpolant of
+//! `baselines::sph::ParticleInterpolation` (those in a pinned or twisted region put on its
+//! target, like the region's particles), scored by the metrics of DESIGN 4.3. A run that stops
+//! is reported with its reason and not scored. Trajectories are cached under `<cache>/sph/`.
+
+use std::path::Path;
+
+use artifact::{load_framed, save_framed};
+use baselines::sph::{SphParams, SphSimulator, SphTimings};
+use fem_ref::trajectory_key_builder;
+use rkpm_core::sample_box_grid;
+use serde::{Deserialize, Serialize};
+
+use crate::EvalError;
+use crate::beam::particle_baseline::{
+    ParticleBeamRun, ParticleMethod, ParticleTrajectory, score_particle_run,
+};
+use crate::beam::{BEAM_MAX, BEAM_MIN, BEAM_TIME_STEP, BeamTest, beam_material};
+use crate::fem_reference::FemRun;
+use crate::progress::Progress;
+
+/// Cache file kind and format version of an SPH beam trajectory.
+const SPH_CACHE_MAGIC: &[u8] = b"FFSPHTR1";
+const SPH_CACHE_VERSION: u32 = 1;
+
+/// How the SPH baseline is run on the beam.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+pub struct SphStudyConfig {
+    /// Particle spacings to run (m). Default [0.1, 0.05] (5 000 and 40 000 particles).
+    pub spacings: Vec<f64>,
+    /// The solver's options; its time step must be the beam's frame (0.01 s, the paper's).
+    /// Default [`SphParams::default`].
+    pub params: SphParams,
+}
+
+impl Default for SphStudyConfig {
+    fn default() -> Self {
+        SphStudyConfig {
+            spacings: vec![0.1, 0.05],
+            params: SphParams::default(),
+        }
+    }
+}
+
+/// What the cache keeps of a run.
+#[derive(Serialize, Deserialize)]
+struct CachedSphRun {
+    failure: Option<String>,
+    max_pin_deviation: f64,
+    frames: Vec<Vec<[f64; 3]>>,
+    timings: SphTimings,
+    particles: usize,
+}
+
+/// Runs (or loads) SPH on `test` for `steps` frames at particle spacing `spacing`, read at
+/// `reference`'s vertices, and scores it.
+///
+/// # Errors
+/// [`EvalError::Sph`] from the solver's setup (a time step other than the frame's, invalid
+/// options, a probe outside the body), [`EvalError::Sampling`] / [`EvalError::Scene`] for
+/// particles or regions that cannot be built, [`EvalError::Metrics`] for a trajectory that
+/// cannot be scored.
+pub fn run_sph_beam(
+    test: BeamTest,
+    spacing: f64,
+    config: &SphStudyConfig,
+    steps: usize,
+    reference: &FemRun,
+    cache_dir: &Path,
+    progress: &Progress,
+) -> Result<ParticleBeamRun, EvalError> {
+    let params = config.params;
+    if (params.time_step - BEAM_TIME_STEP).abs() > 1e-12 {
+        return Err(EvalError::Sph(baselines::sph::SphError::InvalidParameter(
+            format!(
+                "time_step = {} s: the beam study takes one SPH step per {BEAM_TIME_STEP} s frame",
+                params.time_step
+            ),
+        )));
+    }
+    let particles =
+        sample_box_grid(BEAM_MIN, BEAM_MAX, spacing).map_err(|source| EvalError::Sampling {
+            what: "SPH particles",
+            source,
+        })?;
+    let scene = test.scene();
+    let vertices = reference.vertices();
+    let mut key = trajectory_key_builder();
+    key.str("sph beam")
+        .u64(SPH_CACHE_VERSION as u64)
+        .str(&scene.label())
+        .str(&format!("{params:?}"))
+        .u64(particles.len() as u64)
+        .u64(steps as u64)
+        .f64s(&[spacing]);
+    for v in vertices {
+        key.f64s(v.as_slice());
+    }
+    let path = cache_dir
+        .join("sph")
+        .join(format!("sph-{}.bin", key.finish().hex()));
+    let label = format!("SPH {} spacing {spacing} m", test.name());
+    let cached: Option<CachedSphRun> = match load_framed(&path, SPH_CACHE_MAGIC, SPH_CACHE_VERSION)
+    {
+        Ok(run) => run,
+        Err(e) => {
+            progress.status(format!("ignoring a damaged cache entry: {e}"));
+            None
+        }
+    };
+    let (run, was_cached) = match cached {
+        Some(run) if run.frames.len() == steps + 1 || run.failure.is_some() => {
+            progress.status(format!(
+                "{label}: loaded from the cache ({})",
+                path.display()
+            ));
+            (run, true)
+        }
+        _ => {
+            let reduced_scene = scene.reduced_scene(particles.positions())?;
+            let probe_regions = scene.reduced_scene(vertices)?.pins;
+            progress.status(format!(
+                "{label}: neighbourhoods and factorization ({} particles)",
+                particles.len()
+            ));
+            let mut sim =
+                SphSimulator::new(&particles, &[beam_material()], &reduced_scene, params)?
+                    .with_probes(vertices, &probe_regions)?;
+            let bar = progress.bar(steps, format!("{label} ({} particles)", particles.len()));
+            let mut frames = vec![vertices.iter().map(|v| [v.x, v.y, v.z]).collect()];
+            let mut failure = None;
+            let mut max_pin_deviation: f64 = 0.0;
+            for _ in 0..steps {
+                if let Err(e) = sim.step() {
+                    failure = Some(e.to_string());
+                    break;
+                }
+                max_pin_deviation = max_pin_deviation.max(sim.max_pin_deviation());
+                frames.push(
+                    sim.probe_positions()
+                        .iter()
+                        .map(|v| [v.x, v.y, v.z])
+                        .collect(),
+                );
+                bar.inc(1);
+            }
+            bar.finish_and_clear();
+            let run = CachedSphRun {
+                failure,
+                max_pin_deviation,
+                frames,
+                timings: *sim.timings(),
+                particles: particles.len(),
+            };
+            if let Err(e) = save_framed(&path, SPH_CACHE_MAGIC, SPH_CACHE_VERSION, &run) {
+                progress.status(format!("warning: {label} not cached: {e}"));
+            }
+            (run, false)
+        }
+    };
+    let t = run.timings;
+    let total = t.stepping().max(f64::MIN_POSITIVE);
+    score_particle_run(
+        ParticleTrajectory {
+            method: ParticleMethod::Sph,
+            test,
+            spacing,
+            particles: run.particles,
+            frames: run.frames,
+            failure: run.failure,
+            max_pin_deviation: run.max_pin_deviation,
+            seconds: t.stepping(),
+            setup_seconds: t.setup,
+            substeps: t.steps,
+            split: vec![
+                ("stretching".into(), t.stretching / total),
+                ("volume".into(), t.volume / total),
+                ("advection and probes".into(), t.advection / total),
+            ],
+            iterations: Some(t.volume_iterations),
+            cached: was_cached,
+        },
+        reference,
+        progress,
+    )
+}
