@@ -1,14 +1,17 @@
-//! How much of MPM's distance to the FEM is the reference's time step? Runs the FEM (P2 res 4)
-//! of a beam test with backward Euler at h = 0.01 s (the tables' reference) and at h = 0.001 s,
-//! MPM at Δx = 0.1 m (explicit, Δt = 1e-4 s), and prints the normalized MSE of each pair at the
-//! FEM vertices over the 0.01 s frames.
+//! How much of the particle baselines' distance to the FEM is a time step, theirs or the
+//! reference's? Runs the FEM (P2 res 4) of a beam test with backward Euler at h = 0.01 s (the
+//! tables' reference) and at h = 0.001 s, MPM at Δx = 0.1 m (explicit, Δt = 1e-4 s) and SPH at
+//! spacing 0.1 m with 1, 5 and 25 steps per 0.01 s frame, and prints the normalized MSE of each
+//! against both references at the FEM vertices over the 0.01 s frames.
 //!
 //! `cargo run --release -p eval --example mpm_time_step -- [twist|bend] [steps of 0.01 s]`
 //! (default: twist, its 30 steps)
 
 use std::path::PathBuf;
 
-use eval::beam::mpm::{MpmBeamRun, MpmStudyConfig, run_mpm_beam};
+use eval::beam::mpm::{MpmStudyConfig, run_mpm_beam};
+use eval::beam::particle_baseline::ParticleBeamRun;
+use eval::beam::sph::{SphStudyConfig, run_sph_beam};
 use eval::beam::study::beam_length_scale;
 use eval::beam::{BEAM_MAX, BEAM_MIN, BEAM_TIME_STEP, BeamTest, beam_material};
 use eval::fem_reference::{FemProblem, run_fem};
@@ -46,7 +49,7 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
     };
     let coarse = run(BEAM_TIME_STEP, 1)?;
     let fine = run(BEAM_TIME_STEP / 10.0, 10)?;
-    let MpmBeamRun {
+    let ParticleBeamRun {
         row: mpm,
         frames: mpm_frames,
     } = run_mpm_beam(
@@ -82,5 +85,22 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
         "  MPM Δx = 0.1 vs FEM h = 0.001: {:.3e}",
         mse(&mpm_frames, &fine_frames)?
     );
+    for substeps in [1, 5, 25] {
+        let ParticleBeamRun { frames, .. } = run_sph_beam(
+            test,
+            0.1,
+            &SphStudyConfig::default().with_substeps(substeps),
+            steps,
+            &coarse,
+            &cache,
+            &progress,
+        )?;
+        println!(
+            "  SPH spacing 0.1, Δt = {:.4} s: {:.3e} vs FEM h = 0.01, {:.3e} vs FEM h = 0.001",
+            BEAM_TIME_STEP / substeps as f64,
+            mse(&frames, &coarse_frames)?,
+            mse(&frames, &fine_frames)?
+        );
+    }
     Ok(())
 }

@@ -5,6 +5,7 @@
 //! - [`CorrectedGradients`]: rest neighbourhoods and the corrected gradients that make F
 //!   exact for affine motions;
 //! - [`SphElasticity`]: the stretching, volume and zero-energy-mode energies and gradients;
+//! - [`RestVolume`]: the volumes the energies are integrated with;
 //! - [`StretchingSystem`]: the constant matrix of the stretching solve, factored once;
 //! - [`ParticleInterpolation`]: particle displacements carried to other points (probes);
 //! - [`SphSimulator`]: the step.
@@ -34,6 +35,7 @@ pub mod corrected_gradients;
 pub mod cubic_spline;
 pub mod elasticity;
 pub mod interpolation;
+pub mod rest_volume;
 pub mod simulator;
 pub mod stretching_system;
 
@@ -41,5 +43,6 @@ pub use corrected_gradients::CorrectedGradients;
 pub use cubic_spline::CubicSplineKernel;
 pub use elasticity::SphElasticity;
 pub use interpolation::ParticleInterpolation;
+pub use rest_volume::RestVolume;
 pub use simulator::{SphError, SphParams, SphSimulator, SphTimings, particle_spacing};
 pub use stretching_system::StretchingSystem;

@@ -33,6 +33,7 @@ use crate::sph::corrected_gradients::CorrectedGradients;
 use crate::sph::cubic_spline::CubicSplineKernel;
 use crate::sph::elasticity::SphElasticity;
 use crate::sph::interpolation::ParticleInterpolation;
+use crate::sph::rest_volume::RestVolume;
 use crate::sph::stretching_system::StretchingSystem;
 
 /// The SPH baseline's options.
@@ -53,6 +54,9 @@ pub struct SphParams {
     /// Most conjugate-gradient iterations of one volume solve; more stops the run with
     /// [`SphError::VolumeSolveNotConverged`]. Default 1000.
     pub volume_max_iterations: usize,
+    /// The volumes the energies are integrated with. Default [`RestVolume::Sampled`].
+    #[serde(default)]
+    pub rest_volume: RestVolume,
 }
 
 impl Default for SphParams {
@@ -63,6 +67,7 @@ impl Default for SphParams {
             zero_energy_alpha: 0.1,
             volume_tolerance: 1e-4,
             volume_max_iterations: 1000,
+            rest_volume: RestVolume::Sampled,
         }
     }
 }
@@ -241,11 +246,14 @@ impl SphSimulator {
         let kernel = CubicSplineKernel::new(
             params.support_over_spacing * particle_spacing(points.volumes()),
         );
-        let gradients = CorrectedGradients::new(rest, points.volumes(), &kernel)?;
+        let volumes = params
+            .rest_volume
+            .volumes(rest, &masses, points.volumes(), &kernel);
+        let gradients = CorrectedGradients::new(rest, &volumes, &kernel)?;
         let elasticity = SphElasticity::new(
             gradients,
             rest,
-            points.volumes(),
+            &volumes,
             &lame,
             &kernel,
             params.zero_energy_alpha,

@@ -270,8 +270,9 @@ fn particle_baselines_section(study: &BeamStudy) -> String {
                 "\n### SPH (ours, issue 23)\n\nImplicit corotated SPH of Kugelstadt et al. 2021 as \
                  SPlisHSPlasH runs it (cubic spline kernel, support {} × the particle spacing, \
                  corrected gradients fixed at rest, stretching solved against a matrix factored \
-                 once, volume by conjugate gradients to {:e}, zero-energy-mode control α = {}, one \
-                 step of Δt = {} s per frame), particles on a lattice at the stated spacing, pinned \
+                 once, volume by conjugate gradients to {:e}, zero-energy-mode control α = {}, {} \
+                 step(s) of Δt = {} s per 0.01 s frame, {} rest volumes), particles on a lattice at \
+                 the stated spacing, pinned \
                  and twisted regions as prescribed particle positions; the FEM vertices carried by \
                  the particles' displacements through a linearly consistent interpolant (those in a \
                  pinned or twisted region put on its target), scored like every other method. The \
@@ -279,7 +280,9 @@ fn particle_baselines_section(study: &BeamStudy) -> String {
                 sph.params.support_over_spacing,
                 sph.params.volume_tolerance,
                 sph.params.zero_energy_alpha,
-                sph.params.time_step
+                sph.substeps,
+                sph.params.time_step,
+                sph.params.rest_volume.name()
             );
             md += &particle_rows(study, ParticleMethod::Sph);
         }
@@ -422,7 +425,7 @@ pub fn table5(study: &BeamStudy) -> RenderedTable {
         let method = p.method;
         let _ = writeln!(
             md,
-            "| {} {} = {} m ({} particles, {} steps) | {:.1} | | | | {:.1} (paper {}) | |",
+            "| {} {} = {} m ({} particles, {} steps per 0.01 s) | {:.1} | | | | {:.1} (paper {}) | |",
             method.label(),
             method.spacing_name(),
             p.spacing,
