@@ -61,7 +61,7 @@ impl StretchingSystem {
             .map(|&b| {
                 let fb = free_index[b];
                 let mut rows: Vec<usize> = locals(b)
-                    .flat_map(|i| locals(i))
+                    .flat_map(&locals)
                     .map(|a| free_index[a])
                     .filter(|&fa| fa != usize::MAX && fa >= fb)
                     .collect();
