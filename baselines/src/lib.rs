@@ -19,6 +19,7 @@ pub mod coefficient_training;
 pub mod mlp;
 pub mod model_file;
 pub mod mpm;
+pub mod particle_materials;
 pub mod simplicits;
 pub mod sph;
 
@@ -30,6 +31,7 @@ pub use coefficient_training::{
 };
 pub use mlp::{MLP_FORMAT_VERSION, Mlp, MlpShape, Tape};
 pub use model_file::ModelFileError;
+pub use particle_materials::ParticleMaterials;
 pub use simplicits::{
     SIMPLICITS_FORMAT_VERSION, SimplicitsError, SimplicitsField, SimplicitsParams, StepLosses,
     TrainedSimplicits, TrainingReport, ortho_loss, train_simplicits,

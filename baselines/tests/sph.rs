@@ -386,43 +386,12 @@ fn static_cantilever(spacing: f64) -> (f64, f64) {
     let lame: Vec<LameParameters> = vec![material.lame_parameters().unwrap(); points.len()];
     let el = SphElasticity::new(gradients, rest, points.volumes(), &lame, &kernel, 0.1);
     let free: Vec<bool> = rest.iter().map(|x| x.x > 0.0).collect();
-    let apply = |u: &[Vector3<f64>]| -> Vec<Vector3<f64>> {
-        let x: Vec<Vector3<f64>> = rest.iter().zip(u).map(|(x, u)| x + u).collect();
-        let k = el.small_strain_gradient(&x);
-        (0..x.len())
-            .map(|i| if free[i] { k[i] } else { Vector3::zeros() })
-            .collect()
-    };
-    let dot = |a: &[Vector3<f64>], b: &[Vector3<f64>]| -> f64 {
-        a.iter().zip(b).map(|(a, b)| a.dot(b)).sum()
-    };
-    let mut r: Vec<Vector3<f64>> = (0..rest.len())
-        .map(|i| {
-            let weight = g * material.density * points.volumes()[i];
-            Vector3::new(0.0, if free[i] { -weight } else { 0.0 }, 0.0)
-        })
+    let weight: Vec<Vector3<f64>> = points
+        .volumes()
+        .iter()
+        .map(|v| Vector3::new(0.0, -g * material.density * v, 0.0))
         .collect();
-    let mut u = vec![Vector3::zeros(); rest.len()];
-    let mut p = r.clone();
-    let mut rr = dot(&r, &r);
-    let tolerance = 1e-10 * rr.sqrt();
-    for _ in 0..5000 {
-        if rr.sqrt() <= tolerance {
-            break;
-        }
-        let kp = apply(&p);
-        let a = rr / dot(&p, &kp);
-        for i in 0..u.len() {
-            u[i] += a * p[i];
-            r[i] -= a * kp[i];
-        }
-        let next = dot(&r, &r);
-        for i in 0..u.len() {
-            p[i] = r[i] + (next / rr) * p[i];
-        }
-        rr = next;
-    }
-    assert!(rr.sqrt() <= tolerance, "static solve did not converge");
+    let u = el.small_strain_static(&free, &weight, 1e-10, 5000).unwrap();
     // The last layer of particles, its mean deflection, and E-B there:
     // w(x) = q x² (6L² − 4Lx + x²) / (24 E I), q L⁴ / (8 E I) = 1.5 ρ g L⁴ / (E h²).
     let last = rest.iter().map(|x| x.x).fold(f64::MIN, f64::max);

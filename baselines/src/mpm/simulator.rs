@@ -31,6 +31,7 @@ use thiserror::Error;
 use crate::mpm::constitutive::MpmMaterial;
 use crate::mpm::grid::{BackgroundGrid, GridLayout, Node};
 use crate::mpm::quadratic_stencil::QuadraticStencil;
+use crate::particle_materials::ParticleMaterials;
 
 /// Nodes lighter than this fraction of the lightest particle carry no velocity (their momentum
 /// is round-off).
@@ -234,12 +235,6 @@ impl MpmSimulator {
             }
         }
         let n = points.len();
-        if materials.len() != n && materials.len() != 1 {
-            return Err(MpmError::InvalidInput(format!(
-                "{} materials for {n} particles (give one per particle or one for all)",
-                materials.len()
-            )));
-        }
         let wave_speed = fastest_p_wave_speed(materials)?;
         let limit = params.cfl_number * params.grid_spacing / wave_speed;
         if params.time_step > limit {
@@ -263,23 +258,8 @@ impl MpmSimulator {
                 )));
             }
         }
-        let material = |i: usize| &materials[if materials.len() == 1 { 0 } else { i }];
-        let mut lame = Vec::with_capacity(n);
-        let mut masses = Vec::with_capacity(n);
-        for (i, v) in points.volumes().iter().enumerate() {
-            let m = material(i);
-            lame.push(
-                m.lame_parameters()
-                    .map_err(|e| MpmError::InvalidInput(format!("particle {i}: {e}")))?,
-            );
-            if !(m.density > 0.0 && m.density.is_finite()) {
-                return Err(MpmError::InvalidInput(format!(
-                    "particle {i}: density {} must be positive and finite",
-                    m.density
-                )));
-            }
-            masses.push(m.density * v);
-        }
+        let ParticleMaterials { lame, masses } =
+            ParticleMaterials::new(points.volumes(), materials).map_err(MpmError::InvalidInput)?;
         let lightest = masses.iter().copied().fold(f64::INFINITY, f64::min);
         Ok(MpmSimulator {
             params,

@@ -9,6 +9,7 @@ use rayon::prelude::*;
 
 use crate::sph::corrected_gradients::CorrectedGradients;
 use crate::sph::cubic_spline::CubicSplineKernel;
+use crate::sph::simulator::SphError;
 
 /// Particle volumes, Lamé parameters, corrected gradients and hourglass stiffnesses of one
 /// SPH solid.
@@ -259,6 +260,65 @@ impl SphElasticity {
         let s = self.gradients.stress_divergence(&p);
         let h = self.hourglass_gradient(x);
         s.iter().zip(&h).map(|(a, b)| a + b).collect()
+    }
+
+    /// The static displacement u (m) of the small-strain energy under `forces` (N per
+    /// particle) with the particles not flagged in `free` held at rest: K u = f on the free
+    /// particles, K = ∇²E_lin applied through [`SphElasticity::small_strain_gradient`], by
+    /// conjugate gradients until ‖f − K u‖ ≤ `tolerance` ‖f‖.
+    ///
+    /// # Errors
+    /// [`SphError::StaticSolveNotConverged`] after `max_iterations` iterations.
+    pub fn small_strain_static(
+        &self,
+        free: &[bool],
+        forces: &[Vector3<f64>],
+        tolerance: f64,
+        max_iterations: usize,
+    ) -> Result<Vec<Vector3<f64>>, SphError> {
+        let rest = &self.rest;
+        let masked = |mut v: Vec<Vector3<f64>>| {
+            for (v, &f) in v.iter_mut().zip(free) {
+                if !f {
+                    *v = Vector3::zeros();
+                }
+            }
+            v
+        };
+        let apply = |u: &[Vector3<f64>]| {
+            let x: Vec<Vector3<f64>> = rest.iter().zip(u).map(|(x, u)| x + u).collect();
+            masked(self.small_strain_gradient(&x))
+        };
+        let dot = |a: &[Vector3<f64>], b: &[Vector3<f64>]| -> f64 {
+            a.iter().zip(b).map(|(a, b)| a.dot(b)).sum()
+        };
+        let mut r = masked(forces.to_vec());
+        let mut u = vec![Vector3::zeros(); rest.len()];
+        let mut p = r.clone();
+        let mut rr = dot(&r, &r);
+        let goal = tolerance * rr.sqrt();
+        let mut iterations = 0;
+        while rr.sqrt() > goal {
+            if iterations == max_iterations {
+                return Err(SphError::StaticSolveNotConverged {
+                    iterations,
+                    residual: rr.sqrt() / (goal / tolerance),
+                });
+            }
+            let kp = apply(&p);
+            let a = rr / dot(&p, &kp);
+            for i in 0..u.len() {
+                u[i] += a * p[i];
+                r[i] -= a * kp[i];
+            }
+            let next = dot(&r, &r);
+            for i in 0..u.len() {
+                p[i] = r[i] + (next / rr) * p[i];
+            }
+            rr = next;
+            iterations += 1;
+        }
+        Ok(u)
     }
 
     /// The corotated elastic force −∇(E_s + E_v + E_h) at `x` with R_i the polar rotations of

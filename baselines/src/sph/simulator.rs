@@ -21,7 +21,7 @@
 
 use std::time::Instant;
 
-use hyperelastic::{LameParameters, MaterialSample};
+use hyperelastic::MaterialSample;
 use nalgebra::{Matrix3, Vector3};
 use rayon::prelude::*;
 use reduced_sim::{PinnedRegion, Scene};
@@ -29,6 +29,7 @@ use rkpm_core::IntegrationPoints;
 use serde::{Deserialize, Serialize};
 use thiserror::Error;
 
+use crate::particle_materials::ParticleMaterials;
 use crate::sph::corrected_gradients::CorrectedGradients;
 use crate::sph::cubic_spline::CubicSplineKernel;
 use crate::sph::elasticity::SphElasticity;
@@ -105,6 +106,17 @@ pub enum SphError {
     VolumeSolveNotConverged {
         /// Time at the end of the failing step (s).
         time: f64,
+        /// Iterations taken.
+        iterations: usize,
+        /// Relative residual reached.
+        residual: f64,
+    },
+    /// A static solve did not reach its tolerance.
+    #[error(
+        "SPH static solve did not converge: relative residual {residual:.2e} after {iterations} \
+         iterations"
+    )]
+    StaticSolveNotConverged {
         /// Iterations taken.
         iterations: usize,
         /// Relative residual reached.
@@ -198,12 +210,6 @@ impl SphSimulator {
         if n == 0 {
             return Err(SphError::InvalidInput("no particles".into()));
         }
-        if materials.len() != n && materials.len() != 1 {
-            return Err(SphError::InvalidInput(format!(
-                "{} materials for {n} particles (give one per particle or one for all)",
-                materials.len()
-            )));
-        }
         if !scene.held.is_empty() {
             return Err(SphError::InvalidInput(
                 "held regions are a reduced-simulator concept; give SPH pinned regions".into(),
@@ -226,23 +232,8 @@ impl SphSimulator {
                 "particle {i} is not finite"
             )));
         }
-        let material = |i: usize| &materials[if materials.len() == 1 { 0 } else { i }];
-        let mut lame: Vec<LameParameters> = Vec::with_capacity(n);
-        let mut masses = Vec::with_capacity(n);
-        for (i, v) in points.volumes().iter().enumerate() {
-            let m = material(i);
-            lame.push(
-                m.lame_parameters()
-                    .map_err(|e| SphError::InvalidInput(format!("particle {i}: {e}")))?,
-            );
-            if !(m.density > 0.0 && m.density.is_finite()) {
-                return Err(SphError::InvalidInput(format!(
-                    "particle {i}: density {} must be positive and finite",
-                    m.density
-                )));
-            }
-            masses.push(m.density * v);
-        }
+        let ParticleMaterials { lame, masses } =
+            ParticleMaterials::new(points.volumes(), materials).map_err(SphError::InvalidInput)?;
         let kernel = CubicSplineKernel::new(
             params.support_over_spacing * particle_spacing(points.volumes()),
         );

@@ -10,7 +10,7 @@
 use std::path::Path;
 use std::time::Instant;
 
-use artifact::{load_framed, save_framed};
+use artifact::save_framed;
 use baselines::mpm::{MpmError, MpmMaterial, MpmParams, MpmSimulator, MpmTimings};
 use fem_ref::trajectory_key_builder;
 use rkpm_core::sample_box_grid;
@@ -18,7 +18,7 @@ use serde::{Deserialize, Serialize};
 
 use crate::EvalError;
 use crate::beam::particle_baseline::{
-    ParticleBeamRun, ParticleMethod, ParticleTrajectory, score_particle_run,
+    ParticleBeamRun, ParticleMethod, ParticleTrajectory, load_cached_run, score_particle_run,
 };
 use crate::beam::{BEAM_MAX, BEAM_MIN, BEAM_TIME_STEP, BeamTest, beam_material};
 use crate::fem_reference::FemRun;
@@ -115,23 +115,17 @@ pub fn run_mpm_beam(
         .join("mpm")
         .join(format!("mpm-{}.bin", key.finish().hex()));
     let label = format!("MPM {} Δx = {spacing} m", test.name());
-    let cached: Option<CachedMpmRun> = match load_framed(&path, MPM_CACHE_MAGIC, MPM_CACHE_VERSION)
-    {
-        Ok(run) => run,
-        Err(e) => {
-            progress.status(format!("ignoring a damaged cache entry: {e}"));
-            None
-        }
-    };
+    let cached = load_cached_run(
+        &path,
+        MPM_CACHE_MAGIC,
+        MPM_CACHE_VERSION,
+        &label,
+        progress,
+        |run: &CachedMpmRun| run.frames.len() == steps + 1 || run.failure.is_some(),
+    );
     let (run, was_cached) = match cached {
-        Some(run) if run.frames.len() == steps + 1 || run.failure.is_some() => {
-            progress.status(format!(
-                "{label}: loaded from the cache ({})",
-                path.display()
-            ));
-            (run, true)
-        }
-        _ => {
+        Some(run) => (run, true),
+        None => {
             let reduced_scene = scene.reduced_scene(particles.positions())?;
             let tracer_regions = scene.reduced_scene(vertices)?.pins;
             let mut sim =

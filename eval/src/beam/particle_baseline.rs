@@ -1,7 +1,11 @@
 //! What the particle baselines of Tables 1 and 5 (MPM, issue 22; SPH, issue 23) report on the
 //! beam, and how a run of either is scored against the FEM.
 
+use std::path::Path;
+
+use artifact::load_framed;
 use nalgebra::Vector3;
+use serde::de::DeserializeOwned;
 use serde::{Deserialize, Serialize};
 
 use crate::EvalError;
@@ -188,4 +192,31 @@ pub(crate) fn score_particle_run(
         cached: run.cached,
     };
     Ok(ParticleBeamRun { row, frames })
+}
+
+/// A particle run from the cache at `path` (`magic`, `version`) when there is one that
+/// `complete` accepts (all frames, or a recorded failure); a damaged entry is reported on
+/// `progress` and ignored.
+pub(crate) fn load_cached_run<T: DeserializeOwned>(
+    path: &Path,
+    magic: &[u8],
+    version: u32,
+    label: &str,
+    progress: &Progress,
+    complete: impl Fn(&T) -> bool,
+) -> Option<T> {
+    match load_framed::<T>(path, magic, version) {
+        Ok(Some(run)) if complete(&run) => {
+            progress.status(format!(
+                "{label}: loaded from the cache ({})",
+                path.display()
+            ));
+            Some(run)
+        }
+        Ok(_) => None,
+        Err(e) => {
+            progress.status(format!("ignoring a damaged cache entry: {e}"));
+            None
+        }
+    }
 }

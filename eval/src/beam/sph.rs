@@ -9,7 +9,7 @@
 
 use std::path::Path;
 
-use artifact::{load_framed, save_framed};
+use artifact::save_framed;
 use baselines::sph::{SphParams, SphSimulator, SphTimings};
 use fem_ref::trajectory_key_builder;
 use rkpm_core::sample_box_grid;
@@ -17,7 +17,7 @@ use serde::{Deserialize, Serialize};
 
 use crate::EvalError;
 use crate::beam::particle_baseline::{
-    ParticleBeamRun, ParticleMethod, ParticleTrajectory, score_particle_run,
+    ParticleBeamRun, ParticleMethod, ParticleTrajectory, load_cached_run, score_particle_run,
 };
 use crate::beam::{BEAM_MAX, BEAM_MIN, BEAM_TIME_STEP, BeamTest, beam_material};
 use crate::fem_reference::FemRun;
@@ -129,23 +129,17 @@ pub fn run_sph_beam(
         .join("sph")
         .join(format!("sph-{}.bin", key.finish().hex()));
     let label = format!("SPH {} spacing {spacing} m", test.name());
-    let cached: Option<CachedSphRun> = match load_framed(&path, SPH_CACHE_MAGIC, SPH_CACHE_VERSION)
-    {
-        Ok(run) => run,
-        Err(e) => {
-            progress.status(format!("ignoring a damaged cache entry: {e}"));
-            None
-        }
-    };
+    let cached = load_cached_run(
+        &path,
+        SPH_CACHE_MAGIC,
+        SPH_CACHE_VERSION,
+        &label,
+        progress,
+        |run: &CachedSphRun| run.frames.len() == steps + 1 || run.failure.is_some(),
+    );
     let (run, was_cached) = match cached {
-        Some(run) if run.frames.len() == steps + 1 || run.failure.is_some() => {
-            progress.status(format!(
-                "{label}: loaded from the cache ({})",
-                path.display()
-            ));
-            (run, true)
-        }
-        _ => {
+        Some(run) => (run, true),
+        None => {
             let reduced_scene = scene.reduced_scene(particles.positions())?;
             let probe_regions = scene.reduced_scene(vertices)?.pins;
             progress.status(format!(
