@@ -473,3 +473,38 @@ fn kernel_sum_volumes_are_the_lattice_volume_inside_and_larger_at_the_surface() 
         points.volumes()
     );
 }
+
+#[test]
+fn the_volume_hessian_operator_is_the_derivative_of_the_volume_gradient() {
+    // VolumeHessian forms R_i ỹ_ij once for the conjugate gradients; it must equal the
+    // FD-checked gradient's linear part, the scatter of λV tr(Rᵀ ∇u) R, and its diagonal the
+    // operator's own diagonal.
+    let points = block(0.05);
+    let el = elasticity(&points, 0.1);
+    let rotations = el.rotations(&perturbed(&points, 0.02, 4));
+    let u = perturbed(&points, 0.01, 8);
+    let hessian = el.volume_hessian(&rotations);
+    let expected = el.volume_divergence(&el.volume_strains(&u, &rotations, 0.0), &rotations);
+    let scale = largest(&expected);
+    let worst = hessian
+        .apply(&u)
+        .iter()
+        .zip(&expected)
+        .map(|(a, b)| (a - b).norm())
+        .fold(0.0, f64::max);
+    assert!(worst <= 1e-12 * scale, "{worst:e} against {scale:e}");
+    let diagonal = hessian.diagonal();
+    for k in [0, 7, points.len() - 1] {
+        for c in 0..3 {
+            let mut e = vec![Vector3::zeros(); points.len()];
+            e[k][c] = 1.0;
+            let column = hessian.apply(&e);
+            assert!(
+                (column[k][c] - diagonal[k][c]).abs() <= 1e-12 * diagonal[k][c].abs(),
+                "particle {k}, coordinate {c}: {} vs {}",
+                column[k][c],
+                diagonal[k][c]
+            );
+        }
+    }
+}

@@ -141,7 +141,7 @@ impl CorrectedGradients {
         &self.neighbours[self.entries(i)]
     }
 
-    /// ỹ_ij of entry e = (i, j) (1/m... times m³: the weight of x_j − x_i in F_i, 1/m).
+    /// ỹ_ij of entry e = (i, j), the weight of x_j − x_i in F_i (1/m).
     pub fn weight(&self, e: usize) -> &Vector3<f64> {
         &self.weights[e]
     }

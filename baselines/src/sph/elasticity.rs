@@ -7,6 +7,7 @@ use hyperelastic::{LameParameters, polar_rotation};
 use nalgebra::{Matrix3, Vector3};
 use rayon::prelude::*;
 
+use crate::sph::conjugate_gradients::conjugate_gradients;
 use crate::sph::corrected_gradients::CorrectedGradients;
 use crate::sph::cubic_spline::CubicSplineKernel;
 use crate::sph::simulator::SphError;
@@ -168,6 +169,11 @@ impl SphElasticity {
         self.gradients.stress_divergence(&p)
     }
 
+    /// The Hessian ∇²E_v for `rotations`, as an operator.
+    pub fn volume_hessian(&self, rotations: &[Matrix3<f64>]) -> VolumeHessian<'_> {
+        VolumeHessian::new(self, rotations)
+    }
+
     /// ∇E_v(x; R), per particle (N).
     pub fn volume_gradient(
         &self,
@@ -277,48 +283,17 @@ impl SphElasticity {
         max_iterations: usize,
     ) -> Result<Vec<Vector3<f64>>, SphError> {
         let rest = &self.rest;
-        let masked = |mut v: Vec<Vector3<f64>>| {
-            for (v, &f) in v.iter_mut().zip(free) {
-                if !f {
-                    *v = Vector3::zeros();
-                }
-            }
-            v
-        };
         let apply = |u: &[Vector3<f64>]| {
             let x: Vec<Vector3<f64>> = rest.iter().zip(u).map(|(x, u)| x + u).collect();
-            masked(self.small_strain_gradient(&x))
+            self.small_strain_gradient(&x)
         };
-        let dot = |a: &[Vector3<f64>], b: &[Vector3<f64>]| -> f64 {
-            a.iter().zip(b).map(|(a, b)| a.dot(b)).sum()
-        };
-        let mut r = masked(forces.to_vec());
-        let mut u = vec![Vector3::zeros(); rest.len()];
-        let mut p = r.clone();
-        let mut rr = dot(&r, &r);
-        let goal = tolerance * rr.sqrt();
-        let mut iterations = 0;
-        while rr.sqrt() > goal {
-            if iterations == max_iterations {
-                return Err(SphError::StaticSolveNotConverged {
-                    iterations,
-                    residual: rr.sqrt() / (goal / tolerance),
-                });
-            }
-            let kp = apply(&p);
-            let a = rr / dot(&p, &kp);
-            for i in 0..u.len() {
-                u[i] += a * p[i];
-                r[i] -= a * kp[i];
-            }
-            let next = dot(&r, &r);
-            for i in 0..u.len() {
-                p[i] = r[i] + (next / rr) * p[i];
-            }
-            rr = next;
-            iterations += 1;
-        }
-        Ok(u)
+        let start = vec![Vector3::zeros(); rest.len()];
+        conjugate_gradients(apply, forces, start, None, free, tolerance, max_iterations)
+            .map(|(u, _)| u)
+            .map_err(|e| SphError::StaticSolveNotConverged {
+                iterations: e.iterations,
+                residual: e.residual,
+            })
     }
 
     /// The corotated elastic force −∇(E_s + E_v + E_h) at `x` with R_i the polar rotations of
@@ -337,5 +312,82 @@ impl SphElasticity {
         let errors = self.hourglass_errors(x);
         let total: f64 = errors.iter().map(|e| e.norm_squared()).sum();
         (total / errors.len().max(1) as f64).sqrt()
+    }
+}
+
+/// The Hessian of E_v for frozen rotations, ∇²E_v u = Gᵀ Λ G u with (G u)_i = Σ_j (u_j − u_i) ·
+/// r_ij, r_ij = R_i ỹ_ij and Λ = diag(λ_i V_i): what [`SphElasticity::volume_divergence`] of
+/// [`SphElasticity::volume_strains`] (offset 0) computes, with the r_ij formed once for many
+/// products (the volume solve's conjugate gradients). Built by
+/// [`SphElasticity::volume_hessian`].
+pub struct VolumeHessian<'a> {
+    gradients: &'a CorrectedGradients,
+    rotated: Vec<Vector3<f64>>,
+    own: Vec<Vector3<f64>>,
+    stiffness: Vec<f64>,
+}
+
+impl<'a> VolumeHessian<'a> {
+    fn new(elasticity: &'a SphElasticity, rotations: &[Matrix3<f64>]) -> Self {
+        let g = elasticity.gradients();
+        let n = g.len();
+        let rotated: Vec<Vector3<f64>> = (0..n)
+            .into_par_iter()
+            .flat_map_iter(|i| g.weights(i).iter().map(move |w| rotations[i] * w))
+            .collect();
+        let own: Vec<Vector3<f64>> = (0..n)
+            .into_par_iter()
+            .map(|i| g.entries(i).map(|e| rotated[e]).sum())
+            .collect();
+        let stiffness = (0..n)
+            .map(|i| elasticity.lame()[i].lambda() * elasticity.volumes()[i])
+            .collect();
+        VolumeHessian {
+            gradients: g,
+            rotated,
+            own,
+            stiffness,
+        }
+    }
+
+    /// Gᵀ Λ G u (N per particle for u in m; N/s for u in m/s).
+    pub fn apply(&self, u: &[Vector3<f64>]) -> Vec<Vector3<f64>> {
+        let g = self.gradients;
+        let stress: Vec<f64> = (0..u.len())
+            .into_par_iter()
+            .map(|i| {
+                let rate: f64 = g
+                    .entries(i)
+                    .map(|e| u[g.neighbour(e)].dot(&self.rotated[e]))
+                    .sum();
+                self.stiffness[i] * (rate - u[i].dot(&self.own[i]))
+            })
+            .collect();
+        (0..u.len())
+            .into_par_iter()
+            .map(|k| {
+                let mut f = -stress[k] * self.own[k];
+                for e in g.entries(k) {
+                    f += stress[g.neighbour(e)] * self.rotated[g.reverse(e)];
+                }
+                f
+            })
+            .collect()
+    }
+
+    /// The diagonal of Gᵀ Λ G per coordinate (N/m).
+    pub fn diagonal(&self) -> Vec<Vector3<f64>> {
+        let g = self.gradients;
+        (0..g.len())
+            .into_par_iter()
+            .map(|k| {
+                let mut d = self.stiffness[k] * self.own[k].component_mul(&self.own[k]);
+                for e in g.entries(k) {
+                    let a = self.rotated[g.reverse(e)];
+                    d += self.stiffness[g.neighbour(e)] * a.component_mul(&a);
+                }
+                d
+            })
+            .collect()
     }
 }

@@ -31,6 +31,7 @@
 //! # Ok::<(), Box<dyn std::error::Error>>(())
 //! ```
 
+mod conjugate_gradients;
 pub mod corrected_gradients;
 pub mod cubic_spline;
 pub mod elasticity;
@@ -41,7 +42,7 @@ pub mod stretching_system;
 
 pub use corrected_gradients::CorrectedGradients;
 pub use cubic_spline::CubicSplineKernel;
-pub use elasticity::SphElasticity;
+pub use elasticity::{SphElasticity, VolumeHessian};
 pub use interpolation::ParticleInterpolation;
 pub use rest_volume::RestVolume;
 pub use simulator::{SphError, SphParams, SphSimulator, SphTimings, particle_spacing};

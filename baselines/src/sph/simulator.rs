@@ -30,6 +30,7 @@ use serde::{Deserialize, Serialize};
 use thiserror::Error;
 
 use crate::particle_materials::ParticleMaterials;
+use crate::sph::conjugate_gradients::conjugate_gradients;
 use crate::sph::corrected_gradients::CorrectedGradients;
 use crate::sph::cubic_spline::CubicSplineKernel;
 use crate::sph::elasticity::SphElasticity;
@@ -436,86 +437,51 @@ impl SphSimulator {
         let rotations = el.rotations(&self.advected(dt));
         let strains = el.volume_strains(&self.positions, &rotations, 3.0);
         let force = el.volume_divergence(&strains, &rotations);
-        let free = |i: usize| !self.constrained[i];
-        let mask = |mut u: Vec<Vector3<f64>>| {
-            for (i, u) in u.iter_mut().enumerate() {
-                if !free(i) {
-                    *u = Vector3::zeros();
-                }
-            }
-            u
-        };
-        let operator = VolumeOperator::new(el, &rotations);
+        let hessian = el.volume_hessian(&rotations);
         let apply = |u: &[Vector3<f64>]| -> Vec<Vector3<f64>> {
-            let k = operator.apply(u);
+            let k = hessian.apply(u);
             (0..n)
                 .into_par_iter()
                 .map(|i| self.masses[i] * u[i] + (dt * dt) * k[i])
                 .collect()
         };
-        let b: Vec<Vector3<f64>> = mask(
-            (0..n)
-                .map(|i| self.masses[i] * self.velocities[i] - dt * force[i])
-                .collect(),
-        );
-        let diagonal: Vec<Vector3<f64>> = operator
+        let b: Vec<Vector3<f64>> = (0..n)
+            .map(|i| self.masses[i] * self.velocities[i] - dt * force[i])
+            .collect();
+        let diagonal: Vec<Vector3<f64>> = hessian
             .diagonal()
             .iter()
             .zip(&self.masses)
             .map(|(d, m)| Vector3::repeat(*m) + (dt * dt) * d)
             .collect();
+        let free: Vec<bool> = self.constrained.iter().map(|c| !c).collect();
         // Warm start: this step's velocity plus the last volume correction.
-        let mut v: Vec<Vector3<f64>> = (0..n)
+        let start: Vec<Vector3<f64>> = (0..n)
             .map(|i| {
-                if free(i) {
+                if free[i] {
                     self.velocities[i] + self.correction[i]
                 } else {
                     self.velocities[i]
                 }
             })
             .collect();
-        let before: Vec<Vector3<f64>> = self.velocities.clone();
-        let av = apply(&v);
-        let mut r: Vec<Vector3<f64>> = mask((0..n).map(|i| b[i] - av[i]).collect());
-        let b_norm = norm(&b).max(f64::MIN_POSITIVE);
-        let precondition = |r: &[Vector3<f64>]| -> Vec<Vector3<f64>> {
-            r.iter()
-                .zip(&diagonal)
-                .map(|(r, d)| r.component_div(d))
-                .collect()
-        };
-        let mut z = precondition(&r);
-        let mut p = z.clone();
-        let mut rz = dot(&r, &z);
-        let mut iterations = 0;
-        let mut residual = norm(&r) / b_norm;
-        while residual > self.params.volume_tolerance {
-            if iterations == self.params.volume_max_iterations {
-                return Err(SphError::VolumeSolveNotConverged {
-                    time: t_next,
-                    iterations,
-                    residual,
-                });
-            }
-            let ap = mask(apply(&p));
-            let alpha = rz / dot(&p, &ap);
-            for i in 0..n {
-                v[i] += alpha * p[i];
-                r[i] -= alpha * ap[i];
-            }
-            z = precondition(&r);
-            let rz_next = dot(&r, &z);
-            let beta = rz_next / rz;
-            rz = rz_next;
-            for i in 0..n {
-                p[i] = z[i] + beta * p[i];
-            }
-            iterations += 1;
-            residual = norm(&r) / b_norm;
-        }
+        let (v, iterations) = conjugate_gradients(
+            apply,
+            &b,
+            start,
+            Some(&diagonal),
+            &free,
+            self.params.volume_tolerance,
+            self.params.volume_max_iterations,
+        )
+        .map_err(|e| SphError::VolumeSolveNotConverged {
+            time: t_next,
+            iterations: e.iterations,
+            residual: e.residual,
+        })?;
         for i in 0..n {
-            if free(i) {
-                self.correction[i] = v[i] - before[i];
+            if free[i] {
+                self.correction[i] = v[i] - self.velocities[i];
             }
         }
         self.velocities = v;
@@ -607,80 +573,6 @@ impl SphSimulator {
     }
 }
 
-/// The Hessian of E_v for frozen rotations, ∇²E_v u = Gᵀ Λ G u with (G u)_i = Σ_j (u_j − u_i) ·
-/// r_ij, r_ij = R_i ỹ_ij and Λ = diag(λ_i V_i), with the r_ij computed once per solve.
-struct VolumeOperator<'a> {
-    gradients: &'a CorrectedGradients,
-    rotated: Vec<Vector3<f64>>,
-    own: Vec<Vector3<f64>>,
-    stiffness: Vec<f64>,
-}
-
-impl<'a> VolumeOperator<'a> {
-    fn new(elasticity: &'a SphElasticity, rotations: &[Matrix3<f64>]) -> Self {
-        let g = elasticity.gradients();
-        let n = g.len();
-        let rotated: Vec<Vector3<f64>> = (0..n)
-            .into_par_iter()
-            .flat_map_iter(|i| g.weights(i).iter().map(move |w| rotations[i] * w))
-            .collect();
-        let own: Vec<Vector3<f64>> = (0..n)
-            .into_par_iter()
-            .map(|i| g.entries(i).map(|e| rotated[e]).sum())
-            .collect();
-        let stiffness = (0..n)
-            .map(|i| elasticity.lame()[i].lambda() * elasticity.volumes()[i])
-            .collect();
-        VolumeOperator {
-            gradients: g,
-            rotated,
-            own,
-            stiffness,
-        }
-    }
-
-    /// Gᵀ Λ G u (N per particle, for u in m or m/s).
-    fn apply(&self, u: &[Vector3<f64>]) -> Vec<Vector3<f64>> {
-        let g = self.gradients;
-        let stress: Vec<f64> = (0..u.len())
-            .into_par_iter()
-            .map(|i| {
-                let rate: f64 = g
-                    .entries(i)
-                    .map(|e| u[g.neighbour(e)].dot(&self.rotated[e]))
-                    .sum();
-                self.stiffness[i] * (rate - u[i].dot(&self.own[i]))
-            })
-            .collect();
-        (0..u.len())
-            .into_par_iter()
-            .map(|k| {
-                let mut f = -stress[k] * self.own[k];
-                for e in g.entries(k) {
-                    f += stress[g.neighbour(e)] * self.rotated[g.reverse(e)];
-                }
-                f
-            })
-            .collect()
-    }
-
-    /// The diagonal of Gᵀ Λ G per coordinate.
-    fn diagonal(&self) -> Vec<Vector3<f64>> {
-        let g = self.gradients;
-        (0..g.len())
-            .into_par_iter()
-            .map(|k| {
-                let mut d = self.stiffness[k] * self.own[k].component_mul(&self.own[k]);
-                for e in g.entries(k) {
-                    let a = self.rotated[g.reverse(e)];
-                    d += self.stiffness[g.neighbour(e)] * a.component_mul(&a);
-                }
-                d
-            })
-            .collect()
-    }
-}
-
 /// The particle spacing (m) of volumes `volumes`: the cube root of their median.
 pub fn particle_spacing(volumes: &[f64]) -> f64 {
     let mut sorted = volumes.to_vec();
@@ -713,12 +605,4 @@ fn check_params(params: &SphParams) -> Result<(), SphError> {
         )));
     }
     Ok(())
-}
-
-fn dot(a: &[Vector3<f64>], b: &[Vector3<f64>]) -> f64 {
-    a.iter().zip(b).map(|(a, b)| a.dot(b)).sum()
-}
-
-fn norm(a: &[Vector3<f64>]) -> f64 {
-    dot(a, a).sqrt()
 }
