@@ -11,14 +11,15 @@ use fem_ref::ElementOrder;
 use serde::{Deserialize, Serialize};
 
 use crate::EvalError;
-use crate::beam::mpm::{MpmStudyConfig, run_mpm_beam};
+use crate::beam::mpm::MpmStudyConfig;
 use crate::beam::particle_baseline::{ParticleBeamRun, ParticleMethod};
+use crate::beam::particle_config::ParticleConfig;
 use crate::beam::reduced::{
     EXACT_INSET_KERNEL_RADII, ReducedSettings, build_beam_basis_for, exact_pin_hold,
     run_reduced_beam, run_reduced_beam_with,
 };
 use crate::beam::simplicits::train_beam_simplicits;
-use crate::beam::sph::{SphStudyConfig, run_sph_beam};
+use crate::beam::sph::SphStudyConfig;
 use crate::beam::study::{beam_length_scale, region_drift};
 use crate::beam::{BeamTest, beam_material};
 use crate::fem_reference::{FemResolution, run_fem_beam};
@@ -352,6 +353,7 @@ pub fn run_bench(config: &BenchConfig, progress: &Progress) -> Result<Vec<BenchR
     let truth_frames = truth.vertex_frames();
     let vertices = truth.vertices().to_vec();
     let length = beam_length_scale();
+    let (default_mpm, default_sph) = (MpmStudyConfig::default(), SphStudyConfig::default());
     let mut results = Vec::new();
     for (knob, method) in &config.runs {
         let exact;
@@ -431,30 +433,19 @@ pub fn run_bench(config: &BenchConfig, progress: &Progress) -> Result<Vec<BenchR
                 )
             }
             BenchMethod::Mpm(spacing) | BenchMethod::Sph(spacing) => {
-                let method = match method {
-                    BenchMethod::Mpm(_) => ParticleMethod::Mpm,
-                    _ => ParticleMethod::Sph,
+                let particle = match method {
+                    BenchMethod::Mpm(_) => ParticleConfig::Mpm(&default_mpm),
+                    _ => ParticleConfig::Sph(&default_sph),
                 };
-                let ParticleBeamRun { row, frames } = match method {
-                    ParticleMethod::Mpm => run_mpm_beam(
-                        BeamTest::Bend,
-                        *spacing,
-                        &MpmStudyConfig::default(),
-                        config.steps,
-                        &truth,
-                        &config.cache_dir,
-                        progress,
-                    )?,
-                    ParticleMethod::Sph => run_sph_beam(
-                        BeamTest::Bend,
-                        *spacing,
-                        &SphStudyConfig::default(),
-                        config.steps,
-                        &truth,
-                        &config.cache_dir,
-                        progress,
-                    )?,
-                };
+                let method = particle.method();
+                let ParticleBeamRun { row, frames } = particle.run(
+                    BeamTest::Bend,
+                    *spacing,
+                    config.steps,
+                    &truth,
+                    &config.cache_dir,
+                    progress,
+                )?;
                 if let Some(why) = &row.failure {
                     progress.status(format!(
                         "{} {} = {spacing} m left out: {why}",

@@ -10,6 +10,7 @@
 
 pub mod mpm;
 pub mod particle_baseline;
+pub mod particle_config;
 pub mod reduced;
 pub mod simplicits;
 pub mod sph;

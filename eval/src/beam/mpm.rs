@@ -10,7 +10,6 @@
 use std::path::Path;
 use std::time::Instant;
 
-use artifact::save_framed;
 use baselines::mpm::{MpmError, MpmMaterial, MpmParams, MpmSimulator, MpmTimings};
 use fem_ref::trajectory_key_builder;
 use rkpm_core::sample_box_grid;
@@ -18,7 +17,8 @@ use serde::{Deserialize, Serialize};
 
 use crate::EvalError;
 use crate::beam::particle_baseline::{
-    ParticleBeamRun, ParticleMethod, ParticleTrajectory, load_cached_run, score_particle_run,
+    ParticleBeamRun, ParticleMethod, ParticleTrajectory, as_arrays, load_cached_run, record_frames,
+    score_particle_run, store_cached_run,
 };
 use crate::beam::{BEAM_MAX, BEAM_MIN, BEAM_TIME_STEP, BeamTest, beam_material};
 use crate::fem_reference::FemRun;
@@ -131,46 +131,39 @@ pub fn run_mpm_beam(
             let mut sim =
                 MpmSimulator::new(&particles, &[beam_material()], &reduced_scene, params)?
                     .with_tracers(vertices, &tracer_regions)?;
-            let bar = progress.bar(steps, format!("{label} ({} particles)", particles.len()));
             let start = Instant::now();
-            let mut frames = vec![vertices.iter().map(|v| [v.x, v.y, v.z]).collect()];
-            let mut failure = None;
-            let mut max_pin_deviation: f64 = 0.0;
-            for _ in 0..steps {
-                if let Err(e) = sim.advance(BEAM_TIME_STEP) {
-                    let at = match e {
-                        MpmError::TracerLost { tracer, .. } => {
-                            format!(
-                                " (tracer at rest position {:?} m)",
-                                vertices[tracer].as_slice()
-                            )
-                        }
-                        _ => String::new(),
-                    };
-                    failure = Some(format!("{e}{at}"));
-                    break;
-                }
-                max_pin_deviation = max_pin_deviation.max(sim.max_pin_deviation());
-                frames.push(
-                    sim.tracer_positions()
-                        .iter()
-                        .map(|v| [v.x, v.y, v.z])
-                        .collect(),
-                );
-                bar.inc(1);
-            }
-            bar.finish_and_clear();
+            let recorded = record_frames(
+                vertices,
+                steps,
+                format!("{label} ({} particles)", particles.len()),
+                progress,
+                || {
+                    sim.advance(BEAM_TIME_STEP).map_err(|e| match e {
+                        MpmError::TracerLost { tracer, .. } => format!(
+                            "{e} (tracer at rest position {:?} m)",
+                            vertices[tracer].as_slice()
+                        ),
+                        _ => e.to_string(),
+                    })?;
+                    Ok((as_arrays(sim.tracer_positions()), sim.max_pin_deviation()))
+                },
+            );
             let run = CachedMpmRun {
-                failure,
-                max_pin_deviation,
-                frames,
+                failure: recorded.failure,
+                max_pin_deviation: recorded.max_pin_deviation,
+                frames: recorded.frames,
                 timings: *sim.timings(),
                 particles: particles.len(),
                 seconds: start.elapsed().as_secs_f64(),
             };
-            if let Err(e) = save_framed(&path, MPM_CACHE_MAGIC, MPM_CACHE_VERSION, &run) {
-                progress.status(format!("warning: {label} not cached: {e}"));
-            }
+            store_cached_run(
+                &path,
+                MPM_CACHE_MAGIC,
+                MPM_CACHE_VERSION,
+                &label,
+                progress,
+                &run,
+            );
             (run, false)
         }
     };

@@ -3,7 +3,7 @@
 
 use std::path::Path;
 
-use artifact::load_framed;
+use artifact::{load_framed, save_framed};
 use nalgebra::Vector3;
 use serde::de::DeserializeOwned;
 use serde::{Deserialize, Serialize};
@@ -219,4 +219,65 @@ pub(crate) fn load_cached_run<T: DeserializeOwned>(
             None
         }
     }
+}
+
+/// Saves a particle run to the cache at `path`; a failure is reported on `progress`, not
+/// returned (the run itself is not lost).
+pub(crate) fn store_cached_run<T: Serialize>(
+    path: &Path,
+    magic: &[u8],
+    version: u32,
+    label: &str,
+    progress: &Progress,
+    run: &T,
+) {
+    if let Err(e) = save_framed(path, magic, version, run) {
+        progress.status(format!("warning: {label} not cached: {e}"));
+    }
+}
+
+/// The frames of a particle run: positions at the FEM vertices per frame (frame 0 = rest),
+/// why it stopped (if it did) and the constrained particles' largest drift (m).
+pub(crate) struct RecordedFrames {
+    pub(crate) frames: Vec<Vec<[f64; 3]>>,
+    pub(crate) failure: Option<String>,
+    pub(crate) max_pin_deviation: f64,
+}
+
+/// Runs `steps` frames from the rest positions `rest`: `advance` moves the solver by one
+/// 0.01 s frame and returns the vertices' positions and the pinned particles' drift, or why
+/// it stopped (the recording stops there). Shows a progress bar labelled `label`.
+pub(crate) fn record_frames(
+    rest: &[Vector3<f64>],
+    steps: usize,
+    label: String,
+    progress: &Progress,
+    mut advance: impl FnMut() -> Result<(Vec<[f64; 3]>, f64), String>,
+) -> RecordedFrames {
+    let bar = progress.bar(steps, label);
+    let mut recorded = RecordedFrames {
+        frames: vec![as_arrays(rest)],
+        failure: None,
+        max_pin_deviation: 0.0,
+    };
+    for _ in 0..steps {
+        match advance() {
+            Ok((positions, drift)) => {
+                recorded.max_pin_deviation = recorded.max_pin_deviation.max(drift);
+                recorded.frames.push(positions);
+            }
+            Err(why) => {
+                recorded.failure = Some(why);
+                break;
+            }
+        }
+        bar.inc(1);
+    }
+    bar.finish_and_clear();
+    recorded
+}
+
+/// Positions as plain arrays (the caches' format).
+pub(crate) fn as_arrays(positions: &[Vector3<f64>]) -> Vec<[f64; 3]> {
+    positions.iter().map(|v| [v.x, v.y, v.z]).collect()
 }

@@ -9,7 +9,6 @@
 
 use std::path::Path;
 
-use artifact::save_framed;
 use baselines::sph::{SphParams, SphSimulator, SphTimings};
 use fem_ref::trajectory_key_builder;
 use rkpm_core::sample_box_grid;
@@ -17,7 +16,8 @@ use serde::{Deserialize, Serialize};
 
 use crate::EvalError;
 use crate::beam::particle_baseline::{
-    ParticleBeamRun, ParticleMethod, ParticleTrajectory, load_cached_run, score_particle_run,
+    ParticleBeamRun, ParticleMethod, ParticleTrajectory, as_arrays, load_cached_run, record_frames,
+    score_particle_run, store_cached_run,
 };
 use crate::beam::{BEAM_MAX, BEAM_MIN, BEAM_TIME_STEP, BeamTest, beam_material};
 use crate::fem_reference::FemRun;
@@ -149,37 +149,33 @@ pub fn run_sph_beam(
             let mut sim =
                 SphSimulator::new(&particles, &[beam_material()], &reduced_scene, params)?
                     .with_probes(vertices, &probe_regions)?;
-            let bar = progress.bar(steps, format!("{label} ({} particles)", particles.len()));
-            let mut frames = vec![vertices.iter().map(|v| [v.x, v.y, v.z]).collect()];
-            let mut failure = None;
-            let mut max_pin_deviation: f64 = 0.0;
-            'frames: for _ in 0..steps {
-                for _ in 0..substeps {
-                    if let Err(e) = sim.step() {
-                        failure = Some(e.to_string());
-                        break 'frames;
+            let recorded = record_frames(
+                vertices,
+                steps,
+                format!("{label} ({} particles)", particles.len()),
+                progress,
+                || {
+                    for _ in 0..substeps {
+                        sim.step().map_err(|e| e.to_string())?;
                     }
-                }
-                max_pin_deviation = max_pin_deviation.max(sim.max_pin_deviation());
-                frames.push(
-                    sim.probe_positions()
-                        .iter()
-                        .map(|v| [v.x, v.y, v.z])
-                        .collect(),
-                );
-                bar.inc(1);
-            }
-            bar.finish_and_clear();
+                    Ok((as_arrays(sim.probe_positions()), sim.max_pin_deviation()))
+                },
+            );
             let run = CachedSphRun {
-                failure,
-                max_pin_deviation,
-                frames,
+                failure: recorded.failure,
+                max_pin_deviation: recorded.max_pin_deviation,
+                frames: recorded.frames,
                 timings: *sim.timings(),
                 particles: particles.len(),
             };
-            if let Err(e) = save_framed(&path, SPH_CACHE_MAGIC, SPH_CACHE_VERSION, &run) {
-                progress.status(format!("warning: {label} not cached: {e}"));
-            }
+            store_cached_run(
+                &path,
+                SPH_CACHE_MAGIC,
+                SPH_CACHE_VERSION,
+                &label,
+                progress,
+                &run,
+            );
             (run, false)
         }
     };

@@ -11,14 +11,15 @@ use reduced_sim::{QuadratureReport, SkinningField};
 use serde::{Deserialize, Serialize};
 
 use crate::EvalError;
-use crate::beam::mpm::{MpmStudyConfig, run_mpm_beam};
-use crate::beam::particle_baseline::{ParticleBaselineRow, ParticleMethod};
+use crate::beam::mpm::MpmStudyConfig;
+use crate::beam::particle_baseline::ParticleBaselineRow;
+use crate::beam::particle_config::ParticleConfig;
 use crate::beam::reduced::{
     EXACT_INSET_KERNEL_RADII, ReducedSettings, build_beam_basis, build_beam_basis_for,
     exact_pin_hold, run_reduced_beam_with,
 };
 use crate::beam::simplicits::train_beam_simplicits;
-use crate::beam::sph::{SphStudyConfig, run_sph_beam};
+use crate::beam::sph::SphStudyConfig;
 use crate::beam::{BEAM_MAX, BEAM_MIN, BEAM_TIME_STEP, BeamTest, beam_material};
 use crate::fem_reference::{FemResolution, FemRun, run_fem_beam};
 use crate::metrics::TrajectoryErrors;
@@ -362,62 +363,37 @@ pub fn run_beam_study(
     }
     rows.sort_by_key(|r| (r.test != BeamTest::Bend, r.m));
     let mut particle_baselines = Vec::new();
-    // Every (method, test, spacing), cheapest first (particles × frames, SPH's implicit step
-    // counted as 50 MPM substeps' worth), so that the long runs come last.
-    let mut runs: Vec<(ParticleMethod, &FemReference, f64)> = Vec::new();
-    for reference in &references {
-        if let Some(mpm) = &config.mpm {
-            runs.extend(
-                mpm.spacings
-                    .iter()
-                    .map(|&h| (ParticleMethod::Mpm, reference, h)),
-            );
-        }
-        if let Some(sph) = &config.sph {
-            runs.extend(
-                sph.spacings
-                    .iter()
-                    .map(|&h| (ParticleMethod::Sph, reference, h)),
-            );
-        }
-    }
-    let cost = |(method, r, h): &(ParticleMethod, &FemReference, f64)| {
-        let particles = match method {
-            ParticleMethod::Mpm => 8.0 / h.powi(3) * 100.0,
-            ParticleMethod::Sph => 50.0 / h.powi(3),
-        };
-        config.steps_of(r.0) as f64 * particles
+    // Every (method, test, spacing), cheapest first, so that the long runs come last.
+    let configs: Vec<ParticleConfig> = config
+        .mpm
+        .iter()
+        .map(ParticleConfig::Mpm)
+        .chain(config.sph.iter().map(ParticleConfig::Sph))
+        .collect();
+    let mut runs: Vec<(ParticleConfig, &FemReference, f64)> = references
+        .iter()
+        .flat_map(|r| {
+            configs
+                .iter()
+                .flat_map(move |c| c.spacings().iter().map(move |&h| (*c, r, h)))
+        })
+        .collect();
+    let cost = |(c, r, h): &(ParticleConfig, &FemReference, f64)| {
+        config.steps_of(r.0) as f64 * c.cost_per_frame(*h)
     };
     runs.sort_by(|a, b| cost(a).total_cmp(&cost(b)));
-    for (method, (test, reference), spacing) in runs {
-        let steps = config.steps_of(*test);
-        let row = match (method, &config.mpm, &config.sph) {
-            (ParticleMethod::Mpm, Some(mpm), _) => {
-                run_mpm_beam(
-                    *test,
-                    spacing,
-                    mpm,
-                    steps,
-                    reference,
-                    &config.cache_dir,
-                    progress,
-                )?
-                .row
-            }
-            (ParticleMethod::Sph, _, Some(sph)) => {
-                run_sph_beam(
-                    *test,
-                    spacing,
-                    sph,
-                    steps,
-                    reference,
-                    &config.cache_dir,
-                    progress,
-                )?
-                .row
-            }
-            _ => unreachable!("runs are listed only for configured methods"),
-        };
+    for (particle, (test, reference), spacing) in runs {
+        let method = particle.method();
+        let row = particle
+            .run(
+                *test,
+                spacing,
+                config.steps_of(*test),
+                reference,
+                &config.cache_dir,
+                progress,
+            )?
+            .row;
         if let Some(mse) = row.mse {
             progress.status(format!(
                 "{} {} {} = {spacing} m: MSE {mse:.2e}, {:.1} ms per 0.01 s",
