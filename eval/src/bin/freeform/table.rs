@@ -214,11 +214,7 @@ pub(crate) fn run(
     }
     config.exact_pins = (!skip_exact && numbers.contains(&1))
         .then_some(exact_inset_radii.unwrap_or(eval::beam::reduced::EXACT_INSET_KERNEL_RADII));
-    if let Some(spacings) = &mpm_spacings
-        && let Some(bad) = spacings.iter().find(|h| !(**h > 0.0 && h.is_finite()))
-    {
-        bail!("--mpm-spacings: every spacing must be a positive number of metres, got {bad}");
-    }
+    check_spacings("--mpm-spacings", mpm_spacings.as_deref())?;
     // Only Tables 1 and 5 print the MPM baseline.
     config.mpm = if skip_mpm || !numbers.iter().any(|&n| n == 1 || n == 5) {
         None
@@ -240,11 +236,7 @@ pub(crate) fn run(
             ..mpm
         })
     };
-    if let Some(spacings) = &sph_spacings
-        && let Some(bad) = spacings.iter().find(|h| !(**h > 0.0 && h.is_finite()))
-    {
-        bail!("--sph-spacings: every spacing must be a positive number of metres, got {bad}");
-    }
+    check_spacings("--sph-spacings", sph_spacings.as_deref())?;
     if sph_substeps == Some(0) {
         bail!("--sph-substeps must be at least 1");
     }
@@ -444,6 +436,18 @@ pub(crate) fn run(
             serde_json::Value::Array(rendered_json)
         };
         println!("{}", serde_json::to_string_pretty(&value)?);
+    }
+    Ok(())
+}
+
+/// Every spacing of a `--…-spacings` flag must be a positive, finite number of metres.
+fn check_spacings(flag: &str, spacings: Option<&[f64]>) -> Result<()> {
+    if let Some(bad) = spacings
+        .unwrap_or_default()
+        .iter()
+        .find(|h| !(**h > 0.0 && h.is_finite()))
+    {
+        bail!("{flag}: every spacing must be a positive number of metres, got {bad}");
     }
     Ok(())
 }
