@@ -46,6 +46,10 @@ struct Args {
     /// Whole-body twist and bend training poses of the cubature.
     #[arg(long, default_value_t = CubatureParams::default().field_poses)]
     cubature_field_poses: usize,
+    /// Seeds of the cubature's training poses and candidates, comma-separated (one cubature
+    /// per tolerance and seed).
+    #[arg(long, value_delimiter = ',', default_value = "0")]
+    cubature_seed: Vec<u64>,
     /// Skip the Hessian-reuse rows.
     #[arg(long)]
     no_reuse: bool,
@@ -57,14 +61,17 @@ fn main() -> anyhow::Result<()> {
     let cache = eval::default_cache_dir();
     let mut rules = vec![QuadratureRule::Full];
     for &tolerance in &args.cubature_tolerance {
-        rules.push(QuadratureRule::Cubature(CubatureParams {
-            tolerance,
-            max_points: args.cubature_points,
-            candidates: args.cubature_candidates,
-            poses_per_amplitude: args.cubature_poses_per_amplitude,
-            field_poses: args.cubature_field_poses,
-            ..CubatureParams::default()
-        }));
+        for &seed in &args.cubature_seed {
+            rules.push(QuadratureRule::Cubature(CubatureParams {
+                tolerance,
+                max_points: args.cubature_points,
+                candidates: args.cubature_candidates,
+                poses_per_amplitude: args.cubature_poses_per_amplitude,
+                field_poses: args.cubature_field_poses,
+                seed,
+                ..CubatureParams::default()
+            }));
+        }
     }
     let reuses: &[HessianReuse] = if args.no_reuse {
         &[HessianReuse::Never]
@@ -147,7 +154,9 @@ fn main() -> anyhow::Result<()> {
                          | {:.2} | {:.2} | {:.2} | {} | {mse:.3e} | {:.2} | {gap:.1e} |",
                         test.name(),
                         match quadrature {
-                            QuadratureRule::Cubature(p) => format!("cubature {}", p.tolerance),
+                            QuadratureRule::Cubature(p) => {
+                                format!("cubature {} seed {}", p.tolerance, p.seed)
+                            }
                             other => other.name().to_string(),
                         },
                         r.quadrature.points,

@@ -15,6 +15,7 @@
 
 pub mod newton;
 pub mod nnls;
+mod subset_cholesky;
 
 pub use newton::{
     HessianReuse, NewtonError, NewtonObjective, NewtonParams, NewtonReport, NewtonStop,

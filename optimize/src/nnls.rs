@@ -16,9 +16,10 @@
 //! A warm start (a feasible x, e.g. the solution before new columns were added) starts P at its
 //! support.
 
-use faer::linalg::solvers::Solve;
-use faer::{Mat, MatRef, Side};
+use faer::MatRef;
 use thiserror::Error;
+
+use crate::subset_cholesky::SubsetCholesky;
 
 /// Options of [`nnls`] and [`nnls_normal`].
 #[derive(Clone, Copy, Debug, PartialEq)]
@@ -162,9 +163,13 @@ pub fn nnls_normal(
         Some(w) => x.iter().zip(w.free).map(|(&v, &f)| v > 0.0 || f).collect(),
         None => vec![false; n],
     };
+    // The passive set's factor, updated as variables join and leave.
+    let mut factor = SubsetCholesky::new(gram);
     let mut iterations = 0;
     if passive.iter().any(|&p| p) {
-        restore_feasibility(gram, atb, &mut x, &mut passive);
+        let joining: Vec<usize> = (0..n).filter(|&i| passive[i]).collect();
+        factor.insert(gram, &joining);
+        restore_feasibility(gram, atb, &mut x, &mut passive, &mut factor);
     }
     loop {
         let w = negative_gradient(gram, atb, &x);
@@ -183,33 +188,46 @@ pub fn nnls_normal(
         }
         iterations += 1;
         let before = x.clone();
-        for &j in joining.iter().take(params.block.max(1)) {
+        joining.truncate(params.block.max(1));
+        for &j in &joining {
             passive[j] = true;
         }
-        restore_feasibility(gram, atb, &mut x, &mut passive);
+        factor.insert(gram, &joining);
+        restore_feasibility(gram, atb, &mut x, &mut passive, &mut factor);
         if x == before && params.block > 1 {
             // Every joined variable fell out again: try the best one alone.
             passive[joining[0]] = true;
-            restore_feasibility(gram, atb, &mut x, &mut passive);
+            factor.insert(gram, &joining[..1]);
+            restore_feasibility(gram, atb, &mut x, &mut passive, &mut factor);
         }
         if x == before {
             // The best variable's least-squares value was not positive (round-off at the
             // tolerance): optimal to working precision.
             passive[joining[0]] = false;
+            factor.remove(joining[0]);
             return Ok(NnlsSolution { x, iterations });
         }
     }
 }
 
-/// The inner loop (step 3): moves x to the least-squares solution on the passive set, dropping
-/// variables that would turn negative, until that solution is strictly positive.
-fn restore_feasibility(gram: MatRef<'_, f64>, atb: &[f64], x: &mut [f64], passive: &mut [bool]) {
+/// The inner loop (step 3): moves x to the least-squares solution on the passive set (whose
+/// factor `factor` is), dropping variables that would turn negative, until that solution is
+/// strictly positive.
+fn restore_feasibility(
+    gram: MatRef<'_, f64>,
+    atb: &[f64],
+    x: &mut [f64],
+    passive: &mut [bool],
+    factor: &mut SubsetCholesky,
+) {
+    debug_assert_eq!(gram.nrows(), x.len());
     loop {
-        let set: Vec<usize> = (0..x.len()).filter(|&i| passive[i]).collect();
+        let set = factor.set().to_vec();
+        debug_assert!(set.iter().all(|&i| passive[i]));
         if set.is_empty() {
             return;
         }
-        let s = solve_on(gram, atb, &set);
+        let s = factor.solve(atb);
         if s.iter().all(|&v| v > 0.0) {
             for (&i, v) in set.iter().zip(&s) {
                 x[i] = *v;
@@ -234,30 +252,10 @@ fn restore_feasibility(gram: MatRef<'_, f64>, atb: &[f64], x: &mut [f64], passiv
             if reached || (x[i] <= floor && *v <= floor) {
                 x[i] = 0.0;
                 passive[i] = false;
+                factor.remove(i);
             }
         }
     }
-}
-
-/// Solves `(AᵀA)_PP s = (Aᵀb)_P` by Cholesky; a singular subsystem (dependent columns) is
-/// regularized by `1e-12 · max diag` on the diagonal.
-fn solve_on(gram: MatRef<'_, f64>, atb: &[f64], set: &[usize]) -> Vec<f64> {
-    let k = set.len();
-    let sub = Mat::from_fn(k, k, |a, b| gram[(set[a], set[b])]);
-    let mut rhs = Mat::from_fn(k, 1, |a, _| atb[set[a]]);
-    match sub.llt(Side::Lower) {
-        Ok(llt) => llt.solve_in_place(rhs.as_mut()),
-        Err(_) => {
-            let max_diag = (0..k).fold(0.0_f64, |m, a| m.max(sub[(a, a)]));
-            let shift = 1e-12 * max_diag.max(f64::MIN_POSITIVE);
-            let shifted = Mat::from_fn(k, k, |a, b| sub[(a, b)] + if a == b { shift } else { 0.0 });
-            match shifted.llt(Side::Lower) {
-                Ok(llt) => llt.solve_in_place(rhs.as_mut()),
-                Err(_) => return vec![0.0; k],
-            }
-        }
-    }
-    (0..k).map(|a| rhs[(a, 0)]).collect()
 }
 
 /// `Aᵀb − AᵀA x`.
@@ -277,6 +275,7 @@ fn negative_gradient(gram: MatRef<'_, f64>, atb: &[f64], x: &[f64]) -> Vec<f64> 
 #[cfg(test)]
 mod tests {
     use super::*;
+    use faer::Mat;
 
     #[test]
     fn a_solution_with_an_active_bound_is_found_exactly() {

@@ -15,9 +15,11 @@
 //!
 //! found greedily: the candidates (a seeded pool of the points) most aligned with the residual
 //! join Q a batch at a time, and w is re-solved by non-negative least squares
-//! ([`optimize::nnls_normal`], warm-started) after each batch, until the relative residual
+//! ([`optimize::nnls_normal`], warm-started) after each batch; candidates the solve leaves at
+//! zero weight leave Q for good. Selection stops when the relative residual
 //! `‖Σ_q w_q g_q − f‖ / ‖f‖` over all poses is at most [`CubatureParams::tolerance`] or Q holds
-//! [`CubatureParams::max_points`] points.
+//! [`CubatureParams::max_points`] points. Candidates are ranked on an f32 copy of their force
+//! columns (ranking only; weights, residual and errors are f64).
 //!
 //! One cubature serves every scene on that shape and material; a scene may add poses of its own
 //! ([`optimize_cubature_on`]).
@@ -75,7 +77,7 @@ pub struct CubatureParams {
     /// when the model has fewer). Too few limit the error reachable with non-negative
     /// weights: on the beam at m = 32 a pool of 1500 of 5000 points stalled at 5.3e-3, and
     /// its Bend MSE against the FEM was 10× the full quadrature's (1.2× from all 5000).
-    /// Memory: 8 · 12(m+1) · poses · candidates bytes (0.95 GB at m = 32).
+    /// Memory: 4 · 12(m+1) · poses · candidates bytes (0.48 GB at m = 32).
     pub candidates: usize,
     /// Relative force error over the training poses (in the weighted norm of
     /// [`force_weights`]) at which selection stops (default 0.003: on the beam at m = 32, 0.005
@@ -365,48 +367,59 @@ pub fn optimize_cubature_on<M: HyperelasticMaterial>(
             omega.iter().map(move |w| w / norm)
         })
         .collect();
-    let mut columns = vec![0.0; rows * pool.len()];
-    columns
-        .par_chunks_mut(rows)
-        .enumerate()
-        .for_each(|(c, column)| {
-            let g_c = MatRef::from_column_major_slice(pool_map.gradient_block(c), n4, 3);
-            let mut strain = Mat::<f64>::zeros(3 * kept.len(), 3);
-            faer::linalg::matmul::matmul(
-                strain.as_mut(),
-                Accum::Replace,
-                z_all.transpose(),
-                g_c,
-                1.0,
-                Par::Seq,
-            );
-            let mut stresses = Mat::<f64>::zeros(3, 3 * kept.len());
-            for k in 0..kept.len() {
-                let f =
-                    Matrix3::from_fn(|r, s| strain[(3 * k + r, s)] + f64::from(u8::from(r == s)));
-                let p = material.first_piola_kirchhoff(&pool_lame[c], &f);
-                for r in 0..3 {
-                    for s in 0..3 {
-                        stresses[(s, 3 * k + r)] = p[(r, s)];
-                    }
+    // Candidate c's column, in f64 (`rows` entries).
+    let force_column = |c: usize, column: &mut [f64]| {
+        let g_c = MatRef::from_column_major_slice(pool_map.gradient_block(c), n4, 3);
+        let mut strain = Mat::<f64>::zeros(3 * kept.len(), 3);
+        faer::linalg::matmul::matmul(
+            strain.as_mut(),
+            Accum::Replace,
+            z_all.transpose(),
+            g_c,
+            1.0,
+            Par::Seq,
+        );
+        let mut stresses = Mat::<f64>::zeros(3, 3 * kept.len());
+        for k in 0..kept.len() {
+            let f = Matrix3::from_fn(|r, s| strain[(3 * k + r, s)] + f64::from(u8::from(r == s)));
+            let p = material.first_piola_kirchhoff(&pool_lame[c], &f);
+            for r in 0..3 {
+                for s in 0..3 {
+                    stresses[(s, 3 * k + r)] = p[(r, s)];
                 }
             }
-            faer::linalg::matmul::matmul(
-                faer::MatMut::from_column_major_slice_mut(column, n4, 3 * kept.len()),
-                Accum::Replace,
-                g_c,
-                stresses.as_ref(),
-                1.0,
-                Par::Seq,
-            );
-            for (x, s) in column.iter_mut().zip(&scale) {
-                *x *= s;
-            }
-        });
-    let a = MatRef::from_column_major_slice(&columns, rows, pool.len());
-    let column_norms: Vec<f64> = (0..pool.len())
-        .map(|c| norm(&columns[c * rows..(c + 1) * rows]))
+        }
+        faer::linalg::matmul::matmul(
+            faer::MatMut::from_column_major_slice_mut(column, n4, 3 * kept.len()),
+            Accum::Replace,
+            g_c,
+            stresses.as_ref(),
+            1.0,
+            Par::Seq,
+        );
+        for (x, s) in column.iter_mut().zip(&scale) {
+            *x *= s;
+        }
+    };
+    // Every candidate's column in f32 (only to rank candidates by their correlation with the
+    // residual: half the memory and memory traffic of f64) and its norm in f64; the columns
+    // that join the cubature are formed again in f64 for the weights.
+    let mut columns = vec![0.0_f32; rows * pool.len()];
+    let column_norms: Vec<f64> = columns
+        .par_chunks_mut(rows)
+        .enumerate()
+        .map_init(
+            || vec![0.0; rows],
+            |scratch, (c, column)| {
+                force_column(c, scratch);
+                for (x, &y) in column.iter_mut().zip(scratch.iter()) {
+                    *x = y as f32;
+                }
+                norm(scratch)
+            },
+        )
         .collect();
+    let a = MatRef::from_column_major_slice(&columns, rows, pool.len());
     let b_norm = norm(&b);
 
     // Greedy selection with warm-started NNLS.
@@ -430,18 +443,19 @@ pub fn optimize_cubature_on<M: HyperelasticMaterial>(
             break;
         }
         // Correlations Aᵀr of every candidate with the residual, as one product.
-        let mut correlation = Mat::<f64>::zeros(pool.len(), 1);
+        let residual32: Vec<f32> = residual.iter().map(|&r| r as f32).collect();
+        let mut correlation = Mat::<f32>::zeros(pool.len(), 1);
         faer::linalg::matmul::matmul(
             correlation.as_mut(),
             Accum::Replace,
             a.transpose(),
-            MatRef::from_column_major_slice(&residual, rows, 1),
+            MatRef::from_column_major_slice(&residual32, rows, 1),
             1.0,
             Par::rayon(0),
         );
         let mut scores: Vec<(usize, f64)> = (0..pool.len())
             .filter(|&c| !in_set[c] && column_norms[c] > 0.0)
-            .map(|c| (c, correlation[(c, 0)] / column_norms[c]))
+            .map(|c| (c, f64::from(correlation[(c, 0)]) / column_norms[c]))
             .filter(|&(_, s)| s > 0.0)
             .collect();
         if scores.is_empty() {
@@ -458,8 +472,12 @@ pub fn optimize_cubature_on<M: HyperelasticMaterial>(
         selected.extend_from_slice(&added);
         for &c in &added {
             in_set[c] = true;
-            selected_columns.extend_from_slice(&columns[c * rows..(c + 1) * rows]);
         }
+        selected_columns.resize((old + added.len()) * rows, 0.0);
+        selected_columns[old * rows..]
+            .par_chunks_mut(rows)
+            .zip(&added)
+            .for_each(|(column, &c)| force_column(c, column));
         let k = selected.len();
         // The new Gram columns [A_S]ᵀ A_new as one product.
         let mut cross = Mat::<f64>::zeros(k, k - old);
@@ -492,13 +510,27 @@ pub fn optimize_cubature_on<M: HyperelasticMaterial>(
             free: &free,
         };
         weights = nnls_normal(gram.as_ref(), &atb, Some(start), &nnls_params)?.x;
+        // Candidates the weight solve left at zero leave the set for good (they stay marked, so
+        // they are not chosen again): the Gram matrix and later solves only carry the support.
+        let keep: Vec<usize> = (0..k).filter(|&i| weights[i] > 0.0).collect();
+        if keep.len() < k {
+            gram = Mat::from_fn(keep.len(), keep.len(), |i, j| gram[(keep[i], keep[j])]);
+            atb = keep.iter().map(|&i| atb[i]).collect();
+            weights = keep.iter().map(|&i| weights[i]).collect();
+            selected = keep.iter().map(|&i| selected[i]).collect();
+            // In place: mostly the newest columns leave, so little moves.
+            for (to, &from) in keep.iter().enumerate() {
+                if to != from {
+                    selected_columns.copy_within(from * rows..(from + 1) * rows, to * rows);
+                }
+            }
+            selected_columns.truncate(keep.len() * rows);
+        }
         residual = b.clone();
         for (i, &w) in weights.iter().enumerate() {
-            if w > 0.0 {
-                let col = a.col(selected[i]);
-                for (r, x) in residual.iter_mut().zip(col.iter()) {
-                    *r -= w * x;
-                }
+            let column = &selected_columns[i * rows..(i + 1) * rows];
+            for (r, x) in residual.iter_mut().zip(column) {
+                *r -= w * x;
             }
         }
     }
