@@ -11,7 +11,8 @@
 //!   [`pin_hold`]: whether the reduced simulator holds the regions by a penalty or exactly.
 //! - [`runner`]: one loop ([`run`]) for any skinning field and any
 //!   [`hyperelastic::HyperelasticMaterial`], handing every frame to the caller.
-//! - [`frames`]: per-frame PLY and VTK ([`FrameWriter`]); [`splats`]: 3DGS files deformed
+//! - [`frames`]: per-frame PLY and VTK ([`FrameWriter`]), with the stress of
+//!   [`stress_field`] ([`StressField`]: Cauchy, principal, von Mises) when asked; [`splats`]: 3DGS files deformed
 //!   (`Σ' = F Σ Fᵀ`) in their own layout ([`SplatTable`]); [`simulate`]: a scene file end to
 //!   end.
 //! - [`progress`]: progress reported through a trait ([`Progress`]), not a terminal type.
@@ -62,6 +63,7 @@ pub mod simulate;
 pub mod spherical_harmonics;
 pub mod splat_preview;
 pub mod splats;
+pub mod stress_field;
 
 pub use frames::FrameWriter;
 pub use geometry::{Geometry, GeometryError};
@@ -70,8 +72,9 @@ pub use progress::{Progress, Silent};
 pub use runner::{Frame, ObserverResult, RunError, RunReport, Simulation, run};
 pub use scene::{Constraint, FloorSpec, Motion, Region, SceneSpec, SceneSpecError};
 pub use scene_file::{SceneFile, SceneFileError};
-pub use simulate::{SimulateError, SimulateReport, simulate_scene_file};
+pub use simulate::{SimulateError, SimulateReport, StressSummary, simulate_scene_file};
 pub use splat_preview::{
     Camera, PreviewError, PreviewImage, PreviewParams, PreviewSplat, preview_splats, render_preview,
 };
 pub use splats::{SplatFileError, SplatTable};
+pub use stress_field::{StressField, StressFieldError};

@@ -33,6 +33,8 @@
 //!                                     # fresh Hessian every iteration, the paper's setting)
 //! pins = "penalty"                    # hold the constraints by a penalty (default); or
 //! # pins = { exact = { inset = 0.05 } }  # exactly, on each region shrunk by 0.05 m
+//! stress = true                      # Cauchy, principal and von Mises stress in the VTK
+//!                                     # frames and points_NNNNN.vtk (default false)
 //!
 //! [scene]
 //! gravity = [0, -9.8, 0]
@@ -162,6 +164,11 @@ pub struct SimulationSpec {
     /// the basis for the regions shrunk by d m, see [`crate::PinHold`]).
     #[serde(default)]
     pub pins: crate::PinHold,
+    /// Write the stress (Sec. 9.3) into every VTK frame at the surface vertices or cloud
+    /// points, and `points_NNNNN.vtk` of the integration points with theirs (default false:
+    /// not computed). See [`crate::StressField`] for the arrays.
+    #[serde(default)]
+    pub stress: bool,
 }
 
 fn one() -> usize {

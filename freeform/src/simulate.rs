@@ -21,6 +21,7 @@ use crate::runner::RunError;
 use crate::runner::{Simulation, run};
 use crate::scene_file::SceneFile;
 use crate::splats::{SplatFileError, SplatTable};
+use crate::stress_field::StressField;
 
 /// What [`simulate_scene_file`] did.
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
@@ -49,6 +50,20 @@ pub struct SimulateReport {
     /// The elastic quadrature (kind, points, cubature report).
     #[serde(default)]
     pub quadrature: Option<QuadratureReport>,
+    /// The stress over the written frames, when `simulation.stress` asked for it.
+    #[serde(default)]
+    pub stress: Option<StressSummary>,
+}
+
+/// The stress of a run over its written frames (`simulation.stress = true`).
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+pub struct StressSummary {
+    /// Largest von Mises stress at an integration point (Pa).
+    pub max_von_mises: f64,
+    /// Largest von Mises stress at an output vertex or cloud point (Pa).
+    pub max_von_mises_output: f64,
+    /// The most points (integration and output together) with det F ≤ 0 in one frame.
+    pub most_inverted: usize,
 }
 
 /// A scene file could not be run to the end.
@@ -79,7 +94,8 @@ pub enum SimulateError {
 
 /// Runs a scene file with stable Neo-Hookean elasticity and writes `frame_NNNNN.ply` / `.vtk`
 /// (the deformed surface or cloud, every `output_every` steps and the last) and `summary.json`
-/// under `out_dir`. A cubature (`simulation.quadrature`) is cached under `cache_dir` when one
+/// under `out_dir`; with `simulation.stress`, the VTK frames carry the stress at the output
+/// points and `points_NNNNN.vtk` the integration points with theirs ([`StressField`]). A cubature (`simulation.quadrature`) is cached under `cache_dir` when one
 /// is given.
 ///
 /// # Errors
@@ -134,6 +150,24 @@ pub fn simulate_scene_file(
     let output =
         DeformationMap::new(&basis, writer.rest_positions()).map_err(SimulateError::OutputMap)?;
     let mut inverted_splats = 0;
+    // The stress needs F at the integration points too, and the Lamé parameters of both sets
+    // (the scene file's material is uniform).
+    let stress_maps = if file.simulation.stress {
+        let point_map =
+            DeformationMap::new(&basis, points.positions()).map_err(SimulateError::OutputMap)?;
+        Some((
+            point_map,
+            vec![lame; points.len()],
+            vec![lame; writer.rest_positions().len()],
+        ))
+    } else {
+        None
+    };
+    let mut stress_summary = stress_maps.as_ref().map(|_| StressSummary {
+        max_von_mises: 0.0,
+        max_von_mises_output: 0.0,
+        most_inverted: 0,
+    });
     let steps = file.simulation.steps;
     let simulation = Simulation {
         field: &basis,
@@ -166,6 +200,35 @@ pub fn simulate_scene_file(
         let z = &frame.simulator.state().z;
         if frame.index % file.simulation.output_every == 0 || frame.index == steps {
             let x = output.positions(z);
+            let output_stress = match (&stress_maps, &mut stress_summary) {
+                (Some((point_map, point_lame, output_lame)), Some(summary)) => {
+                    let at_points = StressField::new(
+                        &StableNeoHookean,
+                        point_lame,
+                        &point_map.deformation_gradients(z),
+                    )?;
+                    writer.write_points(
+                        frame.index,
+                        &point_map.positions(z),
+                        points.positions(),
+                        frame.time,
+                        Some(&at_points),
+                    )?;
+                    let at_output = StressField::new(
+                        &StableNeoHookean,
+                        output_lame,
+                        &output.deformation_gradients(z),
+                    )?;
+                    summary.max_von_mises = summary.max_von_mises.max(at_points.max_von_mises());
+                    summary.max_von_mises_output =
+                        summary.max_von_mises_output.max(at_output.max_von_mises());
+                    summary.most_inverted = summary
+                        .most_inverted
+                        .max(at_points.inverted.len() + at_output.inverted.len());
+                    Some(at_output)
+                }
+                _ => None,
+            };
             match &splats {
                 Some(table) => {
                     let (deformed, inverted) =
@@ -174,7 +237,12 @@ pub fn simulate_scene_file(
                     inverted_splats = inverted_splats.max(inverted);
                 }
                 None => {
-                    writer.write(frame.index, &x, frame.time)?;
+                    writer.write_with_stress(
+                        frame.index,
+                        &x,
+                        frame.time,
+                        output_stress.as_ref(),
+                    )?;
                 }
             }
             frames_written += 1;
@@ -204,6 +272,7 @@ pub fn simulate_scene_file(
             .fold(0.0, f64::max),
         inverted_splats,
         quadrature: Some(report.quadrature.clone()),
+        stress: stress_summary,
     };
     write_atomically(
         &out_dir.join("summary.json"),

@@ -31,7 +31,9 @@ pub mod psd_projection;
 pub mod signed_svd;
 pub mod stable_neo_hookean;
 
-pub use cauchy_stress::{CauchyStressError, cauchy_stress, principal_stresses};
+pub use cauchy_stress::{
+    CauchyStressError, StressSample, cauchy_stress, principal_stresses, von_mises_stress,
+};
 pub use determinant::{Matrix9, cofactor, determinant_hessian};
 pub use lame_parameters::{LameParameters, MaterialParameterError};
 pub use linear_elastic::LinearElastic;

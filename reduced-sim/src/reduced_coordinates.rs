@@ -54,6 +54,13 @@ impl ReducedLayout {
     /// z of the rigid motion `x = R X + t` carried by the constant handle:
     /// `Z_0 = [R - I | t]`, every other `Z_j = 0`. `rotation` (orthonormal), `translation` (m).
     pub fn rigid_motion(&self, rotation: &Matrix3<f64>, translation: &Vector3<f64>) -> Vec<f64> {
+        self.affine_motion(rotation, translation)
+    }
+
+    /// z of the affine motion `x = A X + t` carried by the constant handle (F = A at every
+    /// point): `Z_0 = [A - I | t]`, every other `Z_j = 0`. `translation` in m.
+    pub fn affine_motion(&self, matrix: &Matrix3<f64>, translation: &Vector3<f64>) -> Vec<f64> {
+        let rotation = matrix;
         let mut z = self.rest();
         for r in 0..3 {
             for c in 0..3 {

@@ -118,7 +118,7 @@ pub(crate) fn run(
             let path = dir.join(format!("{name}_{step:04}.vtk"));
             write_atomically(
                 &path,
-                unstructured_grid_vtk(&frames[step], &vertices, tets, times[step]).as_bytes(),
+                unstructured_grid_vtk(&frames[step], &vertices, tets, times[step], None).as_bytes(),
             )?;
             frames_written += 1;
         }

@@ -111,6 +111,10 @@ enum Command {
     Simulate {
         /// The scene file.
         scene: PathBuf,
+        /// Write the stress into the VTK frames and `points_NNNNN.vtk` (Cauchy tensor,
+        /// principal and von Mises stress, Pa), whatever the scene file's `simulation.stress`.
+        #[arg(long)]
+        stress: bool,
     },
     /// Reproduce paper tables: 1 (MSE vs FEM), 3 (training ablations), 4 (grid vs random
     /// simulation points), 5 (ms per step), 6 (basis fitting residual) on the beam; 2 (MSE and
@@ -216,7 +220,9 @@ fn run(cli: Cli) -> Result<()> {
             volume_target,
             keep_units,
         } => mesh::run(&surface, cells, volume_target, keep_units, &cli.out),
-        Command::Simulate { scene } => simulate::run(&scene, &cli.out, &cache, progress),
+        Command::Simulate { scene, stress } => {
+            simulate::run(&scene, stress, &cli.out, &cache, progress)
+        }
         Command::Render { files, options } => render::run(&files, &options, &cli.out),
         Command::Table { numbers, options } => {
             table::run(&numbers, options, &cli.out, &cache, &progress)

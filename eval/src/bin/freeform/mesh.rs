@@ -41,7 +41,7 @@ pub(crate) fn run(
     let file = out.join(format!("{stem}.vtk"));
     write_atomically(
         &file,
-        unstructured_grid_vtk(tets.vertices(), tets.vertices(), tets.tets(), 0.0).as_bytes(),
+        unstructured_grid_vtk(tets.vertices(), tets.vertices(), tets.tets(), 0.0, None).as_bytes(),
     )?;
     let q = &report.quality;
     println!(

@@ -6,9 +6,17 @@ use anyhow::Result;
 use eval::progress::{BarProgress, Progress};
 use freeform::{SceneFile, simulate_scene_file};
 
-/// Runs `scene` and writes its frames under `<out>/<scene stem>/`.
-pub(crate) fn run(scene: &Path, out: &Path, cache: &Path, progress: Progress) -> Result<()> {
-    let file = SceneFile::load(scene)?;
+/// Runs `scene` and writes its frames under `<out>/<scene stem>/`, with the stress when
+/// `stress` (or the file) asks for it.
+pub(crate) fn run(
+    scene: &Path,
+    stress: bool,
+    out: &Path,
+    cache: &Path,
+    progress: Progress,
+) -> Result<()> {
+    let mut file = SceneFile::load(scene)?;
+    file.simulation.stress |= stress;
     let stem = scene.file_stem().unwrap_or_default().to_string_lossy();
     let out = out.join(stem.as_ref());
     let report = simulate_scene_file(&file, &out, Some(cache), &BarProgress::new(progress))?;
@@ -44,6 +52,13 @@ pub(crate) fn run(scene: &Path, out: &Path, cache: &Path, progress: Progress) ->
             }
             None => println!("elastic quadrature: {} ({} points)", q.kind, q.points),
         }
+    }
+    if let Some(stress) = &report.stress {
+        println!(
+            "stress written: largest von Mises {:.4e} Pa (output points {:.4e} Pa); {} inverted \
+             points (stress written as 0, flagged `inverted`)",
+            stress.max_von_mises, stress.max_von_mises_output, stress.most_inverted
+        );
     }
     Ok(())
 }
