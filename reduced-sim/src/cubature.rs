@@ -558,9 +558,11 @@ pub fn optimize_cubature_on<M: HyperelasticMaterial>(
     Ok((quadrature, report))
 }
 
-/// File kind and format version of cached cubatures.
+/// File kind and format version of cached cubatures. The version is part of the cache key:
+/// bump it whenever the optimization changes its result (2: zero-weight candidates leave the
+/// greedy set).
 const CUBATURE_MAGIC: &[u8] = b"FREEFORM-CUBATURE";
-const CUBATURE_FORMAT_VERSION: u32 = 1;
+const CUBATURE_FORMAT_VERSION: u32 = 2;
 
 /// A cached cubature: its points, weights and the report of its optimization.
 #[derive(Serialize, Deserialize)]
