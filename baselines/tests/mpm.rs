@@ -190,6 +190,7 @@ fn a_block_dropped_on_the_floor_stays_above_it() {
         floor: Some(Floor {
             normal: Vector3::y(),
             offset: 0.0,
+            friction: 0.0,
         }),
         ..Scene::default()
     };

@@ -31,6 +31,7 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
         floor: Some(FloorSpec {
             normal: Vector3::y(),
             offset: -0.3,
+            friction: 0.0,
         }), // 0.3 m below the cow
         ..Default::default()
     };

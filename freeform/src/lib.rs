@@ -33,7 +33,7 @@
 //! let (basis, _, _) = skin_eigen::build_basis(&points, &lame, &params)?;
 //! let scene = SceneSpec {
 //!     gravity: Some(Vector3::new(0.0, -9.8, 0.0)),
-//!     floor: Some(FloorSpec { normal: Vector3::y(), offset: -0.5 }),
+//!     floor: Some(FloorSpec { normal: Vector3::y(), offset: -0.5, friction: 0.3 }),
 //!     ..Default::default()
 //! };
 //! let simulation = Simulation {

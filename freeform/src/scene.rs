@@ -153,6 +153,11 @@ pub struct FloorSpec {
     pub normal: Vector3<f64>,
     /// Plane offset (m).
     pub offset: f64,
+    /// Coulomb friction coefficient μ (default 0), for the reduced simulator
+    /// ([`reduced_sim::Floor::friction`]); the FEM reference's floor is frictionless and
+    /// refuses a floor with friction ([`SceneSpecError::FemFriction`]).
+    #[serde(default)]
+    pub friction: f64,
 }
 
 /// Everything that acts on the object, independent of the solver.
@@ -188,6 +193,14 @@ pub enum SceneSpecError {
     /// An axis index above 2, a zero rotation axis or floor normal, or a non-finite value.
     #[error("invalid scene: {0}")]
     Invalid(String),
+    /// The FEM reference has no friction model: a floor with friction cannot be compared.
+    #[error(
+        "the FEM reference's floor is frictionless; this scene's floor has friction μ = {friction}"
+    )]
+    FemFriction {
+        /// μ of the floor.
+        friction: f64,
+    },
 }
 
 impl SceneSpec {
@@ -224,6 +237,14 @@ impl SceneSpec {
             return Err(SceneSpecError::Invalid(format!(
                 "floor normal {:?} / offset {} is zero or not finite",
                 f.normal, f.offset
+            )));
+        }
+        if let Some(f) = &self.floor
+            && !(f.friction >= 0.0 && f.friction.is_finite())
+        {
+            return Err(SceneSpecError::Invalid(format!(
+                "floor friction {} is negative or not finite",
+                f.friction
             )));
         }
         Ok(())
@@ -288,6 +309,7 @@ impl SceneSpec {
             floor: self.floor.map(|f| Floor {
                 normal: f.normal.normalize(),
                 offset: f.offset,
+                friction: f.friction,
             }),
             held: Vec::new(),
         })
@@ -297,12 +319,19 @@ impl SceneSpec {
     /// factor `floor_factor`.
     ///
     /// # Errors
-    /// As [`SceneSpec::select`].
+    /// As [`SceneSpec::select`]; [`SceneSpecError::FemFriction`] for a floor with friction.
     pub fn fem_scene(
         &self,
         nodes: &[Vector3<f64>],
         floor_factor: f64,
     ) -> Result<FemScene, SceneSpecError> {
+        if let Some(f) = &self.floor
+            && f.friction != 0.0
+        {
+            return Err(SceneSpecError::FemFriction {
+                friction: f.friction,
+            });
+        }
         let selections = self.select(nodes, "FEM nodes")?;
         Ok(FemScene {
             gravity: self.gravity,

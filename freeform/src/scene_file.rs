@@ -38,6 +38,7 @@
 //!
 //! [scene]
 //! gravity = [0, -9.8, 0]
+//! floor = { normal = [0, 1, 0], offset = -0.5, friction = 0.4 }  # optional; μ default 0
 //! [[scene.constraints]]
 //! region = { below = { axis = 1, value = 0.05 } }
 //! motion = "rest"

@@ -2,7 +2,10 @@
 //!
 //! ```text
 //! E(z) = 1/(2h²) (z - ẑ)ᵀ M_z (z - ẑ) + Σ_i v_i Ψ(F_i(z)) + E_grav(z) + E_pin(z, t+h) + E_floor(z)
+//!        + D(z)
 //! ```
+//!
+//! with D the floor's lagged friction potential (`floor_friction`, when the floor has μ > 0).
 //!
 //! with `ẑ = z_t + h ż_t`. Without the inertia term it is the static equilibrium problem.
 //!
@@ -15,6 +18,7 @@ use faer::{Mat, Side};
 use hyperelastic::{HyperelasticMaterial, Tangent};
 use optimize::NewtonObjective;
 
+use crate::floor_friction::FloorFriction;
 use crate::reduced_model::ReducedModel;
 use crate::scene_terms::{PinTargets, SceneTerms};
 
@@ -36,12 +40,17 @@ pub struct IncrementalPotential<'a, M: HyperelasticMaterial> {
     /// With held regions ([`crate::Scene::held`]): the entries of z Newton solves
     /// for; the others stay as prescribed.
     pub(crate) free: Option<&'a [usize]>,
+    /// The floor's friction, lagged at the start of the step (dynamic steps only).
+    pub(crate) friction: Option<FloorFriction>,
 }
 
 impl<M: HyperelasticMaterial> IncrementalPotential<'_, M> {
     /// E(z) (J, up to a constant). Non-finite when some term is.
     pub fn energy(&self, z: &[f64]) -> f64 {
         let mut e = self.model.elastic_energy(z) + self.terms.energy(self.model, z, &self.targets);
+        if let Some(friction) = &self.friction {
+            e += friction.energy(self.model.deformation_map(), z);
+        }
         if let Some(inertia) = &self.inertia {
             let d: Vec<f64> = z
                 .iter()
@@ -67,6 +76,14 @@ impl<M: HyperelasticMaterial> IncrementalPotential<'_, M> {
             &mut gradient,
             Some(&mut hessian),
         );
+        if let Some(friction) = &self.friction {
+            friction.add_derivatives(
+                self.model.deformation_map(),
+                z,
+                &mut gradient,
+                Some(&mut hessian),
+            );
+        }
         self.add_inertia(z, &mut gradient, Some(&mut hessian));
         (gradient, hessian)
     }
@@ -76,6 +93,9 @@ impl<M: HyperelasticMaterial> IncrementalPotential<'_, M> {
         let mut gradient = self.model.elastic_gradient(z);
         self.terms
             .add_derivatives(self.model, z, &self.targets, &mut gradient, None);
+        if let Some(friction) = &self.friction {
+            friction.add_derivatives(self.model.deformation_map(), z, &mut gradient, None);
+        }
         self.add_inertia(z, &mut gradient, None);
         gradient
     }
@@ -209,7 +229,8 @@ mod tests {
             .collect()
     }
 
-    /// Every term at once: inertia, elasticity, gravity, a moving pin and an active floor.
+    /// Every term at once: inertia, elasticity, gravity, a moving pin, an active floor and its
+    /// friction (lagged at another z, with contacts both below and beyond the slip threshold).
     fn check_derivatives(tangent: Tangent) {
         let (model, _) = analytic_model();
         let pinned = model.points_where(|x| x.x < 0.3);
@@ -223,10 +244,16 @@ mod tests {
             floor: Some(Floor {
                 normal: Vector3::new(0.0, 1.0, 0.0),
                 offset: 0.35,
+                friction: 0.6,
             }),
             held: Vec::new(),
         };
-        let terms = SceneTerms::new(&model, &scene, &PenaltyParams::default()).unwrap();
+        // ε = ε_v h = 1 cm: the slips between the lag and the probe (a few cm) straddle it.
+        let penalty = PenaltyParams {
+            friction_slip_speed: 1.0,
+            ..PenaltyParams::default()
+        };
+        let terms = SceneTerms::new(&model, &scene, &penalty).unwrap();
         let len = model.deformation_map().layout().len();
         let predicted = probe_z(len, 0.01);
         let potential = IncrementalPotential {
@@ -239,7 +266,10 @@ mod tests {
             }),
             tangent,
             free: None,
+            friction: terms.floor_friction(&model, &probe_z(len, -0.02), &predicted, 0.01),
         };
+        let friction = potential.friction.as_ref().expect("points touch the floor");
+        assert!(friction.points().len() > 10);
         let z = probe_z(len, 0.03);
         let (gradient, hessian) = potential.derivatives(&z);
         let numeric = finite_difference::gradient(|z| potential.energy(z), &z, 1e-7);

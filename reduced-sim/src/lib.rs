@@ -41,6 +41,7 @@ mod analytic_field;
 pub mod cubature;
 pub mod deformation_map;
 pub mod elastic_energy;
+mod floor_friction;
 mod held_regions;
 pub mod incremental_potential;
 pub mod quadrature;

@@ -6,6 +6,7 @@ use hyperelastic::HyperelasticMaterial;
 use nalgebra::Vector3;
 use thiserror::Error;
 
+use crate::floor_friction::FloorFriction;
 use crate::held_regions::HeldRegions;
 use crate::reduced_model::ReducedModel;
 use crate::scene::{Floor, PenaltyParams, PinModulus, PinTarget, Scene};
@@ -68,6 +69,17 @@ pub enum SceneError {
         /// The weight of a held region (1 or 0).
         expected: f64,
     },
+    /// The floor's friction coefficient is negative or not finite, or the slip speed is not
+    /// finite and positive.
+    #[error(
+        "floor friction needs a finite coefficient μ ≥ 0 and a finite slip speed ε_v > 0, got μ = {friction}, ε_v = {slip_speed} m/s"
+    )]
+    Friction {
+        /// μ given.
+        friction: f64,
+        /// ε_v given (m/s).
+        slip_speed: f64,
+    },
     /// A penalty factor is not finite and positive.
     #[error("penalty factors must be finite and positive, got pin {pin}, floor {floor}")]
     Penalty {
@@ -96,6 +108,8 @@ pub(crate) struct SceneTerms {
     pin_stiffness: f64,
     floor: Option<Floor>,
     floor_stiffness: f64,
+    /// ε_v (m/s) of the floor's friction.
+    friction_slip_speed: f64,
     /// The held regions ([`Scene::held`]), whose terms follow the penalized ones in `pins`.
     held: Option<HeldRegions>,
     /// How many of `pins` carry the penalty (the first ones).
@@ -213,9 +227,19 @@ impl SceneTerms {
                         offset: floor.offset,
                     });
                 }
+                let slip_speed = penalty.friction_slip_speed;
+                let friction_valid = floor.friction >= 0.0 && floor.friction.is_finite();
+                let slip_valid = slip_speed > 0.0 && slip_speed.is_finite();
+                if !(friction_valid && slip_valid) {
+                    return Err(SceneError::Friction {
+                        friction: floor.friction,
+                        slip_speed,
+                    });
+                }
                 Some(Floor {
                     normal: floor.normal / norm,
                     offset: floor.offset / norm,
+                    friction: floor.friction,
                 })
             }
         };
@@ -238,6 +262,7 @@ impl SceneTerms {
             pin_stiffness,
             floor,
             floor_stiffness: penalty.floor_factor * scale,
+            friction_slip_speed: penalty.friction_slip_speed,
             held,
             penalized,
         })
@@ -324,6 +349,30 @@ impl SceneTerms {
             }
         }
         e
+    }
+
+    /// The floor's friction over a step of `time_step` (s) that starts at `start` (slips are
+    /// measured from there), with contacts and normal forces lagged at `contact`; `None`
+    /// without a floor, friction or contact.
+    pub(crate) fn floor_friction<M: HyperelasticMaterial>(
+        &self,
+        model: &ReducedModel<M>,
+        start: &[f64],
+        contact: &[f64],
+        time_step: f64,
+    ) -> Option<FloorFriction> {
+        let floor = self.floor.as_ref().filter(|f| f.friction > 0.0)?;
+        let map = model.deformation_map();
+        FloorFriction::lagged(
+            &map.positions(start),
+            &map.positions(contact),
+            model.volumes(),
+            &floor.normal,
+            floor.offset,
+            self.floor_stiffness,
+            floor.friction,
+            self.friction_slip_speed * time_step,
+        )
     }
 
     /// The points below the floor at z, in index order (empty without a floor): the points

@@ -275,33 +275,23 @@ impl<M: HyperelasticMaterial> Simulator<M> {
         }
         let predicted = self.predicted_coordinates();
         let next_time = self.state.time + h;
-        let potential = self.step_potential(&predicted);
-        let mut start = predicted.clone();
-        self.terms.prescribe(&mut start, &potential.targets);
-        let mut z = start.clone();
-        let report = match self.params.newton.hessian_reuse {
-            HessianReuse::Never => minimize(&potential, &mut z, &self.params.newton)?,
-            HessianReuse::WhileContracting { .. } => {
-                let reused =
-                    minimize_reusing(&potential, &mut z, &self.params.newton, &mut factor)?;
-                if reused.converged() {
-                    reused
-                } else {
-                    // Chord steps can spend the iteration budget that Newton needs: a step
-                    // that does not converge with reuse is solved again with fresh Hessians
-                    // from the prediction, so reuse is never less robust than the paper's
-                    // setting. The report counts both attempts.
-                    z.clone_from(&start);
-                    factor = None;
-                    let fresh = NewtonParams {
-                        hessian_reuse: HessianReuse::Never,
-                        ..self.params.newton
-                    };
-                    let retried = minimize_reusing(&potential, &mut z, &fresh, &mut factor)?;
-                    combined(&reused, &retried)
-                }
-            }
-        };
+        let mut potential = self.step_potential(&predicted);
+        let mut z = predicted.clone();
+        self.terms.prescribe(&mut z, &potential.targets);
+        let mut report = self.minimize_step(&potential, &mut z, &mut factor)?;
+        // Friction lagging (IPC): the floor's contacts and normal forces taken again from the
+        // solution, the slip still measured from the start of the step, and solved again from
+        // there, `friction_lag_iterations` times at most.
+        for _ in 0..self.params.penalty.friction_lag_iterations {
+            let Some(friction) = self.terms.floor_friction(&self.model, &self.state.z, &z, h)
+            else {
+                break;
+            };
+            potential.friction = Some(friction);
+            let again = self.minimize_step(&potential, &mut z, &mut factor)?;
+            report = combined(&report, &again);
+        }
+        drop(potential);
         let contacts = self.terms.contacts(&self.model, &z);
         self.factor_age = if report.hessian_assemblies > 0 {
             1
@@ -325,6 +315,39 @@ impl<M: HyperelasticMaterial> Simulator<M> {
             time: next_time,
         };
         Ok(report)
+    }
+
+    /// Minimizes `potential` from z (updated in place), carrying `factor` across when the
+    /// Newton options reuse Hessians; a solve that does not converge that way is solved again
+    /// with fresh Hessians from the same start (the report counts both attempts).
+    fn minimize_step(
+        &self,
+        potential: &IncrementalPotential<'_, M>,
+        z: &mut Vec<f64>,
+        factor: &mut Option<Llt<f64>>,
+    ) -> Result<NewtonReport, StepError> {
+        Ok(match self.params.newton.hessian_reuse {
+            HessianReuse::Never => minimize(potential, z, &self.params.newton)?,
+            HessianReuse::WhileContracting { .. } => {
+                let start = z.clone();
+                let reused = minimize_reusing(potential, z, &self.params.newton, factor)?;
+                if reused.converged() {
+                    reused
+                } else {
+                    // Chord steps can spend the iteration budget that Newton needs: a solve
+                    // that does not converge with reuse is solved again with fresh Hessians
+                    // from its start, so reuse is never less robust than the paper's setting.
+                    z.clone_from(&start);
+                    *factor = None;
+                    let fresh = NewtonParams {
+                        hessian_reuse: HessianReuse::Never,
+                        ..self.params.newton
+                    };
+                    let retried = minimize_reusing(potential, z, &fresh, factor)?;
+                    combined(&reused, &retried)
+                }
+            }
+        })
     }
 
     /// The inertial prediction `ẑ = z_t + h ż_t` of the next step (length 12(m + 1)).
@@ -355,6 +378,9 @@ impl<M: HyperelasticMaterial> Simulator<M> {
             }),
             tangent: self.params.tangent,
             free: self.terms.free_coordinates(),
+            friction: self
+                .terms
+                .floor_friction(&self.model, &self.state.z, &self.state.z, h),
         }
     }
 
@@ -373,6 +399,7 @@ impl<M: HyperelasticMaterial> Simulator<M> {
             inertia: None,
             tangent: self.params.tangent,
             free: self.terms.free_coordinates(),
+            friction: None,
         };
         let mut z = self.state.z.clone();
         self.terms.prescribe(&mut z, &potential.targets);

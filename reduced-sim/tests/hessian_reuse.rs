@@ -83,6 +83,7 @@ fn a_change_of_the_floor_contacts_forces_a_fresh_factorization() {
     let floor = Floor {
         normal: Vector3::y(),
         offset: -0.05,
+        friction: 0.0,
     };
     let scene = Scene {
         gravity: Some(Vector3::new(0.0, -9.8, 0.0)),

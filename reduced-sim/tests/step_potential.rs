@@ -24,6 +24,7 @@ fn simulator(tangent: Tangent) -> Simulator<StableNeoHookean> {
         floor: Some(Floor {
             normal: Vector3::y(),
             offset: 0.08,
+            friction: 0.0,
         }),
         held: Vec::new(),
     };

@@ -60,6 +60,7 @@ fn floor_drop_scene() -> SceneSpec {
         floor: Some(FloorSpec {
             normal: Vector3::y(),
             offset: 0.0,
+            friction: 0.0,
         }),
     }
 }

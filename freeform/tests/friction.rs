@@ -1,0 +1,124 @@
+//! Floor friction (issue 21): a block on a 30° incline sticks when μ > tan 30° and slides with
+//! Coulomb's acceleration g (sin θ − μ cos θ) when μ < tan 30°.
+//!
+//! The incline is the floor y ≥ 0 with gravity tilted by θ: `g = 9.8 (sin θ, −cos θ, 0)` m/s²,
+//! so the block's bottom face starts on the plane and "down the slope" is +x.
+
+use freeform::{FloorSpec, Geometry, SceneSpec, Simulation, run};
+use hyperelastic::{MaterialField, MaterialSample, StableNeoHookean};
+use nalgebra::Vector3;
+use reduced_sim::{QuadratureRule, SimulationParams};
+use skin_eigen::{BasisParams, build_basis};
+
+const G: f64 = 9.8;
+const H: f64 = 0.01;
+const THETA: f64 = std::f64::consts::FRAC_PI_6;
+
+/// The block's volume-weighted mean x (m) after each of `steps` steps on the incline with
+/// friction coefficient `friction`.
+fn slide(friction: f64, steps: usize) -> Vec<f64> {
+    let geometry = Geometry::cuboid(Vector3::zeros(), Vector3::new(0.2, 0.2, 0.2));
+    let points = geometry.integration_points(800).unwrap();
+    let material = MaterialSample {
+        youngs_modulus: 1e6,
+        poisson_ratio: 0.3,
+        density: 1000.0,
+    };
+    let lame = vec![material.lame_parameters().unwrap(); points.len()];
+    let params = BasisParams::default().with_modes(4).with_kernels(60);
+    let (basis, _, _) = build_basis(&points, &lame, &params).unwrap();
+    let scene = SceneSpec {
+        gravity: Some(Vector3::new(G * THETA.sin(), -G * THETA.cos(), 0.0)),
+        floor: Some(FloorSpec {
+            normal: Vector3::y(),
+            offset: 0.0,
+            friction,
+        }),
+        ..Default::default()
+    };
+    let material = MaterialField::Uniform(material);
+    let simulation = Simulation {
+        field: &basis,
+        points: &points,
+        material: &material,
+        material_model: StableNeoHookean,
+        scene: &scene,
+        params: SimulationParams {
+            time_step: H,
+            ..Default::default()
+        },
+        quadrature: QuadratureRule::Full,
+        cache_dir: None,
+        pin_hold: Default::default(),
+    };
+    let volume: f64 = points.volumes().iter().sum();
+    let mut mean_x = Vec::new();
+    let report = run(&simulation, steps, |frame| {
+        let map = frame.simulator.model().deformation_map();
+        let x = map.positions(&frame.simulator.state().z);
+        let sum: f64 = x.iter().zip(points.volumes()).map(|(x, v)| x.x * v).sum();
+        mean_x.push(sum / volume);
+        Ok(())
+    })
+    .unwrap();
+    assert_eq!(report.unconverged_steps, 0);
+    mean_x
+}
+
+#[test]
+fn a_block_on_a_30_degree_incline_sticks_with_friction_0_7() {
+    let x = slide(0.7, 120);
+    // One second after the first 0.1 s, in which the penalty floor takes up the weight: the
+    // block sinks into it and bounces, and slips about 6 mm while the normal force is short of
+    // its weight. After that the smoothed friction creeps at about 0.58 ε_v (0.6 mm/s).
+    let moved = (x[110] - x[10]).abs();
+    assert!(moved < 1e-3, "moved {moved} m in 1 s");
+}
+
+#[test]
+fn a_block_on_a_30_degree_incline_slides_at_coulombs_acceleration_with_friction_0_2() {
+    let friction = 0.2;
+    let x = slide(friction, 100);
+    // Least squares x(t) = c₀ + c₁ t + a t²/2 over t ∈ [0.2, 1] s (backward Euler's positions
+    // under a constant acceleration are exactly such a quadratic).
+    let samples: Vec<(f64, f64)> = (20..=100).map(|n| (n as f64 * H, x[n])).collect();
+    let design = nalgebra::DMatrix::from_fn(samples.len(), 3, |i, j| {
+        let t = samples[i].0;
+        [1.0, t, 0.5 * t * t][j]
+    });
+    let rhs = nalgebra::DVector::from_iterator(samples.len(), samples.iter().map(|s| s.1));
+    let fit = design
+        .svd(true, true)
+        .solve(&rhs, 1e-12)
+        .expect("full column rank");
+    let expected = G * (THETA.sin() - friction * THETA.cos());
+    let acceleration = fit[2];
+    // The issue asks for 5%; the lagged normal force has settled by 0.2 s, so the fit is far
+    // closer (about 1e-9 relative), and 0.5% still catches a friction force off by 1%.
+    assert!(
+        (acceleration - expected).abs() <= 0.005 * expected,
+        "acceleration {acceleration} m/s², Coulomb {expected} m/s²"
+    );
+}
+
+#[test]
+fn a_negative_friction_and_a_frictional_floor_for_the_fem_are_named_errors() {
+    let with_friction = |friction| SceneSpec {
+        floor: Some(FloorSpec {
+            normal: Vector3::y(),
+            offset: 0.0,
+            friction,
+        }),
+        ..Default::default()
+    };
+    assert!(matches!(
+        with_friction(-0.1).validate(),
+        Err(freeform::SceneSpecError::Invalid(why)) if why.contains("friction")
+    ));
+    assert!(with_friction(0.3).validate().is_ok());
+    assert!(matches!(
+        with_friction(0.3).fem_scene(&[Vector3::zeros()], 1e4),
+        Err(freeform::SceneSpecError::FemFriction { friction }) if friction == 0.3
+    ));
+    assert!(with_friction(0.0).fem_scene(&[Vector3::zeros()], 1e4).is_ok());
+}
