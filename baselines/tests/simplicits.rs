@@ -221,6 +221,7 @@ fn short_training_lowers_the_loss_deterministically_and_the_field_simulates() {
         }],
         floor: None,
         held: Vec::new(),
+        colliders: Vec::new(),
     };
     let mut sim = Simulator::new(model, &scene, SimulationParams::default()).unwrap();
     for _ in 0..3 {

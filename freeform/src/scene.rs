@@ -10,7 +10,7 @@ use std::sync::Arc;
 
 use fem_ref::{DirichletRegion, FemFloor, FemScene, NodeTarget};
 use nalgebra::{Rotation3, Unit, Vector3};
-use reduced_sim::{Floor, PinTarget, PinnedRegion, Scene, TargetFunction};
+use reduced_sim::{Collider, Floor, PinTarget, PinnedRegion, Scene, TargetFunction};
 use serde::{Deserialize, Serialize};
 use thiserror::Error;
 
@@ -173,6 +173,11 @@ pub struct SceneSpec {
     /// Floor, if any.
     #[serde(default)]
     pub floor: Option<FloorSpec>,
+    /// Kinematic colliders (sphere, box, capsule on keyframed rigid paths) that push and rub
+    /// the object; reduced simulator only (the FEM reference refuses them,
+    /// [`SceneSpecError::FemColliders`]).
+    #[serde(default)]
+    pub colliders: Vec<Collider>,
 }
 
 /// A scene cannot be applied.
@@ -200,6 +205,12 @@ pub enum SceneSpecError {
     FemFriction {
         /// μ of the floor.
         friction: f64,
+    },
+    /// The FEM reference has no kinematic colliders.
+    #[error("the FEM reference has no colliders; this scene has {colliders}")]
+    FemColliders {
+        /// How many the scene has.
+        colliders: usize,
     },
 }
 
@@ -239,6 +250,14 @@ impl SceneSpec {
                 f.normal, f.offset
             )));
         }
+        if let Some((i, why)) = self
+            .colliders
+            .iter()
+            .enumerate()
+            .find_map(|(i, c)| c.defect().map(|why| (i, why)))
+        {
+            return Err(SceneSpecError::Invalid(format!("colliders[{i}]: {why}")));
+        }
         if let Some(f) = &self.floor
             && !(f.friction >= 0.0 && f.friction.is_finite())
         {
@@ -250,9 +269,26 @@ impl SceneSpec {
         Ok(())
     }
 
-    /// A stable text naming every part of the scene, for cache keys.
+    /// A stable text naming every part of the scene, for cache keys. Fields added after the
+    /// first caches (floor friction, colliders) appear only when they differ from their
+    /// defaults, so the keys of scenes without them did not change.
     pub fn label(&self) -> String {
-        format!("{self:?}")
+        let floor = match &self.floor {
+            None => "None".to_string(),
+            Some(f) if f.friction == 0.0 => format!(
+                "Some(FloorSpec {{ normal: {:?}, offset: {:?} }})",
+                f.normal, f.offset
+            ),
+            Some(f) => format!("Some({f:?})"),
+        };
+        let mut label = format!(
+            "SceneSpec {{ gravity: {:?}, constraints: {:?}, floor: {floor}",
+            self.gravity, self.constraints
+        );
+        if !self.colliders.is_empty() {
+            label += &format!(", colliders: {:?}", self.colliders);
+        }
+        label + " }"
     }
 
     /// Indices of `points` in each constraint's region.
@@ -312,6 +348,7 @@ impl SceneSpec {
                 friction: f.friction,
             }),
             held: Vec::new(),
+            colliders: self.colliders.clone(),
         })
     }
 
@@ -319,7 +356,8 @@ impl SceneSpec {
     /// factor `floor_factor`.
     ///
     /// # Errors
-    /// As [`SceneSpec::select`]; [`SceneSpecError::FemFriction`] for a floor with friction.
+    /// As [`SceneSpec::select`]; [`SceneSpecError::FemFriction`] for a floor with friction,
+    /// [`SceneSpecError::FemColliders`] for colliders.
     pub fn fem_scene(
         &self,
         nodes: &[Vector3<f64>],
@@ -330,6 +368,11 @@ impl SceneSpec {
         {
             return Err(SceneSpecError::FemFriction {
                 friction: f.friction,
+            });
+        }
+        if !self.colliders.is_empty() {
+            return Err(SceneSpecError::FemColliders {
+                colliders: self.colliders.len(),
             });
         }
         let selections = self.select(nodes, "FEM nodes")?;

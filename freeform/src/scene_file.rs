@@ -39,6 +39,11 @@
 //! [scene]
 //! gravity = [0, -9.8, 0]
 //! floor = { normal = [0, 1, 0], offset = -0.5, friction = 0.4 }  # optional; μ default 0
+//! [[scene.colliders]]            # optional kinematic colliders: sphere, box, capsule
+//! shape = { box = { half_extents = [0.05, 0.2, 0.2] } }
+//! friction = 0.3                 # default 0
+//! path = [{ time = 0, translation = [-0.2, 0.2, 0.5] },              # rotation = [i, j, k, w]
+//!         { time = 2, translation = [0.6, 0.2, 0.5], rotation = [0, 0, 0, 1] }]
 //! [[scene.constraints]]
 //! region = { below = { axis = 1, value = 0.05 } }
 //! motion = "rest"

@@ -120,5 +120,36 @@ fn a_negative_friction_and_a_frictional_floor_for_the_fem_are_named_errors() {
         with_friction(0.3).fem_scene(&[Vector3::zeros()], 1e4),
         Err(freeform::SceneSpecError::FemFriction { friction }) if friction == 0.3
     ));
-    assert!(with_friction(0.0).fem_scene(&[Vector3::zeros()], 1e4).is_ok());
+    assert!(
+        with_friction(0.0)
+            .fem_scene(&[Vector3::zeros()], 1e4)
+            .is_ok()
+    );
+}
+
+#[test]
+fn scene_labels_without_friction_or_colliders_keep_the_form_cached_results_were_keyed_by() {
+    let scene = SceneSpec {
+        gravity: Some(Vector3::new(0.0, -9.8, 0.0)),
+        floor: Some(FloorSpec {
+            normal: Vector3::y(),
+            offset: 0.5,
+            friction: 0.0,
+        }),
+        ..Default::default()
+    };
+    // The derived Debug of the scene before floor friction and colliders existed.
+    assert_eq!(
+        scene.label(),
+        "SceneSpec { gravity: Some([[0.0, -9.8, 0.0]]), constraints: [], floor: \
+         Some(FloorSpec { normal: [[0.0, 1.0, 0.0]], offset: 0.5 }) }"
+    );
+    let rubbing = SceneSpec {
+        floor: Some(FloorSpec {
+            friction: 0.4,
+            ..scene.floor.unwrap()
+        }),
+        ..scene.clone()
+    };
+    assert_ne!(rubbing.label(), scene.label());
 }

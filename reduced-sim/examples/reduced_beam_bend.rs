@@ -217,6 +217,7 @@ fn run() -> Result<(), String> {
             Vec::new()
         },
         floor: None,
+        colliders: Vec::new(),
     };
     let base = if fresh_hessians {
         SimulationParams::paper_setting()

@@ -270,6 +270,89 @@ impl DeformationMap {
             .collect()
     }
 
+    /// The position `x_i(z) = X_i + B_i z` (m) of point i alone.
+    ///
+    /// # Panics
+    /// If i is out of range or `z.len() != 12(m + 1)`.
+    pub fn position(&self, i: usize, z: &[f64]) -> Vector3<f64> {
+        let n4 = self.layout.block_len();
+        let b = self.position_row(i);
+        self.rest[i]
+            + Vector3::from_fn(|r, _| {
+                b.iter()
+                    .zip(&z[r * n4..(r + 1) * n4])
+                    .map(|(b, z)| b * z)
+                    .sum()
+            })
+    }
+
+    /// Adds `Σ_k B_kᵀ f_k` to `gradient` (length 12(m + 1)): the z-gradient of a term whose
+    /// x-gradient at point `points[k]` is `forces[k]` (x_i = X_i + B_i z).
+    pub fn add_point_gradients(
+        &self,
+        points: &[usize],
+        forces: &[Vector3<f64>],
+        gradient: &mut [f64],
+    ) {
+        let n4 = self.layout.block_len();
+        for (&i, f) in points.iter().zip(forces) {
+            let b = self.position_row(i);
+            for r in 0..3 {
+                for (g, bk) in gradient[r * n4..(r + 1) * n4].iter_mut().zip(b) {
+                    *g += f[r] * bk;
+                }
+            }
+        }
+    }
+
+    /// Adds `Σ_k B_kᵀ H_k B_k` to `hessian` (12(m + 1) square): the z-Hessian of a term whose
+    /// x-Hessian at point `points[k]` is `hessians[k]` (symmetric).
+    pub fn add_point_hessians(
+        &self,
+        points: &[usize],
+        hessians: &[Matrix3<f64>],
+        hessian: &mut faer::Mat<f64>,
+    ) {
+        if points.is_empty() {
+            return;
+        }
+        let n4 = self.layout.block_len();
+        let rows: Vec<f64> = points
+            .iter()
+            .flat_map(|&i| self.position_row(i).iter().copied())
+            .collect();
+        let b = MatRef::from_column_major_slice(&rows, n4, points.len());
+        let mut weighted = vec![0.0; rows.len()];
+        let mut block = faer::Mat::<f64>::zeros(n4, n4);
+        // Σ_k H_k[r, q] b_k b_kᵀ for each pair r ≤ q, one product each.
+        for r in 0..3 {
+            for q in r..3 {
+                for ((column, b_k), h) in weighted.chunks_mut(n4).zip(rows.chunks(n4)).zip(hessians)
+                {
+                    for (c, b) in column.iter_mut().zip(b_k) {
+                        *c = h[(r, q)] * b;
+                    }
+                }
+                faer::linalg::matmul::matmul(
+                    block.as_mut(),
+                    Accum::Replace,
+                    MatRef::from_column_major_slice(&weighted, n4, points.len()),
+                    b.transpose(),
+                    1.0,
+                    Par::Seq,
+                );
+                for c in 0..n4 {
+                    for a in 0..n4 {
+                        hessian[(r * n4 + a, q * n4 + c)] += block[(a, c)];
+                        if q != r {
+                            hessian[(q * n4 + c, r * n4 + a)] += block[(a, c)];
+                        }
+                    }
+                }
+            }
+        }
+    }
+
     /// z viewed as the `4(m+1) × 3` matrix Z = [z_0 z_1 z_2].
     pub(crate) fn z_matrix<'a>(&self, z: &'a [f64]) -> MatRef<'a, f64> {
         assert_eq!(z.len(), self.layout.len(), "z has the wrong length");

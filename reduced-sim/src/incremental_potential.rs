@@ -5,7 +5,8 @@
 //!        + D(z)
 //! ```
 //!
-//! with D the floor's lagged friction potential (`floor_friction`, when the floor has μ > 0).
+//! with E_floor including the kinematic colliders' penalties, and D the lagged friction
+//! potential of the floor and the colliders (`contact_friction`, when one has μ > 0).
 //!
 //! with `ẑ = z_t + h ż_t`. Without the inertia term it is the static equilibrium problem.
 //!
@@ -18,9 +19,9 @@ use faer::{Mat, Side};
 use hyperelastic::{HyperelasticMaterial, Tangent};
 use optimize::NewtonObjective;
 
-use crate::floor_friction::FloorFriction;
+use crate::contact_friction::ContactFriction;
 use crate::reduced_model::ReducedModel;
-use crate::scene_terms::{PinTargets, SceneTerms};
+use crate::scene_terms::{SceneTerms, StepTargets};
 
 /// `1/(2h²) (z - ẑ)ᵀ M_z (z - ẑ)`.
 pub(crate) struct Inertia<'a> {
@@ -34,14 +35,14 @@ pub(crate) struct Inertia<'a> {
 pub struct IncrementalPotential<'a, M: HyperelasticMaterial> {
     pub(crate) model: &'a ReducedModel<M>,
     pub(crate) terms: &'a SceneTerms,
-    pub(crate) targets: PinTargets,
+    pub(crate) targets: StepTargets,
     pub(crate) inertia: Option<Inertia<'a>>,
     pub(crate) tangent: Tangent,
     /// With held regions ([`crate::Scene::held`]): the entries of z Newton solves
     /// for; the others stay as prescribed.
     pub(crate) free: Option<&'a [usize]>,
     /// The floor's friction, lagged at the start of the step (dynamic steps only).
-    pub(crate) friction: Option<FloorFriction>,
+    pub(crate) friction: Option<ContactFriction>,
 }
 
 impl<M: HyperelasticMaterial> IncrementalPotential<'_, M> {
@@ -73,6 +74,7 @@ impl<M: HyperelasticMaterial> IncrementalPotential<'_, M> {
             self.model,
             z,
             &self.targets,
+            self.tangent,
             &mut gradient,
             Some(&mut hessian),
         );
@@ -91,8 +93,14 @@ impl<M: HyperelasticMaterial> IncrementalPotential<'_, M> {
     /// `∂E/∂z` alone (no Hessian work).
     pub fn gradient(&self, z: &[f64]) -> Vec<f64> {
         let mut gradient = self.model.elastic_gradient(z);
-        self.terms
-            .add_derivatives(self.model, z, &self.targets, &mut gradient, None);
+        self.terms.add_derivatives(
+            self.model,
+            z,
+            &self.targets,
+            self.tangent,
+            &mut gradient,
+            None,
+        );
         if let Some(friction) = &self.friction {
             friction.add_derivatives(self.model.deformation_map(), z, &mut gradient, None);
         }
@@ -220,7 +228,9 @@ mod tests {
 
     use super::*;
     use crate::analytic_field::analytic_model;
+    use crate::collider::{Collider, ColliderShape, Keyframe};
     use crate::scene::{Floor, PenaltyParams, PinTarget, PinnedRegion, Scene};
+    use nalgebra::UnitQuaternion;
 
     /// A deterministic z of moderate amplitude (|F - I| about 0.1).
     fn probe_z(len: usize, amplitude: f64) -> Vec<f64> {
@@ -229,8 +239,9 @@ mod tests {
             .collect()
     }
 
-    /// Every term at once: inertia, elasticity, gravity, a moving pin, an active floor and its
-    /// friction (lagged at another z, with contacts both below and beyond the slip threshold).
+    /// Every term at once: inertia, elasticity, gravity, a moving pin, an active floor, a moving
+    /// sphere and a turned box collider, and their friction (lagged at another z, with contacts
+    /// both below and beyond the slip threshold).
     fn check_derivatives(tangent: Tangent) {
         let (model, _) = analytic_model();
         let pinned = model.points_where(|x| x.x < 0.3);
@@ -247,6 +258,36 @@ mod tests {
                 friction: 0.6,
             }),
             held: Vec::new(),
+            // A moving sphere with friction through the top and a turned box through one end.
+            colliders: vec![
+                Collider {
+                    friction: 0.4,
+                    path: vec![
+                        Keyframe {
+                            time: 0.0,
+                            rotation: UnitQuaternion::identity(),
+                            translation: Vector3::new(0.9, 0.5, 1.2),
+                        },
+                        Keyframe {
+                            time: 1.0,
+                            rotation: UnitQuaternion::identity(),
+                            translation: Vector3::new(1.1, 0.5, 1.0),
+                        },
+                    ],
+                    ..Collider::fixed(
+                        ColliderShape::Sphere { radius: 0.45 },
+                        UnitQuaternion::identity(),
+                        Vector3::zeros(),
+                    )
+                },
+                Collider::fixed(
+                    ColliderShape::Box {
+                        half_extents: Vector3::new(0.25, 0.3, 0.35),
+                    },
+                    UnitQuaternion::from_axis_angle(&Vector3::z_axis(), 0.3),
+                    Vector3::new(1.95, 0.45, 0.5),
+                ),
+            ],
         };
         // ε = ε_v h = 1 cm: the slips between the lag and the probe (a few cm) straddle it.
         let penalty = PenaltyParams {
@@ -259,17 +300,26 @@ mod tests {
         let potential = IncrementalPotential {
             model: &model,
             terms: &terms,
-            targets: terms.pin_targets(0.5),
+            targets: terms.step_targets(0.5),
             inertia: Some(Inertia {
                 predicted: &predicted,
                 inverse_step_squared: 1e4,
             }),
             tangent,
             free: None,
-            friction: terms.floor_friction(&model, &probe_z(len, -0.02), &predicted, 0.01),
+            friction: terms.contact_friction(&model, &probe_z(len, -0.02), &predicted, 0.5, 0.01),
         };
         let friction = potential.friction.as_ref().expect("points touch the floor");
         assert!(friction.points().len() > 10);
+        let inside_colliders = terms
+            .contacts(&model, &probe_z(len, 0.03), 0.5)
+            .iter()
+            .filter(|&&c| c >= model.volumes().len())
+            .count();
+        assert!(
+            inside_colliders > 10,
+            "{inside_colliders} points inside the colliders"
+        );
         let z = probe_z(len, 0.03);
         let (gradient, hessian) = potential.derivatives(&z);
         let numeric = finite_difference::gradient(|z| potential.energy(z), &z, 1e-7);

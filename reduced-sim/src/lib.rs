@@ -27,6 +27,7 @@
 //!     pins: vec![PinnedRegion { points: pinned, target: PinTarget::Rest }],
 //!     floor: None,
 //!     held: Vec::new(),
+//!     colliders: Vec::new(),
 //! };
 //! let mut sim = Simulator::new(model, &scene, SimulationParams::default())?;
 //! for _ in 0..100 {
@@ -38,10 +39,11 @@
 
 #[cfg(test)]
 mod analytic_field;
+pub mod collider;
+mod contact_friction;
 pub mod cubature;
 pub mod deformation_map;
 pub mod elastic_energy;
-mod floor_friction;
 mod held_regions;
 pub mod incremental_potential;
 pub mod quadrature;
@@ -52,6 +54,7 @@ mod scene_terms;
 pub mod simulator;
 pub mod skinning_field;
 
+pub use collider::{Collider, ColliderShape, Keyframe, SignedDistance};
 pub use cubature::{CubatureError, CubatureParams, CubatureReport, optimize_cubature};
 pub use deformation_map::{DeformationMap, DeformationMapError};
 pub use incremental_potential::IncrementalPotential;

@@ -8,6 +8,7 @@ use hyperelastic::HyperelasticMaterial;
 use nalgebra::Vector3;
 use serde::{Deserialize, Serialize};
 
+use crate::collider::Collider;
 use crate::reduced_model::ReducedModel;
 use crate::scene_terms::{SceneError, SceneTerms};
 
@@ -81,6 +82,10 @@ pub struct Scene {
     /// ([`skin_eigen::build_basis_with_regions`]); empty by default. [`Scene::pins`] keep their
     /// penalty beside them (e.g. on the band between a held region and the region's boundary).
     pub held: Vec<PinnedRegion>,
+    /// Kinematic colliders (issue 21): rigid shapes on prescribed paths that push the object
+    /// (penalty on their signed distance, with the floor's stiffness) and rub it (their
+    /// friction coefficient, the floor's friction model); empty by default.
+    pub colliders: Vec<Collider>,
 }
 
 impl Scene {

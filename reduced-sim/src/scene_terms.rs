@@ -3,10 +3,12 @@
 
 use faer::{Accum, Mat, MatRef, Par};
 use hyperelastic::HyperelasticMaterial;
-use nalgebra::Vector3;
+use hyperelastic::Tangent;
+use nalgebra::{Isometry3, Matrix3, Vector3};
 use thiserror::Error;
 
-use crate::floor_friction::FloorFriction;
+use crate::collider::Collider;
+use crate::contact_friction::{ContactFriction, FrictionContact};
 use crate::held_regions::HeldRegions;
 use crate::reduced_model::ReducedModel;
 use crate::scene::{Floor, PenaltyParams, PinModulus, PinTarget, Scene};
@@ -80,6 +82,14 @@ pub enum SceneError {
         /// ε_v given (m/s).
         slip_speed: f64,
     },
+    /// A collider is malformed.
+    #[error("collider {index}: {why}")]
+    Collider {
+        /// Index in [`Scene::colliders`].
+        index: usize,
+        /// What is wrong.
+        why: String,
+    },
     /// A penalty factor is not finite and positive.
     #[error("penalty factors must be finite and positive, got pin {pin}, floor {floor}")]
     Penalty {
@@ -108,16 +118,22 @@ pub(crate) struct SceneTerms {
     pin_stiffness: f64,
     floor: Option<Floor>,
     floor_stiffness: f64,
-    /// ε_v (m/s) of the floor's friction.
+    /// ε_v (m/s) of the floor's and colliders' friction.
     friction_slip_speed: f64,
+    /// Kinematic colliders, with the floor's stiffness.
+    colliders: Vec<Collider>,
     /// The held regions ([`Scene::held`]), whose terms follow the penalized ones in `pins`.
     held: Option<HeldRegions>,
     /// How many of `pins` carry the penalty (the first ones).
     penalized: usize,
 }
 
-/// Pin targets of every region at one time, evaluated once per step.
-pub(crate) struct PinTargets(Vec<Vec<Vector3<f64>>>);
+/// What the scene prescribes at one time, evaluated once per step: every pinned region's
+/// targets and every collider's pose.
+pub(crate) struct StepTargets {
+    pins: Vec<Vec<Vector3<f64>>>,
+    colliders: Vec<Isometry3<f64>>,
+}
 
 impl SceneTerms {
     pub(crate) fn new<M: HyperelasticMaterial>(
@@ -243,6 +259,14 @@ impl SceneTerms {
                 })
             }
         };
+        if let Some((index, why)) = scene
+            .colliders
+            .iter()
+            .enumerate()
+            .find_map(|(i, c)| c.defect().map(|why| (i, why)))
+        {
+            return Err(SceneError::Collider { index, why });
+        }
         let held = if scene.held.is_empty() {
             None
         } else {
@@ -263,6 +287,7 @@ impl SceneTerms {
             floor,
             floor_stiffness: penalty.floor_factor * scale,
             friction_slip_speed: penalty.friction_slip_speed,
+            colliders: scene.colliders.clone(),
             held,
             penalized,
         })
@@ -276,9 +301,9 @@ impl SceneTerms {
 
     /// With held regions: writes the held handles' entries of z for `targets` (nothing
     /// otherwise).
-    pub(crate) fn prescribe(&self, z: &mut [f64], targets: &PinTargets) {
+    pub(crate) fn prescribe(&self, z: &mut [f64], targets: &StepTargets) {
         if let Some(held) = &self.held {
-            held.prescribe(z, &targets.0[self.penalized..]);
+            held.prescribe(z, &targets.pins[self.penalized..]);
         }
     }
 
@@ -292,14 +317,16 @@ impl SceneTerms {
         self.pin_stiffness
     }
 
-    /// Every region's targets at time `t` (s).
-    pub(crate) fn pin_targets(&self, t: f64) -> PinTargets {
-        PinTargets(
-            self.pins
+    /// Every region's targets and every collider's pose at time `t` (s).
+    pub(crate) fn step_targets(&self, t: f64) -> StepTargets {
+        StepTargets {
+            pins: self
+                .pins
                 .iter()
                 .map(|p| p.rest.iter().map(|x| p.target.at(x, t)).collect())
                 .collect(),
-        )
+            colliders: self.colliders.iter().map(|c| c.pose(t)).collect(),
+        }
     }
 
     /// The largest distance (m) of a pinned point from its target at z, or `None` without pins:
@@ -308,12 +335,12 @@ impl SceneTerms {
         &self,
         model: &ReducedModel<M>,
         z: &[f64],
-        targets: &PinTargets,
+        targets: &StepTargets,
         held_only: bool,
     ) -> Option<f64> {
         let skip = if held_only { self.penalized } else { 0 };
         let mut max: Option<f64> = None;
-        for (pin, targets) in self.pins.iter().zip(&targets.0).skip(skip) {
+        for (pin, targets) in self.pins.iter().zip(&targets.pins).skip(skip) {
             for (x, t) in pinned_positions(model, pin, z).iter().zip(targets) {
                 let d = (x - t).norm();
                 max = Some(max.map_or(d, |m| m.max(d)));
@@ -327,13 +354,13 @@ impl SceneTerms {
         &self,
         model: &ReducedModel<M>,
         z: &[f64],
-        targets: &PinTargets,
+        targets: &StepTargets,
     ) -> f64 {
         let mut e = 0.0;
         if let Some(g) = &self.gravity_gradient {
             e += g.iter().zip(z).map(|(a, b)| a * b).sum::<f64>();
         }
-        for (pin, targets) in self.penalized_pins().zip(&targets.0) {
+        for (pin, targets) in self.penalized_pins().zip(&targets.pins) {
             let x = pinned_positions(model, pin, z);
             for ((x, t), v) in x.iter().zip(targets).zip(&pin.volumes) {
                 e += 0.5 * self.pin_stiffness * v * (x - t).norm_squared();
@@ -348,59 +375,115 @@ impl SceneTerms {
                 }
             }
         }
+        if !self.colliders.is_empty() {
+            let x = model.deformation_map().positions(z);
+            for (collider, pose) in self.colliders.iter().zip(&targets.colliders) {
+                for (x, v) in x.iter().zip(model.volumes()) {
+                    let phi = collider.signed_distance(pose, x).distance;
+                    if phi < 0.0 {
+                        e += 0.5 * self.floor_stiffness * v * phi * phi;
+                    }
+                }
+            }
+        }
         e
     }
 
-    /// The floor's friction over a step of `time_step` (s) that starts at `start` (slips are
-    /// measured from there), with contacts and normal forces lagged at `contact`; `None`
-    /// without a floor, friction or contact.
-    pub(crate) fn floor_friction<M: HyperelasticMaterial>(
+    /// The friction of the floor and the colliders over the step from `time` to `time +
+    /// time_step` (s) that starts at z = `start` (slips are measured from there, moved with
+    /// the surface touched), with contacts, normals and normal forces lagged at z = `contact`
+    /// and the colliders' poses at the step's end; `None` without friction or contact.
+    pub(crate) fn contact_friction<M: HyperelasticMaterial>(
         &self,
         model: &ReducedModel<M>,
         start: &[f64],
         contact: &[f64],
+        time: f64,
         time_step: f64,
-    ) -> Option<FloorFriction> {
-        let floor = self.floor.as_ref().filter(|f| f.friction > 0.0)?;
+    ) -> Option<ContactFriction> {
+        let floor = self.floor.as_ref().filter(|f| f.friction > 0.0);
+        let rubbing: Vec<&Collider> = self.colliders.iter().filter(|c| c.friction > 0.0).collect();
+        if floor.is_none() && rubbing.is_empty() {
+            return None;
+        }
         let map = model.deformation_map();
-        FloorFriction::lagged(
-            &map.positions(start),
-            &map.positions(contact),
-            model.volumes(),
-            &floor.normal,
-            floor.offset,
-            self.floor_stiffness,
-            floor.friction,
-            self.friction_slip_speed * time_step,
-        )
+        let (start, contact) = (map.positions(start), map.positions(contact));
+        let volumes = model.volumes();
+        let mut contacts = Vec::new();
+        if let Some(floor) = floor {
+            for (i, x) in contact.iter().enumerate() {
+                let depth = floor.offset - floor.normal.dot(x);
+                if depth > 0.0 {
+                    contacts.push(FrictionContact {
+                        point: i,
+                        previous: start[i],
+                        limit: floor.friction * self.floor_stiffness * volumes[i] * depth,
+                        normal: floor.normal,
+                    });
+                }
+            }
+        }
+        for collider in rubbing {
+            let (before, after) = (collider.pose(time), collider.pose(time + time_step));
+            let carry = after * before.inverse();
+            for (i, x) in contact.iter().enumerate() {
+                let d = collider.signed_distance(&after, x);
+                if d.distance < 0.0 {
+                    contacts.push(FrictionContact {
+                        point: i,
+                        previous: carry.transform_point(&start[i].into()).coords,
+                        limit: collider.friction * self.floor_stiffness * volumes[i] * -d.distance,
+                        normal: d.gradient,
+                    });
+                }
+            }
+        }
+        ContactFriction::new(&contacts, self.friction_slip_speed * time_step)
     }
 
-    /// The points below the floor at z, in index order (empty without a floor): the points
-    /// whose floor term is active, so the floor's Hessian changes when this set does.
+    /// The points in contact at z and time `time` (s), in index order: below the floor, then
+    /// inside collider k, numbered `(k + 1) n + i` (n points). The contact terms' Hessians
+    /// change when this set does.
     pub(crate) fn contacts<M: HyperelasticMaterial>(
         &self,
         model: &ReducedModel<M>,
         z: &[f64],
+        time: f64,
     ) -> Vec<usize> {
-        let Some(floor) = &self.floor else {
+        if self.floor.is_none() && self.colliders.is_empty() {
             return Vec::new();
-        };
+        }
         let positions = model.deformation_map().positions(z);
-        (0..positions.len())
-            .filter(|&i| floor.offset - floor.normal.dot(&positions[i]) > 0.0)
-            .collect()
+        let n = positions.len();
+        let mut contacts = Vec::new();
+        if let Some(floor) = &self.floor {
+            contacts
+                .extend((0..n).filter(|&i| floor.offset - floor.normal.dot(&positions[i]) > 0.0));
+        }
+        for (k, collider) in self.colliders.iter().enumerate() {
+            let pose = collider.pose(time);
+            contacts.extend(
+                (0..n)
+                    .filter(|&i| collider.signed_distance(&pose, &positions[i]).distance < 0.0)
+                    .map(|i| (k + 1) * n + i),
+            );
+        }
+        contacts
     }
 
     /// Adds every external term's gradient at z to `gradient`, and its Hessian to `hessian`
-    /// when given.
+    /// when given (the colliders' curvature term dropped for [`Tangent::ProjectedPsd`], which
+    /// keeps it positive semidefinite).
     pub(crate) fn add_derivatives<M: HyperelasticMaterial>(
         &self,
         model: &ReducedModel<M>,
         z: &[f64],
-        targets: &PinTargets,
+        targets: &StepTargets,
+        tangent: Tangent,
         gradient: &mut [f64],
         mut hessian: Option<&mut Mat<f64>>,
     ) {
+        self.add_collider_derivatives(model, z, targets, tangent, gradient, hessian.as_deref_mut());
         let map = model.deformation_map();
         let n4 = map.layout().block_len();
         if let Some(g) = &self.gravity_gradient {
@@ -408,7 +491,7 @@ impl SceneTerms {
                 *a += b;
             }
         }
-        for (pin, targets) in self.penalized_pins().zip(&targets.0) {
+        for (pin, targets) in self.penalized_pins().zip(&targets.pins) {
             // ∂E/∂z_r = κ Σ v_i b_i (x_i - t_i)_r
             let x = pinned_positions(model, pin, z);
             for (i, (x, t)) in x.iter().zip(targets).enumerate() {
@@ -476,6 +559,49 @@ impl SceneTerms {
                     }
                 }
             }
+        }
+    }
+}
+
+impl SceneTerms {
+    /// The colliders' penalty `κ/2 v_i φ_i²` (φ_i < 0) at z: gradient `κ v φ ∇φ` and Hessian
+    /// `κ v (∇φ∇φᵀ + φ∇²φ)` per point through the LBS rows, the second term left out for
+    /// [`Tangent::ProjectedPsd`] (it is negative semidefinite inside a convex shape).
+    fn add_collider_derivatives<M: HyperelasticMaterial>(
+        &self,
+        model: &ReducedModel<M>,
+        z: &[f64],
+        targets: &StepTargets,
+        tangent: Tangent,
+        gradient: &mut [f64],
+        hessian: Option<&mut Mat<f64>>,
+    ) {
+        if self.colliders.is_empty() {
+            return;
+        }
+        let map = model.deformation_map();
+        let positions = map.positions(z);
+        let mut points = Vec::new();
+        let mut forces = Vec::new();
+        let mut stiffnesses = Vec::new();
+        for (collider, pose) in self.colliders.iter().zip(&targets.colliders) {
+            for (i, x) in positions.iter().enumerate() {
+                let d = collider.signed_distance(pose, x);
+                if d.distance < 0.0 {
+                    let w = self.floor_stiffness * model.volumes()[i];
+                    points.push(i);
+                    forces.push(d.gradient * (w * d.distance));
+                    let mut h: Matrix3<f64> = d.gradient * d.gradient.transpose() * w;
+                    if tangent == Tangent::Exact {
+                        h += d.hessian * (w * d.distance);
+                    }
+                    stiffnesses.push(h);
+                }
+            }
+        }
+        map.add_point_gradients(&points, &forces, gradient);
+        if let Some(hessian) = hessian {
+            map.add_point_hessians(&points, &stiffnesses, hessian);
         }
     }
 }

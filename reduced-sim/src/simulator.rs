@@ -202,7 +202,7 @@ impl<M: HyperelasticMaterial> Simulator<M> {
     /// With held regions: sets the held handles' entries of `z` (length 12(m + 1)) to the
     /// regions' transforms at time `time` (s); does nothing with penalty pins.
     pub fn prescribe(&self, z: &mut [f64], time: f64) {
-        self.terms.prescribe(z, &self.terms.pin_targets(time));
+        self.terms.prescribe(z, &self.terms.step_targets(time));
     }
 
     /// The pin penalty stiffness κ_pin in use (Pa/m², see [`PenaltyParams`]).
@@ -214,7 +214,7 @@ impl<M: HyperelasticMaterial> Simulator<M> {
     /// or `None` without pins. The penalty lets them deviate; this is the number to watch when
     /// choosing [`PenaltyParams::pin_factor`].
     pub fn max_pin_deviation(&self) -> Option<f64> {
-        let targets = self.terms.pin_targets(self.state.time);
+        let targets = self.terms.step_targets(self.state.time);
         self.terms
             .max_pin_deviation(&self.model, &self.state.z, &targets, false)
     }
@@ -225,7 +225,7 @@ impl<M: HyperelasticMaterial> Simulator<M> {
     pub fn max_held_deviation(&self) -> Option<f64> {
         // Without held regions, skip evaluating every pin's targets (callers ask every step).
         self.terms.free_coordinates()?;
-        let targets = self.terms.pin_targets(self.state.time);
+        let targets = self.terms.step_targets(self.state.time);
         self.terms
             .max_pin_deviation(&self.model, &self.state.z, &targets, true)
     }
@@ -247,7 +247,7 @@ impl<M: HyperelasticMaterial> Simulator<M> {
         if !finite || !state.time.is_finite() {
             return Err(StateError::NonFinite);
         }
-        self.contacts = self.terms.contacts(&self.model, &state.z);
+        self.contacts = self.terms.contacts(&self.model, &state.z, state.time);
         self.state = state;
         self.factor = None;
         Ok(())
@@ -283,7 +283,9 @@ impl<M: HyperelasticMaterial> Simulator<M> {
         // solution, the slip still measured from the start of the step, and solved again from
         // there, `friction_lag_iterations` times at most.
         for _ in 0..self.params.penalty.friction_lag_iterations {
-            let Some(friction) = self.terms.floor_friction(&self.model, &self.state.z, &z, h)
+            let Some(friction) =
+                self.terms
+                    .contact_friction(&self.model, &self.state.z, &z, self.state.time, h)
             else {
                 break;
             };
@@ -292,7 +294,7 @@ impl<M: HyperelasticMaterial> Simulator<M> {
             report = combined(&report, &again);
         }
         drop(potential);
-        let contacts = self.terms.contacts(&self.model, &z);
+        let contacts = self.terms.contacts(&self.model, &z, next_time);
         self.factor_age = if report.hessian_assemblies > 0 {
             1
         } else {
@@ -371,16 +373,20 @@ impl<M: HyperelasticMaterial> Simulator<M> {
         IncrementalPotential {
             model: &self.model,
             terms: &self.terms,
-            targets: self.terms.pin_targets(self.state.time + h),
+            targets: self.terms.step_targets(self.state.time + h),
             inertia: Some(Inertia {
                 predicted,
                 inverse_step_squared: 1.0 / (h * h),
             }),
             tangent: self.params.tangent,
             free: self.terms.free_coordinates(),
-            friction: self
-                .terms
-                .floor_friction(&self.model, &self.state.z, &self.state.z, h),
+            friction: self.terms.contact_friction(
+                &self.model,
+                &self.state.z,
+                &self.state.z,
+                self.state.time,
+                h,
+            ),
         }
     }
 
@@ -395,7 +401,7 @@ impl<M: HyperelasticMaterial> Simulator<M> {
         let potential = IncrementalPotential {
             model: &self.model,
             terms: &self.terms,
-            targets: self.terms.pin_targets(time),
+            targets: self.terms.step_targets(time),
             inertia: None,
             tangent: self.params.tangent,
             free: self.terms.free_coordinates(),
@@ -406,7 +412,7 @@ impl<M: HyperelasticMaterial> Simulator<M> {
         let report = minimize(&potential, &mut z, &self.params.newton)?;
         let layout = self.model.deformation_map().layout();
         self.factor = None;
-        self.contacts = self.terms.contacts(&self.model, &z);
+        self.contacts = self.terms.contacts(&self.model, &z, time);
         self.state = ReducedState {
             z,
             velocity: layout.rest(),

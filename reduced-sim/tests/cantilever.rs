@@ -34,6 +34,7 @@ fn tip_deflection(
         }],
         floor: None,
         held: Vec::new(),
+        colliders: Vec::new(),
     };
     // A stiff clamp, (λ + 2μ) · 1e4: the comparison is with a fully clamped root. The library's
     // default penalty, E · 3e3, lets the root rotate: m = 32 then gives 1.069 of

@@ -30,6 +30,7 @@ fn bend_scene(model: &ReducedModel<StableNeoHookean>) -> Scene {
         }],
         floor: None,
         held: Vec::new(),
+        colliders: Vec::new(),
     }
 }
 

@@ -85,6 +85,7 @@ fn twist_scene(
             },
         ],
         floor: None,
+        colliders: Vec::new(),
     };
     (regions, scene)
 }
@@ -135,6 +136,7 @@ fn a_body_whose_only_region_translates_moves_rigidly_with_zero_elastic_energy() 
             target: PinTarget::Moving(Arc::new(move |x, t| x + t * velocity)),
         }],
         floor: None,
+        colliders: Vec::new(),
     };
     let mut sim =
         Simulator::new(model(&basis, &points), &scene, SimulationParams::default()).unwrap();

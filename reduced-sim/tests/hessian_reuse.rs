@@ -90,6 +90,7 @@ fn a_change_of_the_floor_contacts_forces_a_fresh_factorization() {
         pins: Vec::new(),
         floor: Some(floor),
         held: Vec::new(),
+        colliders: Vec::new(),
     };
     let params = SimulationParams {
         newton: NewtonParams {

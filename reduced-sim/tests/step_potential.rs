@@ -27,6 +27,7 @@ fn simulator(tangent: Tangent) -> Simulator<StableNeoHookean> {
             friction: 0.0,
         }),
         held: Vec::new(),
+        colliders: Vec::new(),
     };
     let params = SimulationParams {
         tangent,

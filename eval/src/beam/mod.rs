@@ -88,6 +88,7 @@ impl BeamTest {
                 gravity: Some(Vector3::new(0.0, -9.8, 0.0)),
                 constraints: vec![pinned],
                 floor: None,
+                colliders: Vec::new(),
             },
             BeamTest::Twist => SceneSpec {
                 gravity: None,
@@ -107,6 +108,7 @@ impl BeamTest {
                     },
                 ],
                 floor: None,
+                colliders: Vec::new(),
             },
         }
     }

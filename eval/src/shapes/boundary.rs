@@ -150,6 +150,7 @@ impl ShapeBoundary {
                     motion: Motion::Rest,
                 }],
                 floor: None,
+                colliders: Vec::new(),
             },
             ShapeBoundary::PullFarthest => {
                 let center = bbox.center();
@@ -174,6 +175,7 @@ impl ShapeBoundary {
                     gravity: None,
                     constraints,
                     floor: None,
+                    colliders: Vec::new(),
                 }
             }
             ShapeBoundary::PullBoundary => {
@@ -203,6 +205,7 @@ impl ShapeBoundary {
                         },
                     ],
                     floor: None,
+                    colliders: Vec::new(),
                 }
             }
         }

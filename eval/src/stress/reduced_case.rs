@@ -62,6 +62,7 @@ fn floor_drop_scene() -> SceneSpec {
             offset: 0.0,
             friction: 0.0,
         }),
+        colliders: Vec::new(),
     }
 }
 
@@ -197,6 +198,7 @@ pub(super) fn case_object(case: &StressCase) -> Result<CaseObject, String> {
                     gravity: gravity(),
                     constraints: vec![pinned_below(0, 0.1)],
                     floor: None,
+                    colliders: Vec::new(),
                 },
                 velocity: Vector3::zeros(),
             })

@@ -65,5 +65,6 @@ pub fn cantilever_scene<M: hyperelastic::HyperelasticMaterial>(
         }],
         floor: None,
         held: Vec::new(),
+        colliders: Vec::new(),
     }
 }

@@ -1,0 +1,142 @@
+//! Kinematic colliders (issue 21): a box pushed by a moving box collider takes on the pusher's
+//! speed, and a fast pusher does not pass through it.
+
+use freeform::{Geometry, SceneSpec, Simulation, run};
+use hyperelastic::{MaterialField, MaterialSample, StableNeoHookean};
+use nalgebra::{UnitQuaternion, Vector3};
+use reduced_sim::{Collider, ColliderShape, Keyframe, QuadratureRule, SimulationParams};
+use skin_eigen::{BasisParams, build_basis};
+
+const H: f64 = 0.01;
+const SIDE: f64 = 0.2;
+/// Half the pusher's thickness (m).
+const PUSHER: f64 = 0.05;
+
+/// A pusher plate moving along +x at `speed` (m/s), its front face at x = −0.01 m at t = 0.
+fn pusher(speed: f64, duration: f64) -> Collider {
+    let key = |time: f64| Keyframe {
+        time,
+        rotation: UnitQuaternion::identity(),
+        translation: Vector3::new(-0.01 - PUSHER + speed * time, 0.5 * SIDE, 0.5 * SIDE),
+    };
+    Collider {
+        shape: ColliderShape::Box {
+            half_extents: Vector3::new(PUSHER, 0.75 * SIDE, 0.75 * SIDE),
+        },
+        path: vec![key(0.0), key(duration)],
+        friction: 0.0,
+    }
+}
+
+/// Per frame: the cube's mean x and its smallest x (m), and the integration point spacing (m).
+fn push(speed: f64, steps: usize) -> (Vec<(f64, f64)>, f64) {
+    let geometry = Geometry::cuboid(Vector3::zeros(), Vector3::new(SIDE, SIDE, SIDE));
+    let points = geometry.integration_points(800).unwrap();
+    let material = MaterialSample {
+        youngs_modulus: 1e6,
+        poisson_ratio: 0.3,
+        density: 1000.0,
+    };
+    let lame = vec![material.lame_parameters().unwrap(); points.len()];
+    let params = BasisParams::default().with_modes(4).with_kernels(60);
+    let (basis, _, _) = build_basis(&points, &lame, &params).unwrap();
+    let scene = SceneSpec {
+        colliders: vec![pusher(speed, steps as f64 * H)],
+        ..Default::default()
+    };
+    let material = MaterialField::Uniform(material);
+    let simulation = Simulation {
+        field: &basis,
+        points: &points,
+        material: &material,
+        material_model: StableNeoHookean,
+        scene: &scene,
+        params: SimulationParams {
+            time_step: H,
+            ..Default::default()
+        },
+        quadrature: QuadratureRule::Full,
+        cache_dir: None,
+        pin_hold: Default::default(),
+    };
+    let volume: f64 = points.volumes().iter().sum();
+    let mut frames = Vec::new();
+    let report = run(&simulation, steps, |frame| {
+        let map = frame.simulator.model().deformation_map();
+        let x = map.positions(&frame.simulator.state().z);
+        let mean: f64 = x
+            .iter()
+            .zip(points.volumes())
+            .map(|(x, v)| x.x * v)
+            .sum::<f64>()
+            / volume;
+        let back = x.iter().map(|x| x.x).fold(f64::INFINITY, f64::min);
+        frames.push((mean, back));
+        Ok(())
+    })
+    .unwrap();
+    assert_eq!(report.unconverged_steps, 0);
+    let spacing = (volume / points.len() as f64).cbrt();
+    (frames, spacing)
+}
+
+#[test]
+fn a_pushed_box_moves_at_the_pushers_speed_after_contact() {
+    let speed = 0.2;
+    let (frames, _) = push(speed, 80);
+    // Contact starts at 0.05 s; by 0.4 s the contact spring has brought the box up to speed.
+    let velocity = (frames[80].0 - frames[40].0) / (40.0 * H);
+    assert!(
+        (velocity - speed).abs() <= 0.05 * speed,
+        "box at {velocity} m/s behind a pusher at {speed} m/s"
+    );
+}
+
+#[test]
+fn a_pusher_moving_half_a_point_spacing_per_step_does_not_pass_through_the_box() {
+    let (_, spacing) = push(0.0, 1);
+    let speed = 0.5 * spacing / H;
+    let steps = 40;
+    let (frames, _) = push(speed, steps);
+    for (n, &(_, back)) in frames.iter().enumerate() {
+        let face = -0.01 + speed * n as f64 * H;
+        // The pusher's front face never gets past the box's trailing points by more than a
+        // point spacing: it pushes the box, it does not tunnel through it.
+        assert!(
+            face - back < spacing,
+            "step {n}: pusher face at {face} m, box's back at {back} m (spacing {spacing} m)"
+        );
+    }
+    // And the box went ahead of it.
+    assert!(frames[steps].0 > 0.5 * SIDE + 0.5 * speed * steps as f64 * H);
+}
+
+#[test]
+fn a_scene_file_with_a_moving_collider_and_floor_friction_runs_and_refuses_bad_colliders() {
+    let dir = test_support::fixtures::scratch_dir("colliders-scene");
+    let scene = |radius: f64| {
+        format!(
+            "[geometry]\nbox = {{ min = [0, 0, 0], max = [0.4, 0.2, 0.2] }}\n[material]\n\
+             youngs_modulus = 1e5\npoisson_ratio = 0.3\ndensity = 1000\n[basis]\nmodes = 4\n\
+             kernels = 60\npoints = 800\n[simulation]\ntime_step = 0.01\nsteps = 5\npoints = 600\n\
+             [scene]\ngravity = [0, -9.8, 0]\n\
+             floor = {{ normal = [0, 1, 0], offset = 0, friction = 0.5 }}\n\
+             [[scene.colliders]]\nshape = {{ sphere = {{ radius = {radius} }} }}\nfriction = 0.3\n\
+             path = [{{ time = 0, translation = [-0.1, 0.1, 0.1] }}, \
+             {{ time = 1, translation = [0.9, 0.1, 0.1], rotation = [0, 0, 0, 1] }}]\n"
+        )
+    };
+    let path = dir.join("push.toml");
+    std::fs::write(&path, scene(0.08)).unwrap();
+    let file = freeform::SceneFile::load(&path).unwrap();
+    assert_eq!(file.scene.colliders.len(), 1);
+    let report =
+        freeform::simulate_scene_file(&file, &dir.join("out"), None, &freeform::Silent).unwrap();
+    assert_eq!(report.frames_written, 6);
+    std::fs::write(&path, scene(-0.08)).unwrap();
+    let error = freeform::SceneFile::load(&path).unwrap_err().to_string();
+    assert!(
+        error.contains("colliders[0]") && error.contains("radius"),
+        "{error}"
+    );
+}

@@ -1,0 +1,166 @@
+//! Smoothed, lagged Coulomb friction at the object's contacts with the floor and with
+//! kinematic colliders (IPC's model, Li et al. 2020, Sec. 5), for issue 21.
+//!
+//! Every integration point i in contact gets its normal force `λ_i = κ v_i d_i` (N; κ the
+//! contact stiffness, v_i the volume, d_i the penetration depth) and its contact normal n_i,
+//! taken at the start of the step and then again at the step's solution (IPC's lagging,
+//! [`crate::PenaltyParams::friction_lag_iterations`] times), and held fixed through each
+//! solve. Slips are measured from where the point would be if it moved with the surface it
+//! touches: `x̄_i = x_i^t + Δc_i`, Δc_i the surface's displacement over the step at `x_i^t`
+//! (0 for the floor). The friction potential is
+//!
+//! ```text
+//! D(z) = Σ_i μ λ_i f₀(‖u_i‖),   u_i = T_i (x_i(z) − x̄_i),   T_i = I − n_i n_iᵀ,
+//! f₀(y) = −y³/(3ε²) + y²/ε + ε/3  (y < ε),   y  (y ≥ ε),     ε = ε_v h,
+//! ```
+//!
+//! so the tangential force `μ λ_i f₁(‖u_i‖)` (f₁ = f₀') grows smoothly from 0 to the Coulomb
+//! limit `μ λ_i` as the slip speed ‖u_i‖/h reaches ε_v ([`crate::PenaltyParams::friction_slip_speed`]),
+//! and is `μ λ_i` against the slip beyond. Below ε_v the contact creeps: a load `s μ λ`
+//! (s < 1) slides at `(1 − sqrt(1 − s)) ε_v`. The Hessian with respect to x_i,
+//!
+//! ```text
+//! μλ [ f₁'(y) − f₁(y)/y ] T û ûᵀ T + μλ f₁(y)/y T,   û = u/y,
+//! ```
+//!
+//! is positive semidefinite (eigenvalues f₁'(y) ≥ 0 along u, f₁(y)/y > 0 across it, 0 along
+//! n), so it is used as is. Positions are linear in z (`x_i = X_i + B_i z`), so gradient and
+//! Hessian in z are `B_iᵀ g_i` and `B_iᵀ H_i B_i`.
+
+use faer::Mat;
+use nalgebra::{Matrix3, Vector3};
+
+use crate::deformation_map::DeformationMap;
+
+/// One contact of a step's friction, lagged.
+#[derive(Clone, Copy, Debug)]
+pub(crate) struct FrictionContact {
+    /// The integration point.
+    pub(crate) point: usize,
+    /// x̄: where the point is at no slip (m).
+    pub(crate) previous: Vector3<f64>,
+    /// `μ λ` (N): the friction coefficient times the lagged normal force.
+    pub(crate) limit: f64,
+    /// The unit contact normal n.
+    pub(crate) normal: Vector3<f64>,
+}
+
+/// The lagged friction of one step.
+#[derive(Clone, Debug)]
+pub(crate) struct ContactFriction {
+    points: Vec<usize>,
+    previous: Vec<Vector3<f64>>,
+    limit: Vec<f64>,
+    normals: Vec<Vector3<f64>>,
+    /// ε = ε_v h (m): the slip over one step at which friction reaches the Coulomb limit.
+    epsilon: f64,
+}
+
+impl ContactFriction {
+    /// The friction of `contacts` with slip threshold `epsilon` = ε_v h (m); `None` when there
+    /// is no contact with a positive limit.
+    pub(crate) fn new(contacts: &[FrictionContact], epsilon: f64) -> Option<Self> {
+        let active: Vec<&FrictionContact> = contacts.iter().filter(|c| c.limit > 0.0).collect();
+        (!active.is_empty()).then(|| ContactFriction {
+            points: active.iter().map(|c| c.point).collect(),
+            previous: active.iter().map(|c| c.previous).collect(),
+            limit: active.iter().map(|c| c.limit).collect(),
+            normals: active.iter().map(|c| c.normal).collect(),
+            epsilon,
+        })
+    }
+
+    /// `T_k (x − x̄_k)` of contact k.
+    fn slip(&self, k: usize, x: &Vector3<f64>) -> Vector3<f64> {
+        let d = x - self.previous[k];
+        d - self.normals[k] * self.normals[k].dot(&d)
+    }
+
+    /// D(z) (J).
+    pub(crate) fn energy(&self, map: &DeformationMap, z: &[f64]) -> f64 {
+        let x = map.subset(&self.points).positions(z);
+        x.iter()
+            .enumerate()
+            .map(|(k, x)| self.limit[k] * f0(self.slip(k, x).norm(), self.epsilon))
+            .sum()
+    }
+
+    /// Adds ∂D/∂z to `gradient` and, when given, ∂²D/∂z² to `hessian`.
+    pub(crate) fn add_derivatives(
+        &self,
+        map: &DeformationMap,
+        z: &[f64],
+        gradient: &mut [f64],
+        hessian: Option<&mut Mat<f64>>,
+    ) {
+        let mut forces = Vec::with_capacity(self.points.len());
+        let mut stiffnesses = Vec::with_capacity(self.points.len());
+        for (k, &i) in self.points.iter().enumerate() {
+            let u = self.slip(k, &map.position(i, z));
+            let y = u.norm();
+            let (f1_over_y, curvature) = slope_and_curvature(y, self.epsilon);
+            let g = u * (self.limit[k] * f1_over_y);
+            let tangent = Matrix3::identity() - self.normals[k] * self.normals[k].transpose();
+            let mut h = tangent * (self.limit[k] * f1_over_y);
+            if y > 0.0 {
+                // [f₁'(y) − f₁(y)/y] û ûᵀ with û = u/y (u already tangential).
+                h += u * u.transpose() * (self.limit[k] * curvature / (y * y));
+            }
+            forces.push(g);
+            stiffnesses.push(h);
+        }
+        map.add_point_gradients(&self.points, &forces, gradient);
+        if let Some(hessian) = hessian {
+            map.add_point_hessians(&self.points, &stiffnesses, hessian);
+        }
+    }
+
+    /// Contact points of this step.
+    #[cfg(test)]
+    pub(crate) fn points(&self) -> &[usize] {
+        &self.points
+    }
+}
+
+/// f₀(y) with threshold ε (m).
+fn f0(y: f64, epsilon: f64) -> f64 {
+    if y < epsilon {
+        -y * y * y / (3.0 * epsilon * epsilon) + y * y / epsilon + epsilon / 3.0
+    } else {
+        y
+    }
+}
+
+/// `(f₁(y)/y, f₁'(y) − f₁(y)/y)`, finite at y = 0 (where the second is 0).
+fn slope_and_curvature(y: f64, epsilon: f64) -> (f64, f64) {
+    if y < epsilon {
+        (
+            2.0 / epsilon - y / (epsilon * epsilon),
+            -y / (epsilon * epsilon),
+        )
+    } else {
+        (1.0 / y, -1.0 / y)
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn the_smoothing_is_continuous_with_its_slope_at_the_threshold_and_reaches_coulomb() {
+        let epsilon = 1e-3;
+        let below = f0(epsilon * (1.0 - 1e-12), epsilon);
+        assert!((below - epsilon).abs() < 1e-12);
+        let (slope, _) = slope_and_curvature(epsilon * (1.0 - 1e-12), epsilon);
+        assert!(
+            (slope * epsilon - 1.0).abs() < 1e-9,
+            "f₁(ε) = {}",
+            slope * epsilon
+        );
+        // f₀' = f₁ by central differences inside the smoothed range.
+        let y = 0.4 * epsilon;
+        let fd = (f0(y + 1e-9, epsilon) - f0(y - 1e-9, epsilon)) / 2e-9;
+        assert!((fd - slope_and_curvature(y, epsilon).0 * y).abs() < 1e-6);
+    }
+}
