@@ -80,6 +80,9 @@ pub struct RunReport {
     /// The same for the exactly held points alone ([`PinHold::Exact`]'s inset regions; 0
     /// without them).
     pub max_held_deviation: f64,
+    /// The deepest penetration of an integration point into the floor or a collider over the
+    /// run (m; 0 without contact).
+    pub max_penetration: f64,
     /// Model and scene setup, quadrature included (s).
     pub setup_seconds: f64,
     /// The elastic quadrature the run used (kind, points, cubature report).
@@ -185,6 +188,7 @@ where
     let (mut iterations, mut unconverged, mut hessians) = (0usize, 0usize, 0usize);
     let (mut stepping, mut assembly, mut solve, mut line_search) = (0.0, 0.0, 0.0, 0.0);
     let (mut max_pin_deviation, mut max_held_deviation): (f64, f64) = (0.0, 0.0);
+    let mut max_penetration: f64 = 0.0;
     for step in 1..=steps {
         let t = Instant::now();
         let report = sim
@@ -199,6 +203,7 @@ where
         unconverged += usize::from(!report.converged());
         max_pin_deviation = max_pin_deviation.max(sim.max_pin_deviation().unwrap_or(0.0));
         max_held_deviation = max_held_deviation.max(sim.max_held_deviation().unwrap_or(0.0));
+        max_penetration = max_penetration.max(sim.max_penetration());
         notify(&sim, step, Some(&report))?;
     }
     let n = steps.max(1) as f64;
@@ -213,6 +218,7 @@ where
         unconverged_steps: unconverged,
         max_pin_deviation,
         max_held_deviation,
+        max_penetration,
         setup_seconds,
         quadrature,
         simulation_points: points.len(),

@@ -38,6 +38,10 @@ pub struct SimulateReport {
     /// The same for the exactly held points alone (`pins = { exact = … }`; 0 otherwise).
     #[serde(default)]
     pub max_held_deviation: f64,
+    /// The deepest penetration of an integration point into the floor or a collider over the
+    /// run (m).
+    #[serde(default)]
+    pub max_penetration: f64,
     /// Frames written.
     pub frames_written: usize,
     /// Integration points simulated.
@@ -263,6 +267,7 @@ pub fn simulate_scene_file(
         max_pin_deviation: report.max_pin_deviation,
         max_held_deviation: report.max_held_deviation,
         unconverged_steps: report.unconverged_steps,
+        max_penetration: report.max_penetration,
         frames_written,
         simulation_points: points.len(),
         final_max_displacement: output

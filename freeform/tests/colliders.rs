@@ -28,8 +28,9 @@ fn pusher(speed: f64, duration: f64) -> Collider {
     }
 }
 
-/// Per frame: the cube's mean x and its smallest x (m), and the integration point spacing (m).
-fn push(speed: f64, steps: usize) -> (Vec<(f64, f64)>, f64) {
+/// Per frame: the cube's mean x and its smallest x (m); the integration point spacing (m); the
+/// run's deepest penetration (m).
+fn push(speed: f64, steps: usize) -> (Vec<(f64, f64)>, f64, f64) {
     let geometry = Geometry::cuboid(Vector3::zeros(), Vector3::new(SIDE, SIDE, SIDE));
     let points = geometry.integration_points(800).unwrap();
     let material = MaterialSample {
@@ -77,13 +78,15 @@ fn push(speed: f64, steps: usize) -> (Vec<(f64, f64)>, f64) {
     .unwrap();
     assert_eq!(report.unconverged_steps, 0);
     let spacing = (volume / points.len() as f64).cbrt();
-    (frames, spacing)
+    (frames, spacing, report.max_penetration)
 }
 
 #[test]
 fn a_pushed_box_moves_at_the_pushers_speed_after_contact() {
     let speed = 0.2;
-    let (frames, _) = push(speed, 80);
+    let (frames, spacing, penetration) = push(speed, 80);
+    // Penalty contact: the bound, 2% of the contact spacing.
+    assert!(penetration < 0.02 * spacing, "penetration {penetration} m");
     // Contact starts at 0.05 s; by 0.4 s the contact spring has brought the box up to speed.
     let velocity = (frames[80].0 - frames[40].0) / (40.0 * H);
     assert!(
@@ -94,10 +97,11 @@ fn a_pushed_box_moves_at_the_pushers_speed_after_contact() {
 
 #[test]
 fn a_pusher_moving_half_a_point_spacing_per_step_does_not_pass_through_the_box() {
-    let (_, spacing) = push(0.0, 1);
+    let (_, spacing, _) = push(0.0, 1);
     let speed = 0.5 * spacing / H;
     let steps = 40;
-    let (frames, _) = push(speed, steps);
+    let (frames, _, penetration) = push(speed, steps);
+    assert!(penetration < 0.02 * spacing, "penetration {penetration} m");
     for (n, &(_, back)) in frames.iter().enumerate() {
         let face = -0.01 + speed * n as f64 * H;
         // The pusher's front face never gets past the box's trailing points by more than a

@@ -441,6 +441,33 @@ impl SceneTerms {
         ContactFriction::new(&contacts, self.friction_slip_speed * time_step)
     }
 
+    /// The deepest penetration (m) of an integration point into the floor or a collider at z
+    /// and time `time` (s); 0 without contact.
+    pub(crate) fn max_penetration<M: HyperelasticMaterial>(
+        &self,
+        model: &ReducedModel<M>,
+        z: &[f64],
+        time: f64,
+    ) -> f64 {
+        if self.floor.is_none() && self.colliders.is_empty() {
+            return 0.0;
+        }
+        let positions = model.deformation_map().positions(z);
+        let mut deepest: f64 = 0.0;
+        if let Some(floor) = &self.floor {
+            for x in &positions {
+                deepest = deepest.max(floor.offset - floor.normal.dot(x));
+            }
+        }
+        for collider in &self.colliders {
+            let pose = collider.pose(time);
+            for x in &positions {
+                deepest = deepest.max(-collider.signed_distance(&pose, x).distance);
+            }
+        }
+        deepest
+    }
+
     /// The points in contact at z and time `time` (s), in index order: below the floor, then
     /// inside collider k, numbered `(k + 1) n + i` (n points). The contact terms' Hessians
     /// change when this set does.

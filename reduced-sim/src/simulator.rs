@@ -230,6 +230,13 @@ impl<M: HyperelasticMaterial> Simulator<M> {
             .max_pin_deviation(&self.model, &self.state.z, &targets, true)
     }
 
+    /// The deepest penetration (m) of an integration point into the floor or a collider at
+    /// the current state (0 without contact): how far the penalty lets the object in.
+    pub fn max_penetration(&self) -> f64 {
+        self.terms
+            .max_penetration(&self.model, &self.state.z, self.state.time)
+    }
+
     /// Replaces the state (e.g. to start with an initial velocity).
     ///
     /// # Errors

@@ -22,13 +22,14 @@ pub(crate) fn run(
     let report = simulate_scene_file(&file, &out, Some(cache), &BarProgress::new(progress))?;
     println!(
         "{} frames written to {}; basis {:.2} s, {:.2} ms/step, {} unconverged \
-         steps, final max displacement {:.4} m",
+         steps, final max displacement {:.4} m, deepest penetration {:.2e} m",
         report.frames_written,
         out.display(),
         report.basis_seconds,
         report.ms_per_step,
         report.unconverged_steps,
-        report.final_max_displacement
+        report.final_max_displacement,
+        report.max_penetration
     );
     if let Some(q) = &report.quadrature {
         match &q.cubature {
