@@ -57,7 +57,7 @@ impl Region {
 
     /// Why the region is malformed (an axis above 2, a non-finite plane, a ball that is not
     /// finite or not of positive radius), if it is.
-    fn defect(&self) -> Option<String> {
+    pub fn defect(&self) -> Option<String> {
         match *self {
             Region::Below { axis, value } | Region::Above { axis, value } => {
                 if axis > 2 {

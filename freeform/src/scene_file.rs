@@ -16,6 +16,11 @@
 //! youngs_modulus = 1e5
 //! poisson_ratio = 0.45
 //! density = 1000
+//! [[material.regions]]                         # optional parts with their own material
+//! region = { ball = { center = [0.5, 0.5, 0.5], radius = 0.2 } }   # the later region wins
+//! youngs_modulus = 1e7
+//! poisson_ratio = 0.45
+//! density = 1000
 //!
 //! [basis]
 //! modes = 16        # m
@@ -54,7 +59,7 @@
 
 use std::path::{Path, PathBuf};
 
-use hyperelastic::MaterialSample;
+use hyperelastic::{MaterialField, MaterialSample};
 use reduced_sim::QuadratureRule;
 use serde::{Deserialize, Serialize};
 use thiserror::Error;
@@ -185,8 +190,9 @@ fn yes() -> bool {
     true
 }
 
-/// Material (SI units), uniform over the object.
-#[derive(Clone, Copy, Debug, PartialEq, Serialize, Deserialize)]
+/// Material (SI units): one value over the object, or parts of it with their own
+/// (`[[material.regions]]`, e.g. the shells of a layered sphere).
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
 #[serde(deny_unknown_fields)]
 pub struct MaterialSpec {
     /// Young's modulus E (Pa).
@@ -195,14 +201,56 @@ pub struct MaterialSpec {
     pub poisson_ratio: f64,
     /// Density ρ (kg/m³).
     pub density: f64,
+    /// Parts of the object (by rest position) with their own material; where regions overlap
+    /// the later one wins (default none: uniform).
+    #[serde(default)]
+    pub regions: Vec<MaterialRegion>,
 }
 
-impl From<MaterialSpec> for MaterialSample {
-    fn from(m: MaterialSpec) -> Self {
+/// A part of the object with its own material.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct MaterialRegion {
+    /// Where (rest positions, m).
+    pub region: crate::Region,
+    /// Young's modulus E (Pa).
+    pub youngs_modulus: f64,
+    /// Poisson ratio ν, in (-1, 0.5).
+    pub poisson_ratio: f64,
+    /// Density ρ (kg/m³).
+    pub density: f64,
+}
+
+impl MaterialSpec {
+    /// The material at rest position `x` (m): the last region containing x, else the base.
+    pub fn at(&self, x: &nalgebra::Vector3<f64>) -> MaterialSample {
+        self.regions
+            .iter()
+            .rev()
+            .find(|r| r.region.contains(x))
+            .map_or(self.base(), |r| MaterialSample {
+                youngs_modulus: r.youngs_modulus,
+                poisson_ratio: r.poisson_ratio,
+                density: r.density,
+            })
+    }
+
+    /// The base material (outside every region).
+    pub fn base(&self) -> MaterialSample {
         MaterialSample {
-            youngs_modulus: m.youngs_modulus,
-            poisson_ratio: m.poisson_ratio,
-            density: m.density,
+            youngs_modulus: self.youngs_modulus,
+            poisson_ratio: self.poisson_ratio,
+            density: self.density,
+        }
+    }
+
+    /// The material as a field over the object: uniform without regions.
+    pub fn field(&self) -> MaterialField {
+        if self.regions.is_empty() {
+            MaterialField::Uniform(self.base())
+        } else {
+            let spec = self.clone();
+            MaterialField::Function(std::sync::Arc::new(move |x| spec.at(x)))
         }
     }
 }
@@ -298,14 +346,36 @@ impl SceneFile {
             );
         }
         let m = &self.material;
-        if let Err(e) = MaterialSample::from(*m).lame_parameters() {
-            return bad("material", e.to_string());
+        let samples = std::iter::once(("material".to_string(), m.base())).chain(
+            m.regions.iter().enumerate().map(|(i, r)| {
+                (
+                    format!("material.regions[{i}]"),
+                    MaterialSample {
+                        youngs_modulus: r.youngs_modulus,
+                        poisson_ratio: r.poisson_ratio,
+                        density: r.density,
+                    },
+                )
+            }),
+        );
+        for (name, sample) in samples {
+            if let Err(e) = sample.lame_parameters() {
+                return bad(&name, e.to_string());
+            }
+            if !(sample.density > 0.0 && sample.density.is_finite()) {
+                return bad(
+                    &format!("{name}.density"),
+                    format!("{} must be positive", sample.density),
+                );
+            }
         }
-        if !(m.density > 0.0 && m.density.is_finite()) {
-            return bad(
-                "material.density",
-                format!("{} must be positive", m.density),
-            );
+        if let Some((i, defect)) = m
+            .regions
+            .iter()
+            .enumerate()
+            .find_map(|(i, r)| r.region.defect().map(|d| (i, d)))
+        {
+            return bad(&format!("material.regions[{i}].region"), defect);
         }
         if self.basis.modes == 0 || self.basis.modes >= self.basis.kernels {
             return bad(

@@ -4,7 +4,8 @@ use std::path::Path;
 use std::time::Instant;
 
 use artifact::{ArtifactError, write_atomically};
-use hyperelastic::{MaterialField, MaterialParameterError, MaterialSample, StableNeoHookean};
+use hyperelastic::{MaterialParameterError, StableNeoHookean, lame_parameters_of};
+use nalgebra::Vector3;
 use reduced_sim::{
     DeformationMap, DeformationMapError, QuadratureReport, QuadratureRule, SimulationParams,
 };
@@ -121,10 +122,10 @@ pub fn simulate_scene_file(
         Some(table) => Geometry::Cloud(PointCloud::new(table.positions(), None)),
         None => file.geometry()?,
     };
-    let material = MaterialSample::from(file.material);
-    let lame = material
-        .lame_parameters()
-        .map_err(SimulateError::Material)?;
+    let material = file.material.field();
+    let lame_at = |positions: &[Vector3<f64>]| {
+        lame_parameters_of(&material.sample(positions)).map_err(|(_, e)| SimulateError::Material(e))
+    };
     let start = Instant::now();
     progress.status(&format!(
         "basis: m = {}, K = {}, ≈{} grid points",
@@ -138,7 +139,7 @@ pub fn simulate_scene_file(
         .build_basis(
             &file.scene,
             &basis_points,
-            &vec![lame; basis_points.len()],
+            &lame_at(basis_points.positions())?,
             points.positions(),
             BasisParams::default()
                 .with_modes(file.basis.modes)
@@ -154,15 +155,14 @@ pub fn simulate_scene_file(
     let output =
         DeformationMap::new(&basis, writer.rest_positions()).map_err(SimulateError::OutputMap)?;
     let mut inverted_splats = 0;
-    // The stress needs F at the integration points too, and the Lamé parameters of both sets
-    // (the scene file's material is uniform).
+    // The stress needs F at the integration points too, and the Lamé parameters of both sets.
     let stress_maps = if file.simulation.stress {
         let point_map =
             DeformationMap::new(&basis, points.positions()).map_err(SimulateError::OutputMap)?;
         Some((
             point_map,
-            vec![lame; points.len()],
-            vec![lame; writer.rest_positions().len()],
+            lame_at(points.positions())?,
+            lame_at(writer.rest_positions())?,
         ))
     } else {
         None
@@ -176,7 +176,7 @@ pub fn simulate_scene_file(
     let simulation = Simulation {
         field: &basis,
         points: &points,
-        material: &MaterialField::Uniform(material),
+        material: &material,
         material_model: StableNeoHookean,
         scene: &file.scene,
         params: SimulationParams {

@@ -123,3 +123,40 @@ fn a_scene_with_stress_writes_it_for_the_surface_and_the_integration_points() {
     let first: f64 = rest[start..].lines().nth(2).unwrap().parse().unwrap();
     assert!(first.abs() < 1e-6);
 }
+
+#[test]
+fn material_regions_give_each_shell_its_own_material_and_stress_and_bad_ones_are_named() {
+    let dir = scratch_dir("material-regions");
+    let path = dir.join("layers.toml");
+    let scene = |inner_modulus: f64| {
+        format!(
+            "[geometry]\nbox = {{ min = [0, 0, 0], max = [1, 1, 1] }}\n[material]\n\
+             youngs_modulus = 1e5\npoisson_ratio = 0.3\ndensity = 1000\n\
+             [[material.regions]]\nregion = {{ ball = {{ center = [0.5, 0.5, 0.5], radius = 0.4 }} }}\n\
+             youngs_modulus = 1e6\npoisson_ratio = 0.3\ndensity = 2000\n\
+             [[material.regions]]\nregion = {{ ball = {{ center = [0.5, 0.5, 0.5], radius = 0.2 }} }}\n\
+             youngs_modulus = {inner_modulus}\npoisson_ratio = 0.3\ndensity = 3000\n\
+             [basis]\nmodes = 4\nkernels = 60\npoints = 800\n\
+             [simulation]\ntime_step = 0.01\nsteps = 1\npoints = 500\n[scene]\n"
+        )
+    };
+    std::fs::write(&path, scene(1e7)).unwrap();
+    let file = SceneFile::load(&path).unwrap();
+    let at = |x: f64| file.material.at(&Vector3::new(x, 0.5, 0.5));
+    // The later region wins where they overlap: core, middle shell, outside.
+    assert_eq!((at(0.5).youngs_modulus, at(0.5).density), (1e7, 3000.0));
+    assert_eq!(at(0.2).youngs_modulus, 1e6);
+    assert_eq!(at(0.05).youngs_modulus, 1e5);
+    // The same stretch stresses each part in proportion to its modulus (same ν).
+    let stretch = Matrix3::from_diagonal(&Vector3::new(1.01, 1.0, 1.0));
+    let lame: Vec<LameParameters> = [0.5, 0.2, 0.05]
+        .iter()
+        .map(|&x| at(x).lame_parameters().unwrap())
+        .collect();
+    let field = StressField::new(&StableNeoHookean, &lame, &[stretch; 3]).unwrap();
+    let axial: Vec<f64> = field.samples.iter().map(|s| s.cauchy[(0, 0)]).collect();
+    assert!((axial[0] / axial[1] - 10.0).abs() < 1e-9 && (axial[1] / axial[2] - 10.0).abs() < 1e-9);
+    std::fs::write(&path, scene(-1.0)).unwrap();
+    let error = SceneFile::load(&path).unwrap_err().to_string();
+    assert!(error.contains("material.regions[1]"), "{error}");
+}
