@@ -180,6 +180,16 @@ pub struct SimulationSpec {
     /// not computed). See [`crate::StressField`] for the arrays.
     #[serde(default)]
     pub stress: bool,
+    /// Slip speed ε_v (m/s) at which friction reaches its Coulomb limit (default 1e-3,
+    /// [`reduced_sim::PenaltyParams::friction_slip_speed`]): larger values let sticking
+    /// contacts creep faster (about 0.6 ε_v under 80% of the limit) but cost far fewer Newton
+    /// iterations.
+    #[serde(default = "default_friction_slip_speed")]
+    pub friction_slip_speed: f64,
+}
+
+fn default_friction_slip_speed() -> f64 {
+    reduced_sim::PenaltyParams::default().friction_slip_speed
 }
 
 fn one() -> usize {

@@ -7,7 +7,8 @@ use artifact::{ArtifactError, write_atomically};
 use hyperelastic::{MaterialParameterError, StableNeoHookean, lame_parameters_of};
 use nalgebra::Vector3;
 use reduced_sim::{
-    DeformationMap, DeformationMapError, QuadratureReport, QuadratureRule, SimulationParams,
+    DeformationMap, DeformationMapError, PenaltyParams, QuadratureReport, QuadratureRule,
+    SimulationParams,
 };
 use rkpm_core::PointCloud;
 use serde::{Deserialize, Serialize};
@@ -31,6 +32,15 @@ pub struct SimulateReport {
     pub basis_seconds: f64,
     /// Mean wall time per step (ms).
     pub ms_per_step: f64,
+    /// Of which Hessian and gradient assembly, factorization and solve, line search (ms).
+    #[serde(default)]
+    pub ms_split_per_step: [f64; 3],
+    /// Mean Newton iterations per step (every solve of a step, friction lagging included).
+    #[serde(default)]
+    pub iterations_per_step: f64,
+    /// Mean Hessians assembled per step.
+    #[serde(default)]
+    pub hessians_per_step: f64,
     /// Steps that did not converge.
     pub unconverged_steps: usize,
     /// Largest distance of a constrained integration point from its target over the run (m).
@@ -181,6 +191,10 @@ pub fn simulate_scene_file(
         scene: &file.scene,
         params: SimulationParams {
             time_step: file.simulation.time_step,
+            penalty: PenaltyParams {
+                friction_slip_speed: file.simulation.friction_slip_speed,
+                ..PenaltyParams::default()
+            },
             ..if file.simulation.hessian_reuse {
                 SimulationParams::default()
             } else {
@@ -264,6 +278,13 @@ pub fn simulate_scene_file(
     let report = SimulateReport {
         basis_seconds,
         ms_per_step: report.ms_per_step,
+        ms_split_per_step: [
+            report.ms_assembly_per_step,
+            report.ms_solve_per_step,
+            report.ms_line_search_per_step,
+        ],
+        iterations_per_step: report.iterations_per_step,
+        hessians_per_step: report.hessians_per_step,
         max_pin_deviation: report.max_pin_deviation,
         max_held_deviation: report.max_held_deviation,
         unconverged_steps: report.unconverged_steps,

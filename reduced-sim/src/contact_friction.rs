@@ -70,6 +70,23 @@ impl ContactFriction {
         })
     }
 
+    /// Whether `other` has the same contacts and normals (to 1e-12) and Coulomb limits
+    /// within `tolerance` of the largest limit: solving again with it would change little.
+    pub(crate) fn matches(&self, other: &ContactFriction, tolerance: f64) -> bool {
+        let largest = self.limit.iter().fold(0.0_f64, |m, &l| m.max(l));
+        self.points == other.points
+            && self
+                .normals
+                .iter()
+                .zip(&other.normals)
+                .all(|(a, b)| (a - b).norm() <= 1e-12)
+            && self
+                .limit
+                .iter()
+                .zip(&other.limit)
+                .all(|(a, b)| (a - b).abs() <= tolerance * largest)
+    }
+
     /// `T_k (x − x̄_k)` of contact k.
     fn slip(&self, k: usize, x: &Vector3<f64>) -> Vector3<f64> {
         let d = x - self.previous[k];

@@ -288,7 +288,8 @@ impl<M: HyperelasticMaterial> Simulator<M> {
         let mut report = self.minimize_step(&potential, &mut z, &mut factor)?;
         // Friction lagging (IPC): the floor's contacts and normal forces taken again from the
         // solution, the slip still measured from the start of the step, and solved again from
-        // there, `friction_lag_iterations` times at most.
+        // there, `friction_lag_iterations` times at most, and only while the lagged forces
+        // move (the same contacts and normals, limits within 1%, end it).
         for _ in 0..self.params.penalty.friction_lag_iterations {
             let Some(friction) =
                 self.terms
@@ -296,6 +297,13 @@ impl<M: HyperelasticMaterial> Simulator<M> {
             else {
                 break;
             };
+            if potential
+                .friction
+                .as_ref()
+                .is_some_and(|lagged| lagged.matches(&friction, 0.01))
+            {
+                break;
+            }
             potential.friction = Some(friction);
             let again = self.minimize_step(&potential, &mut z, &mut factor)?;
             report = combined(&report, &again);
