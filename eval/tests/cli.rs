@@ -124,6 +124,10 @@ fn simulate_writes_ply_and_vtk_frames_of_the_deformed_surface() {
     // Gravity pulls the free end down: something moved, and by less than the box is long.
     let moved = summary["final_max_displacement"].as_f64().unwrap();
     assert!(moved > 1e-4 && moved < 1.0, "{moved}");
+    // A 512² picture of the last frame.
+    let png = std::fs::read(out.join("preview.png")).unwrap();
+    assert_eq!(&png[1..4], b"PNG");
+    assert_eq!(u32::from_be_bytes(png[16..20].try_into().unwrap()), 512);
 }
 
 #[test]

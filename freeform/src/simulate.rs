@@ -68,6 +68,14 @@ pub struct SimulateReport {
     /// The stress over the written frames, when `simulation.stress` asked for it.
     #[serde(default)]
     pub stress: Option<StressSummary>,
+    /// The output vertices (or cloud points) at the last step (m), for a preview; not in
+    /// `summary.json`.
+    #[serde(skip)]
+    pub final_positions: Vec<Vector3<f64>>,
+    /// Their von Mises stress at the last step (Pa), with `simulation.stress`; not in
+    /// `summary.json`.
+    #[serde(skip)]
+    pub final_von_mises: Option<Vec<f64>>,
 }
 
 /// The stress of a run over its written frames (`simulation.stress = true`).
@@ -207,6 +215,7 @@ pub fn simulate_scene_file(
     };
     let mut frames_written = 0;
     let mut last_z = Vec::new();
+    let mut final_von_mises = None;
     if let QuadratureRule::Cubature(p) = &file.simulation.quadrature {
         progress.status(&format!(
             "elastic quadrature: optimizing a cubature to force error {} (at most {} points)",
@@ -247,6 +256,11 @@ pub fn simulate_scene_file(
                 }
                 _ => None,
             };
+            if frame.index == steps {
+                final_von_mises = output_stress
+                    .as_ref()
+                    .map(|s| s.samples.iter().map(|s| s.von_mises).collect());
+            }
             match &splats {
                 Some(table) => {
                     let (deformed, inverted) =
@@ -299,6 +313,8 @@ pub fn simulate_scene_file(
         inverted_splats,
         quadrature: Some(report.quadrature.clone()),
         stress: stress_summary,
+        final_positions: output.positions(&last_z),
+        final_von_mises,
     };
     write_atomically(
         &out_dir.join("summary.json"),

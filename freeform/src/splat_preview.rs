@@ -124,6 +124,57 @@ pub enum PreviewError {
     MissingProperty(&'static str),
 }
 
+/// Points drawn as round splats of `radius` (file units), opaque, coloured by `values` on a
+/// blue → white → red ramp from 0 to the 98th percentile of the values (e.g. the von Mises
+/// stress; the few above it red), or light grey without values: a preview of a deformed
+/// surface or cloud.
+///
+/// # Panics
+/// If `values` is given with a length other than `points.len()`.
+pub fn point_splats(
+    points: &[Vector3<f64>],
+    values: Option<&[f64]>,
+    radius: f64,
+) -> Vec<PreviewSplat> {
+    if let Some(values) = values {
+        assert_eq!(values.len(), points.len(), "one value per point");
+    }
+    let largest = values.map_or(0.0, |v| {
+        let mut sorted: Vec<f64> = v.iter().copied().filter(|x| x.is_finite()).collect();
+        sorted.sort_by(f64::total_cmp);
+        sorted
+            .get((0.98 * sorted.len() as f64) as usize)
+            .or(sorted.last())
+            .copied()
+            .unwrap_or(0.0)
+    });
+    points
+        .iter()
+        .enumerate()
+        .map(|(i, &position)| {
+            let colour = match values {
+                Some(values) if largest > 0.0 => {
+                    let s = (values[i] / largest).clamp(0.0, 1.0);
+                    if s < 0.5 {
+                        let t = 2.0 * s;
+                        [0.1 + 0.9 * t, 0.2 + 0.8 * t, 0.9 + 0.1 * t]
+                    } else {
+                        let t = 2.0 * (s - 0.5);
+                        [1.0, 1.0 - 0.85 * t, 1.0 - 0.9 * t]
+                    }
+                }
+                _ => [0.8, 0.8, 0.8],
+            };
+            PreviewSplat {
+                position,
+                covariance: Matrix3::identity() * (radius * radius),
+                opacity: 1.0,
+                colour,
+            }
+        })
+        .collect()
+}
+
 /// The splats of a 3DGS table as the preview draws them (opacity through the sigmoid, colour
 /// from `f_dc_0..2`).
 ///

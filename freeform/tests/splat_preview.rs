@@ -89,3 +89,21 @@ fn unusable_previews_are_named_errors() {
         Err(PreviewError::Params(_))
     ));
 }
+
+#[test]
+fn point_splats_ramp_from_blue_at_zero_to_red_at_the_98th_percentile() {
+    let points = vec![nalgebra::Vector3::zeros(); 100];
+    let values: Vec<f64> = (0..100).map(f64::from).collect();
+    let splats = freeform::point_splats(&points, Some(&values), 0.1);
+    assert_eq!(splats[0].colour, [0.1, 0.2, 0.9]);
+    // 98 is the 98th percentile: red, and so is everything above it.
+    for k in [98, 99] {
+        assert!((splats[k].colour[0] - 1.0).abs() < 1e-12 && splats[k].colour[1] < 0.2);
+    }
+    // Half of it is white.
+    let white = splats[49].colour;
+    assert!(white.iter().all(|&c| c > 0.98), "{white:?}");
+    assert!((splats[3].covariance - nalgebra::Matrix3::identity() * 0.01).norm() < 1e-15);
+    let grey = freeform::point_splats(&points, None, 0.1);
+    assert!(grey.iter().all(|s| s.colour == [0.8, 0.8, 0.8]));
+}

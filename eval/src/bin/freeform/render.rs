@@ -82,7 +82,7 @@ pub(crate) fn run(files: &[PathBuf], options: &RenderOptions, out: &Path) -> Res
 }
 
 /// Writes `image` as an RGB PNG.
-fn write_png(image: &PreviewImage, path: &Path) -> Result<()> {
+pub(crate) fn write_png(image: &PreviewImage, path: &Path) -> Result<()> {
     let size = (
         u32::try_from(image.width).context("image width")?,
         u32::try_from(image.height).context("image height")?,

@@ -4,7 +4,14 @@ use std::path::Path;
 
 use anyhow::Result;
 use eval::progress::{BarProgress, Progress};
-use freeform::{SceneFile, simulate_scene_file};
+use freeform::{
+    Camera, PreviewParams, SceneFile, SimulateReport, point_splats, render_preview,
+    simulate_scene_file,
+};
+use nalgebra::Vector3;
+use rkpm_core::Aabb;
+
+use crate::render::write_png;
 
 /// Runs `scene` and writes its frames under `<out>/<scene stem>/`, with the stress when
 /// `stress` (or the file) asks for it.
@@ -54,6 +61,19 @@ pub(crate) fn run(
             None => println!("elastic quadrature: {} ({} points)", q.kind, q.points),
         }
     }
+    if !report.final_positions.is_empty() {
+        let png = out.join("preview.png");
+        write_preview(&report, &file, &png)?;
+        println!(
+            "preview of the last frame{}: {}",
+            if report.final_von_mises.is_some() {
+                " coloured by von Mises stress (blue 0, white half, red the 98th percentile)"
+            } else {
+                ""
+            },
+            png.display()
+        );
+    }
     if let Some(stress) = &report.stress {
         println!(
             "stress written: largest von Mises {:.4e} Pa (output points {:.4e} Pa); {} inverted \
@@ -62,4 +82,28 @@ pub(crate) fn run(
         );
     }
     Ok(())
+}
+
+/// Draws the last frame's output points (512² pixels) as round splats about as wide as their
+/// spacing on the surface, coloured by their von Mises stress when the run computed it, seen
+/// from 30° about and 20° above the scene's up (against gravity, else +y).
+fn write_preview(report: &SimulateReport, file: &SceneFile, png: &Path) -> Result<()> {
+    let points = &report.final_positions;
+    let extent = Aabb::from_points(points).map_or(Vector3::repeat(1.0), |b| b.extent());
+    // Points on a surface: spacing about sqrt(area / n), the area taken from the box.
+    let area = 2.0 * (extent.x * extent.y + extent.y * extent.z + extent.z * extent.x);
+    let radius = 0.3 * (area / points.len().max(1) as f64).sqrt();
+    let up = file
+        .scene
+        .gravity
+        .filter(|g| g.norm() > 0.0)
+        .map_or(Vector3::y(), |g| -g.normalize());
+    let splats = point_splats(points, report.final_von_mises.as_deref(), radius);
+    let params = PreviewParams {
+        width: 512,
+        height: 512,
+        camera: Camera::framing(points, up, 30.0, 20.0),
+        background: [1.0, 1.0, 1.0],
+    };
+    write_png(&render_preview(&splats, &params)?, png)
 }
