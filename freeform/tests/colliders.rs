@@ -1,13 +1,13 @@
 //! Kinematic colliders (issue 21): a box pushed by a moving box collider takes on the pusher's
 //! speed, and a fast pusher does not pass through it.
 
-use freeform::{Geometry, SceneSpec, Simulation, run};
-use hyperelastic::{MaterialField, MaterialSample, StableNeoHookean};
-use nalgebra::{UnitQuaternion, Vector3};
-use reduced_sim::{Collider, ColliderShape, Keyframe, QuadratureRule, SimulationParams};
-use skin_eigen::{BasisParams, build_basis};
+mod support;
 
-const H: f64 = 0.01;
+use freeform::SceneSpec;
+use nalgebra::{UnitQuaternion, Vector3};
+use reduced_sim::{Collider, ColliderShape, Keyframe};
+use support::{H, mean_x, run_cube};
+
 const SIDE: f64 = 0.2;
 /// Half the pusher's thickness (m).
 const PUSHER: f64 = 0.05;
@@ -31,53 +31,17 @@ fn pusher(speed: f64, duration: f64) -> Collider {
 /// Per frame: the cube's mean x and its smallest x (m); the integration point spacing (m); the
 /// run's deepest penetration (m).
 fn push(speed: f64, steps: usize) -> (Vec<(f64, f64)>, f64, f64) {
-    let geometry = Geometry::cuboid(Vector3::zeros(), Vector3::new(SIDE, SIDE, SIDE));
-    let points = geometry.integration_points(800).unwrap();
-    let material = MaterialSample {
-        youngs_modulus: 1e6,
-        poisson_ratio: 0.3,
-        density: 1000.0,
-    };
-    let lame = vec![material.lame_parameters().unwrap(); points.len()];
-    let params = BasisParams::default().with_modes(4).with_kernels(60);
-    let (basis, _, _) = build_basis(&points, &lame, &params).unwrap();
     let scene = SceneSpec {
         colliders: vec![pusher(speed, steps as f64 * H)],
         ..Default::default()
     };
-    let material = MaterialField::Uniform(material);
-    let simulation = Simulation {
-        field: &basis,
-        points: &points,
-        material: &material,
-        material_model: StableNeoHookean,
-        scene: &scene,
-        params: SimulationParams {
-            time_step: H,
-            ..Default::default()
-        },
-        quadrature: QuadratureRule::Full,
-        cache_dir: None,
-        pin_hold: Default::default(),
-    };
-    let volume: f64 = points.volumes().iter().sum();
     let mut frames = Vec::new();
-    let report = run(&simulation, steps, |frame| {
-        let map = frame.simulator.model().deformation_map();
-        let x = map.positions(&frame.simulator.state().z);
-        let mean: f64 = x
-            .iter()
-            .zip(points.volumes())
-            .map(|(x, v)| x.x * v)
-            .sum::<f64>()
-            / volume;
-        let back = x.iter().map(|x| x.x).fold(f64::INFINITY, f64::min);
-        frames.push((mean, back));
-        Ok(())
-    })
-    .unwrap();
-    assert_eq!(report.unconverged_steps, 0);
-    let spacing = (volume / points.len() as f64).cbrt();
+    let mut spacing = 0.0;
+    let report = run_cube(SIDE, &scene, steps, |positions, volumes| {
+        let back = positions.iter().map(|x| x.x).fold(f64::INFINITY, f64::min);
+        frames.push((mean_x(positions, volumes), back));
+        spacing = (volumes.iter().sum::<f64>() / volumes.len() as f64).cbrt();
+    });
     (frames, spacing, report.max_penetration)
 }
 

@@ -4,29 +4,18 @@
 //! The incline is the floor y ≥ 0 with gravity tilted by θ: `g = 9.8 (sin θ, −cos θ, 0)` m/s²,
 //! so the block's bottom face starts on the plane and "down the slope" is +x.
 
-use freeform::{FloorSpec, Geometry, SceneSpec, Simulation, run};
-use hyperelastic::{MaterialField, MaterialSample, StableNeoHookean};
+mod support;
+
+use freeform::{FloorSpec, SceneSpec};
 use nalgebra::Vector3;
-use reduced_sim::{QuadratureRule, SimulationParams};
-use skin_eigen::{BasisParams, build_basis};
+use support::{H, mean_x, run_cube};
 
 const G: f64 = 9.8;
-const H: f64 = 0.01;
 const THETA: f64 = std::f64::consts::FRAC_PI_6;
 
 /// The block's volume-weighted mean x (m) after each of `steps` steps on the incline with
 /// friction coefficient `friction`.
 fn slide(friction: f64, steps: usize) -> Vec<f64> {
-    let geometry = Geometry::cuboid(Vector3::zeros(), Vector3::new(0.2, 0.2, 0.2));
-    let points = geometry.integration_points(800).unwrap();
-    let material = MaterialSample {
-        youngs_modulus: 1e6,
-        poisson_ratio: 0.3,
-        density: 1000.0,
-    };
-    let lame = vec![material.lame_parameters().unwrap(); points.len()];
-    let params = BasisParams::default().with_modes(4).with_kernels(60);
-    let (basis, _, _) = build_basis(&points, &lame, &params).unwrap();
     let scene = SceneSpec {
         gravity: Some(Vector3::new(G * THETA.sin(), -G * THETA.cos(), 0.0)),
         floor: Some(FloorSpec {
@@ -36,33 +25,11 @@ fn slide(friction: f64, steps: usize) -> Vec<f64> {
         }),
         ..Default::default()
     };
-    let material = MaterialField::Uniform(material);
-    let simulation = Simulation {
-        field: &basis,
-        points: &points,
-        material: &material,
-        material_model: StableNeoHookean,
-        scene: &scene,
-        params: SimulationParams {
-            time_step: H,
-            ..Default::default()
-        },
-        quadrature: QuadratureRule::Full,
-        cache_dir: None,
-        pin_hold: Default::default(),
-    };
-    let volume: f64 = points.volumes().iter().sum();
-    let mut mean_x = Vec::new();
-    let report = run(&simulation, steps, |frame| {
-        let map = frame.simulator.model().deformation_map();
-        let x = map.positions(&frame.simulator.state().z);
-        let sum: f64 = x.iter().zip(points.volumes()).map(|(x, v)| x.x * v).sum();
-        mean_x.push(sum / volume);
-        Ok(())
-    })
-    .unwrap();
-    assert_eq!(report.unconverged_steps, 0);
-    mean_x
+    let mut x = Vec::new();
+    run_cube(0.2, &scene, steps, |positions, volumes| {
+        x.push(mean_x(positions, volumes));
+    });
+    x
 }
 
 #[test]
