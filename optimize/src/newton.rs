@@ -61,6 +61,14 @@ pub trait NewtonObjective {
     /// simulators: the root-mean-square distance the step moves the mass, over L).
     fn step_norm(&self, step: &[f64]) -> f64;
 
+    /// The largest fraction α ≤ 1 of `step` the objective can take from x (default 1): an
+    /// objective with a barrier returns where its first constraint would come too close, so the
+    /// line search (which starts at α) and the converged last step never leave the feasible
+    /// set.
+    fn max_step(&self, _x: &[f64], _step: &[f64]) -> f64 {
+        1.0
+    }
+
     /// `gᵀΔx`, the slope of E along the step (default: the dot product, for a gradient in x's
     /// space).
     fn directional_derivative(&self, gradient: &[f64], step: &[f64]) -> f64 {
@@ -279,7 +287,8 @@ fn solve<O: NewtonObjective>(
             let residual = objective.step_norm(&step);
             if residual.is_finite() && residual < params.tolerance {
                 report.residual = residual;
-                apply(x, &step, 1.0);
+                let alpha = objective.max_step(x, &step).min(1.0);
+                apply(x, &step, alpha);
                 report.stop = NewtonStop::Converged;
                 break;
             }
@@ -329,7 +338,8 @@ fn solve<O: NewtonObjective>(
         previous_residual = residual;
         if residual < params.tolerance {
             // Within tolerance: take the full step (quadratically small) and stop.
-            apply(x, &step, 1.0);
+            let alpha = objective.max_step(x, &step).min(1.0);
+            apply(x, &step, alpha);
             report.stop = NewtonStop::Converged;
             break;
         }
@@ -366,7 +376,7 @@ fn line_search<O: NewtonObjective>(
     params: &NewtonParams,
 ) -> Option<(Vec<f64>, f64, usize)> {
     let slope = objective.directional_derivative(gradient, step);
-    let mut alpha = 1.0;
+    let mut alpha = objective.max_step(x, step).min(1.0);
     for cuts in 0..=params.max_line_search_cuts {
         let mut trial = x.to_vec();
         apply(&mut trial, step, alpha);

@@ -114,15 +114,7 @@ impl ContactFriction {
         let mut stiffnesses = Vec::with_capacity(self.points.len());
         for (k, &i) in self.points.iter().enumerate() {
             let u = self.slip(k, &map.position(i, z));
-            let y = u.norm();
-            let (f1_over_y, curvature) = slope_and_curvature(y, self.epsilon);
-            let g = u * (self.limit[k] * f1_over_y);
-            let tangent = Matrix3::identity() - self.normals[k] * self.normals[k].transpose();
-            let mut h = tangent * (self.limit[k] * f1_over_y);
-            if y > 0.0 {
-                // [f₁'(y) − f₁(y)/y] û ûᵀ with û = u/y (u already tangential).
-                h += u * u.transpose() * (self.limit[k] * curvature / (y * y));
-            }
+            let (g, h) = slip_derivatives(&u, &self.normals[k], self.limit[k], self.epsilon);
             forces.push(g);
             stiffnesses.push(h);
         }
@@ -139,8 +131,29 @@ impl ContactFriction {
     }
 }
 
+/// The gradient and Hessian of `limit · f₀(‖u‖)` with respect to the contact point (or, between
+/// two objects, their relative position), u the tangential slip `T (x − x̄)` with normal
+/// `normal`: `limit f₁(y)/y u` and the positive semidefinite Hessian of the module docs.
+pub(crate) fn slip_derivatives(
+    u: &Vector3<f64>,
+    normal: &Vector3<f64>,
+    limit: f64,
+    epsilon: f64,
+) -> (Vector3<f64>, Matrix3<f64>) {
+    let y = u.norm();
+    let (f1_over_y, curvature) = slope_and_curvature(y, epsilon);
+    let g = u * (limit * f1_over_y);
+    let tangent = Matrix3::identity() - normal * normal.transpose();
+    let mut h = tangent * (limit * f1_over_y);
+    if y > 0.0 {
+        // [f₁'(y) − f₁(y)/y] û ûᵀ with û = u/y (u already tangential).
+        h += u * u.transpose() * (limit * curvature / (y * y));
+    }
+    (g, h)
+}
+
 /// f₀(y) with threshold ε (m).
-fn f0(y: f64, epsilon: f64) -> f64 {
+pub(crate) fn f0(y: f64, epsilon: f64) -> f64 {
     if y < epsilon {
         -y * y * y / (3.0 * epsilon * epsilon) + y * y / epsilon + epsilon / 3.0
     } else {

@@ -39,6 +39,7 @@
 
 #[cfg(test)]
 mod analytic_field;
+pub mod body_contact;
 pub mod collider;
 mod contact_friction;
 pub mod cubature;
@@ -46,6 +47,7 @@ pub mod deformation_map;
 pub mod elastic_energy;
 mod held_regions;
 pub mod incremental_potential;
+pub mod multibody;
 pub mod quadrature;
 pub mod reduced_coordinates;
 pub mod reduced_model;
@@ -54,10 +56,14 @@ mod scene_terms;
 pub mod simulator;
 pub mod skinning_field;
 
+pub use body_contact::{BodyContactModel, BodyContactParams};
 pub use collider::{Collider, ColliderShape, Keyframe, SignedDistance};
 pub use cubature::{CubatureError, CubatureParams, CubatureReport, optimize_cubature};
 pub use deformation_map::{DeformationMap, DeformationMapError};
 pub use incremental_potential::IncrementalPotential;
+pub use multibody::{
+    Body, MultiBodyError, MultiBodyReport, MultiBodySimulator, MultiBodyStepError,
+};
 pub use quadrature::{ElasticQuadrature, QuadratureError, QuadratureReport, QuadratureRule};
 pub use reduced_coordinates::ReducedLayout;
 pub use reduced_model::{ReducedModel, ReducedModelError};

@@ -3,6 +3,7 @@
 
 use faer::linalg::solvers::Llt;
 use hyperelastic::{HyperelasticMaterial, Tangent};
+use nalgebra::Vector3;
 use optimize::{
     HessianReuse, NewtonError, NewtonParams, NewtonReport, NewtonTimings, minimize,
     minimize_reusing,
@@ -17,7 +18,7 @@ use crate::scene_terms::{SceneError, SceneTerms};
 
 /// The report of a solve that was retried: the second attempt's outcome, with the iterations,
 /// assemblies, cuts, chord steps and time of both.
-fn combined(first: &NewtonReport, second: &NewtonReport) -> NewtonReport {
+pub(crate) fn combined(first: &NewtonReport, second: &NewtonReport) -> NewtonReport {
     NewtonReport {
         iterations: first.iterations + second.iterations,
         hessian_assemblies: first.hessian_assemblies + second.hessian_assemblies,
@@ -332,6 +333,37 @@ impl<M: HyperelasticMaterial> Simulator<M> {
             time: next_time,
         };
         Ok(report)
+    }
+
+    /// Ends a step whose z was solved elsewhere (objects in contact are solved together by
+    /// [`crate::MultiBodySimulator`]): z becomes the state at t + h with `ż = (z − z_t)/h`; the
+    /// carried Hessian factorization is dropped.
+    pub(crate) fn commit_step(&mut self, z: Vec<f64>) {
+        let h = self.params.time_step;
+        let time = self.state.time + h;
+        self.contacts = self.terms.contacts(&self.model, &z, time);
+        self.factor = None;
+        let velocity = z
+            .iter()
+            .zip(&self.state.z)
+            .map(|(a, b)| (a - b) / h)
+            .collect();
+        self.state = ReducedState { z, velocity, time };
+    }
+
+    /// The linear momentum `Σ_i ρ_i v_i ẋ_i` (kg·m/s) of the integration points at the
+    /// current velocity (`ẋ_i = B_i ż`).
+    pub fn linear_momentum(&self) -> Vector3<f64> {
+        let velocities = self
+            .model
+            .deformation_map()
+            .displacements(&self.state.velocity);
+        velocities
+            .iter()
+            .zip(self.model.densities())
+            .zip(self.model.volumes())
+            .map(|((v, rho), vol)| v * (rho * vol))
+            .sum()
     }
 
     /// Minimizes `potential` from z (updated in place), carrying `factor` across when the
