@@ -90,6 +90,51 @@ impl Geometry {
         }
     }
 
+    /// The same shape scaled by `factor` about the origin (a cloud's splat attributes dropped:
+    /// only positions are scaled).
+    pub fn scaled(self, factor: f64) -> Self {
+        match self {
+            Geometry::Surface(mesh) => Geometry::Surface(mesh.scaled(factor)),
+            Geometry::Cloud(cloud) => Geometry::Cloud(PointCloud::new(
+                cloud.positions().iter().map(|p| p * factor).collect(),
+                None,
+            )),
+        }
+    }
+
+    /// Points on the shape's surface at most about `spacing` (m) apart, where other objects
+    /// touch it ([`reduced_sim::BodyContactParams::radius`]): a surface's triangles sampled
+    /// finely, or a cloud's points, thinned to one per cell of side `spacing / 2` (every part
+    /// of the surface within `0.87 spacing` of a sample), in a fixed order.
+    pub fn contact_samples(&self, spacing: f64) -> Vec<Vector3<f64>> {
+        let cell = 0.5 * spacing;
+        let mut kept = std::collections::HashSet::new();
+        let mut samples = Vec::new();
+        let mut keep = |p: Vector3<f64>| {
+            if kept.insert([0, 1, 2].map(|k| (p[k] / cell).floor() as i64)) {
+                samples.push(p);
+            }
+        };
+        match self {
+            Geometry::Surface(mesh) => {
+                for t in 0..mesh.triangles().len() {
+                    let [a, b, c] = mesh.triangle_corners(t);
+                    let longest = (b - a).norm().max((c - b).norm()).max((a - c).norm());
+                    // Four times finer than the cells, so every cell the triangle crosses gets one.
+                    let n = ((longest / (0.25 * cell)).ceil() as usize).max(1);
+                    for i in 0..=n {
+                        for j in 0..=n - i {
+                            let (u, v) = (i as f64 / n as f64, j as f64 / n as f64);
+                            keep(a + (b - a) * u + (c - a) * v);
+                        }
+                    }
+                }
+            }
+            Geometry::Cloud(cloud) => cloud.positions().iter().for_each(|&p| keep(p)),
+        }
+        samples
+    }
+
     /// The closed surface, if this is one.
     pub fn surface(&self) -> Option<&TriangleMesh> {
         match self {
@@ -160,6 +205,40 @@ mod tests {
         let points = geometry.integration_points(1000).unwrap();
         assert!((points.total_volume() - 1.0).abs() < 1e-12);
         assert_eq!(points.len(), 1000);
+    }
+
+    #[test]
+    fn contact_samples_cover_a_box_surface_within_the_spacing() {
+        let geometry = Geometry::cuboid(Vector3::zeros(), Vector3::new(0.4, 0.2, 0.3));
+        let spacing = 0.05;
+        let samples = geometry.contact_samples(spacing);
+        // All on the surface.
+        let on_surface = |p: &Vector3<f64>| {
+            let max = Vector3::new(0.4, 0.2, 0.3);
+            (0..3).any(|k| p[k].abs() < 1e-12 || (p[k] - max[k]).abs() < 1e-12)
+        };
+        assert!(samples.iter().all(on_surface));
+        // Every point of a fine probe grid on the faces has a sample within 0.87 spacing.
+        let index = rkpm_core::SpatialIndex::new(&samples);
+        for i in 0..=40 {
+            for j in 0..=20 {
+                for probe in [
+                    Vector3::new(0.01 * i as f64, 0.01 * j as f64, 0.0),
+                    Vector3::new(0.01 * i as f64, 0.2, 0.015 * j as f64),
+                ] {
+                    let (_, d) = index.nearest(&probe, 1)[0];
+                    assert!(d <= 0.87 * spacing, "{probe:?}: nearest sample {d} m away");
+                }
+            }
+        }
+        // Not much denser than needed: the area over a cell's face, give or take.
+        let area = 2.0 * (0.4 * 0.2 + 0.2 * 0.3 + 0.3 * 0.4);
+        let cells = area / (0.5 * spacing).powi(2);
+        assert!(
+            (samples.len() as f64) < 2.0 * cells,
+            "{} samples",
+            samples.len()
+        );
     }
 
     #[test]

@@ -54,6 +54,7 @@
 
 pub mod frames;
 pub mod geometry;
+pub mod object_scene;
 pub mod pin_hold;
 pub mod progress;
 pub mod runner;
@@ -67,11 +68,15 @@ pub mod stress_field;
 
 pub use frames::FrameWriter;
 pub use geometry::{Geometry, GeometryError};
+pub use object_scene::{ObjectSpec, ObjectSummary, ObjectsFile, ObjectsReport, simulate_objects};
 pub use pin_hold::{HeldBasisError, PinHold};
 pub use progress::{Progress, Silent};
 pub use runner::{Frame, ObserverResult, RunError, RunReport, Simulation, run};
 pub use scene::{Constraint, FloorSpec, Motion, Region, SceneSpec, SceneSpecError};
-pub use scene_file::{SceneFile, SceneFileError};
+pub use scene_file::{
+    BasisSpec, BoxSpec, GeometrySpec, MaterialRegion, MaterialSpec, SceneFile, SceneFileError,
+    SimulationSpec,
+};
 pub use simulate::{SimulateError, SimulateReport, StressSummary, simulate_scene_file};
 pub use splat_preview::{
     Camera, PreviewError, PreviewImage, PreviewParams, PreviewSplat, point_splats, preview_splats,

@@ -60,7 +60,7 @@
 use std::path::{Path, PathBuf};
 
 use hyperelastic::{MaterialField, MaterialSample};
-use reduced_sim::QuadratureRule;
+use reduced_sim::{ColliderShape, QuadratureRule};
 use serde::{Deserialize, Serialize};
 use thiserror::Error;
 
@@ -290,135 +290,33 @@ impl SceneFile {
     /// [`SceneFileError`] naming the file and the field.
     pub fn load(path: &Path) -> Result<Self, SceneFileError> {
         let display = path.display().to_string();
-        let text = std::fs::read_to_string(path).map_err(|source| SceneFileError::Read {
-            path: display.clone(),
-            source,
-        })?;
-        let is_json = path
-            .extension()
-            .is_some_and(|e| e.eq_ignore_ascii_case("json"));
-        let mut file: SceneFile = if is_json {
-            serde_json::from_str(&text).map_err(|e| SceneFileError::Parse {
-                path: display.clone(),
-                message: e.to_string(),
-            })?
-        } else {
-            toml::from_str(&text).map_err(|e| SceneFileError::Parse {
-                path: display.clone(),
-                message: e.to_string().trim().replace('\n', " "),
-            })?
-        };
-        if let Some(dir) = path.parent() {
-            for file_path in [
-                &mut file.geometry.mesh,
-                &mut file.geometry.points,
-                &mut file.geometry.splats,
-            ]
-            .into_iter()
-            .flatten()
-            {
-                if file_path.is_relative() {
-                    *file_path = dir.join(&*file_path);
-                }
-            }
-        }
+        let mut file: SceneFile = read_document(path)?;
+        let dir = path.parent().unwrap_or(Path::new(""));
+        file.geometry.resolve_paths(dir);
+        load_collider_meshes(&mut file.scene, dir, &display)?;
         file.validate(&display)?;
         Ok(file)
     }
 
     fn validate(&self, path: &str) -> Result<(), SceneFileError> {
-        let bad = |field: &str, problem: String| {
-            Err(SceneFileError::Invalid {
+        let defect = self
+            .geometry
+            .defect()
+            .or_else(|| self.material.defect())
+            .or_else(|| self.basis.defect())
+            .or_else(|| self.simulation.defect())
+            .or_else(|| {
+                let e = self.scene.validate().err()?;
+                Some(("scene".into(), e.to_string()))
+            });
+        match defect {
+            Some((field, problem)) => Err(SceneFileError::Invalid {
                 path: path.into(),
-                field: field.into(),
+                field,
                 problem,
-            })
-        };
-        let g = &self.geometry;
-        let given = [
-            g.mesh.is_some(),
-            g.cuboid.is_some(),
-            g.points.is_some(),
-            g.splats.is_some(),
-        ];
-        if given.iter().filter(|&&given| given).count() != 1 {
-            return bad(
-                "geometry",
-                "give exactly one of `mesh`, `box`, `points` and `splats`".into(),
-            );
-        }
-        if let Some(b) = &g.cuboid
-            && !(0..3).all(|d| b.max[d] > b.min[d])
-        {
-            return bad(
-                "geometry.box",
-                format!("max {:?} must exceed min {:?}", b.max, b.min),
-            );
-        }
-        let m = &self.material;
-        let samples = std::iter::once(("material".to_string(), m.base())).chain(
-            m.regions.iter().enumerate().map(|(i, r)| {
-                (
-                    format!("material.regions[{i}]"),
-                    MaterialSample {
-                        youngs_modulus: r.youngs_modulus,
-                        poisson_ratio: r.poisson_ratio,
-                        density: r.density,
-                    },
-                )
             }),
-        );
-        for (name, sample) in samples {
-            if let Err(e) = sample.lame_parameters() {
-                return bad(&name, e.to_string());
-            }
-            if !(sample.density > 0.0 && sample.density.is_finite()) {
-                return bad(
-                    &format!("{name}.density"),
-                    format!("{} must be positive", sample.density),
-                );
-            }
+            None => Ok(()),
         }
-        if let Some((i, defect)) = m
-            .regions
-            .iter()
-            .enumerate()
-            .find_map(|(i, r)| r.region.defect().map(|d| (i, d)))
-        {
-            return bad(&format!("material.regions[{i}].region"), defect);
-        }
-        if self.basis.modes == 0 || self.basis.modes >= self.basis.kernels {
-            return bad(
-                "basis.modes",
-                format!(
-                    "{} must be at least 1 and below basis.kernels = {}",
-                    self.basis.modes, self.basis.kernels
-                ),
-            );
-        }
-        if self.basis.points == 0 || self.simulation.points == 0 {
-            return bad(
-                "basis.points / simulation.points",
-                "must be positive".into(),
-            );
-        }
-        let s = &self.simulation;
-        if !(s.time_step > 0.0 && s.time_step.is_finite()) {
-            return bad(
-                "simulation.time_step",
-                format!("{} must be positive", s.time_step),
-            );
-        }
-        if s.steps == 0 {
-            return bad("simulation.steps", "must be at least 1".into());
-        }
-        if s.output_every == 0 {
-            return bad("simulation.output_every", "must be at least 1".into());
-        }
-        if let Err(e) = self.scene.validate() {
-            return bad("scene", e.to_string());
-        }
-        Ok(())
     }
 
     /// The object's shape: the mesh (normalized if asked), the box, or the cloud.
@@ -427,7 +325,104 @@ impl SceneFile {
     /// [`GeometryError`] if the file cannot be read, is not closed, or (for `points`) has no
     /// points.
     pub fn geometry(&self) -> Result<Geometry, GeometryError> {
-        let g = &self.geometry;
+        self.geometry.read()
+    }
+}
+
+/// Parses a `.json` file as JSON and anything else as TOML.
+///
+/// # Errors
+/// [`SceneFileError::Read`] or [`SceneFileError::Parse`] naming the file.
+pub(crate) fn read_document<T: serde::de::DeserializeOwned>(
+    path: &Path,
+) -> Result<T, SceneFileError> {
+    let display = path.display().to_string();
+    let text = std::fs::read_to_string(path).map_err(|source| SceneFileError::Read {
+        path: display.clone(),
+        source,
+    })?;
+    let is_json = path
+        .extension()
+        .is_some_and(|e| e.eq_ignore_ascii_case("json"));
+    if is_json {
+        serde_json::from_str(&text).map_err(|e| SceneFileError::Parse {
+            path: display,
+            message: e.to_string(),
+        })
+    } else {
+        toml::from_str(&text).map_err(|e| SceneFileError::Parse {
+            path: display,
+            message: e.to_string().trim().replace('\n', " "),
+        })
+    }
+}
+
+/// Reads the closed meshes of the scene's mesh colliders (paths relative to `dir`).
+///
+/// # Errors
+/// [`SceneFileError::Invalid`] naming the collider and why its mesh cannot be read.
+pub(crate) fn load_collider_meshes(
+    scene: &mut SceneSpec,
+    dir: &Path,
+    path: &str,
+) -> Result<(), SceneFileError> {
+    for (i, collider) in scene.colliders.iter_mut().enumerate() {
+        if let ColliderShape::Mesh(mesh) = &mut collider.shape {
+            mesh.load(dir).map_err(|e| SceneFileError::Invalid {
+                path: path.into(),
+                field: format!("scene.colliders[{i}].shape.mesh"),
+                problem: e.to_string(),
+            })?;
+        }
+    }
+    Ok(())
+}
+
+impl GeometrySpec {
+    /// Makes the relative file paths relative to `dir` (the scene file's folder).
+    pub(crate) fn resolve_paths(&mut self, dir: &Path) {
+        for file_path in [&mut self.mesh, &mut self.points, &mut self.splats]
+            .into_iter()
+            .flatten()
+        {
+            if file_path.is_relative() {
+                *file_path = dir.join(&*file_path);
+            }
+        }
+    }
+
+    /// The first problem as (field, what is wrong): not exactly one shape, an empty box.
+    pub(crate) fn defect(&self) -> Option<(String, String)> {
+        let given = [
+            self.mesh.is_some(),
+            self.cuboid.is_some(),
+            self.points.is_some(),
+            self.splats.is_some(),
+        ];
+        if given.iter().filter(|&&given| given).count() != 1 {
+            return Some((
+                "geometry".into(),
+                "give exactly one of `mesh`, `box`, `points` and `splats`".into(),
+            ));
+        }
+        if let Some(b) = &self.cuboid
+            && !(0..3).all(|d| b.max[d] > b.min[d])
+        {
+            return Some((
+                "geometry.box".into(),
+                format!("max {:?} must exceed min {:?}", b.max, b.min),
+            ));
+        }
+        None
+    }
+
+    /// The shape: the mesh (normalized if asked), the box, or the cloud.
+    ///
+    /// # Errors
+    /// [`GeometryError`] if the file cannot be read, is not closed, or (for `points`) has no
+    /// points.
+    pub fn read(&self) -> Result<Geometry, GeometryError> {
+        let g = self;
         if let Some(b) = &g.cuboid {
             return Ok(Geometry::cuboid(b.min.into(), b.max.into()));
         }
@@ -441,5 +436,79 @@ impl SceneFile {
         } else {
             Geometry::Surface(mesh)
         })
+    }
+}
+
+impl MaterialSpec {
+    /// The first problem as (field, what is wrong): E or ν out of range, a density that is not
+    /// positive, an invalid region.
+    pub(crate) fn defect(&self) -> Option<(String, String)> {
+        let samples = std::iter::once(("material".to_string(), self.base())).chain(
+            self.regions.iter().enumerate().map(|(i, r)| {
+                (
+                    format!("material.regions[{i}]"),
+                    MaterialSample {
+                        youngs_modulus: r.youngs_modulus,
+                        poisson_ratio: r.poisson_ratio,
+                        density: r.density,
+                    },
+                )
+            }),
+        );
+        for (name, sample) in samples {
+            if let Err(e) = sample.lame_parameters() {
+                return Some((name, e.to_string()));
+            }
+            if !(sample.density > 0.0 && sample.density.is_finite()) {
+                return Some((
+                    format!("{name}.density"),
+                    format!("{} must be positive", sample.density),
+                ));
+            }
+        }
+        self.regions.iter().enumerate().find_map(|(i, r)| {
+            let defect = r.region.defect()?;
+            Some((format!("material.regions[{i}].region"), defect))
+        })
+    }
+}
+
+impl BasisSpec {
+    /// The first problem as (field, what is wrong): m not in [1, K), no grid points.
+    pub(crate) fn defect(&self) -> Option<(String, String)> {
+        if self.modes == 0 || self.modes >= self.kernels {
+            return Some((
+                "basis.modes".into(),
+                format!(
+                    "{} must be at least 1 and below basis.kernels = {}",
+                    self.modes, self.kernels
+                ),
+            ));
+        }
+        (self.points == 0).then(|| ("basis.points".into(), "must be positive".into()))
+    }
+}
+
+impl SimulationSpec {
+    /// The first problem as (field, what is wrong): a time step that is not positive, no
+    /// steps, points or output.
+    pub(crate) fn defect(&self) -> Option<(String, String)> {
+        let field = |name: &str| format!("simulation.{name}");
+        if self.points == 0 {
+            return Some((field("points"), "must be positive".into()));
+        }
+        if !(self.time_step > 0.0 && self.time_step.is_finite()) {
+            return Some((
+                field("time_step"),
+                format!("{} must be positive", self.time_step),
+            ));
+        }
+        if self.steps == 0 {
+            return Some((field("steps"), "must be at least 1".into()));
+        }
+        if self.output_every == 0 {
+            return Some((field("output_every"), "must be at least 1".into()));
+        }
+        None
     }
 }

@@ -7,8 +7,8 @@ use artifact::{ArtifactError, write_atomically};
 use hyperelastic::{MaterialParameterError, StableNeoHookean, lame_parameters_of};
 use nalgebra::Vector3;
 use reduced_sim::{
-    DeformationMap, DeformationMapError, PenaltyParams, QuadratureReport, QuadratureRule,
-    SimulationParams,
+    DeformationMap, DeformationMapError, MultiBodyError, MultiBodyStepError, PenaltyParams,
+    QuadratureReport, QuadratureRule, SimulationParams,
 };
 use rkpm_core::PointCloud;
 use serde::{Deserialize, Serialize};
@@ -113,6 +113,18 @@ pub enum SimulateError {
     /// The 3DGS file could not be read or a deformed frame written.
     #[error(transparent)]
     Splats(#[from] SplatFileError),
+    /// The objects of a scene do not fit together ([`crate::simulate_objects`]).
+    #[error("the objects do not make a scene")]
+    Objects(#[source] MultiBodyError),
+    /// A step of several objects failed (frames already written stay valid files).
+    #[error("step {step} failed")]
+    ObjectStep {
+        /// The step (1-based).
+        step: usize,
+        /// Why.
+        #[source]
+        source: MultiBodyStepError,
+    },
 }
 
 /// Runs a scene file with stable Neo-Hookean elasticity and writes `frame_NNNNN.ply` / `.vtk`

@@ -53,8 +53,15 @@ impl SkinningField for AnalyticField {
 
 /// A 2 × 1 × 1 m block of about 250 grid points, E = 1 MPa, ν = 0.4, ρ = 1000.
 pub(crate) fn analytic_model() -> (ReducedModel<StableNeoHookean>, IntegrationPoints) {
+    analytic_model_with_spacing(0.2)
+}
+
+/// [`analytic_model`] on a grid of `spacing` (m).
+pub(crate) fn analytic_model_with_spacing(
+    spacing: f64,
+) -> (ReducedModel<StableNeoHookean>, IntegrationPoints) {
     let points =
-        sample_box_grid(Vector3::zeros(), Vector3::new(2.0, 1.0, 1.0), 0.2).expect("valid box");
+        sample_box_grid(Vector3::zeros(), Vector3::new(2.0, 1.0, 1.0), spacing).expect("valid box");
     let material = MaterialSample {
         youngs_modulus: 1e6,
         poisson_ratio: 0.4,

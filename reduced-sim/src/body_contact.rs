@@ -2,8 +2,11 @@
 //! different objects, and their smoothed, lagged Coulomb friction.
 //!
 //! Each object carries contact samples on its surface at spacing about r, moved by its own
-//! deformation map (`x_a = X_a + B_a z`). Two samples a, b of different objects at distance
-//! `d = ‖p‖`, `p = x_a − x_b`, closer than the contact distance d̂ = r, repel with
+//! deformation map (`x_a = X_a + B_a z`). Two samples a, b of different objects that may come
+//! within the contact distance d̂ = r during a step form a pair with the lagged normal
+//! `n = p/‖p‖`, `p = x_a − x_b`, taken at the start of the step (and again at its solution
+//! while the normals of touching pairs turn). Through the solve the pair's gap is its distance
+//! along that normal, `d = n·p`, and it repels with
 //!
 //! ```text
 //! penalty:  e(d) = κ v ½ (d̂ − d)²                       (d < d̂)
@@ -14,15 +17,18 @@
 //! κ = `stiffness_factor · E / L²` (Pa/m²) the floor's rule ([`crate::PenaltyParams`]) with the
 //! larger p-wave modulus of the two objects and the smaller of their bounding-box sides, so
 //! the energies are in J and the overlap a given load causes scales with the objects. With
-//! ψ = e/(κv), n = p/d, the derivatives in p are
+//! ψ = e/(κv), the derivatives in p are
 //!
 //! ```text
-//! ∇_p e  = κ v ψ'(d) n,      ∇²_p e = κ v [ψ''(d) n nᵀ + ψ'(d)/d (I − n nᵀ)],
+//! ∇_p e  = κ v ψ'(d) n,      ∇²_p e = κ v ψ''(d) n nᵀ    (ψ'' ≥ 0: positive semidefinite),
 //! ```
 //!
-//! and `−` those for x_b. ψ' < 0 and ψ'' > 0 where the pair is active, so the projected tangent
-//! keeps `κ v ψ'' n nᵀ`. The energy depends on positions only through p, so the contact forces
-//! on the two objects are equal and opposite and momentum is conserved.
+//! and `−` the gradient for x_b. The energy depends on positions only through p, so the contact
+//! forces on the two objects are equal and opposite and linear momentum is conserved. (The
+//! distance between the points themselves, `‖p‖`, would repel too, but its transverse
+//! curvature `ψ'/‖p‖ (I − n nᵀ)` is negative: many such pairs make a bumpy landscape on which
+//! Newton with a positive semidefinite Hessian crawls. The lagged normal keeps each pair a
+//! convex function of the positions.)
 //!
 //! Friction between objects is IPC's ([`crate::contact_friction`]) on the relative slip
 //! `u = T (p − p̄)`, `T = I − n nᵀ`, with the normal force `λ = −κ v ψ'(d)`, the normal and p̄
@@ -80,8 +86,9 @@ impl BodyContactParams {
         }
     }
 
-    /// What is wrong with these options, if anything.
-    pub(crate) fn defect(&self) -> Option<String> {
+    /// What is wrong with these options, if anything: a radius or stiffness factor that is not
+    /// finite and positive, a negative or non-finite friction coefficient.
+    pub fn defect(&self) -> Option<String> {
         let positive = |v: f64| v.is_finite() && v > 0.0;
         if !positive(self.radius) {
             Some(format!("contact radius {} m", self.radius))
@@ -134,38 +141,31 @@ pub(crate) struct SamplePair {
     pub(crate) b: (usize, usize),
 }
 
+/// A pair with its lagged unit normal n (from b towards a).
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub(crate) struct LaggedPair {
+    pub(crate) pair: SamplePair,
+    pub(crate) normal: Vector3<f64>,
+}
+
 /// One pair's gradient and Hessian with respect to `p = x_a − x_b` (for x_b: both negated).
 pub(crate) struct RelativeDerivatives {
     pub(crate) gradient: Vector3<f64>,
     pub(crate) hessian: Matrix3<f64>,
 }
 
-/// The derivatives in p of κ v ψ(|p|) (exact, or with the negative transverse term dropped when
-/// `projected`); zero beyond d̂; `None` at d ≤ 0 for the barrier.
+/// The derivatives in p of κ v ψ(n·p) (zero beyond d̂; `None` at n·p ≤ 0 for the barrier).
 pub(crate) fn repulsion_derivatives(
     contact: &BodyContactParams,
     stiffness: f64,
+    normal: &Vector3<f64>,
     p: &Vector3<f64>,
-    projected: bool,
 ) -> Option<RelativeDerivatives> {
-    let d = p.norm();
-    let (_, slope, curvature) = contact.profile(d)?;
+    let (_, slope, curvature) = contact.profile(normal.dot(p))?;
     let k = stiffness * contact.sample_volume();
-    if slope == 0.0 && curvature == 0.0 {
-        return Some(RelativeDerivatives {
-            gradient: Vector3::zeros(),
-            hessian: Matrix3::zeros(),
-        });
-    }
-    let n = p / d;
-    let nnt = n * n.transpose();
-    let mut hessian = nnt * (k * curvature);
-    if !(projected && slope < 0.0) {
-        hessian += (Matrix3::identity() - nnt) * (k * slope / d);
-    }
     Some(RelativeDerivatives {
-        gradient: n * (k * slope),
-        hessian,
+        gradient: normal * (k * slope),
+        hessian: normal * normal.transpose() * (k * curvature),
     })
 }
 
@@ -202,11 +202,11 @@ impl PairFriction {
 }
 
 /// The friction of the `pairs` (κ of each in `stiffness`) that touch at the sample positions
-/// `positions` (per object), with normal and limit `μ λ` taken there and slips measured from
-/// `start`; pairs at d ≤ 0 are skipped (no normal).
+/// `positions` (per object), with the limit `μ λ` taken there, the pair's normal, and slips
+/// measured from `start`.
 pub(crate) fn lagged_friction(
     contact: &BodyContactParams,
-    pairs: &[SamplePair],
+    pairs: &[LaggedPair],
     stiffness: &[f64],
     positions: &[Vec<Vector3<f64>>],
     start: &[Vec<Vector3<f64>>],
@@ -218,14 +218,14 @@ pub(crate) fn lagged_friction(
     pairs
         .iter()
         .zip(stiffness)
-        .filter_map(|(pair, &kappa)| {
+        .filter_map(|(lagged, &kappa)| {
+            let pair = lagged.pair;
             let p = positions[pair.a.0][pair.a.1] - positions[pair.b.0][pair.b.1];
-            let d = p.norm();
-            let (_, slope, _) = contact.profile(d)?;
-            (slope < 0.0 && d > 0.0).then(|| PairFriction {
-                pair: *pair,
+            let (_, slope, _) = contact.profile(lagged.normal.dot(&p))?;
+            (slope < 0.0).then(|| PairFriction {
+                pair,
                 previous: start[pair.a.0][pair.a.1] - start[pair.b.0][pair.b.1],
-                normal: p / d,
+                normal: lagged.normal,
                 limit: contact.friction * kappa * v * -slope,
             })
         })
@@ -330,6 +330,7 @@ mod tests {
 
     #[test]
     fn relative_derivatives_match_finite_differences_of_the_pair_energy() {
+        let normal = Vector3::new(0.3, -0.2, 0.9).normalize();
         for model in [BodyContactModel::Penalty, BodyContactModel::Barrier] {
             let contact = BodyContactParams {
                 model,
@@ -337,39 +338,33 @@ mod tests {
             };
             let kappa = 3e9;
             let energy = |p: &Vector3<f64>| {
-                kappa * contact.sample_volume() * contact.profile(p.norm()).unwrap().0
+                kappa * contact.sample_volume() * contact.profile(normal.dot(p)).unwrap().0
             };
             let p = Vector3::new(0.006, -0.004, 0.009);
-            let exact = repulsion_derivatives(&contact, kappa, &p, false).unwrap();
+            let exact = repulsion_derivatives(&contact, kappa, &normal, &p).unwrap();
             let step = 1e-8;
             for k in 0..3 {
-                let mut e = Vector3::zeros();
-                e[k] = step;
+                let e = Vector3::ith(k, step);
                 let fd = (energy(&(p + e)) - energy(&(p - e))) / (2.0 * step);
                 assert!(
                     (fd - exact.gradient[k]).abs() <= 1e-6 * exact.gradient.norm(),
                     "{model:?} gradient {k}: {fd:e} vs {:e}",
                     exact.gradient[k]
                 );
-                let fd_row = (repulsion_derivatives(&contact, kappa, &(p + e), false)
-                    .unwrap()
-                    .gradient
-                    - repulsion_derivatives(&contact, kappa, &(p - e), false)
+                let at = |p: Vector3<f64>| {
+                    repulsion_derivatives(&contact, kappa, &normal, &p)
                         .unwrap()
-                        .gradient)
-                    / (2.0 * step);
-                let error = (fd_row - exact.hessian.column(k)).norm();
+                        .gradient
+                };
+                let fd_column = (at(p + e) - at(p - e)) / (2.0 * step);
+                let error = (fd_column - exact.hessian.column(k)).norm();
                 assert!(
                     error <= 1e-6 * exact.hessian.norm(),
                     "{model:?} Hessian column {k}: error {error:e}"
                 );
             }
-            let projected = repulsion_derivatives(&contact, kappa, &p, true).unwrap();
-            let eigen = projected.hessian.symmetric_eigenvalues();
-            assert!(
-                eigen.min() >= -1e-9 * eigen.max(),
-                "projected not PSD: {eigen:?}"
-            );
+            let eigen = exact.hessian.symmetric_eigenvalues();
+            assert!(eigen.min() >= -1e-9 * eigen.max(), "not PSD: {eigen:?}");
         }
     }
 }

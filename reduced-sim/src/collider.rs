@@ -12,14 +12,17 @@
 //! κ v φ ∇φ,      κ v (∇φ ∇φᵀ + φ ∇²φ).
 //! ```
 //!
-//! For these convex shapes `∇²φ` is positive semidefinite, so inside (φ < 0) the second term is
-//! negative semidefinite: the projected tangent keeps `κ v ∇φ∇φᵀ` alone.
+//! For the convex shapes `∇²φ` is positive semidefinite, so inside (φ < 0) the second term is
+//! negative semidefinite: the projected tangent keeps `κ v ∇φ∇φᵀ` alone (for a mesh too,
+//! where the term has either sign).
 
 use nalgebra::{Isometry3, Matrix3, Translation3, UnitQuaternion, Vector3};
 use serde::{Deserialize, Serialize};
 
-/// A convex shape in the collider's frame (m).
-#[derive(Clone, Copy, Debug, PartialEq, Serialize, Deserialize)]
+use crate::mesh_collider::MeshShape;
+
+/// A shape in the collider's frame (m): three convex primitives and closed triangle meshes.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
 #[serde(rename_all = "snake_case")]
 pub enum ColliderShape {
     /// A ball of `radius` about the origin.
@@ -40,6 +43,8 @@ pub enum ColliderShape {
         /// Radius (m).
         radius: f64,
     },
+    /// A closed triangle mesh (a container, a ramp); see [`MeshShape`].
+    Mesh(MeshShape),
 }
 
 /// The signed distance of a shape at one point, with its derivatives (frame of the point).
@@ -57,6 +62,7 @@ impl ColliderShape {
     /// φ, ∇φ and ∇²φ at `p` (m, shape frame).
     pub fn signed_distance(&self, p: &Vector3<f64>) -> SignedDistance {
         match *self {
+            ColliderShape::Mesh(ref mesh) => mesh.signed_distance(p),
             ColliderShape::Sphere { radius } => ball(p, radius),
             ColliderShape::Capsule {
                 half_length,
@@ -108,6 +114,7 @@ impl ColliderShape {
     fn defect(&self) -> Option<String> {
         let ok = |v: f64| v.is_finite() && v > 0.0;
         match *self {
+            ColliderShape::Mesh(ref mesh) => mesh.defect(),
             ColliderShape::Sphere { radius } if !ok(radius) => Some(format!("radius {radius}")),
             ColliderShape::Capsule {
                 half_length,

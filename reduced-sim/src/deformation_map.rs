@@ -242,7 +242,7 @@ impl DeformationMap {
             self.z_matrix(z).transpose(),
             self.position_matrix(),
             1.0,
-            Par::rayon(0),
+            self.parallelism(),
         );
         u.chunks_exact(3)
             .map(|u| Vector3::new(u[0], u[1], u[2]))
@@ -263,7 +263,7 @@ impl DeformationMap {
             zt,
             self.gradient_matrix(),
             1.0,
-            Par::rayon(0),
+            self.parallelism(),
         );
         out.chunks_exact(9)
             .map(|c| Matrix3::from_column_slice(c) + Matrix3::identity())
@@ -350,6 +350,16 @@ impl DeformationMap {
                     }
                 }
             }
+        }
+    }
+
+    /// Threads for a product over all points: one for small maps (a few thousand multiply-adds
+    /// cost less than waking the pool), all otherwise.
+    fn parallelism(&self) -> Par {
+        if self.b.len() < 1 << 16 {
+            Par::Seq
+        } else {
+            Par::rayon(0)
         }
     }
 

@@ -186,6 +186,27 @@ impl<M: HyperelasticMaterial> NewtonObjective for IncrementalPotential<'_, M> {
         }
     }
 
+    /// With a mesh collider: the largest α ≤ 1 that moves no point by more than half the
+    /// collider's band, so no point can cross the band (beyond which the mesh is not looked
+    /// up) into a wall in one iteration; 1 otherwise.
+    fn max_step(&self, _z: &[f64], step: &[f64]) -> f64 {
+        let Some(band) = self.terms.mesh_band() else {
+            return 1.0;
+        };
+        let largest = self
+            .model
+            .deformation_map()
+            .displacements(step)
+            .iter()
+            .map(|d| d.norm())
+            .fold(0.0, f64::max);
+        if largest > 0.0 {
+            (0.5 * band / largest).min(1.0)
+        } else {
+            1.0
+        }
+    }
+
     fn directional_derivative(&self, gradient: &[f64], step: &[f64]) -> f64 {
         match self.free {
             None => gradient.iter().zip(step).map(|(g, s)| g * s).sum(),

@@ -47,6 +47,7 @@ pub mod deformation_map;
 pub mod elastic_energy;
 mod held_regions;
 pub mod incremental_potential;
+pub mod mesh_collider;
 pub mod multibody;
 pub mod quadrature;
 pub mod reduced_coordinates;
@@ -61,6 +62,7 @@ pub use collider::{Collider, ColliderShape, Keyframe, SignedDistance};
 pub use cubature::{CubatureError, CubatureParams, CubatureReport, optimize_cubature};
 pub use deformation_map::{DeformationMap, DeformationMapError};
 pub use incremental_potential::IncrementalPotential;
+pub use mesh_collider::MeshShape;
 pub use multibody::{
     Body, MultiBodyError, MultiBodyReport, MultiBodySimulator, MultiBodyStepError,
 };

@@ -312,6 +312,18 @@ impl SceneTerms {
         self.pins.iter().take(self.penalized)
     }
 
+    /// The narrowest band (m) of the mesh colliders ([`crate::MeshShape::band`]), `None`
+    /// without them.
+    pub(crate) fn mesh_band(&self) -> Option<f64> {
+        self.colliders
+            .iter()
+            .filter_map(|c| match &c.shape {
+                crate::ColliderShape::Mesh(mesh) => Some(mesh.band),
+                _ => None,
+            })
+            .reduce(f64::min)
+    }
+
     /// The pin stiffness κ_pin (Pa/m²).
     pub(crate) fn pin_stiffness(&self) -> f64 {
         self.pin_stiffness

@@ -5,8 +5,8 @@ use std::path::Path;
 use anyhow::Result;
 use eval::progress::{BarProgress, Progress};
 use freeform::{
-    Camera, PreviewParams, SceneFile, SimulateReport, point_splats, render_preview,
-    simulate_scene_file,
+    Camera, ObjectsFile, PreviewParams, SceneFile, SimulateReport, point_splats, render_preview,
+    simulate_objects, simulate_scene_file,
 };
 use nalgebra::Vector3;
 use rkpm_core::Aabb;
@@ -22,10 +22,16 @@ pub(crate) fn run(
     cache: &Path,
     progress: Progress,
 ) -> Result<()> {
-    let mut file = SceneFile::load(scene)?;
-    file.simulation.stress |= stress;
     let stem = scene.file_stem().unwrap_or_default().to_string_lossy();
     let out = out.join(stem.as_ref());
+    if ObjectsFile::describes(scene) {
+        if stress {
+            anyhow::bail!("--stress: stress output is not written for several objects yet");
+        }
+        return run_objects(&ObjectsFile::load(scene)?, &out, cache, progress);
+    }
+    let mut file = SceneFile::load(scene)?;
+    file.simulation.stress |= stress;
     let report = simulate_scene_file(&file, &out, Some(cache), &BarProgress::new(progress))?;
     println!(
         "{} frames written to {}; basis {:.2} s, {:.2} ms/step, {} unconverged \
@@ -84,21 +90,75 @@ pub(crate) fn run(
     Ok(())
 }
 
+/// Runs a scene of several objects and writes their frames under `out/<object>/`.
+fn run_objects(file: &ObjectsFile, out: &Path, cache: &Path, progress: Progress) -> Result<()> {
+    let report = simulate_objects(file, out, Some(cache), &BarProgress::new(progress))?;
+    println!(
+        "{} objects, {} frames each written under {}; setup {:.2} s, {:.2} ms/step \
+         (assembly {:.2}, solve {:.2}, line search {:.2}, contact search {:.2}), {:.1} Newton \
+         iterations and {:.2} joint solves per step, {} unconverged steps",
+        report.objects.len(),
+        report.frames_written,
+        out.display(),
+        report.setup_seconds,
+        report.ms_per_step,
+        report.ms_split_per_step[0],
+        report.ms_split_per_step[1],
+        report.ms_split_per_step[2],
+        report.ms_split_per_step[3],
+        report.iterations_per_step,
+        report.joint_solves_per_step,
+        report.unconverged_steps
+    );
+    println!(
+        "deepest penetration {:.2e} m; closest samples of different objects {}",
+        report.max_penetration,
+        report
+            .min_contact_gap
+            .map_or("never within the contact radius".into(), |g| format!(
+                "{g:.2e} m (contact radius {} m)",
+                file.contact.radius
+            ))
+    );
+    for o in &report.objects {
+        println!(
+            "  {}: {} points, {} quadrature points, {} contact samples, basis {:.2} s",
+            o.name, o.simulation_points, o.quadrature.points, o.contact_samples, o.basis_seconds
+        );
+    }
+    let png = out.join("preview.png");
+    write_points_preview(&report.final_positions, None, file.scene.gravity, &png)?;
+    println!("preview of the last frame: {}", png.display());
+    Ok(())
+}
+
 /// Draws the last frame's output points (512² pixels) as round splats about as wide as their
 /// spacing on the surface, coloured by their von Mises stress when the run computed it, seen
 /// from 30° about and 20° above the scene's up (against gravity, else +y).
 fn write_preview(report: &SimulateReport, file: &SceneFile, png: &Path) -> Result<()> {
-    let points = &report.final_positions;
+    write_points_preview(
+        &report.final_positions,
+        report.final_von_mises.as_deref(),
+        file.scene.gravity,
+        png,
+    )
+}
+
+/// [`write_preview`] of `points` (m) with their `values` (colour scale) or grey.
+fn write_points_preview(
+    points: &[Vector3<f64>],
+    values: Option<&[f64]>,
+    gravity: Option<Vector3<f64>>,
+    png: &Path,
+) -> Result<()> {
     let extent = Aabb::from_points(points).map_or(Vector3::repeat(1.0), |b| b.extent());
     // Points on a surface: spacing about sqrt(area / n), the area taken from the box.
     let area = 2.0 * (extent.x * extent.y + extent.y * extent.z + extent.z * extent.x);
     let radius = 0.3 * (area / points.len().max(1) as f64).sqrt();
-    let up = file
-        .scene
-        .gravity
+    let up = gravity
         .filter(|g| g.norm() > 0.0)
         .map_or(Vector3::y(), |g| -g.normalize());
-    let splats = point_splats(points, report.final_von_mises.as_deref(), radius);
+    let splats = point_splats(points, values, radius);
     let params = PreviewParams {
         width: 512,
         height: 512,

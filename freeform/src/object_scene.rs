@@ -1,0 +1,470 @@
+//! Scene files with several objects (issue 21): each object its own shape, material, basis,
+//! pose and velocity; contact between them ([`reduced_sim::MultiBodySimulator`]); gravity,
+//! floor and colliders shared.
+//!
+//! ```toml
+//! [simulation]                     # as for one object; `points` is per object
+//! time_step = 0.01
+//! steps = 200
+//! points = 2000
+//! output_every = 5
+//!
+//! [scene]                          # gravity, floor and colliders act on every object
+//! gravity = [0, -9.8, 0]
+//! floor = { normal = [0, 1, 0], offset = 0, friction = 0.3 }
+//!
+//! [contact]                        # between objects
+//! radius = 0.02                    # m: contact distance d̂, and the spacing of the samples
+//! model = "penalty"                # or "barrier" (default penalty)
+//! friction = 0.3                   # default 0
+//!
+//! [[objects]]
+//! name = "bunny"                   # frames go to <out>/bunny/
+//! geometry = { mesh = "bunny.obj" }   # as [geometry] of a one-object file
+//! scale = 0.3                      # after normalizing (default 1)
+//! material = { youngs_modulus = 1e5, poisson_ratio = 0.45, density = 1000 }
+//! basis = { modes = 16, kernels = 300, points = 10000 }
+//! position = [0, 1, 0]             # x = R X + position (m); R from rotation = [i, j, k, w]
+//! velocity = [0, 0, 0]             # m/s
+//! ```
+//!
+//! Constraints (`[[scene.constraints]]`) and exact pins are for one object; stress output is
+//! not written for several objects yet.
+
+use std::path::Path;
+use std::time::Instant;
+
+use artifact::write_atomically;
+use hyperelastic::{StableNeoHookean, lame_parameters_of};
+use nalgebra::{UnitQuaternion, Vector3};
+use reduced_sim::{
+    Body, BodyContactParams, DeformationMap, MultiBodySimulator, PenaltyParams, QuadratureReport,
+    ReducedModel, ReducedState, SimulationParams, Simulator,
+};
+use rkpm_core::PointCloud;
+use serde::{Deserialize, Serialize};
+use skin_eigen::{BasisParams, build_basis};
+
+use crate::frames::FrameWriter;
+use crate::geometry::Geometry;
+use crate::progress::Progress;
+use crate::runner::RunError;
+use crate::scene::SceneSpec;
+use crate::scene_file::{
+    BasisSpec, GeometrySpec, MaterialSpec, SceneFileError, SimulationSpec, load_collider_meshes,
+    read_document,
+};
+use crate::simulate::SimulateError;
+use crate::splats::SplatTable;
+
+/// One object of a scene.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct ObjectSpec {
+    /// Its name: letters, digits, `-` and `_` (its frames go to `<out>/<name>/`).
+    pub name: String,
+    /// Its shape.
+    pub geometry: GeometrySpec,
+    /// Scale applied after reading (and normalizing) the shape (default 1; a splat file keeps
+    /// its scale).
+    #[serde(default = "unit_scale")]
+    pub scale: f64,
+    /// Its material.
+    pub material: MaterialSpec,
+    /// Its basis.
+    pub basis: BasisSpec,
+    /// Where its rest frame's origin starts (m): `x = R X + position`.
+    #[serde(default)]
+    pub position: Vector3<f64>,
+    /// R (default identity; `[i, j, k, w]`).
+    #[serde(default = "UnitQuaternion::identity")]
+    pub rotation: UnitQuaternion<f64>,
+    /// Its initial velocity (m/s, default 0).
+    #[serde(default)]
+    pub velocity: Vector3<f64>,
+}
+
+fn unit_scale() -> f64 {
+    1.0
+}
+
+/// A scene file with `[[objects]]`.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct ObjectsFile {
+    /// The objects (at least one).
+    pub objects: Vec<ObjectSpec>,
+    /// Time stepping, shared (`points` per object).
+    pub simulation: SimulationSpec,
+    /// Gravity, floor and colliders, shared.
+    #[serde(default)]
+    pub scene: SceneSpec,
+    /// Contact between the objects.
+    pub contact: BodyContactParams,
+}
+
+impl ObjectsFile {
+    /// Whether the `.toml` or `.json` file at `path` describes several objects (has
+    /// `objects`); false when it cannot be read or parsed (the one-object reader then says
+    /// why).
+    pub fn describes(path: &Path) -> bool {
+        read_document::<serde_json::Value>(path)
+            .is_ok_and(|v| v.get("objects").is_some_and(|o| o.is_array()))
+    }
+
+    /// Reads and validates a scene file with `[[objects]]`; relative paths are relative to the
+    /// file's folder.
+    ///
+    /// # Errors
+    /// [`SceneFileError`] naming the file and the field.
+    pub fn load(path: &Path) -> Result<Self, SceneFileError> {
+        let display = path.display().to_string();
+        let mut file: ObjectsFile = read_document(path)?;
+        let dir = path.parent().unwrap_or(Path::new(""));
+        for object in &mut file.objects {
+            object.geometry.resolve_paths(dir);
+        }
+        load_collider_meshes(&mut file.scene, dir, &display)?;
+        if let Some((field, problem)) = file.defect() {
+            return Err(SceneFileError::Invalid {
+                path: display,
+                field,
+                problem,
+            });
+        }
+        Ok(file)
+    }
+
+    /// The first problem as (field, what is wrong).
+    fn defect(&self) -> Option<(String, String)> {
+        if self.objects.is_empty() {
+            return Some(("objects".into(), "give at least one object".into()));
+        }
+        for (k, object) in self.objects.iter().enumerate() {
+            let prefixed = |(field, problem): (String, String)| {
+                Some((format!("objects[{k}].{field}"), problem))
+            };
+            let name_ok = !object.name.is_empty()
+                && object
+                    .name
+                    .chars()
+                    .all(|c| c.is_ascii_alphanumeric() || c == '-' || c == '_');
+            if !name_ok {
+                return prefixed((
+                    "name".into(),
+                    format!("{:?}: use letters, digits, - and _", object.name),
+                ));
+            }
+            if self.objects[..k].iter().any(|o| o.name == object.name) {
+                return prefixed(("name".into(), format!("{:?} is used twice", object.name)));
+            }
+            if let Some(defect) = object
+                .geometry
+                .defect()
+                .or_else(|| object.material.defect())
+                .or_else(|| object.basis.defect())
+            {
+                return prefixed(defect);
+            }
+            if !(object.scale > 0.0 && object.scale.is_finite()) {
+                return prefixed(("scale".into(), format!("{} must be positive", object.scale)));
+            }
+            if object.geometry.splats.is_some() && object.scale != 1.0 {
+                return prefixed((
+                    "scale".into(),
+                    "a splat file keeps its scale (the frames are the file's splats)".into(),
+                ));
+            }
+            let finite = object
+                .position
+                .iter()
+                .chain(&object.velocity)
+                .chain(object.rotation.coords.iter())
+                .all(|v| v.is_finite());
+            if !finite {
+                return prefixed((
+                    "position / rotation / velocity".into(),
+                    "must be finite".into(),
+                ));
+            }
+        }
+        if let Some(defect) = self.simulation.defect() {
+            return Some(defect);
+        }
+        if self.simulation.stress {
+            return Some((
+                "simulation.stress".into(),
+                "stress output is not written for several objects yet".into(),
+            ));
+        }
+        if self.simulation.pins != crate::PinHold::default() {
+            return Some((
+                "simulation.pins".into(),
+                "several objects have no constraints to hold".into(),
+            ));
+        }
+        if !self.scene.constraints.is_empty() {
+            return Some((
+                "scene.constraints".into(),
+                "constraints are for one object; several objects take gravity, floor and colliders"
+                    .into(),
+            ));
+        }
+        if let Err(e) = self.scene.validate() {
+            return Some(("scene".into(), e.to_string()));
+        }
+        self.contact
+            .defect()
+            .map(|why| ("contact".into(), format!("invalid {why}")))
+    }
+}
+
+/// One object of an [`ObjectsReport`].
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+pub struct ObjectSummary {
+    /// Its name.
+    pub name: String,
+    /// Integration points simulated.
+    pub simulation_points: usize,
+    /// Its elastic quadrature (kind, points, cubature report).
+    pub quadrature: QuadratureReport,
+    /// Contact samples on its surface.
+    pub contact_samples: usize,
+    /// Basis build time (s).
+    pub basis_seconds: f64,
+}
+
+/// What [`simulate_objects`] did (`summary.json`).
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+pub struct ObjectsReport {
+    /// The objects.
+    pub objects: Vec<ObjectSummary>,
+    /// Steps taken.
+    pub steps: usize,
+    /// Mean wall time per step (ms), contact search included.
+    pub ms_per_step: f64,
+    /// Of which: assembly of gradients and Hessians (the objects' terms and the contact
+    /// between them), factorization and solve, line search, contact search (ms).
+    pub ms_split_per_step: [f64; 4],
+    /// Mean Newton iterations per step, summed over the step's solves.
+    pub iterations_per_step: f64,
+    /// Mean groups of objects in contact solved together per step.
+    pub joint_solves_per_step: f64,
+    /// Steps with a solve that did not converge.
+    pub unconverged_steps: usize,
+    /// The deepest penetration over the run (m): into the floor or a collider, and with
+    /// penalty contact the overlap `d̂ − d` of samples of different objects.
+    pub max_penetration: f64,
+    /// The smallest distance between samples of different objects over the run (m; `None`
+    /// when no two came within d̂).
+    pub min_contact_gap: Option<f64>,
+    /// Frames written (per object).
+    pub frames_written: usize,
+    /// Setup: geometry, bases, cubatures, samples (s).
+    pub setup_seconds: f64,
+    /// Every object's output points at the last step (m), for a preview; not in
+    /// `summary.json`.
+    #[serde(skip)]
+    pub final_positions: Vec<Vector3<f64>>,
+}
+
+/// An object's output: its frame writer, the map to its written points, its splat file.
+struct ObjectOutput {
+    writer: FrameWriter,
+    map: DeformationMap,
+    splats: Option<SplatTable>,
+}
+
+impl ObjectOutput {
+    /// Writes frame `index` of this object at z.
+    fn write(&self, index: usize, z: &[f64], time: f64) -> Result<(), SimulateError> {
+        let x = self.map.positions(z);
+        match &self.splats {
+            Some(table) => {
+                let (deformed, _) = table.deformed(&x, &self.map.deformation_gradients(z))?;
+                deformed.write(&self.writer.dir().join(format!("frame_{index:05}.ply")))?;
+            }
+            None => {
+                self.writer.write(index, &x, time)?;
+            }
+        }
+        Ok(())
+    }
+}
+
+/// Runs a scene of several objects with stable Neo-Hookean elasticity and writes each
+/// object's frames (`<out_dir>/<name>/frame_NNNNN.ply` / `.vtk`, every `output_every` steps
+/// and the last) and `<out_dir>/summary.json`. Cubatures are cached under `cache_dir` when
+/// one is given.
+///
+/// # Errors
+/// [`SimulateError`] naming the stage; frames already written stay valid files.
+pub fn simulate_objects(
+    file: &ObjectsFile,
+    out_dir: &Path,
+    cache_dir: Option<&Path>,
+    progress: &dyn Progress,
+) -> Result<ObjectsReport, SimulateError> {
+    let start = Instant::now();
+    let params = SimulationParams {
+        time_step: file.simulation.time_step,
+        penalty: PenaltyParams {
+            friction_slip_speed: file.simulation.friction_slip_speed,
+            ..PenaltyParams::default()
+        },
+        ..if file.simulation.hessian_reuse {
+            SimulationParams::default()
+        } else {
+            SimulationParams::paper_setting()
+        }
+    };
+    let mut bodies = Vec::with_capacity(file.objects.len());
+    let mut outputs = Vec::with_capacity(file.objects.len());
+    let mut summaries = Vec::with_capacity(file.objects.len());
+    for object in &file.objects {
+        let basis_start = Instant::now();
+        progress.status(&format!(
+            "{}: basis m = {}, K = {}, ≈{} grid points",
+            object.name, object.basis.modes, object.basis.kernels, object.basis.points
+        ));
+        let splats = object
+            .geometry
+            .splats
+            .as_deref()
+            .map(SplatTable::read)
+            .transpose()?;
+        let geometry = match &splats {
+            Some(table) => Geometry::Cloud(PointCloud::new(table.positions(), None)),
+            None => object.geometry.read()?.scaled(object.scale),
+        };
+        let material = object.material.field();
+        let fill = object.geometry.fill_interior;
+        let basis_points = geometry.integration_points_filling(object.basis.points, fill)?;
+        let points = geometry.integration_points_filling(file.simulation.points, fill)?;
+        let lame = lame_parameters_of(&material.sample(basis_points.positions()))
+            .map_err(|(_, e)| SimulateError::Material(e))?;
+        let basis_params = BasisParams::default()
+            .with_modes(object.basis.modes)
+            .with_kernels(object.basis.kernels);
+        let (basis, _, _) =
+            build_basis(&basis_points, &lame, &basis_params).map_err(SimulateError::Basis)?;
+        let basis_seconds = basis_start.elapsed().as_secs_f64();
+        progress.status(&format!("{}: elastic quadrature", object.name));
+        let model = ReducedModel::new(
+            &basis,
+            &points,
+            &material.sample(points.positions()),
+            StableNeoHookean,
+        )
+        .map_err(|e| SimulateError::Run(RunError::Model(e)))?;
+        let (model, quadrature) = file
+            .simulation
+            .quadrature
+            .apply_cached(model, cache_dir)
+            .map_err(|e| SimulateError::Run(RunError::Quadrature(e)))?;
+        let scene = file
+            .scene
+            .reduced_scene(model.rest_positions())
+            .map_err(|e| SimulateError::Run(RunError::Scene(e)))?;
+        let layout = model.deformation_map().layout();
+        let mut simulator = Simulator::new(model, &scene, params)
+            .map_err(|e| SimulateError::Run(RunError::Simulator(e)))?;
+        let rotation = object.rotation.to_rotation_matrix().into_inner();
+        simulator
+            .set_state(ReducedState {
+                z: layout.rigid_motion(&rotation, &object.position),
+                velocity: layout.uniform_velocity(&object.velocity),
+                time: 0.0,
+            })
+            .expect("a finite pose and velocity (validated)");
+        let samples = geometry.contact_samples(file.contact.radius);
+        let contact_samples = samples.len();
+        let samples = DeformationMap::new(&basis, &samples).map_err(SimulateError::OutputMap)?;
+        bodies.push(Body::new(simulator, samples).map_err(SimulateError::Objects)?);
+        let writer = FrameWriter::new(out_dir.join(&object.name), &geometry);
+        let map = DeformationMap::new(&basis, writer.rest_positions())
+            .map_err(SimulateError::OutputMap)?;
+        outputs.push(ObjectOutput {
+            writer,
+            map,
+            splats,
+        });
+        summaries.push(ObjectSummary {
+            name: object.name.clone(),
+            simulation_points: points.len(),
+            quadrature,
+            contact_samples,
+            basis_seconds,
+        });
+    }
+    let mut sim = MultiBodySimulator::new(bodies, file.contact).map_err(SimulateError::Objects)?;
+    let setup_seconds = start.elapsed().as_secs_f64();
+
+    let steps = file.simulation.steps;
+    let write_all = |sim: &MultiBodySimulator<StableNeoHookean>, index: usize| {
+        for (body, output) in sim.bodies().iter().zip(&outputs) {
+            let state = body.simulator().state();
+            output.write(index, &state.z, state.time)?;
+        }
+        Ok::<(), SimulateError>(())
+    };
+    write_all(&sim, 0)?;
+    let mut frames_written = 1;
+    progress.begin(steps, "simulate");
+    let (mut stepping, mut split) = (0.0, [0.0; 4]);
+    let (mut iterations, mut joint, mut unconverged) = (0, 0, 0);
+    let (mut max_penetration, mut min_gap): (f64, Option<f64>) = (0.0, None);
+    for step in 1..=steps {
+        let t = Instant::now();
+        let report = sim
+            .step()
+            .map_err(|source| SimulateError::ObjectStep { step, source })?;
+        stepping += t.elapsed().as_secs_f64();
+        for solve in &report.solves {
+            split[0] += solve.timings.assembly;
+            split[1] += solve.timings.solve;
+            split[2] += solve.timings.line_search;
+            iterations += solve.iterations;
+        }
+        split[3] += report.contact_search_seconds;
+        joint += report.joint_groups;
+        unconverged += usize::from(!report.converged());
+        max_penetration = max_penetration.max(sim.max_penetration());
+        if let Some(gap) = sim.contact_gap() {
+            min_gap = Some(min_gap.map_or(gap, |g| g.min(gap)));
+        }
+        if step % file.simulation.output_every == 0 || step == steps {
+            write_all(&sim, step)?;
+            frames_written += 1;
+        }
+        progress.advance();
+    }
+    progress.finish();
+    let n = steps as f64;
+    let report = ObjectsReport {
+        objects: summaries,
+        steps,
+        ms_per_step: 1e3 * stepping / n,
+        ms_split_per_step: split.map(|s| 1e3 * s / n),
+        iterations_per_step: iterations as f64 / n,
+        joint_solves_per_step: joint as f64 / n,
+        unconverged_steps: unconverged,
+        max_penetration,
+        min_contact_gap: min_gap,
+        frames_written,
+        setup_seconds,
+        final_positions: sim
+            .bodies()
+            .iter()
+            .zip(&outputs)
+            .flat_map(|(b, o)| o.map.positions(&b.simulator().state().z))
+            .collect(),
+    };
+    write_atomically(
+        &out_dir.join("summary.json"),
+        serde_json::to_string_pretty(&report)
+            .unwrap_or_default()
+            .as_bytes(),
+    )?;
+    Ok(report)
+}

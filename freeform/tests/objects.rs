@@ -1,0 +1,133 @@
+//! Scene files with several objects (issue 21): validation names the field, and two boxes
+//! dropped on each other write every object's frames and stay apart by the contact distance.
+
+use std::path::{Path, PathBuf};
+
+use freeform::{ObjectsFile, Silent, simulate_objects};
+
+/// A fresh folder under the target directory for `name`.
+fn scratch(name: &str) -> PathBuf {
+    let dir = Path::new(env!("CARGO_TARGET_TMPDIR"))
+        .join("objects")
+        .join(name);
+    let _ = std::fs::remove_dir_all(&dir);
+    std::fs::create_dir_all(&dir).unwrap();
+    dir
+}
+
+/// Two 0.2 m boxes, the upper 0.25 m above the lower resting on a floor, with `extra` TOML
+/// appended (at the end of the upper object's table).
+fn two_boxes(extra: &str) -> String {
+    format!(
+        r#"
+[simulation]
+time_step = 0.01
+steps = 40
+points = 300
+output_every = 20
+quadrature = {{ kind = "full" }}
+
+[scene]
+gravity = [0, -9.8, 0]
+floor = {{ normal = [0, 1, 0], offset = 0 }}
+
+[contact]
+radius = 0.02
+
+[[objects]]
+name = "lower"
+geometry = {{ box = {{ min = [0, 0, 0], max = [0.2, 0.2, 0.2] }} }}
+material = {{ youngs_modulus = 1e6, poisson_ratio = 0.3, density = 1000 }}
+basis = {{ modes = 4, kernels = 60, points = 800 }}
+position = [0, 0.01, 0]
+
+[[objects]]
+name = "upper"
+geometry = {{ box = {{ min = [0, 0, 0], max = [0.2, 0.2, 0.2] }} }}
+material = {{ youngs_modulus = 1e6, poisson_ratio = 0.3, density = 1000 }}
+basis = {{ modes = 4, kernels = 60, points = 800 }}
+position = [0.03, 0.26, 0.02]
+{extra}
+"#
+    )
+}
+
+fn load(dir: &Path, text: &str) -> Result<ObjectsFile, freeform::SceneFileError> {
+    let path = dir.join("scene.toml");
+    std::fs::write(&path, text).unwrap();
+    assert!(ObjectsFile::describes(&path));
+    ObjectsFile::load(&path)
+}
+
+#[test]
+fn an_objects_file_with_a_bad_field_is_refused_naming_it() {
+    let dir = scratch("invalid");
+    let cases = [
+        (two_boxes("").replace("\"upper\"", "\"lower\""), "objects[1].name"),
+        (two_boxes("scale = -1"), "objects[1].scale"),
+        (two_boxes("").replace("radius = 0.02", "radius = 0"), "contact"),
+        (
+            two_boxes("").replace("modes = 4, kernels = 60", "modes = 60, kernels = 60"),
+            "objects[0].basis.modes",
+        ),
+        (
+            two_boxes("").replace(
+                "[contact]",
+                "[[scene.constraints]]\nregion = { below = { axis = 1, value = 0.05 } }\nmotion = \"rest\"\n[contact]",
+            ),
+            "scene.constraints",
+        ),
+    ];
+    for (text, field) in cases {
+        let err = load(&dir, &text).unwrap_err().to_string();
+        assert!(err.contains(field), "expected {field} in: {err}");
+    }
+    let one_object = Path::new(env!("CARGO_MANIFEST_DIR")).join("examples/scenes/pusher.toml");
+    assert!(!ObjectsFile::describes(&one_object));
+}
+
+#[test]
+fn two_boxes_dropped_on_each_other_write_frames_and_rest_a_contact_distance_apart() {
+    let dir = scratch("two_boxes");
+    let file = load(&dir, &two_boxes("")).unwrap();
+    let out = dir.join("out");
+    let report = simulate_objects(&file, &out, None, &Silent).unwrap();
+    assert_eq!(report.unconverged_steps, 0, "{report:?}");
+    assert_eq!(report.frames_written, 3);
+    for name in ["lower", "upper"] {
+        for frame in ["frame_00000", "frame_00020", "frame_00040"] {
+            for ext in ["ply", "vtk"] {
+                let path = out.join(name).join(format!("{frame}.{ext}"));
+                assert!(path.is_file(), "{} missing", path.display());
+            }
+        }
+    }
+    let summary: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(out.join("summary.json")).unwrap()).unwrap();
+    assert!(summary["ms_per_step"].as_f64().unwrap() > 0.0);
+    assert!(summary["max_penetration"].as_f64().is_some());
+    // The upper box fell 0.05 m onto the lower and rests on it: the closest samples of the two
+    // came near the contact distance (0.02 m), and no pair got deeper than 2% of it into the
+    // other's contact shell (or into the floor).
+    let gap = report.min_contact_gap.expect("the boxes touched");
+    assert!(
+        gap > 0.5 * 0.02 && gap < 0.02,
+        "closest samples {gap} m apart"
+    );
+    assert!(
+        report.max_penetration <= 0.02 * 0.02,
+        "penetration {} m",
+        report.max_penetration
+    );
+    // Resting: the lower box's vertices end below the upper's.
+    let (lower, upper) = report
+        .final_positions
+        .split_at(report.final_positions.len() / 2);
+    let top_of_lower = lower.iter().map(|x| x.y).fold(f64::NEG_INFINITY, f64::max);
+    let bottom_of_upper = upper.iter().map(|x| x.y).fold(f64::INFINITY, f64::min);
+    let separation = bottom_of_upper - top_of_lower;
+    assert!(
+        separation > 0.0 && separation < 0.03,
+        "the upper box's bottom is {separation} m above the lower's top"
+    );
+}
