@@ -255,6 +255,10 @@ pub struct ObjectsReport {
     /// The deepest penetration over the run (m): into the floor or a collider, and with
     /// penalty contact the overlap `d̂ − d` of samples of different objects.
     pub max_penetration: f64,
+    /// The largest overlap of a contact pair between objects over the run (m): how far a sample
+    /// got into another object's contact shell along the pair's normal (`d̂ − n·p`; see
+    /// [`reduced_sim::MultiBodySimulator::contact_overlap`]).
+    pub max_contact_overlap: f64,
     /// The smallest distance between samples of different objects over the run (m; `None`
     /// when no two came within d̂).
     pub min_contact_gap: Option<f64>,
@@ -413,7 +417,8 @@ pub fn simulate_objects(
     progress.begin(steps, "simulate");
     let (mut stepping, mut split) = (0.0, [0.0; 4]);
     let (mut iterations, mut joint, mut unconverged) = (0, 0, 0);
-    let (mut max_penetration, mut min_gap): (f64, Option<f64>) = (0.0, None);
+    let (mut max_penetration, mut max_overlap, mut min_gap): (f64, f64, Option<f64>) =
+        (0.0, 0.0, None);
     for step in 1..=steps {
         let t = Instant::now();
         let report = sim
@@ -430,6 +435,7 @@ pub fn simulate_objects(
         joint += report.joint_groups;
         unconverged += usize::from(!report.converged());
         max_penetration = max_penetration.max(sim.max_penetration());
+        max_overlap = max_overlap.max(sim.contact_overlap());
         if let Some(gap) = sim.contact_gap() {
             min_gap = Some(min_gap.map_or(gap, |g| g.min(gap)));
         }
@@ -450,6 +456,7 @@ pub fn simulate_objects(
         joint_solves_per_step: joint as f64 / n,
         unconverged_steps: unconverged,
         max_penetration,
+        max_contact_overlap: max_overlap,
         min_contact_gap: min_gap,
         frames_written,
         setup_seconds,

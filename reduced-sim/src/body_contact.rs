@@ -30,9 +30,10 @@
 //! Newton with a positive semidefinite Hessian crawls. The lagged normal keeps each pair a
 //! convex function of the positions.)
 //!
-//! Friction between objects is IPC's ([`crate::contact_friction`]) on the relative slip
-//! `u = T (p − p̄)`, `T = I − n nᵀ`, with the normal force `λ = −κ v ψ'(d)`, the normal and p̄
-//! lagged at the start of the step.
+//! Friction between objects is IPC's, as at the floor
+//! ([`crate::PenaltyParams::friction_slip_speed`]), on the relative slip `u = T (p − p̄)`,
+//! `T = I − n nᵀ`, with the normal force `λ = −κ v ψ'(d)`, the normal and p̄ lagged at the
+//! start of the step.
 
 use faer::{Accum, Mat, MatMut, MatRef, Par};
 use nalgebra::{Matrix3, Vector3};

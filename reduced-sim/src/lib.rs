@@ -10,6 +10,11 @@
 //!   [`Scene::held`] regions are held exactly instead (with a basis built for them).
 //! - [`Simulator`]: backward Euler, each step minimized by the workspace's one Newton solver
 //!   ([`optimize::minimize`]); one [`optimize::NewtonReport`] per step.
+//! - [`Collider`]: kinematic shapes on keyframed paths (sphere, box, capsule, closed triangle
+//!   mesh [`MeshShape`]) that push and rub the object.
+//! - [`MultiBodySimulator`]: several objects, each a [`Simulator`], in contact through samples
+//!   on their surfaces ([`BodyContactParams`]: penalty or IPC barrier, friction); objects in
+//!   contact are solved together, the others alone.
 //!
 //! Units: SI throughout (m, s, kg, Pa, J). z is dimensionless (its translation entries are m).
 //!

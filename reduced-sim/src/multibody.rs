@@ -14,7 +14,8 @@
 //!
 //! E_o each object's incremental potential, e the pair repulsion and D the lagged friction
 //! between objects; its Hessian has each object's dense block on the diagonal and the contact
-//! coupling off it, factored together (fresh Hessians every iteration). After the solve, any
+//! coupling off it, factored together (with the objects' Hessian reuse rule within the step,
+//! never across steps). After the solve, any
 //! pair closer than d̂ that was not a candidate makes the step solved again with it.
 
 use std::collections::HashSet;
@@ -25,7 +26,9 @@ use faer::linalg::solvers::{Llt, Solve};
 use faer::{Mat, Side};
 use hyperelastic::HyperelasticMaterial;
 use nalgebra::{Matrix3, Vector3};
-use optimize::{HessianReuse, NewtonObjective, NewtonParams, NewtonReport, minimize};
+use optimize::{
+    HessianReuse, NewtonObjective, NewtonParams, NewtonReport, minimize, minimize_reusing,
+};
 use rkpm_core::SpatialIndex;
 use thiserror::Error;
 
@@ -268,6 +271,13 @@ impl<M: HyperelasticMaterial> MultiBodySimulator<M> {
             .min_by(f64::total_cmp)
     }
 
+    /// How far (m) the last step's contact pairs between objects ended inside each other's
+    /// contact shells: the largest `d̂ − n·p` (0 without contact). With the barrier it stays
+    /// below d̂.
+    pub fn contact_overlap(&self) -> f64 {
+        self.overlap
+    }
+
     /// The deepest penetration now (m): of any object into the floor or a collider, and
     /// between objects that of the last step's contact pairs at its end, with the penalty
     /// `d̂ − d` (how far a sample got into the other's contact shell along the pair's normal)
@@ -482,10 +492,7 @@ impl<M: HyperelasticMaterial> MultiBodySimulator<M> {
         start: &[Vec<Vector3<f64>>],
     ) -> Result<NewtonReport, StepError> {
         let params = *self.bodies[group[0]].simulator.params();
-        let newton = NewtonParams {
-            hessian_reuse: HessianReuse::Never,
-            ..params.newton
-        };
+        let newton = params.newton;
         let predicted: Vec<Vec<f64>> = group
             .iter()
             .map(|&b| self.bodies[b].simulator.predicted_coordinates())
@@ -502,7 +509,10 @@ impl<M: HyperelasticMaterial> MultiBodySimulator<M> {
             // carried samples through each other's contact planes, where no force pulls them
             // back (IPC starts there too).
             let mut z = start_z;
-            let mut report = minimize(&objective, &mut z, &newton)?;
+            // One factorization carried through the step's solves (the lagged re-solves
+            // change the objective little), never into the next step.
+            let mut factor = None;
+            let mut report = solve_reusing(&objective, &mut z, &newton, &mut factor)?;
             // The normals lagged again at the solution while those of touching pairs turn.
             for _ in 0..MAX_CONTACT_LAGS {
                 let (pairs, stiffness) = objective.lag(&z);
@@ -519,7 +529,7 @@ impl<M: HyperelasticMaterial> MultiBodySimulator<M> {
                     break;
                 }
                 (objective.pairs, objective.stiffness) = (pairs, stiffness);
-                let again = minimize(&objective, &mut z, &newton)?;
+                let again = solve_reusing(&objective, &mut z, &newton, &mut factor)?;
                 report = combined(&report, &again);
             }
             // Friction lagging as for one object: contacts, normals and normal forces taken
@@ -530,7 +540,7 @@ impl<M: HyperelasticMaterial> MultiBodySimulator<M> {
                     break;
                 }
                 objective.friction = friction;
-                let again = minimize(&objective, &mut z, &newton)?;
+                let again = solve_reusing(&objective, &mut z, &newton, &mut factor)?;
                 report = combined(&report, &again);
             }
             let positions = objective.positions(&z);
@@ -625,6 +635,32 @@ impl<M: HyperelasticMaterial> MultiBodySimulator<M> {
             epsilon: params.penalty.friction_slip_speed * params.time_step,
         }
     }
+}
+
+/// [`minimize_reusing`] with the Newton options' Hessian reuse, solved again with fresh
+/// Hessians from the same start when reuse does not converge (as [`Simulator::step`] does).
+fn solve_reusing<O: NewtonObjective<Factor = Llt<f64>>>(
+    objective: &O,
+    z: &mut Vec<f64>,
+    newton: &NewtonParams,
+    factor: &mut Option<Llt<f64>>,
+) -> Result<NewtonReport, StepError> {
+    if newton.hessian_reuse == HessianReuse::Never {
+        return Ok(minimize(objective, z, newton)?);
+    }
+    let start = z.clone();
+    let reused = minimize_reusing(objective, z, newton, factor)?;
+    if reused.converged() {
+        return Ok(reused);
+    }
+    z.clone_from(&start);
+    *factor = None;
+    let fresh = NewtonParams {
+        hessian_reuse: HessianReuse::Never,
+        ..*newton
+    };
+    let retried = minimize_reusing(objective, z, &fresh, factor)?;
+    Ok(combined(&reused, &retried))
 }
 
 /// Most times a group's step is solved again with its contact normals lagged at the last

@@ -111,8 +111,10 @@ fn run_objects(file: &ObjectsFile, out: &Path, cache: &Path, progress: Progress)
         report.unconverged_steps
     );
     println!(
-        "deepest penetration {:.2e} m; closest samples of different objects {}",
+        "deepest penetration {:.2e} m (between objects: {:.2e} m into the contact shell); \
+         closest samples of different objects {}",
         report.max_penetration,
+        report.max_contact_overlap,
         report
             .min_contact_gap
             .map_or("never within the contact radius".into(), |g| format!(
