@@ -38,8 +38,8 @@ use artifact::write_atomically;
 use hyperelastic::{StableNeoHookean, lame_parameters_of};
 use nalgebra::{UnitQuaternion, Vector3};
 use reduced_sim::{
-    Body, BodyContactParams, DeformationMap, MultiBodySimulator, PenaltyParams, QuadratureReport,
-    ReducedModel, ReducedState, SimulationParams, Simulator,
+    Body, BodyContactParams, DeformationMap, MultiBodySimulator, QuadratureReport, ReducedModel,
+    ReducedState, Simulator,
 };
 use rkpm_core::PointCloud;
 use serde::{Deserialize, Serialize};
@@ -310,18 +310,7 @@ pub fn simulate_objects(
     progress: &dyn Progress,
 ) -> Result<ObjectsReport, SimulateError> {
     let start = Instant::now();
-    let params = SimulationParams {
-        time_step: file.simulation.time_step,
-        penalty: PenaltyParams {
-            friction_slip_speed: file.simulation.friction_slip_speed,
-            ..PenaltyParams::default()
-        },
-        ..if file.simulation.hessian_reuse {
-            SimulationParams::default()
-        } else {
-            SimulationParams::paper_setting()
-        }
-    };
+    let params = file.simulation.simulation_params();
     let mut bodies = Vec::with_capacity(file.objects.len());
     let mut outputs = Vec::with_capacity(file.objects.len());
     let mut summaries = Vec::with_capacity(file.objects.len());

@@ -60,7 +60,7 @@
 use std::path::{Path, PathBuf};
 
 use hyperelastic::{MaterialField, MaterialSample};
-use reduced_sim::{ColliderShape, QuadratureRule};
+use reduced_sim::{ColliderShape, PenaltyParams, QuadratureRule, SimulationParams};
 use serde::{Deserialize, Serialize};
 use thiserror::Error;
 
@@ -490,6 +490,23 @@ impl BasisSpec {
 }
 
 impl SimulationSpec {
+    /// The simulator's options these settings ask for: the time step, the friction slip speed,
+    /// and the library defaults with Hessian reuse or the paper's setting without.
+    pub fn simulation_params(&self) -> SimulationParams {
+        SimulationParams {
+            time_step: self.time_step,
+            penalty: PenaltyParams {
+                friction_slip_speed: self.friction_slip_speed,
+                ..PenaltyParams::default()
+            },
+            ..if self.hessian_reuse {
+                SimulationParams::default()
+            } else {
+                SimulationParams::paper_setting()
+            }
+        }
+    }
+
     /// The first problem as (field, what is wrong): a time step that is not positive, no
     /// steps, points or output.
     pub(crate) fn defect(&self) -> Option<(String, String)> {

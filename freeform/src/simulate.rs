@@ -7,8 +7,8 @@ use artifact::{ArtifactError, write_atomically};
 use hyperelastic::{MaterialParameterError, StableNeoHookean, lame_parameters_of};
 use nalgebra::Vector3;
 use reduced_sim::{
-    DeformationMap, DeformationMapError, MultiBodyError, MultiBodyStepError, PenaltyParams,
-    QuadratureReport, QuadratureRule, SimulationParams,
+    DeformationMap, DeformationMapError, MultiBodyError, MultiBodyStepError, QuadratureReport,
+    QuadratureRule,
 };
 use rkpm_core::PointCloud;
 use serde::{Deserialize, Serialize};
@@ -209,18 +209,7 @@ pub fn simulate_scene_file(
         material: &material,
         material_model: StableNeoHookean,
         scene: &file.scene,
-        params: SimulationParams {
-            time_step: file.simulation.time_step,
-            penalty: PenaltyParams {
-                friction_slip_speed: file.simulation.friction_slip_speed,
-                ..PenaltyParams::default()
-            },
-            ..if file.simulation.hessian_reuse {
-                SimulationParams::default()
-            } else {
-                SimulationParams::paper_setting()
-            }
-        },
+        params: file.simulation.simulation_params(),
         quadrature: file.simulation.quadrature,
         cache_dir,
         pin_hold: hold,
