@@ -1,20 +1,23 @@
 //! A closed triangle mesh as a collider shape (issue 21): a container, a ramp, pegs of any form.
 //!
-//! φ(p) = ±|p − c(p)|, c the closest surface point ([`rkpm_core::SurfaceDistance`]), negative
+//! φ(p) = ±|p − c(p)|, c the closest surface point, negative
 //! inside ([`rkpm_core::InsideTest`]); ∇φ = ±(p − c)/|p − c|. The closest point lies on a face,
 //! an edge or a vertex; the unsigned distance's Hessian there is 0, `(I − t tᵀ − n nᵀ)/d`
 //! (t the edge direction, n = ∇φ up to sign) or `(I − n nᵀ)/d`, and ∇²φ carries φ's sign.
 //!
 //! Only points within [`MeshShape::band`] of the surface are looked up: farther points are
 //! reported outside at distance `band` (so a point that got deeper than `band` into the solid
-//! is lost; choose it above the deepest penetration and below half the thinnest wall).
+//! is lost; choose it above the deepest penetration and below half the thinnest wall). A grid
+//! of cells about `band` wide over the mesh's box lists the triangles within `band` of each
+//! cell, so a point far from the surface costs one lookup and a point near it a few triangles.
 
 use std::fmt;
 use std::path::{Path, PathBuf};
 use std::sync::Arc;
 
 use nalgebra::{Matrix3, Vector3};
-use rkpm_core::{GeometryReadError, InsideTest, SurfaceDistance, TriangleMesh, read_triangle_mesh};
+use rkpm_core::surface_distance::closest_point_on_triangle;
+use rkpm_core::{GeometryReadError, InsideTest, TriangleMesh, read_triangle_mesh};
 use serde::{Deserialize, Serialize};
 
 use crate::collider::SignedDistance;
@@ -22,8 +25,73 @@ use crate::collider::SignedDistance;
 /// The queries of one loaded mesh.
 struct MeshSurface {
     mesh: TriangleMesh,
-    distance: SurfaceDistance,
+    near: TriangleGrid,
     inside: InsideTest,
+}
+
+/// Cells over a mesh's bounding box grown by a band, each listing the triangles whose boxes,
+/// grown by the band, overlap it: every triangle within the band of a point in the cell.
+struct TriangleGrid {
+    origin: Vector3<f64>,
+    cell: f64,
+    dims: [usize; 3],
+    /// CSR: the triangles of cell c are `triangles[offsets[c]..offsets[c + 1]]`.
+    offsets: Vec<usize>,
+    triangles: Vec<u32>,
+}
+
+/// Most cells along one axis of a [`TriangleGrid`].
+const MAX_CELLS_PER_AXIS: usize = 64;
+
+impl TriangleGrid {
+    fn new(mesh: &TriangleMesh, band: f64) -> Self {
+        let bounds = mesh.bounding_box();
+        let origin = bounds.min - Vector3::repeat(band);
+        let extent = bounds.extent() + Vector3::repeat(2.0 * band);
+        let cell = band.max(extent.max() / MAX_CELLS_PER_AXIS as f64);
+        let dims = [0, 1, 2].map(|k| ((extent[k] / cell).ceil() as usize).max(1));
+        let cell_of = |x: f64, k: usize| {
+            (((x - origin[k]) / cell).floor().max(0.0) as usize).min(dims[k] - 1)
+        };
+        let mut lists: Vec<Vec<u32>> = vec![Vec::new(); dims[0] * dims[1] * dims[2]];
+        for t in 0..mesh.triangles().len() {
+            let corners = mesh.triangle_corners(t);
+            let lo = corners[0].inf(&corners[1]).inf(&corners[2]) - Vector3::repeat(band);
+            let hi = corners[0].sup(&corners[1]).sup(&corners[2]) + Vector3::repeat(band);
+            for i in cell_of(lo.x, 0)..=cell_of(hi.x, 0) {
+                for j in cell_of(lo.y, 1)..=cell_of(hi.y, 1) {
+                    for k in cell_of(lo.z, 2)..=cell_of(hi.z, 2) {
+                        lists[(i * dims[1] + j) * dims[2] + k].push(t as u32);
+                    }
+                }
+            }
+        }
+        let mut offsets = Vec::with_capacity(lists.len() + 1);
+        offsets.push(0);
+        for list in &lists {
+            offsets.push(offsets.last().unwrap() + list.len());
+        }
+        TriangleGrid {
+            origin,
+            cell,
+            dims,
+            offsets,
+            triangles: lists.concat(),
+        }
+    }
+
+    /// The triangles that may lie within the band of `p` (none outside the grid).
+    fn near(&self, p: &Vector3<f64>) -> &[u32] {
+        let mut index = 0;
+        for k in 0..3 {
+            let c = ((p[k] - self.origin[k]) / self.cell).floor();
+            if !(c >= 0.0 && c < self.dims[k] as f64) {
+                return &[];
+            }
+            index = index * self.dims[k] + c as usize;
+        }
+        &self.triangles[self.offsets[index]..self.offsets[index + 1]]
+    }
 }
 
 /// A closed, consistently oriented triangle mesh in the collider's frame (m).
@@ -38,7 +106,8 @@ pub struct MeshShape {
     /// given in memory.
     #[serde(default)]
     pub path: PathBuf,
-    /// How far from the surface (m) points are looked up (default 0.05).
+    /// How far from the surface (m) points are looked up (default 0.05); read when the mesh
+    /// is loaded.
     #[serde(default = "default_band")]
     pub band: f64,
     #[serde(skip)]
@@ -56,7 +125,7 @@ impl MeshShape {
             path: PathBuf::new(),
             band,
             surface: Some(Arc::new(MeshSurface {
-                distance: SurfaceDistance::new(&mesh),
+                near: TriangleGrid::new(&mesh, band.abs().max(f64::MIN_POSITIVE)),
                 inside: InsideTest::new(&mesh),
                 mesh,
             })),
@@ -102,10 +171,18 @@ impl MeshShape {
         let Some(surface) = &self.surface else {
             return far;
         };
-        let Some(closest) = surface.distance.closest_point(p, self.band) else {
+        let mut closest: Option<(Vector3<f64>, f64, usize)> = None;
+        for &t in surface.near.near(p) {
+            let [a, b, c] = surface.mesh.triangle_corners(t as usize);
+            let q = closest_point_on_triangle(p, &a, &b, &c);
+            let d = (q - p).norm();
+            if d <= self.band && closest.is_none_or(|(_, best, _)| d < best) {
+                closest = Some((q, d, t as usize));
+            }
+        }
+        let Some((point, d, triangle)) = closest else {
             return far;
         };
-        let d = closest.distance;
         if d == 0.0 {
             // On the surface: φ = 0, no direction; the penalty's force is zero there anyway.
             return SignedDistance {
@@ -118,9 +195,9 @@ impl MeshShape {
         } else {
             1.0
         };
-        let away = (p - closest.point) / d;
-        let [a, b, c] = surface.mesh.triangle_corners(closest.triangle);
-        let curvature = match feature(&closest.point, &a, &b, &c) {
+        let away = (p - point) / d;
+        let [a, b, c] = surface.mesh.triangle_corners(triangle);
+        let curvature = match feature(&point, &a, &b, &c) {
             Feature::Face => Matrix3::zeros(),
             Feature::Edge(t) => {
                 (Matrix3::identity() - t * t.transpose() - away * away.transpose()) / d
