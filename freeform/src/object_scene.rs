@@ -262,6 +262,14 @@ pub struct ObjectsReport {
     /// The smallest distance between samples of different objects over the run (m; `None`
     /// when no two came within d̂).
     pub min_contact_gap: Option<f64>,
+    /// The mechanical energy at the start and at the end (J): kinetic, elastic, gravity (from
+    /// each object's rest frame), penalties and contact
+    /// ([`reduced_sim::MultiBodySimulator::mechanical_energy`]).
+    pub energy: [f64; 2],
+    /// The largest rise of that energy over one step (J; 0 when it only fell): friction and
+    /// backward Euler only take energy out, so a rise is put in by moving colliders or a step
+    /// gone wrong.
+    pub max_energy_rise: f64,
     /// Frames written (per object).
     pub frames_written: usize,
     /// Setup: geometry, bases, cubatures, samples (s).
@@ -402,6 +410,8 @@ pub fn simulate_objects(
         Ok::<(), SimulateError>(())
     };
     write_all(&sim, 0)?;
+    let start_energy = sim.mechanical_energy();
+    let (mut energy, mut max_energy_rise) = (start_energy, 0.0_f64);
     let mut frames_written = 1;
     progress.begin(steps, "simulate");
     let (mut stepping, mut split) = (0.0, [0.0; 4]);
@@ -425,6 +435,9 @@ pub fn simulate_objects(
         unconverged += usize::from(!report.converged());
         max_penetration = max_penetration.max(sim.max_penetration());
         max_overlap = max_overlap.max(sim.contact_overlap());
+        let now = sim.mechanical_energy();
+        max_energy_rise = max_energy_rise.max(now - energy);
+        energy = now;
         if let Some(gap) = sim.contact_gap() {
             min_gap = Some(min_gap.map_or(gap, |g| g.min(gap)));
         }
@@ -447,6 +460,8 @@ pub fn simulate_objects(
         max_penetration,
         max_contact_overlap: max_overlap,
         min_contact_gap: min_gap,
+        energy: [start_energy, energy],
+        max_energy_rise,
         frames_written,
         setup_seconds,
         final_positions: sim

@@ -238,6 +238,18 @@ impl<M: HyperelasticMaterial> Simulator<M> {
             .max_penetration(&self.model, &self.state.z, self.state.time)
     }
 
+    /// The mechanical energy now (J): kinetic `½ żᵀ M_z ż`, elastic, and the scene's potentials
+    /// (gravity relative to the rest state, the pin, floor and collider penalties). Without
+    /// friction, moving pins or colliders it can only fall over a step (backward Euler
+    /// dissipates); a rise is energy put in by them, or a solve that went wrong.
+    pub fn mechanical_energy(&self) -> f64 {
+        let (z, velocity) = (&self.state.z, &self.state.velocity);
+        let kinetic =
+            0.5 * crate::incremental_potential::mass_inner(&self.model, velocity, velocity);
+        let targets = self.terms.step_targets(self.state.time);
+        kinetic + self.model.elastic_energy(z) + self.terms.energy(&self.model, z, &targets)
+    }
+
     /// Replaces the state (e.g. to start with an initial velocity).
     ///
     /// # Errors

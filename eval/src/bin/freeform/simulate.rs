@@ -122,6 +122,11 @@ fn run_objects(file: &ObjectsFile, out: &Path, cache: &Path, progress: Progress)
                 file.contact.radius
             ))
     );
+    println!(
+        "mechanical energy {:.4e} J at the start, {:.4e} J at the end; largest rise over a step \
+         {:.2e} J",
+        report.energy[0], report.energy[1], report.max_energy_rise
+    );
     for o in &report.objects {
         println!(
             "  {}: {} points, {} quadrature points, {} contact samples, basis {:.2} s",
