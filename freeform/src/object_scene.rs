@@ -41,12 +41,10 @@ use reduced_sim::{
     Body, BodyContactParams, DeformationMap, MultiBodySimulator, QuadratureReport, ReducedModel,
     ReducedState, Simulator,
 };
-use rkpm_core::PointCloud;
 use serde::{Deserialize, Serialize};
 use skin_eigen::{BasisParams, build_basis};
 
 use crate::frames::FrameWriter;
-use crate::geometry::Geometry;
 use crate::progress::Progress;
 use crate::runner::RunError;
 use crate::scene::SceneSpec;
@@ -54,7 +52,7 @@ use crate::scene_file::{
     BasisSpec, GeometrySpec, MaterialSpec, SceneFileError, SimulationSpec, load_collider_meshes,
     read_document,
 };
-use crate::simulate::SimulateError;
+use crate::simulate::{SimulateError, read_shape};
 use crate::splats::SplatTable;
 
 /// One object of a scene.
@@ -328,15 +326,12 @@ pub fn simulate_objects(
             "{}: basis m = {}, K = {}, ≈{} grid points",
             object.name, object.basis.modes, object.basis.kernels, object.basis.points
         ));
-        let splats = object
-            .geometry
-            .splats
-            .as_deref()
-            .map(SplatTable::read)
-            .transpose()?;
-        let geometry = match &splats {
-            Some(table) => Geometry::Cloud(PointCloud::new(table.positions(), None)),
-            None => object.geometry.read()?.scaled(object.scale),
+        // A splat file keeps its scale (validated), so scaling by 1 leaves it as it is.
+        let (geometry, splats) = read_shape(&object.geometry)?;
+        let geometry = if splats.is_some() {
+            geometry
+        } else {
+            geometry.scaled(object.scale)
         };
         let material = object.material.field();
         let fill = object.geometry.fill_interior;

@@ -21,7 +21,7 @@ use crate::pin_hold::HeldBasisError;
 use crate::progress::Progress;
 use crate::runner::RunError;
 use crate::runner::{Simulation, run};
-use crate::scene_file::SceneFile;
+use crate::scene_file::{GeometrySpec, SceneFile};
 use crate::splats::{SplatFileError, SplatTable};
 use crate::stress_field::StressField;
 
@@ -127,6 +127,22 @@ pub enum SimulateError {
     },
 }
 
+/// The shape of `spec`, and for a 3DGS file its table: a splat scene reads its file once, the
+/// splat centres being the cloud.
+///
+/// # Errors
+/// [`SimulateError::Geometry`] or [`SimulateError::Splats`] naming the file.
+pub(crate) fn read_shape(
+    spec: &GeometrySpec,
+) -> Result<(Geometry, Option<SplatTable>), SimulateError> {
+    let splats = spec.splats.as_deref().map(SplatTable::read).transpose()?;
+    let geometry = match &splats {
+        Some(table) => Geometry::Cloud(PointCloud::new(table.positions(), None)),
+        None => spec.read()?,
+    };
+    Ok((geometry, splats))
+}
+
 /// Runs a scene file with stable Neo-Hookean elasticity and writes `frame_NNNNN.ply` / `.vtk`
 /// (the deformed surface or cloud, every `output_every` steps and the last) and `summary.json`
 /// under `out_dir`; with `simulation.stress`, the VTK frames carry the stress at the output
@@ -141,17 +157,7 @@ pub fn simulate_scene_file(
     cache_dir: Option<&Path>,
     progress: &dyn Progress,
 ) -> Result<SimulateReport, SimulateError> {
-    // A splat scene reads its file once: the splat centres are the cloud.
-    let splats = file
-        .geometry
-        .splats
-        .as_deref()
-        .map(SplatTable::read)
-        .transpose()?;
-    let geometry = match &splats {
-        Some(table) => Geometry::Cloud(PointCloud::new(table.positions(), None)),
-        None => file.geometry()?,
-    };
+    let (geometry, splats) = read_shape(&file.geometry)?;
     let material = file.material.field();
     let lame_at = |positions: &[Vector3<f64>]| {
         lame_parameters_of(&material.sample(positions)).map_err(|(_, e)| SimulateError::Material(e))

@@ -294,7 +294,6 @@ impl<M: HyperelasticMaterial> Simulator<M> {
             factor = None;
         }
         let predicted = self.predicted_coordinates();
-        let next_time = self.state.time + h;
         let mut potential = self.step_potential(&predicted);
         let mut z = predicted.clone();
         self.terms.prescribe(&mut z, &potential.targets);
@@ -322,28 +321,12 @@ impl<M: HyperelasticMaterial> Simulator<M> {
             report = combined(&report, &again);
         }
         drop(potential);
-        let contacts = self.terms.contacts(&self.model, &z, next_time);
         self.factor_age = if report.hessian_assemblies > 0 {
             1
         } else {
             self.factor_age + 1
         };
-        self.factor = if contacts == self.contacts {
-            factor
-        } else {
-            None
-        };
-        self.contacts = contacts;
-        let velocity = z
-            .iter()
-            .zip(&self.state.z)
-            .map(|(a, b)| (a - b) / h)
-            .collect();
-        self.state = ReducedState {
-            z,
-            velocity,
-            time: next_time,
-        };
+        self.finish_step(z, factor);
         Ok(report)
     }
 
@@ -351,10 +334,21 @@ impl<M: HyperelasticMaterial> Simulator<M> {
     /// [`crate::MultiBodySimulator`]): z becomes the state at t + h with `ż = (z − z_t)/h`; the
     /// carried Hessian factorization is dropped.
     pub(crate) fn commit_step(&mut self, z: Vec<f64>) {
+        self.finish_step(z, None);
+    }
+
+    /// z becomes the state at t + h with `ż = (z − z_t)/h`; `factor` is carried into the next
+    /// step while the contact set stays the same.
+    fn finish_step(&mut self, z: Vec<f64>, factor: Option<Llt<f64>>) {
         let h = self.params.time_step;
         let time = self.state.time + h;
-        self.contacts = self.terms.contacts(&self.model, &z, time);
-        self.factor = None;
+        let contacts = self.terms.contacts(&self.model, &z, time);
+        self.factor = if contacts == self.contacts {
+            factor
+        } else {
+            None
+        };
+        self.contacts = contacts;
         let velocity = z
             .iter()
             .zip(&self.state.z)
