@@ -5,10 +5,11 @@ use std::path::Path;
 use anyhow::Result;
 use eval::progress::{BarProgress, Progress};
 use freeform::{
-    Camera, ObjectsFile, PreviewParams, SceneFile, SimulateReport, point_splats, render_preview,
-    simulate_objects, simulate_scene_file,
+    Camera, Geometry, ObjectsFile, PreviewParams, SceneFile, SimulateReport, point_splats,
+    render_preview, simulate_objects, simulate_scene_file,
 };
 use nalgebra::Vector3;
+use reduced_sim::ColliderShape;
 use rkpm_core::Aabb;
 
 use crate::render::write_png;
@@ -133,9 +134,39 @@ fn run_objects(file: &ObjectsFile, out: &Path, cache: &Path, progress: Progress)
             o.name, o.simulation_points, o.quadrature.points, o.contact_samples, o.basis_seconds
         );
     }
+    // The objects (red) with the surfaces of the mesh colliders at the last frame (blue).
+    let end = file.simulation.steps as f64 * file.simulation.time_step;
+    let mut points = report.final_positions.clone();
+    let mut values = vec![1.0; points.len()];
+    for collider in &file.scene.colliders {
+        if let ColliderShape::Mesh(shape) = &collider.shape
+            && let Some(mesh) = shape.mesh()
+        {
+            let pose = collider.pose(end);
+            let spacing = 0.02 * mesh.bounding_box().largest_side();
+            for p in Geometry::Surface(mesh.clone()).contact_samples(spacing) {
+                points.push(pose.transform_point(&p.into()).coords);
+                values.push(0.0);
+            }
+        }
+    }
     let png = out.join("preview.png");
-    write_points_preview(&report.final_positions, None, file.scene.gravity, &png)?;
-    println!("preview of the last frame: {}", png.display());
+    // The colliders faint, so the objects inside show through.
+    let opacity: Vec<f64> = values
+        .iter()
+        .map(|&v| if v > 0.0 { 1.0 } else { 0.06 })
+        .collect();
+    write_points_preview(
+        &points,
+        Some(&values),
+        Some(&opacity),
+        file.scene.gravity,
+        &png,
+    )?;
+    println!(
+        "preview of the last frame (objects red, mesh colliders blue): {}",
+        png.display()
+    );
     Ok(())
 }
 
@@ -146,15 +177,18 @@ fn write_preview(report: &SimulateReport, file: &SceneFile, png: &Path) -> Resul
     write_points_preview(
         &report.final_positions,
         report.final_von_mises.as_deref(),
+        None,
         file.scene.gravity,
         png,
     )
 }
 
-/// [`write_preview`] of `points` (m) with their `values` (colour scale) or grey.
+/// [`write_preview`] of `points` (m) with their `values` (colour scale) or grey, opaque or
+/// with the given opacities (0 … 1).
 fn write_points_preview(
     points: &[Vector3<f64>],
     values: Option<&[f64]>,
+    opacity: Option<&[f64]>,
     gravity: Option<Vector3<f64>>,
     png: &Path,
 ) -> Result<()> {
@@ -165,7 +199,12 @@ fn write_points_preview(
     let up = gravity
         .filter(|g| g.norm() > 0.0)
         .map_or(Vector3::y(), |g| -g.normalize());
-    let splats = point_splats(points, values, radius);
+    let mut splats = point_splats(points, values, radius);
+    if let Some(opacity) = opacity {
+        for (splat, &alpha) in splats.iter_mut().zip(opacity) {
+            splat.opacity = alpha;
+        }
+    }
     let params = PreviewParams {
         width: 512,
         height: 512,
