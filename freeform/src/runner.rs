@@ -83,6 +83,12 @@ pub struct RunReport {
     /// The deepest penetration of an integration point into the floor or a collider over the
     /// run (m; 0 without contact).
     pub max_penetration: f64,
+    /// The mechanical energy at the start and at the end (J,
+    /// [`reduced_sim::Simulator::mechanical_energy`]).
+    pub energy: [f64; 2],
+    /// The largest rise of that energy over one step (J; 0 when it only fell): backward Euler
+    /// and friction only take energy out, moving pins and colliders may put it in.
+    pub max_energy_rise: f64,
     /// Model and scene setup, quadrature included (s).
     pub setup_seconds: f64,
     /// The elastic quadrature the run used (kind, points, cubature report).
@@ -189,6 +195,8 @@ where
     let (mut stepping, mut assembly, mut solve, mut line_search) = (0.0, 0.0, 0.0, 0.0);
     let (mut max_pin_deviation, mut max_held_deviation): (f64, f64) = (0.0, 0.0);
     let mut max_penetration: f64 = 0.0;
+    let start_energy = sim.mechanical_energy();
+    let (mut energy, mut max_energy_rise) = (start_energy, 0.0_f64);
     for step in 1..=steps {
         let t = Instant::now();
         let report = sim
@@ -204,6 +212,9 @@ where
         max_pin_deviation = max_pin_deviation.max(sim.max_pin_deviation().unwrap_or(0.0));
         max_held_deviation = max_held_deviation.max(sim.max_held_deviation().unwrap_or(0.0));
         max_penetration = max_penetration.max(sim.max_penetration());
+        let now = sim.mechanical_energy();
+        max_energy_rise = max_energy_rise.max(now - energy);
+        energy = now;
         notify(&sim, step, Some(&report))?;
     }
     let n = steps.max(1) as f64;
@@ -219,6 +230,8 @@ where
         max_pin_deviation,
         max_held_deviation,
         max_penetration,
+        energy: [start_energy, energy],
+        max_energy_rise,
         setup_seconds,
         quadrature,
         simulation_points: points.len(),

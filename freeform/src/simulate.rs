@@ -53,6 +53,13 @@ pub struct SimulateReport {
     /// run (m).
     #[serde(default)]
     pub max_penetration: f64,
+    /// The mechanical energy at the start and at the end (J, kinetic, elastic and the scene's
+    /// potentials; [`reduced_sim::Simulator::mechanical_energy`]).
+    #[serde(default)]
+    pub energy: [f64; 2],
+    /// The largest rise of that energy over one step (J; 0 when it only fell).
+    #[serde(default)]
+    pub max_energy_rise: f64,
     /// Frames written.
     pub frames_written: usize,
     /// Integration points simulated.
@@ -310,6 +317,8 @@ pub fn simulate_scene_file(
         max_held_deviation: report.max_held_deviation,
         unconverged_steps: report.unconverged_steps,
         max_penetration: report.max_penetration,
+        energy: report.energy,
+        max_energy_rise: report.max_energy_rise,
         frames_written,
         simulation_points: points.len(),
         final_max_displacement: output

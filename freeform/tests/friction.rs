@@ -14,7 +14,8 @@ const G: f64 = 9.8;
 const THETA: f64 = std::f64::consts::FRAC_PI_6;
 
 /// The block's volume-weighted mean x (m) after each of `steps` steps on the incline with
-/// friction coefficient `friction`.
+/// friction coefficient `friction`; the run's mechanical energy never rises over a step (a
+/// block on a still floor: gravity does work, friction and backward Euler take it out).
 fn slide(friction: f64, steps: usize) -> Vec<f64> {
     let scene = SceneSpec {
         gravity: Some(Vector3::new(G * THETA.sin(), -G * THETA.cos(), 0.0)),
@@ -26,9 +27,16 @@ fn slide(friction: f64, steps: usize) -> Vec<f64> {
         ..Default::default()
     };
     let mut x = Vec::new();
-    run_cube(0.2, &scene, steps, |positions, volumes| {
+    let report = run_cube(0.2, &scene, steps, |positions, volumes| {
         x.push(mean_x(positions, volumes));
     });
+    let [start, end] = report.energy;
+    assert!(end < start, "energy {start} J -> {end} J");
+    assert!(
+        report.max_energy_rise <= 1e-9 * (start - end),
+        "energy rose by {} J in a step ({start} J -> {end} J)",
+        report.max_energy_rise
+    );
     x
 }
 

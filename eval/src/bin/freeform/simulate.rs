@@ -45,6 +45,11 @@ pub(crate) fn run(
         report.final_max_displacement,
         report.max_penetration
     );
+    println!(
+        "mechanical energy {:.4e} J at the start, {:.4e} J at the end; largest rise over a step \
+         {:.2e} J",
+        report.energy[0], report.energy[1], report.max_energy_rise
+    );
     if let Some(q) = &report.quadrature {
         match &q.cubature {
             Some(c) => {
