@@ -34,7 +34,6 @@
 use std::path::Path;
 use std::time::Instant;
 
-use artifact::write_atomically;
 use hyperelastic::{StableNeoHookean, lame_parameters_of};
 use nalgebra::{UnitQuaternion, Vector3};
 use reduced_sim::{
@@ -52,7 +51,7 @@ use crate::scene_file::{
     BasisSpec, GeometrySpec, MaterialSpec, SceneFileError, SimulationSpec, load_collider_meshes,
     read_document,
 };
-use crate::simulate::{SimulateError, read_shape};
+use crate::simulate::{SimulateError, read_shape, write_summary};
 use crate::splats::SplatTable;
 
 /// One object of a scene.
@@ -466,11 +465,6 @@ pub fn simulate_objects(
             .flat_map(|(b, o)| o.map.positions(&b.simulator().state().z))
             .collect(),
     };
-    write_atomically(
-        &out_dir.join("summary.json"),
-        serde_json::to_string_pretty(&report)
-            .unwrap_or_default()
-            .as_bytes(),
-    )?;
+    write_summary(out_dir, &report)?;
     Ok(report)
 }

@@ -134,6 +134,19 @@ pub enum SimulateError {
     },
 }
 
+/// Writes `report` as `<out_dir>/summary.json` (pretty JSON, atomically).
+///
+/// # Errors
+/// [`ArtifactError`] naming the file.
+pub(crate) fn write_summary(out_dir: &Path, report: &impl Serialize) -> Result<(), ArtifactError> {
+    write_atomically(
+        &out_dir.join("summary.json"),
+        serde_json::to_string_pretty(report)
+            .unwrap_or_default()
+            .as_bytes(),
+    )
+}
+
 /// The shape of `spec`, and for a 3DGS file its table: a splat scene reads its file once, the
 /// splat centres being the cloud.
 ///
@@ -332,11 +345,6 @@ pub fn simulate_scene_file(
         final_positions: output.positions(&last_z),
         final_von_mises,
     };
-    write_atomically(
-        &out_dir.join("summary.json"),
-        serde_json::to_string_pretty(&report)
-            .unwrap_or_default()
-            .as_bytes(),
-    )?;
+    write_summary(out_dir, &report)?;
     Ok(report)
 }

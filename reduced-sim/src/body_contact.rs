@@ -142,11 +142,12 @@ pub(crate) struct SamplePair {
     pub(crate) b: (usize, usize),
 }
 
-/// A pair with its lagged unit normal n (from b towards a).
+/// A pair with its lagged unit normal n (from b towards a) and its stiffness κ (Pa/m²).
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub(crate) struct LaggedPair {
     pub(crate) pair: SamplePair,
     pub(crate) normal: Vector3<f64>,
+    pub(crate) stiffness: f64,
 }
 
 /// One pair's gradient and Hessian with respect to `p = x_a − x_b` (for x_b: both negated).
@@ -202,13 +203,12 @@ impl PairFriction {
     }
 }
 
-/// The friction of the `pairs` (κ of each in `stiffness`) that touch at the sample positions
+/// The friction of the `pairs` that touch at the sample positions
 /// `positions` (per object), with the limit `μ λ` taken there, the pair's normal, and slips
 /// measured from `start`.
 pub(crate) fn lagged_friction(
     contact: &BodyContactParams,
     pairs: &[LaggedPair],
-    stiffness: &[f64],
     positions: &[Vec<Vector3<f64>>],
     start: &[Vec<Vector3<f64>>],
 ) -> Vec<PairFriction> {
@@ -218,8 +218,7 @@ pub(crate) fn lagged_friction(
     let v = contact.sample_volume();
     pairs
         .iter()
-        .zip(stiffness)
-        .filter_map(|(lagged, &kappa)| {
+        .filter_map(|lagged| {
             let pair = lagged.pair;
             let p = positions[pair.a.0][pair.a.1] - positions[pair.b.0][pair.b.1];
             let (_, slope, _) = contact.profile(lagged.normal.dot(&p))?;
@@ -227,7 +226,7 @@ pub(crate) fn lagged_friction(
                 pair,
                 previous: start[pair.a.0][pair.a.1] - start[pair.b.0][pair.b.1],
                 normal: lagged.normal,
-                limit: contact.friction * kappa * v * -slope,
+                limit: contact.friction * lagged.stiffness * v * -slope,
             })
         })
         .collect()

@@ -177,6 +177,10 @@ pub struct MultiBodySimulator<M: HyperelasticMaterial> {
     /// The largest `d̂ − n·p` of a contact pair at the end of the last step (m; 0 without
     /// contact).
     overlap: f64,
+    /// The sample pairs of different objects closer than d̂ in the current state, with their
+    /// distance (m): found once per step (and after [`MultiBodySimulator::set_state`]) for the
+    /// step's check, [`MultiBodySimulator::contact_gap`] and the contact energy.
+    touching: Vec<(SamplePair, f64)>,
 }
 
 impl<M: HyperelasticMaterial> MultiBodySimulator<M> {
@@ -204,11 +208,33 @@ impl<M: HyperelasticMaterial> MultiBodySimulator<M> {
         if let Some(why) = contact.defect() {
             return Err(MultiBodyError::Contact(why));
         }
-        Ok(MultiBodySimulator {
+        let mut simulator = MultiBodySimulator {
             bodies,
             contact,
             overlap: 0.0,
-        })
+            touching: Vec::new(),
+        };
+        simulator.touching = simulator.touching_pairs(&simulator.sample_positions());
+        Ok(simulator)
+    }
+
+    /// Every object's contact samples where they are now (m).
+    fn sample_positions(&self) -> Vec<Vec<Vector3<f64>>> {
+        self.bodies.iter().map(Body::sample_positions).collect()
+    }
+
+    /// The sample pairs of different objects closer than d̂ at `positions`, with their
+    /// distance (m).
+    fn touching_pairs(&self, positions: &[Vec<Vector3<f64>>]) -> Vec<(SamplePair, f64)> {
+        self.pairs_within(positions, None, self.contact.radius)
+            .into_iter()
+            .map(|p| {
+                (
+                    p,
+                    (positions[p.a.0][p.a.1] - positions[p.b.0][p.b.1]).norm(),
+                )
+            })
+            .collect()
     }
 
     /// The objects.
@@ -234,7 +260,9 @@ impl<M: HyperelasticMaterial> MultiBodySimulator<M> {
     /// # Panics
     /// If `body` is out of range.
     pub fn set_state(&mut self, body: usize, state: ReducedState) -> Result<(), StateError> {
-        self.bodies[body].simulator.set_state(state)
+        self.bodies[body].simulator.set_state(state)?;
+        self.touching = self.touching_pairs(&self.sample_positions());
+        Ok(())
     }
 
     /// The total linear momentum `Σ_objects Σ_i ρ_i v_i ẋ_i` (kg·m/s).
@@ -248,14 +276,11 @@ impl<M: HyperelasticMaterial> MultiBodySimulator<M> {
     /// The mechanical energy now (J): every object's ([`Simulator::mechanical_energy`]) and the
     /// repulsion of their samples closer than d̂ (at their distance `‖p‖`).
     pub fn mechanical_energy(&self) -> f64 {
-        let positions: Vec<Vec<Vector3<f64>>> =
-            self.bodies.iter().map(Body::sample_positions).collect();
         let v = self.contact.sample_volume();
         let contact: f64 = self
-            .pairs_within(&positions, None, self.contact.radius)
+            .touching
             .iter()
-            .map(|p| {
-                let d = (positions[p.a.0][p.a.1] - positions[p.b.0][p.b.1]).norm();
+            .map(|&(p, d)| {
                 let psi = self
                     .contact
                     .profile(d)
@@ -287,14 +312,7 @@ impl<M: HyperelasticMaterial> MultiBodySimulator<M> {
     /// closer than d̂; `None` when no two objects are that close. With the penalty,
     /// `d̂ − gap` is how far the contact shells overlap; the barrier keeps it positive.
     pub fn contact_gap(&self) -> Option<f64> {
-        let positions: Vec<Vec<Vector3<f64>>> =
-            self.bodies.iter().map(Body::sample_positions).collect();
-        let pairs = self.pairs_within(&positions, None, self.contact.radius);
-        pairs
-            .iter()
-            .map(|p| (positions[p.a.0][p.a.1] - positions[p.b.0][p.b.1]).norm())
-            .filter(|&d| d < self.contact.radius)
-            .min_by(f64::total_cmp)
+        self.touching.iter().map(|&(_, d)| d).min_by(f64::total_cmp)
     }
 
     /// How far (m) the last step's contact pairs between objects ended inside each other's
@@ -417,8 +435,7 @@ impl<M: HyperelasticMaterial> MultiBodySimulator<M> {
             .iter()
             .map(|b| b.simulator.state().clone())
             .collect();
-        let start: Vec<Vec<Vector3<f64>>> =
-            self.bodies.iter().map(Body::sample_positions).collect();
+        let start = self.sample_positions();
         let motions: Vec<Vec<Vector3<f64>>> = self
             .bodies
             .iter()
@@ -469,17 +486,17 @@ impl<M: HyperelasticMaterial> MultiBodySimulator<M> {
                 }
             }
             let check = Instant::now();
-            let end: Vec<Vec<Vector3<f64>>> =
-                self.bodies.iter().map(Body::sample_positions).collect();
-            let touching = self.pairs_within(&end, None, d_hat);
+            let touching = self.touching_pairs(&self.sample_positions());
             let known: HashSet<SamplePair> = candidates.iter().copied().collect();
             let missing: Vec<SamplePair> = touching
                 .iter()
+                .map(|&(p, _)| p)
                 .filter(|p| !known.contains(p))
-                .copied()
                 .collect();
             search_seconds += check.elapsed().as_secs_f64();
             if missing.is_empty() || resolves >= 3 {
+                let active_pairs = touching.len();
+                self.touching = touching;
                 return Ok(MultiBodyReport {
                     bodies: reports
                         .into_iter()
@@ -488,7 +505,7 @@ impl<M: HyperelasticMaterial> MultiBodySimulator<M> {
                     solves,
                     joint_groups,
                     candidate_pairs: candidates.len(),
-                    active_pairs: touching.len(),
+                    active_pairs,
                     contact_search_seconds: search_seconds,
                     resolves,
                 });
@@ -529,7 +546,7 @@ impl<M: HyperelasticMaterial> MultiBodySimulator<M> {
                 .iter()
                 .flat_map(|&b| self.bodies[b].simulator.state().z.iter().copied())
                 .collect();
-            (objective.pairs, objective.stiffness) = objective.lag(&start_z);
+            objective.pairs = objective.lag(&start_z);
             objective.friction = objective.lagged_friction(&start_z);
             // From where the step starts, not the inertial prediction: the prediction may have
             // carried samples through each other's contact planes, where no force pulls them
@@ -541,7 +558,7 @@ impl<M: HyperelasticMaterial> MultiBodySimulator<M> {
             let mut report = solve_reusing(&objective, &mut z, &newton, &mut factor)?;
             // The normals lagged again at the solution while those of touching pairs turn.
             for _ in 0..MAX_CONTACT_LAGS {
-                let (pairs, stiffness) = objective.lag(&z);
+                let pairs = objective.lag(&z);
                 let positions = objective.positions(&z);
                 let turned = pairs.len() != objective.pairs.len()
                     || pairs.iter().zip(&objective.pairs).any(|(new, old)| {
@@ -554,7 +571,7 @@ impl<M: HyperelasticMaterial> MultiBodySimulator<M> {
                 if !turned {
                     break;
                 }
-                (objective.pairs, objective.stiffness) = (pairs, stiffness);
+                objective.pairs = pairs;
                 let again = solve_reusing(&objective, &mut z, &newton, &mut factor)?;
                 report = combined(&report, &again);
             }
@@ -650,7 +667,6 @@ impl<M: HyperelasticMaterial> MultiBodySimulator<M> {
                 })
                 .collect(),
             pairs: Vec::new(),
-            stiffness: Vec::new(),
             start: group
                 .iter()
                 .zip(&involved)
@@ -758,8 +774,6 @@ struct GroupPotential<'a, M: HyperelasticMaterial> {
     candidates: Vec<(SamplePair, f64)>,
     /// The contact pairs of this solve with their lagged normals ([`GroupPotential::lag`]).
     pairs: Vec<LaggedPair>,
-    /// κ of each of `pairs` (Pa/m²).
-    stiffness: Vec<f64>,
     /// Each object's samples that take part, where they were at the step's start (m).
     start: Vec<Vec<Vector3<f64>>>,
     contact: BodyContactParams,
@@ -786,44 +800,35 @@ impl<M: HyperelasticMaterial> GroupPotential<'_, M> {
 
     /// The contact pairs lagged at z: every candidate, with the normal `p/‖p‖` there (pairs
     /// at one point, with no normal, are left out).
-    fn lag(&self, z: &[f64]) -> (Vec<LaggedPair>, Vec<f64>) {
+    fn lag(&self, z: &[f64]) -> Vec<LaggedPair> {
         let positions = self.positions(z);
         self.candidates
             .iter()
-            .filter_map(|&(pair, kappa)| {
+            .filter_map(|&(pair, stiffness)| {
                 let p = Self::relative(&positions, &pair);
                 let d = p.norm();
-                (d > 0.0).then(|| {
-                    (
-                        LaggedPair {
-                            pair,
-                            normal: p / d,
-                        },
-                        kappa,
-                    )
+                (d > 0.0).then(|| LaggedPair {
+                    pair,
+                    normal: p / d,
+                    stiffness,
                 })
             })
-            .unzip()
+            .collect()
     }
 
     /// The friction of the pairs touching at z, slips measured from the step's start.
     fn lagged_friction(&self, z: &[f64]) -> Vec<PairFriction> {
-        lagged_friction(
-            &self.contact,
-            &self.pairs,
-            &self.stiffness,
-            &self.positions(z),
-            &self.start,
-        )
+        lagged_friction(&self.contact, &self.pairs, &self.positions(z), &self.start)
     }
 
     /// Every pair's (and friction's) derivatives in its relative position, with the pair.
     fn pair_derivatives(&self, z: &[f64]) -> Vec<(SamplePair, RelativeDerivatives)> {
         let positions = self.positions(z);
         let mut out = Vec::new();
-        for (lagged, &kappa) in self.pairs.iter().zip(&self.stiffness) {
+        for lagged in &self.pairs {
             let p = Self::relative(&positions, &lagged.pair);
-            if let Some(d) = repulsion_derivatives(&self.contact, kappa, &lagged.normal, &p)
+            if let Some(d) =
+                repulsion_derivatives(&self.contact, lagged.stiffness, &lagged.normal, &p)
                 && d.gradient != Vector3::zeros()
             {
                 out.push((lagged.pair, d));
@@ -919,10 +924,10 @@ impl<M: HyperelasticMaterial> NewtonObjective for GroupPotential<'_, M> {
             .sum();
         let positions = self.positions(z);
         let v = self.contact.sample_volume();
-        for (lagged, kappa) in self.pairs.iter().zip(&self.stiffness) {
+        for lagged in &self.pairs {
             let p = Self::relative(&positions, &lagged.pair);
             match self.contact.profile(lagged.normal.dot(&p)) {
-                Some((psi, _, _)) => e += kappa * v * psi,
+                Some((psi, _, _)) => e += lagged.stiffness * v * psi,
                 None => return f64::INFINITY,
             }
         }
@@ -1108,7 +1113,7 @@ mod tests {
             ..BodyContactParams::with_radius(0.1)
         };
         let sim = MultiBodySimulator::new(bodies, contact).unwrap();
-        let start: Vec<Vec<Vector3<f64>>> = sim.bodies.iter().map(Body::sample_positions).collect();
+        let start = sim.sample_positions();
         let pairs = sim.pairs_within(&start, None, 0.15);
         assert!(pairs.len() > 50, "{} pairs", pairs.len());
         let predicted: Vec<Vec<f64>> = sim
@@ -1126,7 +1131,7 @@ mod tests {
         };
         // Contact and friction lagged at another state, so slips straddle ε.
         objective.epsilon = 0.002;
-        (objective.pairs, objective.stiffness) = objective.lag(&probe(-0.002));
+        objective.pairs = objective.lag(&probe(-0.002));
         objective.friction = objective.lagged_friction(&probe(-0.002));
         assert!(
             objective.friction.len() > 20,
