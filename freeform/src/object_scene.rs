@@ -241,10 +241,18 @@ pub struct ObjectsReport {
     /// Mean wall time per step (ms), contact search included.
     pub ms_per_step: f64,
     /// Of which: assembly of gradients and Hessians (the objects' terms and the contact
-    /// between them), factorization and solve, line search, contact search (ms).
+    /// between them), factorization and solve, line search, contact search (ms), summed over
+    /// the step's solves: objects alone are solved on several threads at once, so the parts
+    /// can add up to more than `ms_per_step`.
     pub ms_split_per_step: [f64; 4],
     /// Mean Newton iterations per step, summed over the step's solves.
     pub iterations_per_step: f64,
+    /// Mean Hessians assembled and factored per step, summed over the step's solves.
+    #[serde(default)]
+    pub hessians_per_step: f64,
+    /// Mean line-search step halvings per step, summed over the step's solves.
+    #[serde(default)]
+    pub line_search_cuts_per_step: f64,
     /// Mean groups of objects in contact solved together per step.
     pub joint_solves_per_step: f64,
     /// Steps with a solve that did not converge.
@@ -409,7 +417,7 @@ pub fn simulate_objects(
     let mut frames_written = 1;
     progress.begin(steps, "simulate");
     let (mut stepping, mut split) = (0.0, [0.0; 4]);
-    let (mut iterations, mut joint, mut unconverged) = (0, 0, 0);
+    let (mut iterations, mut hessians, mut cuts, mut joint, mut unconverged) = (0, 0, 0, 0, 0);
     let (mut max_penetration, mut max_overlap, mut min_gap): (f64, f64, Option<f64>) =
         (0.0, 0.0, None);
     for step in 1..=steps {
@@ -423,6 +431,8 @@ pub fn simulate_objects(
             split[1] += solve.timings.solve;
             split[2] += solve.timings.line_search;
             iterations += solve.iterations;
+            hessians += solve.hessian_assemblies;
+            cuts += solve.line_search_cuts;
         }
         split[3] += report.contact_search_seconds;
         joint += report.joint_groups;
@@ -449,6 +459,8 @@ pub fn simulate_objects(
         ms_per_step: 1e3 * stepping / n,
         ms_split_per_step: split.map(|s| 1e3 * s / n),
         iterations_per_step: iterations as f64 / n,
+        hessians_per_step: hessians as f64 / n,
+        line_search_cuts_per_step: cuts as f64 / n,
         joint_solves_per_step: joint as f64 / n,
         unconverged_steps: unconverged,
         max_penetration,

@@ -77,11 +77,30 @@ fn an_objects_file_with_a_bad_field_is_refused_naming_it() {
             ),
             "scene.constraints",
         ),
+        (
+            two_boxes("").replace("time_step = 0.01", "time_step = 0.01\nnewton_tolerance = -1e-6"),
+            "simulation.newton_tolerance",
+        ),
     ];
     for (text, field) in cases {
         let err = load(&dir, &text).unwrap_err().to_string();
         assert!(err.contains(field), "expected {field} in: {err}");
     }
+    // A valid tolerance reaches Newton; without one, Newton's default.
+    let tight = two_boxes("").replace(
+        "time_step = 0.01",
+        "time_step = 0.01\nnewton_tolerance = 3e-5",
+    );
+    let params = load(&dir, &tight).unwrap().simulation.simulation_params();
+    assert_eq!(params.newton.tolerance, 3e-5);
+    let params = load(&dir, &two_boxes(""))
+        .unwrap()
+        .simulation
+        .simulation_params();
+    assert_eq!(
+        params.newton.tolerance,
+        optimize::NewtonParams::default().tolerance
+    );
     let one_object = Path::new(env!("CARGO_MANIFEST_DIR")).join("examples/scenes/pusher.toml");
     assert!(!ObjectsFile::describes(&one_object));
 }

@@ -21,8 +21,9 @@ pub enum Tangent {
 /// P = ∂Ψ/∂F (Pa) and the 9×9 tangent ∂P/∂F (Pa) over column-major `vec(F)`, with per-point
 /// Lamé parameters (heterogeneous objects).
 ///
-/// Implementations must be isotropic and frame-indifferent with Ψ(I) = 0, P(I) = 0.
-pub trait HyperelasticMaterial: Sync {
+/// Implementations must be isotropic and frame-indifferent with Ψ(I) = 0, P(I) = 0, and plain
+/// data (`Send + Sync`: objects are stepped on several threads).
+pub trait HyperelasticMaterial: Send + Sync {
     /// A short name for reports ("stable Neo-Hookean").
     fn name(&self) -> &'static str;
 

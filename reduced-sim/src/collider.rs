@@ -17,6 +17,7 @@
 //! where the term has either sign).
 
 use nalgebra::{Isometry3, Matrix3, Translation3, UnitQuaternion, Vector3};
+use rayon::prelude::*;
 use serde::{Deserialize, Serialize};
 
 use crate::mesh_collider::MeshShape;
@@ -226,6 +227,20 @@ impl Collider {
             gradient: r * d.gradient,
             hessian: r * d.hessian * r.transpose(),
         }
+    }
+
+    /// [`Collider::signed_distance`] at every point of `points` (m), in order, computed in
+    /// parallel.
+    pub fn signed_distances(
+        &self,
+        pose: &Isometry3<f64>,
+        points: &[Vector3<f64>],
+    ) -> Vec<SignedDistance> {
+        points
+            .par_iter()
+            .with_min_len(256)
+            .map(|x| self.signed_distance(pose, x))
+            .collect()
     }
 
     /// What is wrong with this collider, if anything: a shape size that is not finite and

@@ -1,7 +1,11 @@
 //! A closed triangle mesh as a collider shape (issue 21): a container, a ramp, pegs of any form.
 //!
 //! φ(p) = ±|p − c(p)|, c the closest surface point, negative
-//! inside ([`rkpm_core::InsideTest`]); ∇φ = ±(p − c)/|p − c|. The closest point lies on a face,
+//! inside; ∇φ = ±(p − c)/|p − c|. The sign is that of `(p − c)·N`, N the angle-weighted
+//! pseudonormal of the closest feature (the face's normal, the sum of an edge's two face
+//! normals, the angle-weighted sum of a vertex's face normals): exact for a closed mesh
+//! (Bærentzen and Aanæs 2005), convex and concave features alike, and far cheaper than a
+//! ray cast per point. The closest point lies on a face,
 //! an edge or a vertex; the unsigned distance's Hessian there is 0, `(I − t tᵀ − n nᵀ)/d`
 //! (t the edge direction, n = ∇φ up to sign) or `(I − n nᵀ)/d`, and ∇²φ carries φ's sign.
 //!
@@ -11,13 +15,14 @@
 //! of cells about `band` wide over the mesh's box lists the triangles within `band` of each
 //! cell, so a point far from the surface costs one lookup and a point near it a few triangles.
 
+use std::collections::HashMap;
 use std::fmt;
 use std::path::{Path, PathBuf};
 use std::sync::Arc;
 
 use nalgebra::{Matrix3, Vector3};
 use rkpm_core::surface_distance::closest_point_on_triangle;
-use rkpm_core::{GeometryReadError, InsideTest, TriangleMesh, read_triangle_mesh};
+use rkpm_core::{GeometryReadError, TriangleMesh, read_triangle_mesh};
 use serde::{Deserialize, Serialize};
 
 use crate::collider::SignedDistance;
@@ -26,7 +31,64 @@ use crate::collider::SignedDistance;
 struct MeshSurface {
     mesh: TriangleMesh,
     near: TriangleGrid,
-    inside: InsideTest,
+    normals: Pseudonormals,
+}
+
+/// Outward angle-weighted pseudonormals of a closed mesh (unnormalized: only their direction
+/// is used).
+struct Pseudonormals {
+    /// Per triangle, its unit normal.
+    faces: Vec<Vector3<f64>>,
+    /// Per triangle, its edges' normals, the edge opposite corner k at k: the sum of the unit
+    /// normals of the two triangles sharing the edge.
+    edges: Vec<[Vector3<f64>; 3]>,
+    /// Per vertex, Σ over its triangles of the corner angle times the unit normal.
+    vertices: Vec<Vector3<f64>>,
+}
+
+impl Pseudonormals {
+    /// The pseudonormals of `mesh`, pointing out of the solid (a validated mesh winds its
+    /// triangles outward: it encloses a positive volume).
+    fn new(mesh: &TriangleMesh) -> Self {
+        let triangles = mesh.triangles();
+        let faces: Vec<Vector3<f64>> = (0..triangles.len())
+            .map(|t| {
+                let [a, b, c] = mesh.triangle_corners(t);
+                (b - a)
+                    .cross(&(c - a))
+                    .try_normalize(0.0)
+                    .unwrap_or_default()
+            })
+            .collect();
+        let mut shared: HashMap<(usize, usize), Vector3<f64>> = HashMap::new();
+        let mut vertices = vec![Vector3::zeros(); mesh.vertices().len()];
+        for (t, tri) in triangles.iter().enumerate() {
+            let corners = mesh.triangle_corners(t);
+            for k in 0..3 {
+                let (i, j) = (tri[(k + 1) % 3], tri[(k + 2) % 3]);
+                *shared.entry((i.min(j), i.max(j))).or_default() += faces[t];
+                let (u, v) = (
+                    corners[(k + 1) % 3] - corners[k],
+                    corners[(k + 2) % 3] - corners[k],
+                );
+                vertices[tri[k]] += faces[t] * u.angle(&v);
+            }
+        }
+        let edges = triangles
+            .iter()
+            .map(|tri| {
+                [0, 1, 2].map(|k| {
+                    let (i, j) = (tri[(k + 1) % 3], tri[(k + 2) % 3]);
+                    shared[&(i.min(j), i.max(j))]
+                })
+            })
+            .collect();
+        Pseudonormals {
+            faces,
+            edges,
+            vertices,
+        }
+    }
 }
 
 /// Cells over a mesh's bounding box grown by a band, each listing the triangles whose boxes,
@@ -126,7 +188,7 @@ impl MeshShape {
             band,
             surface: Some(Arc::new(MeshSurface {
                 near: TriangleGrid::new(&mesh, band.abs().max(f64::MIN_POSITIVE)),
-                inside: InsideTest::new(&mesh),
+                normals: Pseudonormals::new(&mesh),
                 mesh,
             })),
         }
@@ -190,20 +252,24 @@ impl MeshShape {
                 ..far
             };
         }
-        let sign = if surface.inside.contains(p) {
-            -1.0
-        } else {
-            1.0
-        };
         let away = (p - point) / d;
         let [a, b, c] = surface.mesh.triangle_corners(triangle);
-        let curvature = match feature(&point, &a, &b, &c) {
-            Feature::Face => Matrix3::zeros(),
-            Feature::Edge(t) => {
-                (Matrix3::identity() - t * t.transpose() - away * away.transpose()) / d
-            }
-            Feature::Vertex => (Matrix3::identity() - away * away.transpose()) / d,
+        let normals = &surface.normals;
+        let (normal, curvature) = match feature(&point, &a, &b, &c) {
+            Feature::Face => (normals.faces[triangle], Matrix3::zeros()),
+            Feature::Edge {
+                opposite,
+                direction: t,
+            } => (
+                normals.edges[triangle][opposite],
+                (Matrix3::identity() - t * t.transpose() - away * away.transpose()) / d,
+            ),
+            Feature::Vertex(k) => (
+                normals.vertices[surface.mesh.triangles()[triangle][k]],
+                (Matrix3::identity() - away * away.transpose()) / d,
+            ),
         };
+        let sign = if away.dot(&normal) < 0.0 { -1.0 } else { 1.0 };
         SignedDistance {
             distance: sign * d,
             gradient: away * sign,
@@ -215,9 +281,13 @@ impl MeshShape {
 /// Where on a triangle its closest point lies.
 enum Feature {
     Face,
-    /// On an edge, with the edge's unit direction.
-    Edge(Vector3<f64>),
-    Vertex,
+    /// On the edge opposite corner `opposite` (0, 1, 2 for a, b, c), with its unit direction.
+    Edge {
+        opposite: usize,
+        direction: Vector3<f64>,
+    },
+    /// At corner k (0, 1, 2 for a, b, c).
+    Vertex(usize),
 }
 
 /// The feature of triangle abc that `q` (a point of it) lies on, by its barycentric
@@ -228,12 +298,19 @@ fn feature(q: &Vector3<f64>, a: &Vector3<f64>, b: &Vector3<f64>, c: &Vector3<f64
     let weight = |u: &Vector3<f64>, v: &Vector3<f64>| (u - q).cross(&(v - q)).dot(&n) / area;
     let (wa, wb, wc) = (weight(b, c), weight(c, a), weight(a, b));
     let zero = |w: f64| w.abs() < 1e-9;
+    let edge = |opposite: usize, from: &Vector3<f64>, to: &Vector3<f64>| Feature::Edge {
+        opposite,
+        direction: (to - from).normalize(),
+    };
     match (zero(wa), zero(wb), zero(wc)) {
         (false, false, false) => Feature::Face,
-        (true, false, false) => Feature::Edge((c - b).normalize()),
-        (false, true, false) => Feature::Edge((a - c).normalize()),
-        (false, false, true) => Feature::Edge((b - a).normalize()),
-        _ => Feature::Vertex,
+        (true, false, false) => edge(0, b, c),
+        (false, true, false) => edge(1, c, a),
+        (false, false, true) => edge(2, a, b),
+        // Two coordinates zero: at the third corner.
+        (false, true, true) => Feature::Vertex(0),
+        (true, false, true) => Feature::Vertex(1),
+        _ => Feature::Vertex(2),
     }
 }
 
@@ -318,6 +395,75 @@ mod tests {
         let far = mesh.signed_distance(&Vector3::new(2.0, 0.0, 0.0));
         assert_eq!(far.distance, 0.2);
         assert_eq!(far.gradient, Vector3::zeros());
+    }
+
+    /// An L-shaped prism (2 × 2 × 1 m with the 1 × 1 quarter x, y > 1 cut away): a concave
+    /// edge along z at x = y = 1 and concave corners at its ends.
+    fn l_prism() -> TriangleMesh {
+        let outline = [
+            (0.0, 0.0),
+            (2.0, 0.0),
+            (2.0, 1.0),
+            (1.0, 1.0),
+            (1.0, 2.0),
+            (0.0, 2.0),
+        ];
+        let mut vertices = Vec::new();
+        for z in [0.0, 1.0] {
+            vertices.extend(outline.iter().map(|&(x, y)| Vector3::new(x, y, z)));
+        }
+        let mut triangles = Vec::new();
+        // Caps: fans from the corner at the origin, which sees the whole outline.
+        for i in 1..5 {
+            triangles.push([0, i + 1, i]);
+            triangles.push([6, 6 + i, 6 + i + 1]);
+        }
+        for i in 0..6 {
+            let j = (i + 1) % 6;
+            triangles.push([i, j, 6 + j]);
+            triangles.push([i, 6 + j, 6 + i]);
+        }
+        TriangleMesh::new(vertices, triangles).expect("a closed L prism")
+    }
+
+    #[test]
+    fn mesh_signed_distance_sign_matches_the_ray_cast_inside_test_near_concave_features() {
+        use rand::{Rng, SeedableRng};
+        let meshes = [
+            l_prism(),
+            rkpm_core::read_triangle_mesh(&test_support::fixtures::shared_mesh("bunny.obj"))
+                .expect("the bunny reads"),
+        ];
+        for mesh in meshes {
+            let size = mesh.bounding_box().largest_side();
+            let band = 0.1 * size;
+            let inside = rkpm_core::InsideTest::new(&mesh);
+            let shape = MeshShape::from_mesh(mesh.clone(), band);
+            let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(7);
+            let (mut checked, mut negative) = (0, 0);
+            for _ in 0..4000 {
+                // Points near random vertices: near edges, corners and concave creases.
+                let v = mesh.vertices()[rng.random_range(0..mesh.vertices().len())];
+                let offset = Vector3::from_fn(|_, _| rng.random_range(-1.0..1.0)) * band * 0.5;
+                let p = v + offset;
+                let d = shape.signed_distance(&p);
+                if d.distance.abs() < 1e-9 * size || d.distance >= band {
+                    continue;
+                }
+                checked += 1;
+                negative += usize::from(d.distance < 0.0);
+                assert_eq!(
+                    d.distance < 0.0,
+                    inside.contains(&p),
+                    "{p:?}: φ = {} disagrees with the inside test",
+                    d.distance
+                );
+            }
+            assert!(
+                checked > 2000 && negative > 500,
+                "{checked} checked, {negative} inside"
+            );
+        }
     }
 
     #[test]

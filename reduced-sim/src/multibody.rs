@@ -4,8 +4,9 @@
 //!
 //! A step finds the sample pairs of different objects that may touch during the step (those
 //! whose inertial motions over the step bring them within 1.5 d̂, searched in a k-d tree per
-//! object), and splits the objects into contact-connected groups. An object alone is stepped by its own simulator, exactly as
-//! without the others (Hessian reuse and friction lagging included). A group is solved as one
+//! object), and splits the objects into contact-connected groups. The objects alone are
+//! stepped side by side on several threads, each by its own simulator, exactly as without the
+//! others (Hessian reuse and friction lagging included). A group is solved as one
 //! backward-Euler problem over its objects' reduced coordinates side by side,
 //!
 //! ```text
@@ -29,6 +30,7 @@ use nalgebra::{Matrix3, Vector3};
 use optimize::{
     HessianReuse, NewtonObjective, NewtonParams, NewtonReport, minimize, minimize_reusing,
 };
+use rayon::prelude::*;
 use rkpm_core::SpatialIndex;
 use thiserror::Error;
 
@@ -454,12 +456,24 @@ impl<M: HyperelasticMaterial> MultiBodySimulator<M> {
         let mut resolves = 0;
         loop {
             let groups = groups(self.bodies.len(), &candidates);
+            // The objects alone first, side by side (each solve is the same whichever thread
+            // runs it), then the groups.
+            let alone: Vec<bool> = (0..self.bodies.len())
+                .map(|b| groups.iter().any(|g| g[..] == [b]))
+                .collect();
+            let mut stepped: Vec<Option<Result<NewtonReport, StepError>>> = self
+                .bodies
+                .par_iter_mut()
+                .zip(&alone)
+                .map(|(body, &alone)| alone.then(|| body.simulator.step()))
+                .collect();
             let mut reports: Vec<Option<NewtonReport>> = vec![None; self.bodies.len()];
             let mut joint_groups = 0;
             let mut solves = Vec::with_capacity(groups.len());
             for group in &groups {
                 let outcome = if let [body] = group[..] {
-                    self.bodies[body].simulator.step().map(|report| {
+                    let stepped = stepped[body].take().expect("stepped above");
+                    stepped.map(|report| {
                         reports[body] = Some(report);
                         solves.push(report);
                     })

@@ -378,8 +378,11 @@ impl SceneTerms {
                 e += 0.5 * self.pin_stiffness * v * (x - t).norm_squared();
             }
         }
+        if self.floor.is_none() && self.colliders.is_empty() {
+            return e;
+        }
+        let x = model.deformation_map().positions(z);
         if let Some(floor) = &self.floor {
-            let x = model.deformation_map().positions(z);
             for (x, v) in x.iter().zip(model.volumes()) {
                 let depth = floor.offset - floor.normal.dot(x);
                 if depth > 0.0 {
@@ -387,14 +390,14 @@ impl SceneTerms {
                 }
             }
         }
-        if !self.colliders.is_empty() {
-            let x = model.deformation_map().positions(z);
-            for (collider, pose) in self.colliders.iter().zip(&targets.colliders) {
-                for (x, v) in x.iter().zip(model.volumes()) {
-                    let phi = collider.signed_distance(pose, x).distance;
-                    if phi < 0.0 {
-                        e += 0.5 * self.floor_stiffness * v * phi * phi;
-                    }
+        for (collider, pose) in self.colliders.iter().zip(&targets.colliders) {
+            for (d, v) in collider
+                .signed_distances(pose, &x)
+                .iter()
+                .zip(model.volumes())
+            {
+                if d.distance < 0.0 {
+                    e += 0.5 * self.floor_stiffness * v * d.distance * d.distance;
                 }
             }
         }
@@ -438,8 +441,11 @@ impl SceneTerms {
         for collider in rubbing {
             let (before, after) = (collider.pose(time), collider.pose(time + time_step));
             let carry = after * before.inverse();
-            for (i, x) in contact.iter().enumerate() {
-                let d = collider.signed_distance(&after, x);
+            for (i, d) in collider
+                .signed_distances(&after, &contact)
+                .iter()
+                .enumerate()
+            {
                 if d.distance < 0.0 {
                     contacts.push(FrictionContact {
                         point: i,
@@ -472,9 +478,8 @@ impl SceneTerms {
             }
         }
         for collider in &self.colliders {
-            let pose = collider.pose(time);
-            for x in &positions {
-                deepest = deepest.max(-collider.signed_distance(&pose, x).distance);
+            for d in collider.signed_distances(&collider.pose(time), &positions) {
+                deepest = deepest.max(-d.distance);
             }
         }
         deepest
@@ -500,10 +505,10 @@ impl SceneTerms {
                 .extend((0..n).filter(|&i| floor.offset - floor.normal.dot(&positions[i]) > 0.0));
         }
         for (k, collider) in self.colliders.iter().enumerate() {
-            let pose = collider.pose(time);
+            let distances = collider.signed_distances(&collider.pose(time), &positions);
             contacts.extend(
                 (0..n)
-                    .filter(|&i| collider.signed_distance(&pose, &positions[i]).distance < 0.0)
+                    .filter(|&i| distances[i].distance < 0.0)
                     .map(|i| (k + 1) * n + i),
             );
         }
@@ -624,8 +629,11 @@ impl SceneTerms {
         let mut forces = Vec::new();
         let mut stiffnesses = Vec::new();
         for (collider, pose) in self.colliders.iter().zip(&targets.colliders) {
-            for (i, x) in positions.iter().enumerate() {
-                let d = collider.signed_distance(pose, x);
+            for (i, d) in collider
+                .signed_distances(pose, &positions)
+                .iter()
+                .enumerate()
+            {
                 if d.distance < 0.0 {
                     let w = self.floor_stiffness * model.volumes()[i];
                     points.push(i);

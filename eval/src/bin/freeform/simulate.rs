@@ -102,7 +102,8 @@ fn run_objects(file: &ObjectsFile, out: &Path, cache: &Path, progress: Progress)
     println!(
         "{} objects, {} frames each written under {}; setup {:.2} s, {:.2} ms/step \
          (assembly {:.2}, solve {:.2}, line search {:.2}, contact search {:.2}), {:.1} Newton \
-         iterations and {:.2} joint solves per step, {} unconverged steps",
+         iterations ({:.1} Hessians, {:.1} line-search cuts) and {:.2} joint solves per step, \
+         {} unconverged steps",
         report.objects.len(),
         report.frames_written,
         out.display(),
@@ -113,6 +114,8 @@ fn run_objects(file: &ObjectsFile, out: &Path, cache: &Path, progress: Progress)
         report.ms_split_per_step[2],
         report.ms_split_per_step[3],
         report.iterations_per_step,
+        report.hessians_per_step,
+        report.line_search_cuts_per_step,
         report.joint_solves_per_step,
         report.unconverged_steps
     );
