@@ -81,6 +81,10 @@ fn an_objects_file_with_a_bad_field_is_refused_naming_it() {
             two_boxes("").replace("time_step = 0.01", "time_step = 0.01\nnewton_tolerance = -1e-6"),
             "simulation.newton_tolerance",
         ),
+        (
+            two_boxes("").replace("time_step = 0.01", "time_step = 0.01\nfloor_stiffness_factor = 0"),
+            "simulation.floor_stiffness_factor",
+        ),
     ];
     for (text, field) in cases {
         let err = load(&dir, &text).unwrap_err().to_string();
@@ -93,6 +97,12 @@ fn an_objects_file_with_a_bad_field_is_refused_naming_it() {
     );
     let params = load(&dir, &tight).unwrap().simulation.simulation_params();
     assert_eq!(params.newton.tolerance, 3e-5);
+    let stiff = two_boxes("").replace(
+        "time_step = 0.01",
+        "time_step = 0.01\nfloor_stiffness_factor = 1e5",
+    );
+    let params = load(&dir, &stiff).unwrap().simulation.simulation_params();
+    assert_eq!(params.penalty.floor_factor, 1e5);
     let params = load(&dir, &two_boxes(""))
         .unwrap()
         .simulation

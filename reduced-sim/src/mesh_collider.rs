@@ -431,7 +431,7 @@ mod tests {
         use rand::{Rng, SeedableRng};
         let meshes = [
             l_prism(),
-            rkpm_core::read_triangle_mesh(&test_support::fixtures::shared_mesh("bunny.obj"))
+            rkpm_core::read_triangle_mesh(test_support::fixtures::shared_mesh("bunny.obj"))
                 .expect("the bunny reads"),
         ];
         for mesh in meshes {
