@@ -103,6 +103,15 @@ fn an_objects_file_with_a_bad_field_is_refused_naming_it() {
     );
     let params = load(&dir, &stiff).unwrap().simulation.simulation_params();
     assert_eq!(params.penalty.floor_factor, 1e5);
+    let exact = two_boxes("").replace(
+        "time_step = 0.01",
+        "time_step = 0.01\ntangent = \"exact_when_definite\"",
+    );
+    let params = load(&dir, &exact).unwrap().simulation.simulation_params();
+    assert_eq!(
+        params.tangent,
+        reduced_sim::HessianTangent::ExactWhenDefinite
+    );
     let params = load(&dir, &two_boxes(""))
         .unwrap()
         .simulation

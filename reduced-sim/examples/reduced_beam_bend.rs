@@ -22,12 +22,12 @@
 use hyperelastic::MaterialSample;
 use std::time::Instant;
 
-use hyperelastic::{LameParameters, StableNeoHookean, Tangent};
+use hyperelastic::{LameParameters, StableNeoHookean};
 use nalgebra::Vector3;
 use optimize::{NewtonParams, NewtonTimings};
 use reduced_sim::{
-    DeformationMap, PenaltyParams, PinModulus, PinTarget, PinnedRegion, QuadratureRule,
-    ReducedModel, Scene, SimulationParams, Simulator,
+    DeformationMap, HessianTangent, PenaltyParams, PinModulus, PinTarget, PinnedRegion,
+    QuadratureRule, ReducedModel, Scene, SimulationParams, Simulator,
 };
 use rkpm_core::{KernelWindow, place_kernels, sample_box_grid};
 use skin_eigen::{BasisParams, RegionConstraintParams, build_basis, build_basis_with_regions};
@@ -236,9 +236,9 @@ fn run() -> Result<(), String> {
             ..Default::default()
         },
         tangent: if exact_tangent {
-            Tangent::Exact
+            HessianTangent::Exact
         } else {
-            Tangent::ProjectedPsd
+            HessianTangent::ProjectedPsd
         },
         ..base
     };

@@ -20,6 +20,7 @@ use hyperelastic::{HyperelasticMaterial, Tangent};
 use optimize::NewtonObjective;
 
 use crate::contact_friction::ContactFriction;
+use crate::hessian_tangent::HessianTangent;
 use crate::reduced_model::ReducedModel;
 use crate::scene_terms::{SceneTerms, StepTargets};
 
@@ -30,14 +31,14 @@ pub(crate) struct Inertia<'a> {
 }
 
 /// E(z) of one step (Eq. 2 with backward Euler, DESIGN 3.7), with its gradient and Hessian
-/// (PSD-projected per point for [`Tangent::ProjectedPsd`]). z has length 12(m + 1) (the
+/// (material tangent by [`HessianTangent`]). z has length 12(m + 1) (the
 /// [`crate::ReducedLayout`]); E is in J up to a constant.
 pub struct IncrementalPotential<'a, M: HyperelasticMaterial> {
     pub(crate) model: &'a ReducedModel<M>,
     pub(crate) terms: &'a SceneTerms,
     pub(crate) targets: StepTargets,
     pub(crate) inertia: Option<Inertia<'a>>,
-    pub(crate) tangent: Tangent,
+    pub(crate) tangent: HessianTangent,
     /// With held regions ([`crate::Scene::held`]): the entries of z Newton solves
     /// for; the others stay as prescribed.
     pub(crate) free: Option<&'a [usize]>,
@@ -63,18 +64,31 @@ impl<M: HyperelasticMaterial> IncrementalPotential<'_, M> {
         e
     }
 
-    /// `(∂E/∂z, ∂²E/∂z²)` at z (J, J; the Hessian 12(m+1) square, dense).
+    /// `(∂E/∂z, ∂²E/∂z²)` at z (J, J; the Hessian 12(m+1) square, dense), the Hessian with
+    /// the potential's [`HessianTangent`]: for [`HessianTangent::ExactWhenDefinite`] the exact
+    /// one when it (restricted to the free coordinates) has a Cholesky factorization, else the
+    /// projected one (assembled again).
     pub fn derivatives(&self, z: &[f64]) -> (Vec<f64>, Mat<f64>) {
+        let first = self.derivatives_with(z, self.tangent.first_try());
+        if self.tangent == HessianTangent::ExactWhenDefinite
+            && self.free_block(&first.1).llt(Side::Lower).is_err()
+        {
+            return self.derivatives_with(z, Tangent::ProjectedPsd);
+        }
+        first
+    }
+
+    /// [`IncrementalPotential::derivatives`] with the material tangent `tangent`.
+    fn derivatives_with(&self, z: &[f64], tangent: Tangent) -> (Vec<f64>, Mat<f64>) {
         let f = self.model.elastic_map().deformation_gradients(z);
         let mut gradient = self.model.elastic_gradient_at(&f);
         let mut hessian = Mat::zeros(z.len(), z.len());
-        self.model
-            .add_elastic_hessian_at(&f, self.tangent, &mut hessian);
+        self.model.add_elastic_hessian_at(&f, tangent, &mut hessian);
         self.terms.add_derivatives(
             self.model,
             z,
             &self.targets,
-            self.tangent,
+            tangent,
             &mut gradient,
             Some(&mut hessian),
         );
@@ -97,7 +111,7 @@ impl<M: HyperelasticMaterial> IncrementalPotential<'_, M> {
             self.model,
             z,
             &self.targets,
-            self.tangent,
+            self.tangent.first_try(),
             &mut gradient,
             None,
         );
@@ -106,6 +120,15 @@ impl<M: HyperelasticMaterial> IncrementalPotential<'_, M> {
         }
         self.add_inertia(z, &mut gradient, None);
         gradient
+    }
+
+    /// The rows and columns of the free coordinates of a full-size Hessian (all of it without
+    /// held regions).
+    fn free_block(&self, hessian: &Mat<f64>) -> Mat<f64> {
+        match self.free {
+            None => hessian.clone(),
+            Some(free) => Mat::from_fn(free.len(), free.len(), |a, b| hessian[(free[a], free[b])]),
+        }
     }
 
     /// Adds the inertia term's gradient `M_z (z - ẑ)/h²` and Hessian `M_z/h²`.
@@ -162,7 +185,7 @@ impl<M: HyperelasticMaterial> NewtonObjective for IncrementalPotential<'_, M> {
             None => (gradient, hessian),
             Some(free) => (
                 free.iter().map(|&i| gradient[i]).collect(),
-                Mat::from_fn(free.len(), free.len(), |a, b| hessian[(free[a], free[b])]),
+                self.free_block(&hessian),
             ),
         }
     }
@@ -326,7 +349,7 @@ mod tests {
                 predicted: &predicted,
                 inverse_step_squared: 1e4,
             }),
-            tangent,
+            tangent: tangent.into(),
             free: None,
             friction: terms.contact_friction(&model, &probe_z(len, -0.02), &predicted, 0.5, 0.01),
         };
@@ -377,6 +400,48 @@ mod tests {
     #[test]
     fn incremental_potential_gradient_and_exact_hessian_match_finite_differences() {
         check_derivatives(Tangent::Exact);
+    }
+
+    #[test]
+    fn exact_when_definite_takes_the_exact_hessian_where_it_factors_and_the_projected_elsewhere() {
+        let (model, _) = analytic_model();
+        let scene = Scene {
+            gravity: Some(Vector3::new(0.0, -9.8, 0.0)),
+            ..Scene::default()
+        };
+        let terms = SceneTerms::new(&model, &scene, &PenaltyParams::default()).unwrap();
+        let len = model.deformation_map().layout().len();
+        let predicted = vec![0.0; len];
+        let potential = |tangent: HessianTangent, inverse_step_squared: f64| IncrementalPotential {
+            model: &model,
+            terms: &terms,
+            targets: terms.step_targets(0.0),
+            inertia: Some(Inertia {
+                predicted: &predicted,
+                inverse_step_squared,
+            }),
+            tangent,
+            free: None,
+            friction: None,
+        };
+        let hessian = |tangent, k, z: &[f64]| potential(tangent, k).derivatives(z).1;
+        let definite = |h: &Mat<f64>| h.llt(Side::Lower).is_ok();
+        // Small strain and a short step: the exact system is definite and is kept.
+        let z = probe_z(len, 0.03);
+        let exact = hessian(HessianTangent::Exact, 1e4, &z);
+        assert!(definite(&exact));
+        assert_eq!(hessian(HessianTangent::ExactWhenDefinite, 1e4, &z), exact);
+        assert_ne!(hessian(HessianTangent::ProjectedPsd, 1e4, &z), exact);
+        // Inverted points and almost no inertia: the exact system is indefinite, so the
+        // projected one is taken.
+        let z = probe_z(len, 0.8);
+        let exact = hessian(HessianTangent::Exact, 1e-6, &z);
+        assert!(!definite(&exact));
+        let projected = hessian(HessianTangent::ProjectedPsd, 1e-6, &z);
+        assert_eq!(
+            hessian(HessianTangent::ExactWhenDefinite, 1e-6, &z),
+            projected
+        );
     }
 
     #[test]

@@ -51,6 +51,7 @@ pub mod cubature;
 pub mod deformation_map;
 pub mod elastic_energy;
 mod held_regions;
+pub mod hessian_tangent;
 pub mod incremental_potential;
 pub mod mesh_collider;
 pub mod multibody;
@@ -66,6 +67,7 @@ pub use body_contact::{BodyContactModel, BodyContactParams};
 pub use collider::{Collider, ColliderShape, Keyframe, SignedDistance};
 pub use cubature::{CubatureError, CubatureParams, CubatureReport, optimize_cubature};
 pub use deformation_map::{DeformationMap, DeformationMapError};
+pub use hessian_tangent::HessianTangent;
 pub use incremental_potential::IncrementalPotential;
 pub use mesh_collider::MeshShape;
 pub use multibody::{

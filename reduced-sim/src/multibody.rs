@@ -1031,7 +1031,7 @@ impl<M: HyperelasticMaterial> NewtonObjective for GroupPotential<'_, M> {
 
 #[cfg(test)]
 mod tests {
-    use hyperelastic::{StableNeoHookean, Tangent};
+    use hyperelastic::StableNeoHookean;
     use nalgebra::{DMatrix, Matrix3, Vector3};
     use test_support::finite_difference;
 
@@ -1104,7 +1104,7 @@ mod tests {
 
     fn check_group_derivatives(model: BodyContactModel) {
         let params = SimulationParams {
-            tangent: Tangent::Exact,
+            tangent: crate::HessianTangent::Exact,
             ..SimulationParams::default()
         };
         let scene = Scene {

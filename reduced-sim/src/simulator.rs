@@ -2,7 +2,7 @@
 //! (DESIGN 3.7, paper Eqs. 1-2).
 
 use faer::linalg::solvers::Llt;
-use hyperelastic::{HyperelasticMaterial, Tangent};
+use hyperelastic::HyperelasticMaterial;
 use nalgebra::Vector3;
 use optimize::{
     HessianReuse, NewtonError, NewtonParams, NewtonReport, NewtonTimings, minimize,
@@ -11,6 +11,7 @@ use optimize::{
 use serde::{Deserialize, Serialize};
 use thiserror::Error;
 
+use crate::hessian_tangent::HessianTangent;
 use crate::incremental_potential::{IncrementalPotential, Inertia};
 use crate::reduced_model::ReducedModel;
 use crate::scene::{PenaltyParams, Scene};
@@ -45,8 +46,9 @@ pub struct SimulationParams {
     pub newton: NewtonParams,
     /// Material tangent in the Hessian (default PSD-projected, which keeps the Newton system
     /// positive definite; `Exact` is only safe while it stays so, and a failed factorization is
-    /// then reported).
-    pub tangent: Tangent,
+    /// then reported; `ExactWhenDefinite` projects only when the exact system is indefinite,
+    /// see [`HessianTangent`]).
+    pub tangent: HessianTangent,
     /// Penalty stiffness rules for pins and floor.
     pub penalty: PenaltyParams,
     /// With Hessian reuse ([`optimize::HessianReuse::WhileContracting`] in `newton`): the
@@ -88,7 +90,7 @@ impl Default for SimulationParams {
                 hessian_reuse: SimulationParams::HESSIAN_REUSE,
                 ..NewtonParams::default()
             },
-            tangent: Tangent::ProjectedPsd,
+            tangent: HessianTangent::ProjectedPsd,
             penalty: PenaltyParams::default(),
             hessian_max_age: 50,
         }

@@ -7,7 +7,7 @@ mod support;
 use std::f64::consts::PI;
 use std::sync::Arc;
 
-use hyperelastic::{LameParameters, StableNeoHookean, Tangent};
+use hyperelastic::{LameParameters, StableNeoHookean};
 use nalgebra::{DMatrix, Rotation3, Vector3};
 use optimize::NewtonObjective;
 use reduced_sim::{
@@ -177,7 +177,7 @@ fn the_constrained_steps_gradient_and_hessian_match_finite_differences() {
         target: PinTarget::Rest,
     });
     let params = SimulationParams {
-        tangent: Tangent::Exact,
+        tangent: reduced_sim::HessianTangent::Exact,
         ..SimulationParams::default()
     };
     let sim = Simulator::new(model(&basis, &points), &scene, params).unwrap();

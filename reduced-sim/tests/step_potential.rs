@@ -30,7 +30,7 @@ fn simulator(tangent: Tangent) -> Simulator<StableNeoHookean> {
         colliders: Vec::new(),
     };
     let params = SimulationParams {
-        tangent,
+        tangent: tangent.into(),
         ..Default::default()
     };
     Simulator::new(model, &scene, params).unwrap()
