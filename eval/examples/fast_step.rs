@@ -21,7 +21,7 @@ use eval::fem_reference::{FemResolution, run_fem_beam};
 use eval::metrics::trajectory_errors;
 use eval::progress::Progress;
 use optimize::{HessianReuse, NewtonParams};
-use reduced_sim::{CubatureParams, QuadratureRule, SimulationParams};
+use reduced_sim::{CubatureParams, HessianTangent, QuadratureRule, SimulationParams};
 
 #[derive(Parser)]
 struct Args {
@@ -53,6 +53,10 @@ struct Args {
     /// Skip the Hessian-reuse rows.
     #[arg(long)]
     no_reuse: bool,
+    /// Also run every configuration with the exact tangent wherever the Newton system is
+    /// definite (`HessianTangent::ExactWhenDefinite`).
+    #[arg(long)]
+    exact_when_definite: bool,
 }
 
 fn main() -> anyhow::Result<()> {
@@ -78,12 +82,21 @@ fn main() -> anyhow::Result<()> {
     } else {
         &[HessianReuse::Never, SimulationParams::HESSIAN_REUSE]
     };
+    let tangents: &[HessianTangent] = if args.exact_when_definite {
+        &[
+            HessianTangent::ProjectedPsd,
+            HessianTangent::ExactWhenDefinite,
+        ]
+    } else {
+        &[HessianTangent::ProjectedPsd]
+    };
     println!(
         "| test | m | quadrature | points | cubature s | force err. (train/unseen) | Hessians \
+         | tangent \
          | ms/step | assembly | solve | line search | Hessians/step | Newton it./step \
          | unconverged | MSE | MSE / full | MSE to full |"
     );
-    println!("|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|");
+    println!("|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|");
     for name in &args.tests {
         let test = match name.as_str() {
             "bend" => BeamTest::Bend,
@@ -109,10 +122,14 @@ fn main() -> anyhow::Result<()> {
             let basis = build_beam_basis(&base)?;
             let mut full_run: Option<(f64, Vec<Vec<nalgebra::Vector3<f64>>>)> = None;
             for &quadrature in &rules {
-                for &hessian_reuse in reuses {
+                for (&hessian_reuse, &tangent) in reuses
+                    .iter()
+                    .flat_map(|r| tangents.iter().map(move |t| (r, t)))
+                {
                     let settings = ReducedSettings {
                         hessian_reuse,
                         quadrature,
+                        tangent,
                         ..base
                     };
                     let run = run_reduced_beam_with(
@@ -150,7 +167,7 @@ fn main() -> anyhow::Result<()> {
                         },
                     );
                     println!(
-                        "| {} | {m} | {} | {} | {seconds} | {force} | {} | {:.2} | {:.2} | {:.2} \
+                        "| {} | {m} | {} | {} | {seconds} | {force} | {} | {:?} | {:.2} | {:.2} | {:.2} \
                          | {:.2} | {:.2} | {:.2} | {} | {mse:.3e} | {:.2} | {gap:.1e} |",
                         test.name(),
                         match quadrature {
@@ -165,6 +182,7 @@ fn main() -> anyhow::Result<()> {
                         } else {
                             "reused"
                         },
+                        tangent,
                         r.ms_per_step,
                         r.ms_assembly_per_step,
                         r.ms_solve_per_step,

@@ -221,9 +221,11 @@ fn stress_quick_finishes_every_case_finite_and_reports_failures_by_name() {
             .contains("thinner than the point spacing"),
         "{plate}"
     );
-    // The fast twist inverts material and the diagnostic sees it.
+    // The fast twist crushes material and the diagnostic sees it: det F falls to about 0.2
+    // with the library's tangent (exact where the step system is definite); the projected
+    // tangent at every point found inverted minimizers here (det F < 0).
     let twist = case("Twist 4× faster (8640°/s)");
-    assert!(twist["min_det_f"].as_f64().unwrap() < 0.0, "{twist}");
+    assert!(twist["min_det_f"].as_f64().unwrap() < 0.5, "{twist}");
     // Gravity and floor only: backward Euler must not create energy.
     for name in [
         "Bend ν = 0.499",

@@ -36,7 +36,7 @@
 //!                                     # { kind = "full" }: every point, the paper's setting)
 //! newton_tolerance = 1e-6            # Newton stops below this RMS step / L (default)
 //! floor_stiffness_factor = 1e4        # floor and colliders: κ = factor (λ + 2μ) / L² (default)
-//! tangent = "projected_psd"           # Newton's material tangent (default); "exact_when_definite"
+//! tangent = "exact_when_definite"     # Newton's material tangent (default); "projected_psd": the paper's
 //! hessian_reuse = true                # carry the Hessian across steps (default; false: a
 //!                                     # fresh Hessian every iteration, the paper's setting)
 //! pins = "penalty"                    # hold the constraints by a penalty (default); or
@@ -202,10 +202,10 @@ pub struct SimulationSpec {
     /// the cup (1.1 mm at 1e4) at about the same Newton iterations.
     #[serde(default = "default_floor_stiffness_factor")]
     pub floor_stiffness_factor: f64,
-    /// The material tangent in Newton's Hessians (default `"projected_psd"`, the paper's;
-    /// `"exact_when_definite"` projects only when the exact system does not factor, see
-    /// [`reduced_sim::HessianTangent`]: the container example's armadillo converges in half
-    /// the Hessians; `"exact"`).
+    /// The material tangent in Newton's Hessians (default `"exact_when_definite"`: projected
+    /// only when the exact system does not factor, see [`reduced_sim::HessianTangent`]; the
+    /// container example's armadillo converges in half the Hessians; `"projected_psd"` at every
+    /// point is the paper's; `"exact"`).
     #[serde(default)]
     pub tangent: reduced_sim::HessianTangent,
 }

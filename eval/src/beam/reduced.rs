@@ -8,7 +8,9 @@ use freeform::{PinHold, Simulation};
 use hyperelastic::{LameParameters, MaterialField, MaterialSample, StableNeoHookean};
 use nalgebra::Vector3;
 use optimize::{HessianReuse, NewtonParams};
-use reduced_sim::{PenaltyParams, PinModulus, QuadratureRule, SimulationParams, SkinningField};
+use reduced_sim::{
+    HessianTangent, PenaltyParams, PinModulus, QuadratureRule, SimulationParams, SkinningField,
+};
 use rkpm_core::{
     IntegrationPoints, Kernels, RandomSamplingParams, TriangleMesh, place_kernels, sample_box_grid,
     sample_random,
@@ -60,6 +62,15 @@ pub struct ReducedSettings {
     /// treatment; [`exact_pin_hold`] gives the exact holding the tables run beside it).
     #[serde(default)]
     pub pins: PinHold,
+    /// The material tangent of Newton's Hessians (default [`HessianTangent::ProjectedPsd`],
+    /// the paper's setting; [`ReducedSettings::library_default`] runs the library's,
+    /// [`HessianTangent::ExactWhenDefinite`]).
+    #[serde(default = "paper_tangent")]
+    pub tangent: HessianTangent,
+}
+
+fn paper_tangent() -> HessianTangent {
+    HessianTangent::ProjectedPsd
 }
 
 /// The inset of exactly held regions, in kernel radii (the median radius of the basis's
@@ -156,12 +167,14 @@ impl ReducedSettings {
     }
 
     /// The defaults with the library's fast step instead of the paper's setting: the elastic
-    /// energy on an optimized cubature ([`QuadratureRule::default`]) and the Hessian carried
-    /// across steps ([`reduced_sim::SimulationParams::HESSIAN_REUSE`]).
+    /// energy on an optimized cubature ([`QuadratureRule::default`]), the Hessian carried
+    /// across steps ([`reduced_sim::SimulationParams::HESSIAN_REUSE`]) and the exact tangent
+    /// wherever the step's system factors ([`HessianTangent::ExactWhenDefinite`]).
     pub fn library_default() -> Self {
         ReducedSettings {
             quadrature: QuadratureRule::default(),
             hessian_reuse: SimulationParams::HESSIAN_REUSE,
+            tangent: HessianTangent::default(),
             ..ReducedSettings::default()
         }
     }
@@ -188,6 +201,7 @@ impl ReducedSettings {
                 pin_modulus: self.pin_modulus,
                 ..Default::default()
             },
+            tangent: self.tangent,
             ..SimulationParams::default()
         }
     }
@@ -207,6 +221,7 @@ impl Default for ReducedSettings {
             quadrature: QuadratureRule::PAPER,
             pin_modulus: PenaltyParams::default().pin_modulus,
             pins: PinHold::Penalty,
+            tangent: paper_tangent(),
         }
     }
 }
