@@ -39,6 +39,7 @@ use crate::body_contact::{
     add_cross_hessians, lagged_friction, repulsion_derivatives,
 };
 use crate::deformation_map::DeformationMap;
+use crate::hessian_tangent::HessianTangent;
 use crate::incremental_potential::IncrementalPotential;
 use crate::simulator::{ReducedState, Simulator, StateError, StepError, combined};
 
@@ -569,7 +570,7 @@ impl<M: HyperelasticMaterial> MultiBodySimulator<M> {
             // One factorization carried through the step's solves (the lagged re-solves
             // change the objective little), never into the next step.
             let mut factor = None;
-            let mut report = solve_reusing(&objective, &mut z, &newton, &mut factor)?;
+            let mut report = solve_reusing(&mut objective, &mut z, &newton, &mut factor)?;
             // The normals lagged again at the solution while those of touching pairs turn.
             for _ in 0..MAX_CONTACT_LAGS {
                 let pairs = objective.lag(&z);
@@ -586,7 +587,7 @@ impl<M: HyperelasticMaterial> MultiBodySimulator<M> {
                     break;
                 }
                 objective.pairs = pairs;
-                let again = solve_reusing(&objective, &mut z, &newton, &mut factor)?;
+                let again = solve_reusing(&mut objective, &mut z, &newton, &mut factor)?;
                 report = combined(&report, &again);
             }
             // Friction lagging as for one object: contacts, normals and normal forces taken
@@ -597,7 +598,7 @@ impl<M: HyperelasticMaterial> MultiBodySimulator<M> {
                     break;
                 }
                 objective.friction = friction;
-                let again = solve_reusing(&objective, &mut z, &newton, &mut factor)?;
+                let again = solve_reusing(&mut objective, &mut z, &newton, &mut factor)?;
                 report = combined(&report, &again);
             }
             let positions = objective.positions(&z);
@@ -693,30 +694,46 @@ impl<M: HyperelasticMaterial> MultiBodySimulator<M> {
     }
 }
 
-/// [`minimize_reusing`] with the Newton options' Hessian reuse, solved again with fresh
-/// Hessians from the same start when reuse does not converge (as [`Simulator::step`] does).
-fn solve_reusing<O: NewtonObjective<Factor = Llt<f64>>>(
-    objective: &O,
+/// [`minimize_reusing`] with the Newton options' Hessian reuse; a solve that does not converge
+/// with the library's shortcuts (reuse, or the exact tangent where definite) is solved again
+/// from the same start with fresh, projected Hessians (as [`Simulator::step`] does).
+fn solve_reusing<M: HyperelasticMaterial>(
+    objective: &mut GroupPotential<'_, M>,
     z: &mut Vec<f64>,
     newton: &NewtonParams,
     factor: &mut Option<Llt<f64>>,
 ) -> Result<NewtonReport, StepError> {
-    if newton.hessian_reuse == HessianReuse::Never {
-        return Ok(minimize(objective, z, newton)?);
+    let reuse = newton.hessian_reuse != HessianReuse::Never;
+    let tangents: Vec<HessianTangent> = objective.potentials.iter().map(|p| p.tangent).collect();
+    let exact_first = tangents.contains(&HessianTangent::ExactWhenDefinite);
+    if !reuse && !exact_first {
+        return Ok(minimize(&*objective, z, newton)?);
     }
     let start = z.clone();
-    let reused = minimize_reusing(objective, z, newton, factor)?;
-    if reused.converged() {
-        return Ok(reused);
+    let first = if reuse {
+        minimize_reusing(&*objective, z, newton, factor)?
+    } else {
+        minimize(&*objective, z, newton)?
+    };
+    if first.converged() {
+        return Ok(first);
     }
     z.clone_from(&start);
     *factor = None;
-    let fresh = NewtonParams {
+    let paper = NewtonParams {
         hessian_reuse: HessianReuse::Never,
         ..*newton
     };
-    let retried = minimize_reusing(objective, z, &fresh, factor)?;
-    Ok(combined(&reused, &retried))
+    for potential in &mut objective.potentials {
+        if potential.tangent == HessianTangent::ExactWhenDefinite {
+            potential.tangent = HessianTangent::ProjectedPsd;
+        }
+    }
+    let retried = minimize_reusing(&*objective, z, &paper, factor);
+    for (potential, tangent) in objective.potentials.iter_mut().zip(tangents) {
+        potential.tangent = tangent;
+    }
+    Ok(combined(&first, &retried?))
 }
 
 /// Most times a group's step is solved again with its contact normals lagged at the last

@@ -302,7 +302,7 @@ impl<M: HyperelasticMaterial> Simulator<M> {
         let mut potential = self.step_potential(&predicted);
         let mut z = predicted.clone();
         self.terms.prescribe(&mut z, &potential.targets);
-        let mut report = self.minimize_step(&potential, &mut z, &mut factor)?;
+        let mut report = self.minimize_step(&mut potential, &mut z, &mut factor)?;
         // Friction lagging (IPC): the floor's contacts and normal forces taken again from the
         // solution, the slip still measured from the start of the step, and solved again from
         // there, `friction_lag_iterations` times at most, and only while the lagged forces
@@ -322,7 +322,7 @@ impl<M: HyperelasticMaterial> Simulator<M> {
                 break;
             }
             potential.friction = Some(friction);
-            let again = self.minimize_step(&potential, &mut z, &mut factor)?;
+            let again = self.minimize_step(&mut potential, &mut z, &mut factor)?;
             report = combined(&report, &again);
         }
         drop(potential);
@@ -378,36 +378,46 @@ impl<M: HyperelasticMaterial> Simulator<M> {
     }
 
     /// Minimizes `potential` from z (updated in place), carrying `factor` across when the
-    /// Newton options reuse Hessians; a solve that does not converge that way is solved again
-    /// with fresh Hessians from the same start (the report counts both attempts).
+    /// Newton options reuse Hessians. A solve that does not converge with the library's
+    /// shortcuts (Hessian reuse, or the exact tangent where definite) is solved again from the
+    /// same start in the paper's setting, fresh Hessians with the tangent projected at every
+    /// point, so the shortcuts are never less robust than it (the report counts both attempts):
+    /// chord steps can spend the iteration budget Newton needs, and an exact Hessian can be
+    /// definite yet a poor model far from the solution (the layered sphere's impact step).
     fn minimize_step(
         &self,
-        potential: &IncrementalPotential<'_, M>,
+        potential: &mut IncrementalPotential<'_, M>,
         z: &mut Vec<f64>,
         factor: &mut Option<Llt<f64>>,
     ) -> Result<NewtonReport, StepError> {
-        Ok(match self.params.newton.hessian_reuse {
-            HessianReuse::Never => minimize(potential, z, &self.params.newton)?,
-            HessianReuse::WhileContracting { .. } => {
-                let start = z.clone();
-                let reused = minimize_reusing(potential, z, &self.params.newton, factor)?;
-                if reused.converged() {
-                    reused
-                } else {
-                    // Chord steps can spend the iteration budget that Newton needs: a solve
-                    // that does not converge with reuse is solved again with fresh Hessians
-                    // from its start, so reuse is never less robust than the paper's setting.
-                    z.clone_from(&start);
-                    *factor = None;
-                    let fresh = NewtonParams {
-                        hessian_reuse: HessianReuse::Never,
-                        ..self.params.newton
-                    };
-                    let retried = minimize_reusing(potential, z, &fresh, factor)?;
-                    combined(&reused, &retried)
-                }
-            }
-        })
+        let newton = self.params.newton;
+        let reuse = newton.hessian_reuse != HessianReuse::Never;
+        let exact_first = potential.tangent == HessianTangent::ExactWhenDefinite;
+        if !reuse && !exact_first {
+            return Ok(minimize(&*potential, z, &newton)?);
+        }
+        let start = z.clone();
+        let first = if reuse {
+            minimize_reusing(&*potential, z, &newton, factor)?
+        } else {
+            minimize(&*potential, z, &newton)?
+        };
+        if first.converged() {
+            return Ok(first);
+        }
+        z.clone_from(&start);
+        *factor = None;
+        let paper = NewtonParams {
+            hessian_reuse: HessianReuse::Never,
+            ..newton
+        };
+        let tangent = potential.tangent;
+        if exact_first {
+            potential.tangent = HessianTangent::ProjectedPsd;
+        }
+        let retried = minimize_reusing(&*potential, z, &paper, factor);
+        potential.tangent = tangent;
+        Ok(combined(&first, &retried?))
     }
 
     /// The inertial prediction `ẑ = z_t + h ż_t` of the next step (length 12(m + 1)).
