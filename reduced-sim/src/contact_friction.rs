@@ -45,6 +45,22 @@ pub(crate) struct FrictionContact {
     pub(crate) normal: Vector3<f64>,
 }
 
+/// Whether two lagged friction sets, each a list of ((contact, normal), Coulomb limit), have
+/// the same contacts in the same order, the same normals (to 1e-12) and limits within
+/// `tolerance` of the first set's largest limit: the rule that ends friction lagging, for the
+/// floor and colliders ([`ContactFriction::matches`]) and between objects.
+pub(crate) fn same_lagged_forces<'a, K: PartialEq + 'a>(
+    a: impl ExactSizeIterator<Item = ((K, &'a Vector3<f64>), &'a f64)> + Clone,
+    b: impl ExactSizeIterator<Item = ((K, &'a Vector3<f64>), &'a f64)>,
+    tolerance: f64,
+) -> bool {
+    let largest = a.clone().fold(0.0_f64, |m, (_, &l)| m.max(l));
+    a.len() == b.len()
+        && a.zip(b).all(|(((ka, na), la), ((kb, nb), lb))| {
+            ka == kb && (na - nb).norm() <= 1e-12 && (la - lb).abs() <= tolerance * largest
+        })
+}
+
 /// The lagged friction of one step.
 #[derive(Clone, Debug)]
 pub(crate) struct ContactFriction {
@@ -70,21 +86,14 @@ impl ContactFriction {
         })
     }
 
-    /// Whether `other` has the same contacts and normals (to 1e-12) and Coulomb limits
-    /// within `tolerance` of the largest limit: solving again with it would change little.
+    /// Whether `other` has the same contacts and normals and Coulomb limits close to these
+    /// ([`same_lagged_forces`]): solving again with it would change little.
     pub(crate) fn matches(&self, other: &ContactFriction, tolerance: f64) -> bool {
-        let largest = self.limit.iter().fold(0.0_f64, |m, &l| m.max(l));
-        self.points == other.points
-            && self
-                .normals
-                .iter()
-                .zip(&other.normals)
-                .all(|(a, b)| (a - b).norm() <= 1e-12)
-            && self
-                .limit
-                .iter()
-                .zip(&other.limit)
-                .all(|(a, b)| (a - b).abs() <= tolerance * largest)
+        same_lagged_forces(
+            self.points.iter().zip(&self.normals).zip(&self.limit),
+            other.points.iter().zip(&other.normals).zip(&other.limit),
+            tolerance,
+        )
     }
 
     /// `T_k (x − x̄_k)` of contact k.

@@ -38,6 +38,7 @@ use crate::body_contact::{
     BodyContactModel, BodyContactParams, LaggedPair, PairFriction, RelativeDerivatives, SamplePair,
     add_cross_hessians, lagged_friction, repulsion_derivatives,
 };
+use crate::contact_friction::same_lagged_forces;
 use crate::deformation_map::DeformationMap;
 use crate::hessian_tangent::HessianTangent;
 use crate::incremental_potential::IncrementalPotential;
@@ -744,16 +745,14 @@ const MAX_CONTACT_LAGS: usize = 3;
 /// the lag and the solution before the step is solved again with the new normals.
 const NORMAL_LAG_TOLERANCE: f64 = 0.05;
 
-/// Whether two lagged friction sets have the same pairs and normals and limits within
-/// `tolerance` of the largest.
+/// Whether two lagged friction sets between objects have the same pairs and normals and
+/// limits within `tolerance` of the largest ([`same_lagged_forces`]).
 fn same_friction(a: &[PairFriction], b: &[PairFriction], tolerance: f64) -> bool {
-    let largest = a.iter().fold(0.0_f64, |m, f| m.max(f.limit));
-    a.len() == b.len()
-        && a.iter().zip(b).all(|(x, y)| {
-            x.pair == y.pair
-                && (x.normal - y.normal).norm() <= 1e-12
-                && (x.limit - y.limit).abs() <= tolerance * largest
-        })
+    same_lagged_forces(
+        a.iter().map(|f| ((f.pair, &f.normal), &f.limit)),
+        b.iter().map(|f| ((f.pair, &f.normal), &f.limit)),
+        tolerance,
+    )
 }
 
 /// The contact-connected groups of `count` objects under `pairs`, each ascending, in order
