@@ -60,3 +60,13 @@ impl From<Tangent> for HessianTangent {
         }
     }
 }
+
+/// A step objective made of incremental potentials (one object's, or a group's side by side)
+/// whose tangents a retry in the paper's setting switches
+/// ([`crate::simulator::solve_step`]).
+pub(crate) trait StepTangents {
+    /// The potentials' tangents, in order.
+    fn tangents(&self) -> Vec<HessianTangent>;
+    /// Sets them, in the same order.
+    fn set_tangents(&mut self, tangents: &[HessianTangent]);
+}

@@ -20,7 +20,7 @@ use hyperelastic::{HyperelasticMaterial, Tangent};
 use optimize::NewtonObjective;
 
 use crate::contact_friction::ContactFriction;
-use crate::hessian_tangent::HessianTangent;
+use crate::hessian_tangent::{HessianTangent, StepTangents};
 use crate::reduced_model::ReducedModel;
 use crate::scene_terms::{SceneTerms, StepTargets};
 
@@ -161,6 +161,16 @@ impl<M: HyperelasticMaterial> IncrementalPotential<'_, M> {
 ///
 /// With held regions the gradient and Hessian are those of the free entries of z only (the
 /// prescribed ones eliminated), and steps are zero on the prescribed entries.
+impl<M: HyperelasticMaterial> StepTangents for IncrementalPotential<'_, M> {
+    fn tangents(&self) -> Vec<HessianTangent> {
+        vec![self.tangent]
+    }
+
+    fn set_tangents(&mut self, tangents: &[HessianTangent]) {
+        self.tangent = tangents[0];
+    }
+}
+
 impl<M: HyperelasticMaterial> NewtonObjective for IncrementalPotential<'_, M> {
     type Hessian = Mat<f64>;
     type Factor = Llt<f64>;

@@ -27,9 +27,7 @@ use faer::linalg::solvers::{Llt, Solve};
 use faer::{Mat, Side};
 use hyperelastic::HyperelasticMaterial;
 use nalgebra::{Matrix3, Vector3};
-use optimize::{
-    HessianReuse, NewtonObjective, NewtonParams, NewtonReport, minimize, minimize_reusing,
-};
+use optimize::{NewtonObjective, NewtonReport};
 use rayon::prelude::*;
 use rkpm_core::SpatialIndex;
 use thiserror::Error;
@@ -40,9 +38,9 @@ use crate::body_contact::{
 };
 use crate::contact_friction::same_lagged_forces;
 use crate::deformation_map::DeformationMap;
-use crate::hessian_tangent::HessianTangent;
+use crate::hessian_tangent::{HessianTangent, StepTangents};
 use crate::incremental_potential::IncrementalPotential;
-use crate::simulator::{ReducedState, Simulator, StateError, StepError, combined};
+use crate::simulator::{ReducedState, Simulator, StateError, StepError, combined, solve_step};
 
 /// One object of a [`MultiBodySimulator`]: its simulator and its contact samples.
 pub struct Body<M: HyperelasticMaterial> {
@@ -571,7 +569,7 @@ impl<M: HyperelasticMaterial> MultiBodySimulator<M> {
             // One factorization carried through the step's solves (the lagged re-solves
             // change the objective little), never into the next step.
             let mut factor = None;
-            let mut report = solve_reusing(&mut objective, &mut z, &newton, &mut factor)?;
+            let mut report = solve_step(&mut objective, &mut z, &newton, &mut factor)?;
             // The normals lagged again at the solution while those of touching pairs turn.
             for _ in 0..MAX_CONTACT_LAGS {
                 let pairs = objective.lag(&z);
@@ -588,7 +586,7 @@ impl<M: HyperelasticMaterial> MultiBodySimulator<M> {
                     break;
                 }
                 objective.pairs = pairs;
-                let again = solve_reusing(&mut objective, &mut z, &newton, &mut factor)?;
+                let again = solve_step(&mut objective, &mut z, &newton, &mut factor)?;
                 report = combined(&report, &again);
             }
             // Friction lagging as for one object: contacts, normals and normal forces taken
@@ -599,7 +597,7 @@ impl<M: HyperelasticMaterial> MultiBodySimulator<M> {
                     break;
                 }
                 objective.friction = friction;
-                let again = solve_reusing(&mut objective, &mut z, &newton, &mut factor)?;
+                let again = solve_step(&mut objective, &mut z, &newton, &mut factor)?;
                 report = combined(&report, &again);
             }
             let positions = objective.positions(&z);
@@ -695,48 +693,6 @@ impl<M: HyperelasticMaterial> MultiBodySimulator<M> {
     }
 }
 
-/// [`minimize_reusing`] with the Newton options' Hessian reuse; a solve that does not converge
-/// with the library's shortcuts (reuse, or the exact tangent where definite) is solved again
-/// from the same start with fresh, projected Hessians (as [`Simulator::step`] does).
-fn solve_reusing<M: HyperelasticMaterial>(
-    objective: &mut GroupPotential<'_, M>,
-    z: &mut Vec<f64>,
-    newton: &NewtonParams,
-    factor: &mut Option<Llt<f64>>,
-) -> Result<NewtonReport, StepError> {
-    let reuse = newton.hessian_reuse != HessianReuse::Never;
-    let tangents: Vec<HessianTangent> = objective.potentials.iter().map(|p| p.tangent).collect();
-    let exact_first = tangents.contains(&HessianTangent::ExactWhenDefinite);
-    if !reuse && !exact_first {
-        return Ok(minimize(&*objective, z, newton)?);
-    }
-    let start = z.clone();
-    let first = if reuse {
-        minimize_reusing(&*objective, z, newton, factor)?
-    } else {
-        minimize(&*objective, z, newton)?
-    };
-    if first.converged() {
-        return Ok(first);
-    }
-    z.clone_from(&start);
-    *factor = None;
-    let paper = NewtonParams {
-        hessian_reuse: HessianReuse::Never,
-        ..*newton
-    };
-    for potential in &mut objective.potentials {
-        if potential.tangent == HessianTangent::ExactWhenDefinite {
-            potential.tangent = HessianTangent::ProjectedPsd;
-        }
-    }
-    let retried = minimize_reusing(&*objective, z, &paper, factor);
-    for (potential, tangent) in objective.potentials.iter_mut().zip(tangents) {
-        potential.tangent = tangent;
-    }
-    Ok(combined(&first, &retried?))
-}
-
 /// Most times a group's step is solved again with its contact normals lagged at the last
 /// solution.
 const MAX_CONTACT_LAGS: usize = 3;
@@ -810,6 +766,18 @@ struct GroupPotential<'a, M: HyperelasticMaterial> {
     friction: Vec<PairFriction>,
     /// ε = ε_v h (m).
     epsilon: f64,
+}
+
+impl<M: HyperelasticMaterial> StepTangents for GroupPotential<'_, M> {
+    fn tangents(&self) -> Vec<HessianTangent> {
+        self.potentials.iter().map(|p| p.tangent).collect()
+    }
+
+    fn set_tangents(&mut self, tangents: &[HessianTangent]) {
+        for (potential, &tangent) in self.potentials.iter_mut().zip(tangents) {
+            potential.tangent = tangent;
+        }
+    }
 }
 
 impl<M: HyperelasticMaterial> GroupPotential<'_, M> {

@@ -5,13 +5,13 @@ use faer::linalg::solvers::Llt;
 use hyperelastic::HyperelasticMaterial;
 use nalgebra::Vector3;
 use optimize::{
-    HessianReuse, NewtonError, NewtonParams, NewtonReport, NewtonTimings, minimize,
-    minimize_reusing,
+    HessianReuse, NewtonError, NewtonObjective, NewtonParams, NewtonReport, NewtonTimings,
+    minimize, minimize_reusing,
 };
 use serde::{Deserialize, Serialize};
 use thiserror::Error;
 
-use crate::hessian_tangent::HessianTangent;
+use crate::hessian_tangent::{HessianTangent, StepTangents};
 use crate::incremental_potential::{IncrementalPotential, Inertia};
 use crate::reduced_model::ReducedModel;
 use crate::scene::{PenaltyParams, Scene};
@@ -32,6 +32,60 @@ pub(crate) fn combined(first: &NewtonReport, second: &NewtonReport) -> NewtonRep
         },
         ..*second
     }
+}
+
+/// Minimizes `objective` from z (updated in place), carrying `factor` across when `newton`
+/// reuses Hessians. A solve that does not converge with the library's shortcuts (Hessian reuse,
+/// or the exact tangent where definite) is solved again from the same start in the paper's
+/// setting, fresh Hessians with the tangent projected at every point, so the shortcuts are
+/// never less robust than it (the report counts both attempts): chord steps can spend the
+/// iteration budget Newton needs, and an exact Hessian can be definite yet a poor model far
+/// from the solution. One object's step ([`Simulator::step`]) and a group's
+/// ([`crate::MultiBodySimulator`]) both solve this way.
+///
+/// # Errors
+/// [`StepError::Newton`]; z is then Newton's last iterate.
+pub(crate) fn solve_step<O>(
+    objective: &mut O,
+    z: &mut Vec<f64>,
+    newton: &NewtonParams,
+    factor: &mut Option<Llt<f64>>,
+) -> Result<NewtonReport, StepError>
+where
+    O: NewtonObjective<Factor = Llt<f64>> + StepTangents,
+{
+    let reuse = newton.hessian_reuse != HessianReuse::Never;
+    let tangents = objective.tangents();
+    let exact_first = tangents.contains(&HessianTangent::ExactWhenDefinite);
+    if !reuse && !exact_first {
+        return Ok(minimize(&*objective, z, newton)?);
+    }
+    let start = z.clone();
+    let first = if reuse {
+        minimize_reusing(&*objective, z, newton, factor)?
+    } else {
+        minimize(&*objective, z, newton)?
+    };
+    if first.converged() {
+        return Ok(first);
+    }
+    z.clone_from(&start);
+    *factor = None;
+    let paper = NewtonParams {
+        hessian_reuse: HessianReuse::Never,
+        ..*newton
+    };
+    let projected: Vec<HessianTangent> = tangents
+        .iter()
+        .map(|&t| match t {
+            HessianTangent::ExactWhenDefinite => HessianTangent::ProjectedPsd,
+            other => other,
+        })
+        .collect();
+    objective.set_tangents(&projected);
+    let retried = minimize_reusing(&*objective, z, &paper, factor);
+    objective.set_tangents(&tangents);
+    Ok(combined(&first, &retried?))
 }
 
 /// Options of a simulation.
@@ -302,7 +356,7 @@ impl<M: HyperelasticMaterial> Simulator<M> {
         let mut potential = self.step_potential(&predicted);
         let mut z = predicted.clone();
         self.terms.prescribe(&mut z, &potential.targets);
-        let mut report = self.minimize_step(&mut potential, &mut z, &mut factor)?;
+        let mut report = solve_step(&mut potential, &mut z, &self.params.newton, &mut factor)?;
         // Friction lagging (IPC): the floor's contacts and normal forces taken again from the
         // solution, the slip still measured from the start of the step, and solved again from
         // there, `friction_lag_iterations` times at most, and only while the lagged forces
@@ -322,7 +376,7 @@ impl<M: HyperelasticMaterial> Simulator<M> {
                 break;
             }
             potential.friction = Some(friction);
-            let again = self.minimize_step(&mut potential, &mut z, &mut factor)?;
+            let again = solve_step(&mut potential, &mut z, &self.params.newton, &mut factor)?;
             report = combined(&report, &again);
         }
         drop(potential);
@@ -375,49 +429,6 @@ impl<M: HyperelasticMaterial> Simulator<M> {
             .zip(self.model.volumes())
             .map(|((v, rho), vol)| v * (rho * vol))
             .sum()
-    }
-
-    /// Minimizes `potential` from z (updated in place), carrying `factor` across when the
-    /// Newton options reuse Hessians. A solve that does not converge with the library's
-    /// shortcuts (Hessian reuse, or the exact tangent where definite) is solved again from the
-    /// same start in the paper's setting, fresh Hessians with the tangent projected at every
-    /// point, so the shortcuts are never less robust than it (the report counts both attempts):
-    /// chord steps can spend the iteration budget Newton needs, and an exact Hessian can be
-    /// definite yet a poor model far from the solution (the layered sphere's impact step).
-    fn minimize_step(
-        &self,
-        potential: &mut IncrementalPotential<'_, M>,
-        z: &mut Vec<f64>,
-        factor: &mut Option<Llt<f64>>,
-    ) -> Result<NewtonReport, StepError> {
-        let newton = self.params.newton;
-        let reuse = newton.hessian_reuse != HessianReuse::Never;
-        let exact_first = potential.tangent == HessianTangent::ExactWhenDefinite;
-        if !reuse && !exact_first {
-            return Ok(minimize(&*potential, z, &newton)?);
-        }
-        let start = z.clone();
-        let first = if reuse {
-            minimize_reusing(&*potential, z, &newton, factor)?
-        } else {
-            minimize(&*potential, z, &newton)?
-        };
-        if first.converged() {
-            return Ok(first);
-        }
-        z.clone_from(&start);
-        *factor = None;
-        let paper = NewtonParams {
-            hessian_reuse: HessianReuse::Never,
-            ..newton
-        };
-        let tangent = potential.tangent;
-        if exact_first {
-            potential.tangent = HessianTangent::ProjectedPsd;
-        }
-        let retried = minimize_reusing(&*potential, z, &paper, factor);
-        potential.tangent = tangent;
-        Ok(combined(&first, &retried?))
     }
 
     /// The inertial prediction `ẑ = z_t + h ż_t` of the next step (length 12(m + 1)).
