@@ -544,33 +544,27 @@ impl SimulationSpec {
         }
     }
 
-    /// The first problem as (field, what is wrong): a time step that is not positive, no
-    /// steps, points or output.
+    /// The first problem as (field, what is wrong): a time step, floor stiffness factor or
+    /// Newton tolerance that is not finite and positive, no steps, points or output.
     pub(crate) fn defect(&self) -> Option<(String, String)> {
         let field = |name: &str| format!("simulation.{name}");
+        let positive = |name: &str, value: f64| {
+            (!(value > 0.0 && value.is_finite()))
+                .then(|| (field(name), format!("{value} must be positive")))
+        };
         if self.points == 0 {
             return Some((field("points"), "must be positive".into()));
         }
-        if !(self.time_step > 0.0 && self.time_step.is_finite()) {
-            return Some((
-                field("time_step"),
-                format!("{} must be positive", self.time_step),
-            ));
+        if let Some(defect) = positive("time_step", self.time_step) {
+            return Some(defect);
         }
         if self.steps == 0 {
             return Some((field("steps"), "must be at least 1".into()));
         }
-        if !(self.floor_stiffness_factor > 0.0 && self.floor_stiffness_factor.is_finite()) {
-            return Some((
-                field("floor_stiffness_factor"),
-                format!("{} must be positive", self.floor_stiffness_factor),
-            ));
-        }
-        if !(self.newton_tolerance > 0.0 && self.newton_tolerance.is_finite()) {
-            return Some((
-                field("newton_tolerance"),
-                format!("{} must be positive", self.newton_tolerance),
-            ));
+        if let Some(defect) = positive("floor_stiffness_factor", self.floor_stiffness_factor)
+            .or_else(|| positive("newton_tolerance", self.newton_tolerance))
+        {
+            return Some(defect);
         }
         if self.output_every == 0 {
             return Some((field("output_every"), "must be at least 1".into()));
