@@ -37,6 +37,8 @@
 //! newton_tolerance = 1e-6            # Newton stops below this RMS step / L (default)
 //! floor_stiffness_factor = 1e4        # floor and colliders: κ = factor (λ + 2μ) / L² (default)
 //! tangent = "exact_when_definite"     # Newton's material tangent (default); "projected_psd": the paper's
+//! floor_contact = "penalty"           # floor and colliders (default); or an IPC barrier, no
+//! # floor_contact = { barrier = { distance = 0.01 } }   # point ever reaching them
 //! hessian_reuse = true                # carry the Hessian across steps (default; false: a
 //!                                     # fresh Hessian every iteration, the paper's setting)
 //! pins = "penalty"                    # hold the constraints by a penalty (default); or
@@ -208,6 +210,11 @@ pub struct SimulationSpec {
     /// point is the paper's; `"exact"`).
     #[serde(default)]
     pub tangent: reduced_sim::HessianTangent,
+    /// How the floor and the colliders push back (default `"penalty"`; `{ barrier = {
+    /// distance = d } }`: IPC's log barrier within d m, so no integration point ever reaches
+    /// them, see [`reduced_sim::FloorContact`]). A mesh collider's band must exceed d.
+    #[serde(default)]
+    pub floor_contact: reduced_sim::FloorContact,
 }
 
 fn default_floor_stiffness_factor() -> f64 {
@@ -537,6 +544,7 @@ impl SimulationSpec {
             penalty: PenaltyParams {
                 friction_slip_speed: self.friction_slip_speed,
                 floor_factor: self.floor_stiffness_factor,
+                floor_contact: self.floor_contact,
                 ..PenaltyParams::default()
             },
             tangent: self.tangent,
@@ -561,8 +569,13 @@ impl SimulationSpec {
         if self.steps == 0 {
             return Some((field("steps"), "must be at least 1".into()));
         }
+        let barrier_distance = match self.floor_contact {
+            reduced_sim::FloorContact::Penalty => 1.0,
+            reduced_sim::FloorContact::Barrier { distance } => distance,
+        };
         if let Some(defect) = positive("floor_stiffness_factor", self.floor_stiffness_factor)
             .or_else(|| positive("newton_tolerance", self.newton_tolerance))
+            .or_else(|| positive("floor_contact.barrier.distance", barrier_distance))
         {
             return Some(defect);
         }

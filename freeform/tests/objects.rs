@@ -85,6 +85,13 @@ fn an_objects_file_with_a_bad_field_is_refused_naming_it() {
             two_boxes("").replace("time_step = 0.01", "time_step = 0.01\nfloor_stiffness_factor = 0"),
             "simulation.floor_stiffness_factor",
         ),
+        (
+            two_boxes("").replace(
+                "time_step = 0.01",
+                "time_step = 0.01\nfloor_contact = { barrier = { distance = -0.01 } }",
+            ),
+            "simulation.floor_contact.barrier.distance",
+        ),
     ];
     for (text, field) in cases {
         let err = load(&dir, &text).unwrap_err().to_string();
@@ -112,6 +119,15 @@ fn an_objects_file_with_a_bad_field_is_refused_naming_it() {
         params.tangent,
         reduced_sim::HessianTangent::ExactWhenDefinite
     );
+    let barrier = two_boxes("").replace(
+        "time_step = 0.01",
+        "time_step = 0.01\nfloor_contact = { barrier = { distance = 0.01 } }",
+    );
+    let params = load(&dir, &barrier).unwrap().simulation.simulation_params();
+    assert_eq!(
+        params.penalty.floor_contact,
+        reduced_sim::FloorContact::Barrier { distance: 0.01 }
+    );
     let params = load(&dir, &two_boxes(""))
         .unwrap()
         .simulation
@@ -119,6 +135,10 @@ fn an_objects_file_with_a_bad_field_is_refused_naming_it() {
     assert_eq!(
         params.newton.tolerance,
         optimize::NewtonParams::default().tolerance
+    );
+    assert_eq!(
+        params.penalty.floor_contact,
+        reduced_sim::FloorContact::Penalty
     );
     let one_object = Path::new(env!("CARGO_MANIFEST_DIR")).join("examples/scenes/pusher.toml");
     assert!(!ObjectsFile::describes(&one_object));
@@ -215,4 +235,31 @@ position = [5, 5, 5]
     for (p, q) in last.positions().iter().zip(input.positions()) {
         assert!((q.z - p.z - drop).abs() < 1e-5 && (p.xy() - q.xy()).norm() < 1e-5);
     }
+}
+
+#[test]
+fn with_barriers_everywhere_two_boxes_dropped_on_each_other_never_penetrate() {
+    let dir = scratch("two_boxes_barrier");
+    let text = two_boxes("")
+        .replace(
+            "time_step = 0.01",
+            "time_step = 0.01\nfloor_contact = { barrier = { distance = 0.02 } }",
+        )
+        .replace("radius = 0.02", "radius = 0.02\nmodel = \"barrier\"");
+    let report =
+        simulate_objects(&load(&dir, &text).unwrap(), &dir.join("out"), None, &Silent).unwrap();
+    assert_eq!(report.unconverged_steps, 0, "{report:?}");
+    // No integration point reached the floor, no pair of samples closed (the barrier's line
+    // search keeps every gap positive), and the boxes did meet.
+    assert_eq!(report.max_penetration, 0.0);
+    let gap = report.min_contact_gap.expect("the boxes touched");
+    assert!(gap > 0.0 && gap < 0.02, "closest samples {gap} m apart");
+    // Resting on the floor: the lowest integration points (the grid's half spacing, 1.5 cm,
+    // inside the surface) a little within the barrier's reach (2 cm), so the surface clears it.
+    let bottom = report
+        .final_positions
+        .iter()
+        .map(|x| x.y)
+        .fold(f64::INFINITY, f64::min);
+    assert!(bottom > 0.0 && bottom < 0.01, "lowest vertex at {bottom} m");
 }

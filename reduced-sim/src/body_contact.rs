@@ -41,6 +41,7 @@ use serde::{Deserialize, Serialize};
 
 use crate::contact_friction::{f0, slip_derivatives};
 use crate::deformation_map::DeformationMap;
+use crate::log_barrier::log_barrier;
 
 /// How the contact samples of different objects repel.
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Serialize, Deserialize)]
@@ -123,12 +124,7 @@ impl BodyContactParams {
                 if d <= 0.0 {
                     return None;
                 }
-                let (s, log) = (d - d_hat, (d / d_hat).ln());
-                Some((
-                    -s * s * log,
-                    -2.0 * s * log - s * s / d,
-                    -2.0 * log - 4.0 * s / d + s * s / (d * d),
-                ))
+                Some(log_barrier(d, d_hat))
             }
         }
     }

@@ -221,10 +221,12 @@ impl<M: HyperelasticMaterial> NewtonObjective for IncrementalPotential<'_, M> {
 
     /// With a mesh collider: the largest α ≤ 1 that moves no point by more than half the
     /// collider's band, so no point can cross the band (beyond which the mesh is not looked
-    /// up) into a wall in one iteration; 1 otherwise.
-    fn max_step(&self, _z: &[f64], step: &[f64]) -> f64 {
+    /// up) into a wall in one iteration; with the floor's barrier also within its safe step
+    /// ([`crate::FloorContact::Barrier`]); 1 otherwise.
+    fn max_step(&self, z: &[f64], step: &[f64]) -> f64 {
+        let barrier = self.terms.barrier_step(self.model, z, step, &self.targets);
         let Some(band) = self.terms.mesh_band() else {
-            return 1.0;
+            return barrier;
         };
         let largest = self
             .model
@@ -234,9 +236,9 @@ impl<M: HyperelasticMaterial> NewtonObjective for IncrementalPotential<'_, M> {
             .map(|d| d.norm())
             .fold(0.0, f64::max);
         if largest > 0.0 {
-            (0.5 * band / largest).min(1.0)
+            (0.5 * band / largest).min(barrier)
         } else {
-            1.0
+            barrier
         }
     }
 
@@ -283,7 +285,7 @@ mod tests {
     use super::*;
     use crate::analytic_field::analytic_model;
     use crate::collider::{Collider, ColliderShape, Keyframe};
-    use crate::scene::{Floor, PenaltyParams, PinTarget, PinnedRegion, Scene};
+    use crate::scene::{Floor, FloorContact, PenaltyParams, PinTarget, PinnedRegion, Scene};
     use nalgebra::UnitQuaternion;
 
     /// A deterministic z of moderate amplitude (|F - I| about 0.1).
@@ -410,6 +412,107 @@ mod tests {
     #[test]
     fn incremental_potential_gradient_and_exact_hessian_match_finite_differences() {
         check_derivatives(Tangent::Exact);
+    }
+
+    #[test]
+    fn floor_and_collider_barrier_gradient_and_exact_hessian_match_finite_differences() {
+        let (model, _) = analytic_model();
+        let len = model.deformation_map().layout().len();
+        let (z, lag) = (probe_z(len, 0.01), probe_z(len, -0.005));
+        let positions: Vec<Vector3<f64>> = [&z, &lag]
+            .iter()
+            .flat_map(|z| model.deformation_map().positions(z))
+            .collect();
+        // A floor 3 cm below the lowest point and a sphere 4 cm above the highest near x = 1,
+        // both reaching 15 cm: some points feel them, none touches.
+        let lowest = positions.iter().map(|x| x.y).fold(f64::INFINITY, f64::min);
+        let center = Vector3::new(1.0, 1.6, 0.5);
+        let radius = positions
+            .iter()
+            .map(|x| (x - center).norm())
+            .fold(f64::INFINITY, f64::min)
+            - 0.04;
+        let scene = Scene {
+            gravity: Some(Vector3::new(0.0, -9.8, 0.0)),
+            floor: Some(Floor {
+                normal: Vector3::new(0.0, 1.0, 0.0),
+                offset: lowest - 0.03,
+                friction: 0.6,
+            }),
+            colliders: vec![Collider {
+                friction: 0.4,
+                ..Collider::fixed(
+                    ColliderShape::Sphere { radius },
+                    UnitQuaternion::identity(),
+                    center,
+                )
+            }],
+            ..Scene::default()
+        };
+        let penalty = PenaltyParams {
+            friction_slip_speed: 1.0,
+            floor_contact: FloorContact::Barrier { distance: 0.15 },
+            ..PenaltyParams::default()
+        };
+        let terms = SceneTerms::new(&model, &scene, &penalty).unwrap();
+        let predicted = probe_z(len, 0.002);
+        let potential = IncrementalPotential {
+            model: &model,
+            terms: &terms,
+            targets: terms.step_targets(0.0),
+            inertia: Some(Inertia {
+                predicted: &predicted,
+                inverse_step_squared: 1e4,
+            }),
+            tangent: HessianTangent::Exact,
+            free: None,
+            friction: terms.contact_friction(&model, &lag, &lag, 0.0, 0.01),
+        };
+        let n = model.volumes().len();
+        let contacts = terms.contacts(&model, &z, 0.0);
+        let (on_floor, near_sphere) = (
+            contacts.iter().filter(|&&c| c < n).count(),
+            contacts.iter().filter(|&&c| c >= n).count(),
+        );
+        assert!(
+            on_floor > 10 && near_sphere > 3,
+            "{on_floor}, {near_sphere}"
+        );
+        assert!(potential.friction.is_some());
+        assert!(terms.closest_gap(&model, &z, 0.0) > 0.0);
+
+        let (gradient, hessian) = potential.derivatives(&z);
+        let numeric = finite_difference::gradient(|z| potential.energy(z), &z, 1e-7);
+        let err = finite_difference::relative_error(
+            &DMatrix::from_column_slice(len, 1, &gradient),
+            &DMatrix::from_column_slice(len, 1, numeric.as_slice()),
+            1e-12,
+        );
+        assert!(err < 1e-6, "gradient: relative error {err:e}");
+        let numeric = finite_difference::jacobian(|z| potential.gradient(z), &z, 1e-7);
+        let analytic = DMatrix::from_fn(len, len, |i, j| hessian[(i, j)]);
+        let err = finite_difference::relative_error(&analytic, &numeric, 1e-12);
+        assert!(err < 1e-6, "Hessian: relative error {err:e}");
+
+        // Past the floor the barrier is infinite, and the safe step stops short of it.
+        let layout = model.deformation_map().layout();
+        let down = layout.rigid_motion(&nalgebra::Matrix3::identity(), &-Vector3::y());
+        let alpha = potential.max_step(&z, &down);
+        let at = |a: f64| -> Vec<f64> { z.iter().zip(&down).map(|(z, d)| z + a * d).collect() };
+        let floor_gap = model
+            .deformation_map()
+            .positions(&z)
+            .iter()
+            .map(|x| x.y)
+            .fold(f64::INFINITY, f64::min)
+            - (lowest - 0.03);
+        assert!(
+            alpha > 0.0 && alpha <= 0.9 * floor_gap * (1.0 + 1e-12),
+            "safe step {alpha} for a gap of {floor_gap} m"
+        );
+        assert!(terms.closest_gap(&model, &at(alpha), 0.0) > 0.0);
+        assert!(potential.energy(&at(alpha)).is_finite());
+        assert_eq!(potential.energy(&at(1.01 * floor_gap)), f64::INFINITY);
     }
 
     #[test]

@@ -53,6 +53,7 @@ pub mod elastic_energy;
 mod held_regions;
 pub mod hessian_tangent;
 pub mod incremental_potential;
+mod log_barrier;
 pub mod mesh_collider;
 pub mod multibody;
 pub mod quadrature;
@@ -76,7 +77,9 @@ pub use multibody::{
 pub use quadrature::{ElasticQuadrature, QuadratureError, QuadratureReport, QuadratureRule};
 pub use reduced_coordinates::ReducedLayout;
 pub use reduced_model::{ReducedModel, ReducedModelError};
-pub use scene::{Floor, PenaltyParams, PinModulus, PinTarget, PinnedRegion, Scene, TargetFunction};
+pub use scene::{
+    Floor, FloorContact, PenaltyParams, PinModulus, PinTarget, PinnedRegion, Scene, TargetFunction,
+};
 pub use scene_terms::SceneError;
 pub use simulator::{ReducedState, SimulationParams, Simulator, StateError, StepError};
 pub use skinning_field::SkinningField;

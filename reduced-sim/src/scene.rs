@@ -147,6 +147,58 @@ pub struct PenaltyParams {
     /// a body landing in a step slides freely through it).
     #[serde(default = "default_friction_lag_iterations")]
     pub friction_lag_iterations: usize,
+    /// How the floor and the colliders push back (default [`FloorContact::Penalty`]).
+    #[serde(default)]
+    pub floor_contact: FloorContact,
+}
+
+/// How the floor and the kinematic colliders push an integration point back, as a function of
+/// its gap g (m: `n·x − offset` above the floor, the signed distance φ outside a collider),
+/// with κ = [`PenaltyParams::floor_factor`] · (λ + 2μ) / L² (Pa/m²) and v the point's volume:
+///
+/// ```text
+/// penalty:  e(g) = κ v ½ g²                         (g < 0; nothing at g ≥ 0)
+/// barrier:  e(g) = κ v b(g),  b = −(g − d̂)² ln(g/d̂)  (0 < g < d̂; +∞ at g ≤ 0)
+/// ```
+///
+/// The penalty lets points in by a depth that falls as 1/κ; the barrier (IPC's, as between
+/// objects, [`crate::BodyContactModel::Barrier`]) never does: Newton's line search stops each
+/// iteration short of the floor and the colliders ([`crate::Simulator::step`]), and a point
+/// rests a little inside the distance d̂ instead.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Serialize, Deserialize)]
+#[serde(rename_all = "snake_case")]
+pub enum FloorContact {
+    /// The quadratic penalty on the depth (default, the paper's).
+    #[default]
+    Penalty,
+    /// IPC's log barrier, active within `distance` of the floor or a collider.
+    Barrier {
+        /// d̂ (m): points closer than this are pushed back.
+        distance: f64,
+    },
+}
+
+impl FloorContact {
+    /// The gap (m) below which a point is in contact: 0 for the penalty, d̂ for the barrier.
+    pub fn reach(&self) -> f64 {
+        match *self {
+            FloorContact::Penalty => 0.0,
+            FloorContact::Barrier { distance } => distance,
+        }
+    }
+
+    /// `(ψ, ψ', ψ'')` (m², m, 1) at gap g (m), with e = κ v ψ(g): zero from the reach on; for
+    /// the barrier at g ≤ 0, `(+∞, NaN, NaN)` (a state Newton's line search never accepts).
+    pub fn profile(&self, gap: f64) -> (f64, f64, f64) {
+        if gap >= self.reach() {
+            return (0.0, 0.0, 0.0);
+        }
+        match *self {
+            FloorContact::Penalty => (0.5 * gap * gap, gap, 1.0),
+            FloorContact::Barrier { .. } if gap <= 0.0 => (f64::INFINITY, f64::NAN, f64::NAN),
+            FloorContact::Barrier { distance } => crate::log_barrier::log_barrier(gap, distance),
+        }
+    }
 }
 
 fn default_friction_slip_speed() -> f64 {
@@ -179,6 +231,7 @@ impl Default for PenaltyParams {
             pin_modulus: PinModulus::Young,
             friction_slip_speed: default_friction_slip_speed(),
             friction_lag_iterations: default_friction_lag_iterations(),
+            floor_contact: FloorContact::Penalty,
         }
     }
 }

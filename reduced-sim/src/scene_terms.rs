@@ -11,7 +11,7 @@ use crate::collider::Collider;
 use crate::contact_friction::{ContactFriction, FrictionContact};
 use crate::held_regions::HeldRegions;
 use crate::reduced_model::ReducedModel;
-use crate::scene::{Floor, PenaltyParams, PinModulus, PinTarget, Scene};
+use crate::scene::{Floor, FloorContact, PenaltyParams, PinModulus, PinTarget, Scene};
 
 /// The scene does not fit the model.
 #[derive(Debug, Error, Clone, PartialEq)]
@@ -98,6 +98,9 @@ pub enum SceneError {
         /// Floor factor.
         floor: f64,
     },
+    /// The floor's barrier distance d̂ is not finite and positive.
+    #[error("the floor's barrier distance must be finite and positive, got {0} m")]
+    BarrierDistance(f64),
 }
 
 struct PinTerm {
@@ -118,6 +121,8 @@ pub(crate) struct SceneTerms {
     pin_stiffness: f64,
     floor: Option<Floor>,
     floor_stiffness: f64,
+    /// Penalty or barrier, for the floor and the colliders.
+    floor_contact: FloorContact,
     /// ε_v (m/s) of the floor's and colliders' friction.
     friction_slip_speed: f64,
     /// Kinematic colliders, with the floor's stiffness.
@@ -147,6 +152,11 @@ impl SceneTerms {
                 pin: penalty.pin_factor,
                 floor: penalty.floor_factor,
             });
+        }
+        if let FloorContact::Barrier { distance } = penalty.floor_contact
+            && !valid(distance)
+        {
+            return Err(SceneError::BarrierDistance(distance));
         }
         let map = model.deformation_map();
         let n4 = map.layout().block_len();
@@ -267,6 +277,23 @@ impl SceneTerms {
         {
             return Err(SceneError::Collider { index, why });
         }
+        let reach = penalty.floor_contact.reach();
+        if let Some((index, band)) = scene
+            .colliders
+            .iter()
+            .enumerate()
+            .find_map(|(i, c)| match &c.shape {
+                crate::ColliderShape::Mesh(mesh) if mesh.band <= reach => Some((i, mesh.band)),
+                _ => None,
+            })
+        {
+            return Err(SceneError::Collider {
+                index,
+                why: format!(
+                    "its band {band} m must exceed the barrier distance {reach} m (the mesh is not looked up beyond the band)"
+                ),
+            });
+        }
         let held = if scene.held.is_empty() {
             None
         } else {
@@ -286,6 +313,7 @@ impl SceneTerms {
             pin_stiffness,
             floor,
             floor_stiffness: penalty.floor_factor * scale,
+            floor_contact: penalty.floor_contact,
             friction_slip_speed: penalty.friction_slip_speed,
             colliders: scene.colliders.clone(),
             held,
@@ -382,23 +410,20 @@ impl SceneTerms {
             return e;
         }
         let x = model.deformation_map().positions(z);
+        let contact =
+            |gap: f64, v: f64| self.floor_stiffness * v * self.floor_contact.profile(gap).0;
         if let Some(floor) = &self.floor {
-            for (x, v) in x.iter().zip(model.volumes()) {
-                let depth = floor.offset - floor.normal.dot(x);
-                if depth > 0.0 {
-                    e += 0.5 * self.floor_stiffness * v * depth * depth;
-                }
+            for (x, &v) in x.iter().zip(model.volumes()) {
+                e += contact(floor.normal.dot(x) - floor.offset, v);
             }
         }
         for (collider, pose) in self.colliders.iter().zip(&targets.colliders) {
-            for (d, v) in collider
+            for (d, &v) in collider
                 .signed_distances(pose, &x)
                 .iter()
                 .zip(model.volumes())
             {
-                if d.distance < 0.0 {
-                    e += 0.5 * self.floor_stiffness * v * d.distance * d.distance;
-                }
+                e += contact(d.distance, v);
             }
         }
         e
@@ -424,15 +449,20 @@ impl SceneTerms {
         let map = model.deformation_map();
         let (start, contact) = (map.positions(start), map.positions(contact));
         let volumes = model.volumes();
+        let reach = self.floor_contact.reach();
+        // The normal force κ v (−ψ'(g)) (N) at gap g.
+        let normal_force = |gap: f64, i: usize| {
+            -self.floor_stiffness * volumes[i] * self.floor_contact.profile(gap).1
+        };
         let mut contacts = Vec::new();
         if let Some(floor) = floor {
             for (i, x) in contact.iter().enumerate() {
-                let depth = floor.offset - floor.normal.dot(x);
-                if depth > 0.0 {
+                let gap = floor.normal.dot(x) - floor.offset;
+                if gap < reach {
                     contacts.push(FrictionContact {
                         point: i,
                         previous: start[i],
-                        limit: floor.friction * self.floor_stiffness * volumes[i] * depth,
+                        limit: floor.friction * normal_force(gap, i),
                         normal: floor.normal,
                     });
                 }
@@ -446,11 +476,11 @@ impl SceneTerms {
                 .iter()
                 .enumerate()
             {
-                if d.distance < 0.0 {
+                if d.distance < reach {
                     contacts.push(FrictionContact {
                         point: i,
                         previous: carry.transform_point(&start[i].into()).coords,
-                        limit: collider.friction * self.floor_stiffness * volumes[i] * -d.distance,
+                        limit: collider.friction * normal_force(d.distance, i),
                         normal: d.gradient,
                     });
                 }
@@ -467,11 +497,22 @@ impl SceneTerms {
         z: &[f64],
         time: f64,
     ) -> f64 {
+        self.deepest(model, z, time).max(0.0)
+    }
+
+    /// The largest depth (m, negative when every point is clear) of a point below the floor or
+    /// inside a collider; −∞ without them.
+    fn deepest<M: HyperelasticMaterial>(
+        &self,
+        model: &ReducedModel<M>,
+        z: &[f64],
+        time: f64,
+    ) -> f64 {
         if self.floor.is_none() && self.colliders.is_empty() {
-            return 0.0;
+            return f64::NEG_INFINITY;
         }
         let positions = model.deformation_map().positions(z);
-        let mut deepest: f64 = 0.0;
+        let mut deepest = f64::NEG_INFINITY;
         if let Some(floor) = &self.floor {
             for x in &positions {
                 deepest = deepest.max(floor.offset - floor.normal.dot(x));
@@ -485,8 +526,67 @@ impl SceneTerms {
         deepest
     }
 
-    /// The points in contact at z and time `time` (s), in index order: below the floor, then
-    /// inside collider k, numbered `(k + 1) n + i` (n points). The contact terms' Hessians
+    /// The smallest gap (m) of an integration point to the floor or a collider at z and time
+    /// `time` (s): its height above the floor, its signed distance to a collider (negative
+    /// inside); +∞ without them.
+    pub(crate) fn closest_gap<M: HyperelasticMaterial>(
+        &self,
+        model: &ReducedModel<M>,
+        z: &[f64],
+        time: f64,
+    ) -> f64 {
+        -self.deepest(model, z, time)
+    }
+
+    /// Whether the floor and the colliders repel by the barrier ([`FloorContact::Barrier`]).
+    pub(crate) fn has_barrier(&self) -> bool {
+        matches!(self.floor_contact, FloorContact::Barrier { .. })
+            && (self.floor.is_some() || !self.colliders.is_empty())
+    }
+
+    /// With the barrier ([`FloorContact::Barrier`]): the largest α ≤ 1 such that no point
+    /// closes more than 90% of its gap to the floor or a collider along α·`step` from z, so no
+    /// iterate reaches one (nor passes through a thin collider). Exact for the floor, whose gap
+    /// is linear in z; for a collider a bound, since φ changes by at most |Δx| when a point
+    /// moves by Δx. 1 with the penalty.
+    pub(crate) fn barrier_step<M: HyperelasticMaterial>(
+        &self,
+        model: &ReducedModel<M>,
+        z: &[f64],
+        step: &[f64],
+        targets: &StepTargets,
+    ) -> f64 {
+        if !self.has_barrier() {
+            return 1.0;
+        }
+        let map = model.deformation_map();
+        let (positions, moves) = (map.positions(z), map.displacements(step));
+        let mut alpha: f64 = 1.0;
+        if let Some(floor) = &self.floor {
+            for (x, dx) in positions.iter().zip(&moves) {
+                let closing = -floor.normal.dot(dx);
+                if closing > 0.0 {
+                    alpha = alpha.min(0.9 * (floor.normal.dot(x) - floor.offset) / closing);
+                }
+            }
+        }
+        for (collider, pose) in self.colliders.iter().zip(&targets.colliders) {
+            for (d, dx) in collider
+                .signed_distances(pose, &positions)
+                .iter()
+                .zip(&moves)
+            {
+                let length = dx.norm();
+                if length > 0.0 {
+                    alpha = alpha.min(0.9 * d.distance / length);
+                }
+            }
+        }
+        alpha.max(0.0)
+    }
+
+    /// The points in contact at z and time `time` (s), in index order: within the contact's
+    /// reach of the floor ([`FloorContact::reach`]: below it for the penalty), then of collider k, numbered `(k + 1) n + i` (n points). The contact terms' Hessians
     /// change when this set does.
     pub(crate) fn contacts<M: HyperelasticMaterial>(
         &self,
@@ -499,16 +599,17 @@ impl SceneTerms {
         }
         let positions = model.deformation_map().positions(z);
         let n = positions.len();
+        let reach = self.floor_contact.reach();
         let mut contacts = Vec::new();
         if let Some(floor) = &self.floor {
             contacts
-                .extend((0..n).filter(|&i| floor.offset - floor.normal.dot(&positions[i]) > 0.0));
+                .extend((0..n).filter(|&i| floor.normal.dot(&positions[i]) - floor.offset < reach));
         }
         for (k, collider) in self.colliders.iter().enumerate() {
             let distances = collider.signed_distances(&collider.pose(time), &positions);
             contacts.extend(
                 (0..n)
-                    .filter(|&i| distances[i].distance < 0.0)
+                    .filter(|&i| distances[i].distance < reach)
                     .map(|i| (k + 1) * n + i),
             );
         }
@@ -559,22 +660,24 @@ impl SceneTerms {
             }
         }
         if let Some(floor) = &self.floor {
-            // Active points: E = κ/2 v d², d = offset - n·x, ∂d/∂z_r = -n_r b_i.
+            // Active points: E = κ v ψ(g), g = n·x − offset, ∂g/∂z_r = n_r b_i.
             let mut active_b = Vec::new();
             let mut active_bw = Vec::new();
+            let reach = self.floor_contact.reach();
             for (i, x) in map.positions(z).iter().enumerate() {
-                let depth = floor.offset - floor.normal.dot(x);
-                if depth > 0.0 {
+                let gap = floor.normal.dot(x) - floor.offset;
+                if gap < reach {
                     let w = self.floor_stiffness * model.volumes()[i];
+                    let (_, slope, curvature) = self.floor_contact.profile(gap);
                     let bi = map.position_row(i);
                     for r in 0..3 {
-                        let c = -w * depth * floor.normal[r];
+                        let c = w * slope * floor.normal[r];
                         for (gk, bk) in gradient[r * n4..(r + 1) * n4].iter_mut().zip(bi) {
                             *gk += c * bk;
                         }
                     }
                     active_b.extend_from_slice(bi);
-                    active_bw.extend(bi.iter().map(|b| b * w));
+                    active_bw.extend(bi.iter().map(|b| b * w * curvature));
                 }
             }
             let active = active_b.len() / n4;
@@ -608,9 +711,11 @@ impl SceneTerms {
 }
 
 impl SceneTerms {
-    /// The colliders' penalty `κ/2 v_i φ_i²` (φ_i < 0) at z: gradient `κ v φ ∇φ` and Hessian
-    /// `κ v (∇φ∇φᵀ + φ∇²φ)` per point through the LBS rows, the second term left out for
-    /// [`Tangent::ProjectedPsd`] (it is negative semidefinite inside a convex shape).
+    /// The colliders' contact `κ v_i ψ(φ_i)` ([`FloorContact::profile`]) at z: gradient
+    /// `κ v ψ' ∇φ` and Hessian `κ v (ψ'' ∇φ∇φᵀ + ψ' ∇²φ)` per point through the LBS rows, the
+    /// second term left out for [`Tangent::ProjectedPsd`] (ψ' ≤ 0, and ∇²φ is positive
+    /// semidefinite outside a convex shape and negative semidefinite inside it: the term can
+    /// be indefinite).
     fn add_collider_derivatives<M: HyperelasticMaterial>(
         &self,
         model: &ReducedModel<M>,
@@ -625,6 +730,7 @@ impl SceneTerms {
         }
         let map = model.deformation_map();
         let positions = map.positions(z);
+        let reach = self.floor_contact.reach();
         let mut points = Vec::new();
         let mut forces = Vec::new();
         let mut stiffnesses = Vec::new();
@@ -634,13 +740,14 @@ impl SceneTerms {
                 .iter()
                 .enumerate()
             {
-                if d.distance < 0.0 {
+                if d.distance < reach {
                     let w = self.floor_stiffness * model.volumes()[i];
+                    let (_, slope, curvature) = self.floor_contact.profile(d.distance);
                     points.push(i);
-                    forces.push(d.gradient * (w * d.distance));
-                    let mut h: Matrix3<f64> = d.gradient * d.gradient.transpose() * w;
+                    forces.push(d.gradient * (w * slope));
+                    let mut h: Matrix3<f64> = d.gradient * d.gradient.transpose() * (w * curvature);
                     if tangent == Tangent::Exact {
-                        h += d.hessian * (w * d.distance);
+                        h += d.hessian * (w * slope);
                     }
                     stiffnesses.push(h);
                 }

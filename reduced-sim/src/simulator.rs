@@ -163,6 +163,17 @@ pub enum StepError {
     /// The time step is not finite and positive.
     #[error("the time step must be finite and positive, got {0} s")]
     InvalidTimeStep(f64),
+    /// With the floor's barrier ([`crate::FloorContact::Barrier`]) a point is already on or
+    /// past the floor or a collider, where the barrier is infinite: the step cannot start.
+    #[error(
+        "a point is {depth} m into the floor or a collider at t = {time} s; the barrier cannot start from there (start the object clear of them)"
+    )]
+    StartsInContact {
+        /// How deep the deepest point is (m, ≥ 0).
+        depth: f64,
+        /// The state's time (s).
+        time: f64,
+    },
 }
 
 /// The reduced state: coordinates z, velocities ż (both length 12(m + 1), see
@@ -352,9 +363,20 @@ impl<M: HyperelasticMaterial> Simulator<M> {
         if self.factor_age >= self.params.hessian_max_age {
             factor = None;
         }
+        self.check_clear()?;
         let predicted = self.predicted_coordinates();
         let mut potential = self.step_potential(&predicted);
         let mut z = predicted.clone();
+        if self.terms.has_barrier() {
+            // From the start of the step towards the prediction, as far as the barrier's safe
+            // step allows: the prediction itself may lie past the floor.
+            let start = &self.state.z;
+            let towards: Vec<f64> = z.iter().zip(start).map(|(p, s)| p - s).collect();
+            let alpha = potential.max_step(start, &towards).min(1.0);
+            for ((z, s), t) in z.iter_mut().zip(start).zip(&towards) {
+                *z = s + alpha * t;
+            }
+        }
         self.terms.prescribe(&mut z, &potential.targets);
         let mut report = solve_step(&mut potential, &mut z, &self.params.newton, &mut factor)?;
         // Friction lagging (IPC): the floor's contacts and normal forces taken again from the
@@ -387,6 +409,25 @@ impl<M: HyperelasticMaterial> Simulator<M> {
         };
         self.finish_step(z, factor);
         Ok(report)
+    }
+
+    /// With the floor's barrier: an error when a point of the current state is on or past the
+    /// floor or a collider (the barrier is infinite there); `Ok` otherwise.
+    pub(crate) fn check_clear(&self) -> Result<(), StepError> {
+        if !self.terms.has_barrier() {
+            return Ok(());
+        }
+        let gap = self
+            .terms
+            .closest_gap(&self.model, &self.state.z, self.state.time);
+        if gap > 0.0 {
+            Ok(())
+        } else {
+            Err(StepError::StartsInContact {
+                depth: -gap,
+                time: self.state.time,
+            })
+        }
     }
 
     /// Ends a step whose z was solved elsewhere (objects in contact are solved together by

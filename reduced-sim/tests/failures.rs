@@ -10,9 +10,9 @@ use hyperelastic::StableNeoHookean;
 use nalgebra::Vector3;
 use optimize::{NewtonError, NewtonParams, NewtonStop};
 use reduced_sim::{
-    DeformationMap, DeformationMapError, PenaltyParams, PinTarget, PinnedRegion, ReducedModel,
-    ReducedModelError, ReducedState, Scene, SceneError, SimulationParams, Simulator, StateError,
-    StepError,
+    DeformationMap, DeformationMapError, Floor, FloorContact, PenaltyParams, PinTarget,
+    PinnedRegion, ReducedModel, ReducedModelError, ReducedState, Scene, SceneError,
+    SimulationParams, Simulator, StateError, StepError,
 };
 use rkpm_core::IntegrationPoints;
 use support::BEAM_MATERIAL;
@@ -105,6 +105,54 @@ fn non_finite_pin_target_stops_the_step_and_keeps_the_state() {
         "{err}"
     );
     assert_eq!(sim.state(), &before);
+}
+
+#[test]
+fn a_barrier_floor_through_the_object_refuses_the_step_and_keeps_the_state() {
+    let (basis, points) = setup();
+    let model = support::uniform_model(&basis, &points, &BEAM_MATERIAL);
+    // The beam spans y in [0, 1]; this floor cuts it at y = 0.3.
+    let scene = Scene {
+        gravity: Some(Vector3::new(0.0, -9.8, 0.0)),
+        floor: Some(Floor {
+            normal: Vector3::y(),
+            offset: 0.3,
+            friction: 0.0,
+        }),
+        ..Default::default()
+    };
+    let params = SimulationParams {
+        penalty: PenaltyParams {
+            floor_contact: FloorContact::Barrier { distance: 0.05 },
+            ..Default::default()
+        },
+        ..Default::default()
+    };
+    let mut sim = Simulator::new(model, &scene, params).unwrap();
+    let before = sim.state().clone();
+    let err = sim.step().unwrap_err();
+    match err {
+        StepError::StartsInContact { depth, time } => {
+            // The lowest points (half a 0.125 m cell above y = 0) are 0.2375 m under it.
+            assert!((depth - 0.2375).abs() < 1e-9, "{err}");
+            assert_eq!(time, 0.0);
+        }
+        other => panic!("expected StartsInContact, got {other}"),
+    }
+    assert_eq!(sim.state(), &before);
+    // A barrier distance that is not positive is refused up front.
+    let params = SimulationParams {
+        penalty: PenaltyParams {
+            floor_contact: FloorContact::Barrier { distance: 0.0 },
+            ..Default::default()
+        },
+        ..Default::default()
+    };
+    let model = support::uniform_model(&basis, &points, &BEAM_MATERIAL);
+    assert_eq!(
+        Simulator::new(model, &scene, params).err(),
+        Some(SceneError::BarrierDistance(0.0))
+    );
 }
 
 #[test]
