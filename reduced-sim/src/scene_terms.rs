@@ -7,7 +7,9 @@ use hyperelastic::Tangent;
 use nalgebra::{Isometry3, Matrix3, Vector3};
 use thiserror::Error;
 
-use crate::collider::Collider;
+use std::sync::{Arc, Mutex};
+
+use crate::collider::{Collider, SignedDistance};
 use crate::contact_friction::{ContactFriction, FrictionContact};
 use crate::held_regions::HeldRegions;
 use crate::reduced_model::ReducedModel;
@@ -131,6 +133,16 @@ pub(crate) struct SceneTerms {
     held: Option<HeldRegions>,
     /// How many of `pins` carry the penalty (the first ones).
     penalized: usize,
+    /// The colliders' last signed distances: Newton asks again at the z whose energy the line
+    /// search accepted, and for the projected Hessian after an indefinite exact one.
+    last_query: Mutex<Option<ColliderQuery>>,
+}
+
+/// Every collider's signed distances at the points of one z, with the colliders at `poses`.
+struct ColliderQuery {
+    z: Vec<f64>,
+    poses: Vec<Isometry3<f64>>,
+    distances: Arc<Vec<Vec<SignedDistance>>>,
 }
 
 /// What the scene prescribes at one time, evaluated once per step: every pinned region's
@@ -318,6 +330,7 @@ impl SceneTerms {
             colliders: scene.colliders.clone(),
             held,
             penalized,
+            last_query: Mutex::new(None),
         })
     }
 
@@ -350,6 +363,41 @@ impl SceneTerms {
                 _ => None,
             })
             .reduce(f64::min)
+    }
+
+    /// Every collider's signed distances at `positions`, the points at z (m), with the
+    /// colliders at `poses`; the last answer again when z and the poses are the last call's.
+    fn collider_distances(
+        &self,
+        z: &[f64],
+        poses: &[Isometry3<f64>],
+        positions: &[Vector3<f64>],
+    ) -> Arc<Vec<Vec<SignedDistance>>> {
+        let mut last = self.last_query.lock().unwrap_or_else(|e| e.into_inner());
+        if let Some(query) = last.as_ref()
+            && query.z == z
+            && query.poses == poses
+        {
+            return Arc::clone(&query.distances);
+        }
+        let distances: Arc<Vec<Vec<SignedDistance>>> = Arc::new(
+            self.colliders
+                .iter()
+                .zip(poses)
+                .map(|(collider, pose)| collider.signed_distances(pose, positions))
+                .collect(),
+        );
+        *last = Some(ColliderQuery {
+            z: z.to_vec(),
+            poses: poses.to_vec(),
+            distances: Arc::clone(&distances),
+        });
+        distances
+    }
+
+    /// The colliders' poses at `time` (s).
+    fn collider_poses(&self, time: f64) -> Vec<Isometry3<f64>> {
+        self.colliders.iter().map(|c| c.pose(time)).collect()
     }
 
     /// The pin stiffness κ_pin (Pa/m²).
@@ -417,12 +465,8 @@ impl SceneTerms {
                 e += contact(floor.normal.dot(x) - floor.offset, v);
             }
         }
-        for (collider, pose) in self.colliders.iter().zip(&targets.colliders) {
-            for (d, &v) in collider
-                .signed_distances(pose, &x)
-                .iter()
-                .zip(model.volumes())
-            {
+        for distances in self.collider_distances(z, &targets.colliders, &x).iter() {
+            for (d, &v) in distances.iter().zip(model.volumes()) {
                 e += contact(d.distance, v);
             }
         }
@@ -442,11 +486,12 @@ impl SceneTerms {
         time_step: f64,
     ) -> Option<ContactFriction> {
         let floor = self.floor.as_ref().filter(|f| f.friction > 0.0);
-        let rubbing: Vec<&Collider> = self.colliders.iter().filter(|c| c.friction > 0.0).collect();
-        if floor.is_none() && rubbing.is_empty() {
+        let rubbing = self.colliders.iter().any(|c| c.friction > 0.0);
+        if floor.is_none() && !rubbing {
             return None;
         }
         let map = model.deformation_map();
+        let contact_z = contact;
         let (start, contact) = (map.positions(start), map.positions(contact));
         let volumes = model.volumes();
         let reach = self.floor_contact.reach();
@@ -468,14 +513,20 @@ impl SceneTerms {
                 }
             }
         }
-        for collider in rubbing {
-            let (before, after) = (collider.pose(time), collider.pose(time + time_step));
-            let carry = after * before.inverse();
-            for (i, d) in collider
-                .signed_distances(&after, &contact)
-                .iter()
-                .enumerate()
-            {
+        let poses = self.collider_poses(time + time_step);
+        let distances = if !rubbing {
+            Arc::default()
+        } else {
+            self.collider_distances(contact_z, &poses, &contact)
+        };
+        for ((collider, after), distances) in
+            self.colliders.iter().zip(&poses).zip(distances.iter())
+        {
+            if collider.friction <= 0.0 {
+                continue;
+            }
+            let carry = after * collider.pose(time).inverse();
+            for (i, d) in distances.iter().enumerate() {
                 if d.distance < reach {
                     contacts.push(FrictionContact {
                         point: i,
@@ -518,8 +569,9 @@ impl SceneTerms {
                 deepest = deepest.max(floor.offset - floor.normal.dot(x));
             }
         }
-        for collider in &self.colliders {
-            for d in collider.signed_distances(&collider.pose(time), &positions) {
+        let poses = self.collider_poses(time);
+        for distances in self.collider_distances(z, &poses, &positions).iter() {
+            for d in distances {
                 deepest = deepest.max(-d.distance);
             }
         }
@@ -570,12 +622,11 @@ impl SceneTerms {
                 }
             }
         }
-        for (collider, pose) in self.colliders.iter().zip(&targets.colliders) {
-            for (d, dx) in collider
-                .signed_distances(pose, &positions)
-                .iter()
-                .zip(&moves)
-            {
+        for distances in self
+            .collider_distances(z, &targets.colliders, &positions)
+            .iter()
+        {
+            for (d, dx) in distances.iter().zip(&moves) {
                 let length = dx.norm();
                 if length > 0.0 {
                     alpha = alpha.min(0.9 * d.distance / length);
@@ -605,8 +656,12 @@ impl SceneTerms {
             contacts
                 .extend((0..n).filter(|&i| floor.normal.dot(&positions[i]) - floor.offset < reach));
         }
-        for (k, collider) in self.colliders.iter().enumerate() {
-            let distances = collider.signed_distances(&collider.pose(time), &positions);
+        let poses = self.collider_poses(time);
+        for (k, distances) in self
+            .collider_distances(z, &poses, &positions)
+            .iter()
+            .enumerate()
+        {
             contacts.extend(
                 (0..n)
                     .filter(|&i| distances[i].distance < reach)
@@ -734,12 +789,11 @@ impl SceneTerms {
         let mut points = Vec::new();
         let mut forces = Vec::new();
         let mut stiffnesses = Vec::new();
-        for (collider, pose) in self.colliders.iter().zip(&targets.colliders) {
-            for (i, d) in collider
-                .signed_distances(pose, &positions)
-                .iter()
-                .enumerate()
-            {
+        for distances in self
+            .collider_distances(z, &targets.colliders, &positions)
+            .iter()
+        {
+            for (i, d) in distances.iter().enumerate() {
                 if d.distance < reach {
                     let w = self.floor_stiffness * model.volumes()[i];
                     let (_, slope, curvature) = self.floor_contact.profile(d.distance);
@@ -783,4 +837,52 @@ fn pinned_positions<M: HyperelasticMaterial>(
         .zip(u.chunks_exact(3))
         .map(|(x, u)| x + Vector3::new(u[0], u[1], u[2]))
         .collect()
+}
+
+#[cfg(test)]
+mod tests {
+    use nalgebra::UnitQuaternion;
+
+    use super::*;
+    use crate::analytic_field::analytic_model;
+    use crate::collider::{ColliderShape, Keyframe};
+
+    /// The reused collider query answers only for the same z and the same collider poses: a
+    /// moved collider or another z gives what a fresh evaluation gives.
+    #[test]
+    fn the_collider_query_is_reused_only_at_the_same_z_and_poses() {
+        let (model, _) = analytic_model();
+        let key = |time: f64, x: f64| Keyframe {
+            time,
+            rotation: UnitQuaternion::identity(),
+            translation: Vector3::new(x, 0.5, 0.5),
+        };
+        let scene = Scene {
+            colliders: vec![Collider {
+                path: vec![key(0.0, 0.0), key(1.0, 2.0)],
+                ..Collider::fixed(
+                    ColliderShape::Sphere { radius: 0.4 },
+                    UnitQuaternion::identity(),
+                    Vector3::zeros(),
+                )
+            }],
+            ..Scene::default()
+        };
+        let penalty = PenaltyParams::default();
+        let reused = SceneTerms::new(&model, &scene, &penalty).unwrap();
+        let fresh = || SceneTerms::new(&model, &scene, &penalty).unwrap();
+        let len = model.deformation_map().layout().len();
+        let z0 = vec![0.0; len];
+        let z1: Vec<f64> = (0..len).map(|i| 0.01 * (i as f64).sin()).collect();
+        let mut energies = Vec::new();
+        for (z, time) in [(&z0, 0.2), (&z0, 0.2), (&z0, 0.45), (&z1, 0.45), (&z0, 0.2)] {
+            let targets = reused.step_targets(time);
+            let e = reused.energy(&model, z, &targets);
+            assert_eq!(e, fresh().energy(&model, z, &targets), "z, t = {time}");
+            energies.push(e);
+        }
+        assert!(energies[0] > 0.0 && energies[2] > 0.0);
+        assert_ne!(energies[0], energies[2]);
+        assert_ne!(energies[2], energies[3]);
+    }
 }
