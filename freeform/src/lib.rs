@@ -52,6 +52,7 @@
 //! # Ok(()) }
 //! ```
 
+pub mod collider_frames;
 pub mod frames;
 pub mod geometry;
 pub mod object_scene;
@@ -66,6 +67,7 @@ pub mod splat_preview;
 pub mod splats;
 pub mod stress_field;
 
+pub use collider_frames::ColliderFrames;
 pub use frames::FrameWriter;
 pub use geometry::{Geometry, GeometryError};
 pub use object_scene::{ObjectSpec, ObjectSummary, ObjectsFile, ObjectsReport, simulate_objects};

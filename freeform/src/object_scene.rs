@@ -311,7 +311,8 @@ impl ObjectOutput {
 
 /// Runs a scene of several objects with stable Neo-Hookean elasticity and writes each
 /// object's frames (`<out_dir>/<name>/frame_NNNNN.ply` / `.vtk`, every `output_every` steps
-/// and the last) and `<out_dir>/summary.json`. Cubatures are cached under `cache_dir` when
+/// and the last), `<out_dir>/colliders_NNNNN.ply` with the colliders' surfaces at the same
+/// frames ([`crate::ColliderFrames`]) and `<out_dir>/summary.json`. Cubatures are cached under `cache_dir` when
 /// one is given.
 ///
 /// # Errors
@@ -404,10 +405,14 @@ pub fn simulate_objects(
     let setup_seconds = start.elapsed().as_secs_f64();
 
     let steps = file.simulation.steps;
+    let collider_frames = crate::ColliderFrames::new(out_dir, &file.scene.colliders);
     let write_all = |sim: &MultiBodySimulator<StableNeoHookean>, index: usize| {
         for (body, output) in sim.bodies().iter().zip(&outputs) {
             let state = body.simulator().state();
             output.write(index, &state.z, state.time)?;
+        }
+        if let Some(body) = sim.bodies().first() {
+            collider_frames.write(index, body.simulator().state().time)?;
         }
         Ok::<(), SimulateError>(())
     };

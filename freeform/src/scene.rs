@@ -255,6 +255,7 @@ impl SceneSpec {
             .iter()
             .enumerate()
             .find_map(|(i, c)| c.defect().map(|why| (i, why)))
+            .or_else(|| reduced_sim::chain_defect(&self.colliders))
         {
             return Err(SceneSpecError::Invalid(format!("colliders[{i}]: {why}")));
         }

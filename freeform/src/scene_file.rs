@@ -54,6 +54,8 @@
 //! friction = 0.3                 # default 0
 //! path = [{ time = 0, translation = [-0.2, 0.2, 0.5] },              # rotation = [i, j, k, w]
 //!         { time = 2, translation = [0.6, 0.2, 0.5], rotation = [0, 0, 0, 1] }]
+//! # parent = 0                   # attached to collider 0: the path is then in its frame (the
+//!                                # links of a robot arm, examples/scenes/robot_arm.toml)
 //! [[scene.constraints]]
 //! region = { below = { axis = 1, value = 0.05 } }
 //! motion = "rest"

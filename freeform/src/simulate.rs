@@ -166,8 +166,9 @@ pub(crate) fn read_shape(
 /// Runs a scene file with stable Neo-Hookean elasticity and writes `frame_NNNNN.ply` / `.vtk`
 /// (the deformed surface or cloud, every `output_every` steps and the last) and `summary.json`
 /// under `out_dir`; with `simulation.stress`, the VTK frames carry the stress at the output
-/// points and `points_NNNNN.vtk` the integration points with theirs ([`StressField`]). A cubature (`simulation.quadrature`) is cached under `cache_dir` when one
-/// is given.
+/// points and `points_NNNNN.vtk` the integration points with theirs ([`StressField`]); with
+/// colliders, `colliders_NNNNN.ply` their surfaces at each frame ([`crate::ColliderFrames`]).
+/// A cubature (`simulation.quadrature`) is cached under `cache_dir` when one is given.
 ///
 /// # Errors
 /// [`SimulateError`] naming the stage; frames already written stay valid files.
@@ -208,6 +209,7 @@ pub fn simulate_scene_file(
     let basis_seconds = start.elapsed().as_secs_f64();
 
     let writer = FrameWriter::new(out_dir, &geometry);
+    let collider_frames = crate::ColliderFrames::new(out_dir, &file.scene.colliders);
     let output =
         DeformationMap::new(&basis, writer.rest_positions()).map_err(SimulateError::OutputMap)?;
     let mut inverted_splats = 0;
@@ -304,6 +306,7 @@ pub fn simulate_scene_file(
                     )?;
                 }
             }
+            collider_frames.write(frame.index, frame.time)?;
             frames_written += 1;
         }
         if frame.index > 0 {

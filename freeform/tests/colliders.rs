@@ -25,6 +25,7 @@ fn pusher(speed: f64, duration: f64) -> Collider {
         },
         path: vec![key(0.0), key(duration)],
         friction: 0.0,
+        parent: None,
     }
 }
 
@@ -101,6 +102,22 @@ fn a_scene_file_with_a_moving_collider_and_floor_friction_runs_and_refuses_bad_c
     let report =
         freeform::simulate_scene_file(&file, &dir.join("out"), None, &freeform::Silent).unwrap();
     assert_eq!(report.frames_written, 6);
+    // The sphere is written beside every frame, where its path has it (x = -0.1 + t m).
+    let last = std::fs::read_to_string(dir.join("out").join("colliders_00005.ply")).unwrap();
+    let xs: Vec<f64> = last
+        .lines()
+        .skip_while(|l| *l != "end_header")
+        .skip(1)
+        .filter_map(|l| {
+            let v: Vec<f64> = l.split(' ').filter_map(|w| w.parse().ok()).collect();
+            (v.len() == 3).then(|| v[0])
+        })
+        .collect();
+    let centre = xs.iter().sum::<f64>() / xs.len() as f64;
+    assert!(
+        (centre - (-0.1 + 0.05)).abs() < 1e-9,
+        "sphere centre x {centre}"
+    );
     std::fs::write(&path, scene(-0.08)).unwrap();
     let error = freeform::SceneFile::load(&path).unwrap_err().to_string();
     assert!(

@@ -163,16 +163,52 @@ pub struct Keyframe {
 }
 
 /// A rigid shape on a keyframed path, with the Coulomb friction of its surface.
+///
+/// Colliders can form kinematic chains (the links of a robot arm): a collider with a
+/// [`Collider::parent`] moves with it, its path then the motion of its joint in the parent's
+/// frame, `pose_world(t) = pose_world(parent, t) · path(t)` ([`collider_poses`]). A revolute
+/// joint is a path whose rotations turn about the joint's axis through the link frame's origin.
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
 pub struct Collider {
     /// The shape in its own frame.
     pub shape: ColliderShape,
     /// Poses at increasing times (at least one): translation linear and rotation slerped
-    /// between them, the first before and the last after.
+    /// between them, the first before and the last after; in the parent's frame when there is
+    /// one, else in the world.
     pub path: Vec<Keyframe>,
     /// Coulomb friction coefficient μ against the object (dimensionless, default 0).
     #[serde(default)]
     pub friction: f64,
+    /// The index of an earlier collider of the scene this one is attached to (default none:
+    /// its path is in the world).
+    #[serde(default)]
+    pub parent: Option<usize>,
+}
+
+/// The first collider of a scene whose [`Collider::parent`] is not an earlier collider, with
+/// what is wrong; `None` when every chain is in order.
+pub fn chain_defect(colliders: &[Collider]) -> Option<(usize, String)> {
+    colliders.iter().enumerate().find_map(|(i, c)| {
+        c.parent
+            .filter(|&p| p >= i)
+            .map(|p| (i, format!("its parent {p} must be an earlier collider")))
+    })
+}
+
+/// Every collider's pose in the world at time `t` (s), a chain's links composed from its root:
+/// `pose_i = pose_parent(i) · path_i(t)`. A parent must come before its children (what
+/// [`crate::Scene::validate`] checks); a parent index out of order is taken as no parent.
+pub fn collider_poses(colliders: &[Collider], t: f64) -> Vec<Isometry3<f64>> {
+    let mut poses: Vec<Isometry3<f64>> = Vec::with_capacity(colliders.len());
+    for (i, collider) in colliders.iter().enumerate() {
+        let own = collider.pose(t);
+        let pose = match collider.parent {
+            Some(p) if p < i => poses[p] * own,
+            _ => own,
+        };
+        poses.push(pose);
+    }
+    poses
 }
 
 impl Collider {
@@ -190,10 +226,12 @@ impl Collider {
                 translation,
             }],
             friction: 0.0,
+            parent: None,
         }
     }
 
-    /// The pose at time `t` (s).
+    /// The pose of its path at time `t` (s): in the world without a parent, else relative to
+    /// the parent ([`collider_poses`] composes a chain).
     pub fn pose(&self, t: f64) -> Isometry3<f64> {
         let at =
             |k: &Keyframe| Isometry3::from_parts(Translation3::from(k.translation), k.rotation);
@@ -318,6 +356,51 @@ mod tests {
                 }
             }
         }
+    }
+
+    /// A two-link arm: link 0 turns 90° about z at the origin over 1 s, link 1 is jointed at
+    /// (1, 0, 0) of link 0 and turns another 90° there.
+    #[test]
+    fn a_chained_collider_moves_with_its_parent_and_a_chain_out_of_order_is_named() {
+        let turn = |time: f64, angle: f64, at: Vector3<f64>| Keyframe {
+            time,
+            rotation: UnitQuaternion::from_axis_angle(&Vector3::z_axis(), angle),
+            translation: at,
+        };
+        let quarter = std::f64::consts::FRAC_PI_2;
+        let sphere = ColliderShape::Sphere { radius: 0.1 };
+        let base = Collider {
+            path: vec![
+                turn(0.0, 0.0, Vector3::zeros()),
+                turn(1.0, quarter, Vector3::zeros()),
+            ],
+            ..Collider::fixed(sphere.clone(), UnitQuaternion::identity(), Vector3::zeros())
+        };
+        let elbow = Vector3::x();
+        let forearm = Collider {
+            path: vec![turn(0.0, 0.0, elbow), turn(1.0, quarter, elbow)],
+            parent: Some(0),
+            ..base.clone()
+        };
+        let arm = [base, forearm];
+        let tip = nalgebra::Point3::new(0.5, 0.0, 0.0);
+        // At rest the tip is at (1.5, 0, 0); at the end (−0.5, 1, 0); half way both joints
+        // are at 45°.
+        let at = |t: f64| collider_poses(&arm, t)[1].transform_point(&tip).coords;
+        assert!((at(0.0) - Vector3::new(1.5, 0.0, 0.0)).norm() < 1e-14);
+        assert!((at(1.0) - Vector3::new(-0.5, 1.0, 0.0)).norm() < 1e-14);
+        let s = std::f64::consts::FRAC_1_SQRT_2;
+        let half = Vector3::new(s, s, 0.0) + Vector3::new(0.0, 0.5, 0.0);
+        assert!((at(0.5) - half).norm() < 1e-14, "{:?}", at(0.5));
+        // The forearm's sphere (about its joint) is where its pose says: centred at (0, 1, 0).
+        let pose = collider_poses(&arm, 1.0)[1];
+        let phi = |x: Vector3<f64>| arm[1].signed_distance(&pose, &x).distance;
+        assert!((phi(Vector3::y()) + 0.1).abs() < 1e-14);
+        assert!((phi(Vector3::new(-0.5, 1.0, 0.0)) - 0.4).abs() < 1e-14);
+        assert_eq!(chain_defect(&arm), None);
+        let mut loop_back = arm.clone();
+        loop_back[0].parent = Some(1);
+        assert_eq!(chain_defect(&loop_back).map(|(i, _)| i), Some(0));
     }
 
     #[test]

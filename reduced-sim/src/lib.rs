@@ -65,7 +65,9 @@ pub mod simulator;
 pub mod skinning_field;
 
 pub use body_contact::{BodyContactModel, BodyContactParams};
-pub use collider::{Collider, ColliderShape, Keyframe, SignedDistance};
+pub use collider::{
+    Collider, ColliderShape, Keyframe, SignedDistance, chain_defect, collider_poses,
+};
 pub use cubature::{CubatureError, CubatureParams, CubatureReport, optimize_cubature};
 pub use deformation_map::{DeformationMap, DeformationMapError};
 pub use hessian_tangent::HessianTangent;

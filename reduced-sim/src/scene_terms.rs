@@ -289,6 +289,9 @@ impl SceneTerms {
         {
             return Err(SceneError::Collider { index, why });
         }
+        if let Some((index, why)) = crate::collider::chain_defect(&scene.colliders) {
+            return Err(SceneError::Collider { index, why });
+        }
         let reach = penalty.floor_contact.reach();
         if let Some((index, band)) = scene
             .colliders
@@ -395,9 +398,9 @@ impl SceneTerms {
         distances
     }
 
-    /// The colliders' poses at `time` (s).
+    /// The colliders' poses in the world at `time` (s).
     fn collider_poses(&self, time: f64) -> Vec<Isometry3<f64>> {
-        self.colliders.iter().map(|c| c.pose(time)).collect()
+        crate::collider::collider_poses(&self.colliders, time)
     }
 
     /// The pin stiffness κ_pin (Pa/m²).
@@ -413,7 +416,7 @@ impl SceneTerms {
                 .iter()
                 .map(|p| p.rest.iter().map(|x| p.target.at(x, t)).collect())
                 .collect(),
-            colliders: self.colliders.iter().map(|c| c.pose(t)).collect(),
+            colliders: self.collider_poses(t),
         }
     }
 
@@ -514,18 +517,23 @@ impl SceneTerms {
             }
         }
         let poses = self.collider_poses(time + time_step);
+        let before = self.collider_poses(time);
         let distances = if !rubbing {
             Arc::default()
         } else {
             self.collider_distances(contact_z, &poses, &contact)
         };
-        for ((collider, after), distances) in
-            self.colliders.iter().zip(&poses).zip(distances.iter())
+        for (((collider, after), before), distances) in self
+            .colliders
+            .iter()
+            .zip(&poses)
+            .zip(&before)
+            .zip(distances.iter())
         {
             if collider.friction <= 0.0 {
                 continue;
             }
-            let carry = after * collider.pose(time).inverse();
+            let carry = after * before.inverse();
             for (i, d) in distances.iter().enumerate() {
                 if d.distance < reach {
                     contacts.push(FrictionContact {

@@ -9,7 +9,6 @@ use freeform::{
     render_preview, simulate_objects, simulate_scene_file,
 };
 use nalgebra::Vector3;
-use reduced_sim::ColliderShape;
 use rkpm_core::Aabb;
 
 use crate::render::write_png;
@@ -142,18 +141,16 @@ fn run_objects(file: &ObjectsFile, out: &Path, cache: &Path, progress: Progress)
             o.name, o.simulation_points, o.quadrature.points, o.contact_samples, o.basis_seconds
         );
     }
-    // The objects (red) with the surfaces of the mesh colliders at the last frame (blue).
+    // The objects (red) with the surfaces of the colliders at the last frame (blue).
     let end = file.simulation.steps as f64 * file.simulation.time_step;
     let mut points = report.final_positions.clone();
     let mut values = vec![1.0; points.len()];
-    for collider in &file.scene.colliders {
-        if let ColliderShape::Mesh(shape) = &collider.shape
-            && let Some(mesh) = shape.mesh()
-        {
-            let pose = collider.pose(end);
+    let colliders = freeform::ColliderFrames::new(out, &file.scene.colliders);
+    for surface in colliders.surfaces_at(end) {
+        if let Ok(mesh) = rkpm_core::TriangleMesh::new(surface.vertices, surface.triangles) {
             let spacing = 0.02 * mesh.bounding_box().largest_side();
-            for p in Geometry::Surface(mesh.clone()).contact_samples(spacing) {
-                points.push(pose.transform_point(&p.into()).coords);
+            for p in Geometry::Surface(mesh).contact_samples(spacing) {
+                points.push(p);
                 values.push(0.0);
             }
         }
@@ -172,7 +169,7 @@ fn run_objects(file: &ObjectsFile, out: &Path, cache: &Path, progress: Progress)
         &png,
     )?;
     println!(
-        "preview of the last frame (objects red, mesh colliders blue): {}",
+        "preview of the last frame (objects red, colliders blue): {}",
         png.display()
     );
     Ok(())
