@@ -86,9 +86,19 @@ impl ColliderFrames {
 }
 
 /// A shape's surface in its own frame: a mesh as loaded (nothing when not loaded), a box's
-/// 12 triangles, a sphere or capsule tessellated into rings about its x axis.
+/// 12 triangles, a sphere or capsule tessellated into rings about its x axis, a half-space as
+/// a 2 m square slab 1 cm thick under its plane.
 fn local_surface(shape: &ColliderShape) -> Surface {
     match shape {
+        ColliderShape::Plane => {
+            let mut slab = local_surface(&ColliderShape::Box {
+                half_extents: Vector3::new(1.0, 0.005, 1.0),
+            });
+            for v in &mut slab.vertices {
+                v.y -= 0.005;
+            }
+            slab
+        }
         ColliderShape::Mesh(mesh) => mesh
             .mesh()
             .map(|m| Surface {

@@ -159,3 +159,48 @@ fn a_mesh_box_collider_moves_the_cube_as_the_analytic_box_does() {
         );
     }
 }
+
+/// A plane collider (`shape = "plane"` in scene files) turned to face the cube from below is
+/// the floor: the same fall and rest, to round-off.
+#[test]
+fn a_plane_collider_under_the_cube_acts_as_the_floor() {
+    let gravity = Some(Vector3::new(0.0, -9.8, 0.0));
+    let floor = SceneSpec {
+        gravity,
+        floor: Some(freeform::FloorSpec {
+            normal: Vector3::y(),
+            offset: -0.02,
+            friction: 0.0,
+        }),
+        ..Default::default()
+    };
+    let shape: ColliderShape = toml::from_str::<toml::Value>("shape = \"plane\"")
+        .unwrap()
+        .get("shape")
+        .unwrap()
+        .clone()
+        .try_into()
+        .unwrap();
+    assert_eq!(shape, ColliderShape::Plane);
+    let plane = SceneSpec {
+        gravity,
+        colliders: vec![Collider::fixed(
+            shape,
+            UnitQuaternion::identity(),
+            Vector3::new(0.0, -0.02, 0.0),
+        )],
+        ..Default::default()
+    };
+    let trajectory = |scene: &SceneSpec| {
+        let mut heights = Vec::new();
+        run_cube(SIDE, scene, 30, |positions, _| {
+            heights.push(positions.iter().map(|x| x.y).fold(f64::INFINITY, f64::min));
+        });
+        heights
+    };
+    let (on_floor, on_plane) = (trajectory(&floor), trajectory(&plane));
+    assert!((on_floor.last().unwrap() + 0.02).abs() < 2e-3);
+    for (k, (a, b)) in on_floor.iter().zip(&on_plane).enumerate() {
+        assert!((a - b).abs() < 1e-9, "frame {k}: floor {a} m, plane {b} m");
+    }
+}

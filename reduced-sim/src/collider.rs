@@ -1,6 +1,7 @@
 //! Kinematic colliders (issue 21): rigid shapes moving on prescribed paths that push the object
-//! through a penalty on their signed distance, with the floor's friction model (a pusher, a
-//! peg, a container wall).
+//! through a penalty on their signed distance (or the floor's barrier,
+//! [`crate::FloorContact::Barrier`]), with the floor's friction model (a pusher, a peg, a
+//! container wall, the jointed links of a robot arm).
 //!
 //! A collider's shape is given in its own frame; its pose `x = R(t) p + c(t)` follows a
 //! keyframed path (translation linear, rotation slerped between keys, held before the first
@@ -22,10 +23,14 @@ use serde::{Deserialize, Serialize};
 
 use crate::mesh_collider::MeshShape;
 
-/// A shape in the collider's frame (m): three convex primitives and closed triangle meshes.
+/// A shape in the collider's frame (m): a half-space, three convex primitives and closed
+/// triangle meshes.
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
 #[serde(rename_all = "snake_case")]
 pub enum ColliderShape {
+    /// The half-space `y ≤ 0` (solid below its plane y = 0): φ = y. Posed and moved like any
+    /// collider (a tilting ramp, a wall closing in); in scene files `shape = "plane"`.
+    Plane,
     /// A ball of `radius` about the origin.
     Sphere {
         /// Radius (m).
@@ -64,6 +69,11 @@ impl ColliderShape {
     pub fn signed_distance(&self, p: &Vector3<f64>) -> SignedDistance {
         match *self {
             ColliderShape::Mesh(ref mesh) => mesh.signed_distance(p),
+            ColliderShape::Plane => SignedDistance {
+                distance: p.y,
+                gradient: Vector3::y(),
+                hessian: Matrix3::zeros(),
+            },
             ColliderShape::Sphere { radius } => ball(p, radius),
             ColliderShape::Capsule {
                 half_length,
@@ -317,6 +327,7 @@ mod tests {
     #[test]
     fn signed_distance_derivatives_match_central_differences() {
         let shapes = [
+            ColliderShape::Plane,
             ColliderShape::Sphere { radius: 0.3 },
             ColliderShape::Capsule {
                 half_length: 0.4,
