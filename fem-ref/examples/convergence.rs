@@ -63,7 +63,15 @@ fn run() -> Result<(), String> {
         for (order, resolutions) in [(ElementOrder::Linear, &p1), (ElementOrder::Quadratic, &p2)] {
             let mut previous: Option<Vec<f64>> = None;
             for &res in resolutions {
-                let run = run_beam(scene, order, res, steps, &at, tangent, 1e-6)?;
+                let run = run_beam(
+                    scene,
+                    order,
+                    res,
+                    steps,
+                    &at,
+                    tangent,
+                    optimize::NewtonParams::default(),
+                )?;
                 let values: Vec<f64> = run.probes.iter().map(|p| p.1).collect();
                 let delta = |k: usize| match &previous {
                     Some(p) => format!("{:+.3e}", values[k] - p[k]),

@@ -8,7 +8,10 @@ use faer::linalg::solvers::Solve;
 use faer::sparse::linalg::solvers::Llt;
 use hyperelastic::{HyperelasticMaterial, Tangent};
 use nalgebra::Vector3;
-use optimize::{NewtonError, NewtonObjective, NewtonParams, NewtonReport, minimize};
+use optimize::{
+    HessianReuse, NewtonError, NewtonObjective, NewtonParams, NewtonReport, NewtonTimings,
+    minimize, minimize_reusing,
+};
 use rayon::prelude::*;
 use serde::{Deserialize, Serialize};
 use thiserror::Error;
@@ -27,7 +30,11 @@ pub struct FemParams {
     pub time_step: f64,
     /// Newton options (the workspace's one solver, [`optimize::minimize`]); its convergence
     /// test is `sqrt(Δxᵀ M Δx / mass) / L < tolerance`, L the largest rest bounding-box side:
-    /// the same scale-invariant test as the reduced simulator.
+    /// the same scale-invariant test as the reduced simulator. With
+    /// [`HessianReuse::WhileContracting`] the sparse Cholesky factor is carried from step to
+    /// step (chord steps while they contract, at most [`FEM_FACTOR_MAX_AGE`] steps), and a
+    /// step that does not converge that way is solved again with fresh Hessians; the default,
+    /// [`HessianReuse::Never`], factors afresh every iteration.
     pub newton: NewtonParams,
     /// Element tangent (default PSD-projected; `Exact` is only safe while the system stays
     /// positive definite, and a failed factorization is then reported).
@@ -96,6 +103,9 @@ pub enum FemRunError {
     },
 }
 
+/// The most steps one factorization of the FEM is carried across with Hessian reuse.
+pub const FEM_FACTOR_MAX_AGE: usize = 50;
+
 /// Backward-Euler FEM simulation.
 pub struct FemSimulator<M: HyperelasticMaterial> {
     model: FemModel<M>,
@@ -108,6 +118,9 @@ pub struct FemSimulator<M: HyperelasticMaterial> {
     v: Vec<f64>,
     time: f64,
     length_scale: f64,
+    /// With Hessian reuse: the last factorization and the steps since it was made.
+    factor: Option<Llt<usize, f64>>,
+    factor_age: usize,
 }
 
 struct StepProblem<'a> {
@@ -192,6 +205,8 @@ impl<M: HyperelasticMaterial> FemSimulator<M> {
             v,
             time: 0.0,
             length_scale,
+            factor: None,
+            factor_age: 0,
         })
     }
 
@@ -365,11 +380,37 @@ impl<M: HyperelasticMaterial> FemSimulator<M> {
             predicted: Some(&predicted),
             inverse_step_squared: 1.0 / (h * h),
         };
-        let report = minimize(
-            &StepObjective { sim: self, problem },
-            &mut x,
-            &self.params.newton,
-        )?;
+        let newton = self.params.newton;
+        let carried = self
+            .factor
+            .take()
+            .filter(|_| self.factor_age < FEM_FACTOR_MAX_AGE);
+        let objective = StepObjective { sim: self, problem };
+        let (report, factor) = if newton.hessian_reuse == HessianReuse::Never {
+            (minimize(&objective, &mut x, &newton)?, None)
+        } else {
+            let mut factor = carried;
+            let first = minimize_reusing(&objective, &mut x, &newton, &mut factor)?;
+            if first.converged() {
+                (first, factor)
+            } else {
+                // Chord steps spent the iterations: again from the prediction, fresh Hessians.
+                x.clone_from(&predicted);
+                let fresh = NewtonParams {
+                    hessian_reuse: HessianReuse::Never,
+                    ..newton
+                };
+                let mut factor = None;
+                let second = minimize_reusing(&objective, &mut x, &fresh, &mut factor)?;
+                (both(&first, &second), factor)
+            }
+        };
+        self.factor_age = if report.hessian_assemblies > 0 {
+            1
+        } else {
+            self.factor_age + 1
+        };
+        self.factor = factor;
         self.v = x.iter().zip(&self.x).map(|(a, b)| (a - b) / h).collect();
         self.x = x;
         self.time += h;
@@ -532,6 +573,22 @@ impl<M: HyperelasticMaterial> FemSimulator<M> {
                 .map(|i| rhs[(i, 0)])
                 .collect::<Vec<_>>(),
         )
+    }
+}
+
+/// The report of a step solved twice: the second solve's outcome, with the work of both.
+fn both(first: &NewtonReport, second: &NewtonReport) -> NewtonReport {
+    NewtonReport {
+        iterations: first.iterations + second.iterations,
+        hessian_assemblies: first.hessian_assemblies + second.hessian_assemblies,
+        line_search_cuts: first.line_search_cuts + second.line_search_cuts,
+        lagged_steps: first.lagged_steps + second.lagged_steps,
+        timings: NewtonTimings {
+            assembly: first.timings.assembly + second.timings.assembly,
+            solve: first.timings.solve + second.timings.solve,
+            line_search: first.timings.line_search + second.timings.line_search,
+        },
+        ..*second
     }
 }
 

@@ -71,7 +71,7 @@ pub fn run_beam(
     steps: usize,
     report_at: &[usize],
     tangent: Tangent,
-    tolerance: f64,
+    newton: NewtonParams,
 ) -> Result<BeamRun, String> {
     let tets = TetMesh::cuboid(
         Vector3::zeros(),
@@ -128,10 +128,7 @@ pub fn run_beam(
     let probe = PointInterpolation::new(model.mesh(), &probe_points).map_err(|e| e.to_string())?;
     let params = FemParams {
         time_step: 0.01,
-        newton: NewtonParams {
-            tolerance,
-            ..Default::default()
-        },
+        newton,
         tangent,
     };
     let mut sim = FemSimulator::new(model, fem_scene, params).map_err(|e| e.to_string())?;
