@@ -27,7 +27,10 @@ pub mod trajectory_cache;
 
 pub use element::{ElementOrder, FemMesh};
 pub use fem_model::{FemModel, FemModelError, MassKind};
-pub use fem_simulator::{FemParams, FemRunError, FemSetupError, FemSimulator};
+pub use fem_simulator::{
+    FEM_FACTOR_MAX_AGE, FemParams, FemRunError, FemSetupError, FemSimulator,
+    reusing_reference_newton,
+};
 pub use lattice_mesher::{
     LatticeMesherError, LatticeMesherParams, LatticeMesherReport, VolumeTarget, tetrahedralize,
     tetrahedralize_to_volume,

@@ -570,7 +570,7 @@ fn run_shape_into(
             material,
             scene: &scene,
             time_step: config.boundary.time_step,
-            newton: NewtonParams::default(),
+            newton: config.fem.newton,
             steps: config.boundary.steps,
         };
         let outcome =
