@@ -9,8 +9,8 @@ use faer::sparse::linalg::solvers::Llt;
 use hyperelastic::{HyperelasticMaterial, Tangent};
 use nalgebra::Vector3;
 use optimize::{
-    HessianReuse, NewtonError, NewtonObjective, NewtonParams, NewtonReport, NewtonTimings,
-    minimize, minimize_reusing,
+    HessianReuse, NewtonError, NewtonObjective, NewtonParams, NewtonReport, minimize,
+    minimize_reusing,
 };
 use rayon::prelude::*;
 use serde::{Deserialize, Serialize};
@@ -416,7 +416,7 @@ impl<M: HyperelasticMaterial> FemSimulator<M> {
                 };
                 let mut factor = None;
                 let second = minimize_reusing(&objective, &mut x, &fresh, &mut factor)?;
-                (both(&first, &second), factor)
+                (first.followed_by(&second), factor)
             }
         };
         self.factor_age = if report.hessian_assemblies > 0 {
@@ -587,22 +587,6 @@ impl<M: HyperelasticMaterial> FemSimulator<M> {
                 .map(|i| rhs[(i, 0)])
                 .collect::<Vec<_>>(),
         )
-    }
-}
-
-/// The report of a step solved twice: the second solve's outcome, with the work of both.
-fn both(first: &NewtonReport, second: &NewtonReport) -> NewtonReport {
-    NewtonReport {
-        iterations: first.iterations + second.iterations,
-        hessian_assemblies: first.hessian_assemblies + second.hessian_assemblies,
-        line_search_cuts: first.line_search_cuts + second.line_search_cuts,
-        lagged_steps: first.lagged_steps + second.lagged_steps,
-        timings: NewtonTimings {
-            assembly: first.timings.assembly + second.timings.assembly,
-            solve: first.timings.solve + second.timings.solve,
-            line_search: first.timings.line_search + second.timings.line_search,
-        },
-        ..*second
     }
 }
 

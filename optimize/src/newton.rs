@@ -181,6 +181,24 @@ impl NewtonReport {
     pub fn converged(&self) -> bool {
         self.stop == NewtonStop::Converged
     }
+
+    /// The report of a problem solved again after this solve (a retry, a re-lagged contact
+    /// set): `second`'s outcome (stop, residual, energy), with the iterations, assemblies,
+    /// cuts, chord steps and time of both.
+    pub fn followed_by(&self, second: &NewtonReport) -> NewtonReport {
+        NewtonReport {
+            iterations: self.iterations + second.iterations,
+            hessian_assemblies: self.hessian_assemblies + second.hessian_assemblies,
+            line_search_cuts: self.line_search_cuts + second.line_search_cuts,
+            lagged_steps: self.lagged_steps + second.lagged_steps,
+            timings: NewtonTimings {
+                assembly: self.timings.assembly + second.timings.assembly,
+                solve: self.timings.solve + second.timings.solve,
+                line_search: self.timings.line_search + second.timings.line_search,
+            },
+            ..*second
+        }
+    }
 }
 
 /// The solve cannot go on; x is left at the last accepted iterate.
@@ -393,5 +411,52 @@ fn line_search<O: NewtonObjective>(
 fn apply(x: &mut [f64], step: &[f64], alpha: f64) {
     for (a, s) in x.iter_mut().zip(step) {
         *a += alpha * s;
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn a_followed_report_keeps_the_second_outcome_and_the_work_of_both() {
+        let report = |iterations, stop, residual, seconds| NewtonReport {
+            iterations,
+            hessian_assemblies: iterations + 1,
+            residual,
+            line_search_cuts: 2 * iterations,
+            lagged_steps: 3,
+            stop,
+            energy: residual * 10.0,
+            timings: NewtonTimings {
+                assembly: seconds,
+                solve: 2.0 * seconds,
+                line_search: 3.0 * seconds,
+            },
+        };
+        let first = report(5, NewtonStop::IterationLimit, 1e-3, 0.5);
+        let second = report(2, NewtonStop::Converged, 1e-9, 0.25);
+        let both = first.followed_by(&second);
+        assert_eq!(
+            (
+                both.iterations,
+                both.hessian_assemblies,
+                both.line_search_cuts
+            ),
+            (7, 9, 14)
+        );
+        assert_eq!(both.lagged_steps, 6);
+        assert_eq!(
+            (both.stop, both.residual, both.energy),
+            (NewtonStop::Converged, 1e-9, 1e-8)
+        );
+        assert_eq!(
+            (
+                both.timings.assembly,
+                both.timings.solve,
+                both.timings.line_search
+            ),
+            (0.75, 1.5, 2.25)
+        );
     }
 }

@@ -40,7 +40,7 @@ use crate::contact_friction::same_lagged_forces;
 use crate::deformation_map::DeformationMap;
 use crate::hessian_tangent::{HessianTangent, StepTangents};
 use crate::incremental_potential::IncrementalPotential;
-use crate::simulator::{ReducedState, Simulator, StateError, StepError, combined, solve_step};
+use crate::simulator::{ReducedState, Simulator, StateError, StepError, solve_step};
 
 /// One object of a [`MultiBodySimulator`]: its simulator and its contact samples.
 pub struct Body<M: HyperelasticMaterial> {
@@ -590,7 +590,7 @@ impl<M: HyperelasticMaterial> MultiBodySimulator<M> {
                 }
                 objective.pairs = pairs;
                 let again = solve_step(&mut objective, &mut z, &newton, &mut factor)?;
-                report = combined(&report, &again);
+                report = report.followed_by(&again);
             }
             // Friction lagging as for one object: contacts, normals and normal forces taken
             // again at the solution while they move.
@@ -601,7 +601,7 @@ impl<M: HyperelasticMaterial> MultiBodySimulator<M> {
                 }
                 objective.friction = friction;
                 let again = solve_step(&mut objective, &mut z, &newton, &mut factor)?;
-                report = combined(&report, &again);
+                report = report.followed_by(&again);
             }
             let positions = objective.positions(&z);
             let overlap = objective

@@ -5,8 +5,8 @@ use faer::linalg::solvers::Llt;
 use hyperelastic::HyperelasticMaterial;
 use nalgebra::Vector3;
 use optimize::{
-    HessianReuse, NewtonError, NewtonObjective, NewtonParams, NewtonReport, NewtonTimings,
-    minimize, minimize_reusing,
+    HessianReuse, NewtonError, NewtonObjective, NewtonParams, NewtonReport, minimize,
+    minimize_reusing,
 };
 use serde::{Deserialize, Serialize};
 use thiserror::Error;
@@ -16,23 +16,6 @@ use crate::incremental_potential::{IncrementalPotential, Inertia};
 use crate::reduced_model::ReducedModel;
 use crate::scene::{PenaltyParams, Scene};
 use crate::scene_terms::{SceneError, SceneTerms};
-
-/// The report of a solve that was retried: the second attempt's outcome, with the iterations,
-/// assemblies, cuts, chord steps and time of both.
-pub(crate) fn combined(first: &NewtonReport, second: &NewtonReport) -> NewtonReport {
-    NewtonReport {
-        iterations: first.iterations + second.iterations,
-        hessian_assemblies: first.hessian_assemblies + second.hessian_assemblies,
-        line_search_cuts: first.line_search_cuts + second.line_search_cuts,
-        lagged_steps: first.lagged_steps + second.lagged_steps,
-        timings: NewtonTimings {
-            assembly: first.timings.assembly + second.timings.assembly,
-            solve: first.timings.solve + second.timings.solve,
-            line_search: first.timings.line_search + second.timings.line_search,
-        },
-        ..*second
-    }
-}
 
 /// Minimizes `objective` from z (updated in place), carrying `factor` across when `newton`
 /// reuses Hessians. A solve that does not converge with the library's shortcuts (Hessian reuse,
@@ -85,7 +68,7 @@ where
     objective.set_tangents(&projected);
     let retried = minimize_reusing(&*objective, z, &paper, factor);
     objective.set_tangents(&tangents);
-    Ok(combined(&first, &retried?))
+    Ok(first.followed_by(&retried?))
 }
 
 /// Options of a simulation.
@@ -399,7 +382,7 @@ impl<M: HyperelasticMaterial> Simulator<M> {
             }
             potential.friction = Some(friction);
             let again = solve_step(&mut potential, &mut z, &self.params.newton, &mut factor)?;
-            report = combined(&report, &again);
+            report = report.followed_by(&again);
         }
         drop(potential);
         self.factor_age = if report.hessian_assemblies > 0 {
