@@ -14,7 +14,9 @@
 //! The FEM runs are cached under `freeform-cache/` (or `$FREEFORM_CACHE`).
 
 use clap::Parser;
-use eval::beam::reduced::{ReducedSettings, build_beam_basis, run_reduced_beam_with};
+use eval::beam::reduced::{
+    ReducedSettings, build_beam_basis_for, exact_pin_hold, run_reduced_beam_with,
+};
 use eval::beam::study::beam_length_scale;
 use eval::beam::{BeamTest, beam_material};
 use eval::fem_reference::{FemResolution, run_fem_beam};
@@ -57,6 +59,10 @@ struct Args {
     /// definite (`HessianTangent::ExactWhenDefinite`).
     #[arg(long)]
     exact_when_definite: bool,
+    /// Hold the clamped (and twisted) ends exactly, on each end shrunk by this many median
+    /// kernel radii (a basis built for them), instead of the pin penalty.
+    #[arg(long)]
+    exact_pins: Option<f64>,
 }
 
 fn main() -> anyhow::Result<()> {
@@ -115,11 +121,14 @@ fn main() -> anyhow::Result<()> {
         fem.check_converged(NewtonParams::default().max_iterations)?;
         let reference = fem.vertex_frames();
         for &m in &args.modes {
-            let base = ReducedSettings {
+            let mut base = ReducedSettings {
                 modes: m,
                 ..ReducedSettings::default()
             };
-            let basis = build_beam_basis(&base)?;
+            if let Some(radii) = args.exact_pins {
+                base.pins = exact_pin_hold(&base, radii)?;
+            }
+            let basis = build_beam_basis_for(test, &base)?;
             let mut full_run: Option<(f64, Vec<Vec<nalgebra::Vector3<f64>>>)> = None;
             for &quadrature in &rules {
                 for (&hessian_reuse, &tangent) in reuses
