@@ -67,20 +67,53 @@ pub struct Mlp {
     parameters: Vec<f64>,
 }
 
-/// What the forward pass keeps for the backward pass: each layer's input.
+/// What the forward pass keeps for the backward pass (each layer's input, the output), and the
+/// backward pass's scratch. Reused from one batch to the next ([`Mlp::forward_into`],
+/// [`Mlp::backward_into`]), it allocates nothing once its matrices have their sizes: a training
+/// step then touches no fresh pages (fresh multi-megabyte buffers every step cost a quarter of
+/// Simplicits' training time in page faults).
+#[derive(Clone, Debug)]
 pub struct Tape {
     inputs: Vec<Mat<f64>>,
+    output: Mat<f64>,
+    d_y: Mat<f64>,
+    d_x: Mat<f64>,
 }
 
-/// `X Wᵀ + 1 bᵀ`: one linear layer on a batch (`B × in` → `B × out`).
-fn affine(x: MatRef<'_, f64>, w: MatRef<'_, f64>, b: &[f64]) -> Mat<f64> {
-    let mut y = x * w.transpose();
-    for (j, bias) in b.iter().enumerate() {
-        for i in 0..y.nrows() {
-            y[(i, j)] += bias;
+impl Default for Tape {
+    fn default() -> Self {
+        Tape {
+            inputs: Vec::new(),
+            output: Mat::new(),
+            d_y: Mat::new(),
+            d_x: Mat::new(),
         }
     }
-    y
+}
+
+impl Tape {
+    /// The outputs of the last forward pass (`B × outputs`).
+    pub fn output(&self) -> MatRef<'_, f64> {
+        self.output.as_ref()
+    }
+}
+
+/// `y = X Wᵀ + 1 bᵀ`: one linear layer on a batch (`B × in` → `B × out`), into `y` (resized).
+fn affine_into(x: MatRef<'_, f64>, w: MatRef<'_, f64>, b: &[f64], y: &mut Mat<f64>) {
+    y.resize_with(x.nrows(), w.nrows(), |_, _| 0.0);
+    faer::linalg::matmul::matmul(
+        y.as_mut(),
+        faer::Accum::Replace,
+        x,
+        w.transpose(),
+        1.0,
+        faer::get_global_parallelism(),
+    );
+    for (j, bias) in b.iter().enumerate() {
+        for v in y.col_as_slice_mut(j) {
+            *v += bias;
+        }
+    }
 }
 
 /// `ELU(x) = x` for `x > 0`, `eˣ − 1` otherwise.
@@ -147,27 +180,41 @@ impl Mlp {
     /// # Panics
     /// If `x` does not have `inputs` columns.
     pub fn forward_with_tape(&self, x: MatRef<'_, f64>) -> (Mat<f64>, Tape) {
+        let mut tape = Tape::default();
+        self.forward_into(x, &mut tape);
+        (std::mem::replace(&mut tape.output, Mat::new()), tape)
+    }
+
+    /// [`Mlp::forward_with_tape`] into `tape`, reusing its matrices: the outputs are then
+    /// [`Tape::output`]. The same values as a fresh tape.
+    ///
+    /// # Panics
+    /// If `x` does not have `inputs` columns.
+    pub fn forward_into(&self, x: MatRef<'_, f64>, tape: &mut Tape) {
         assert_eq!(x.ncols(), self.shape.inputs, "input width");
         let layers = self.layers();
         let last = layers.len() - 1;
-        let mut inputs = Vec::with_capacity(layers.len());
-        let mut current = x.to_owned();
+        tape.inputs.resize_with(layers.len(), Mat::new);
+        tape.inputs[0].resize_with(x.nrows(), x.ncols(), |_, _| 0.0);
+        tape.inputs[0].copy_from(x);
         for (l, (w, b)) in layers.iter().enumerate() {
-            let y = affine(current.as_ref(), *w, b);
-            inputs.push(current);
-            current = y;
+            let (before, after) = tape.inputs.split_at_mut(l + 1);
+            let y = if l < last {
+                &mut after[0]
+            } else {
+                &mut tape.output
+            };
+            affine_into(before[l].as_ref(), *w, b, y);
             if l < last {
                 // The tape keeps only activated values: ELU's derivative is 1 where the output
                 // is positive and output + 1 (= eˣ) elsewhere.
-                current =
-                    Mat::from_fn(
-                        current.nrows(),
-                        current.ncols(),
-                        |i, j| elu(current[(i, j)]),
-                    );
+                for j in 0..y.ncols() {
+                    for v in y.col_as_slice_mut(j) {
+                        *v = elu(*v);
+                    }
+                }
             }
         }
-        (current, Tape { inputs })
     }
 
     /// Outputs and their derivatives with respect to each input coordinate (forward mode): the
@@ -184,7 +231,8 @@ impl Mlp {
             .map(|d| Mat::from_fn(x.nrows(), x.ncols(), |_, j| if j == d { 1.0 } else { 0.0 }))
             .collect();
         for (l, (w, b)) in layers.iter().enumerate() {
-            let y = affine(current.as_ref(), *w, b);
+            let mut y = Mat::new();
+            affine_into(current.as_ref(), *w, b, &mut y);
             for t in &mut tangents {
                 *t = &*t * w.transpose();
             }
@@ -214,20 +262,37 @@ impl Mlp {
     /// # Panics
     /// If `d_output`'s shape does not match the tape's batch and the output width.
     pub fn backward(&self, tape: &Tape, d_output: MatRef<'_, f64>) -> Vec<f64> {
+        let mut scratch = tape.clone();
+        let mut gradient = vec![0.0; self.parameters.len()];
+        self.backward_into(&mut scratch, d_output, &mut gradient);
+        gradient
+    }
+
+    /// [`Mlp::backward`] into `gradient` (length [`Mlp::parameters`]), with the tape of the
+    /// forward pass ([`Mlp::forward_into`]) also holding the backward pass's scratch.
+    ///
+    /// # Panics
+    /// If `d_output`'s shape does not match the tape's batch and the output width, or
+    /// `gradient` has the wrong length.
+    pub fn backward_into(&self, tape: &mut Tape, d_output: MatRef<'_, f64>, gradient: &mut [f64]) {
+        assert_eq!(gradient.len(), self.parameters.len(), "gradient length");
         let layers = self.layers();
         let sizes = self.shape.layer_sizes();
-        let mut gradient = vec![0.0; self.parameters.len()];
         let mut offsets = Vec::with_capacity(sizes.len());
         let mut offset = 0;
         for (fan_in, fan_out) in &sizes {
             offsets.push(offset);
             offset += fan_out * fan_in + fan_out;
         }
-        let mut d_y = d_output.to_owned();
-        assert_eq!(d_y.ncols(), self.shape.outputs, "output width");
+        assert_eq!(d_output.ncols(), self.shape.outputs, "output width");
+        let Tape {
+            inputs, d_y, d_x, ..
+        } = tape;
+        d_y.resize_with(d_output.nrows(), d_output.ncols(), |_, _| 0.0);
+        d_y.copy_from(d_output);
         for l in (0..layers.len()).rev() {
             let (w, _) = layers[l];
-            let x = &tape.inputs[l];
+            let x = &inputs[l];
             assert_eq!(d_y.nrows(), x.nrows(), "batch size");
             let (fan_in, fan_out) = sizes[l];
             // dW = dYᵀ X (out × in), db = Σ_rows dY.
@@ -241,19 +306,26 @@ impl Mlp {
             }
             if l > 0 {
                 // dX = dY W, then through the previous layer's ELU, whose output is x.
-                let d_x = &d_y * w;
-                d_y = Mat::from_fn(d_x.nrows(), d_x.ncols(), |i, j| {
-                    let activated = x[(i, j)];
-                    let slope = if activated > 0.0 {
-                        1.0
-                    } else {
-                        activated + 1.0
-                    };
-                    d_x[(i, j)] * slope
-                });
+                d_x.resize_with(d_y.nrows(), w.ncols(), |_, _| 0.0);
+                faer::linalg::matmul::matmul(
+                    d_x.as_mut(),
+                    faer::Accum::Replace,
+                    d_y.as_ref(),
+                    w,
+                    1.0,
+                    faer::get_global_parallelism(),
+                );
+                for j in 0..d_x.ncols() {
+                    for (d, &activated) in d_x.col_as_slice_mut(j).iter_mut().zip(x.col_as_slice(j))
+                    {
+                        if activated <= 0.0 {
+                            *d *= activated + 1.0;
+                        }
+                    }
+                }
+                std::mem::swap(d_y, d_x);
             }
         }
-        gradient
     }
 
     /// Saves the network (magic, format version, bincode), atomically.

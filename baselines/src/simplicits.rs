@@ -30,7 +30,7 @@ use skin_eigen::SkinningWeights;
 use thiserror::Error;
 
 use crate::adam::{Adam, AdamParams};
-use crate::mlp::{Mlp, MlpShape};
+use crate::mlp::{Mlp, MlpShape, Tape};
 use crate::model_file::{self, ModelFileError};
 
 /// Training options; defaults are DESIGN 3.9's.
@@ -293,6 +293,7 @@ pub struct Problem<'a> {
 }
 
 /// One step's random draws.
+#[derive(Clone, Debug)]
 pub struct Batch {
     /// Indices of the sampled points (with repetition).
     pub sample: Vec<usize>,
@@ -302,14 +303,47 @@ pub struct Batch {
     pub ratio: f64,
 }
 
+/// The network's buffers of one training step, kept from step to step so a step allocates no
+/// large matrix ([`Problem::loss_and_gradient_with`]).
+#[derive(Clone, Debug)]
+pub struct StepBuffers {
+    tape: Tape,
+    d_y: Mat<f64>,
+    /// ∂loss/∂parameters of the last step (length [`Mlp::parameters`]).
+    pub gradient: Vec<f64>,
+}
+
+impl Default for StepBuffers {
+    fn default() -> Self {
+        StepBuffers {
+            tape: Tape::default(),
+            d_y: Mat::new(),
+            gradient: Vec::new(),
+        }
+    }
+}
+
 impl Problem<'_> {
     /// The step's losses and their gradient with respect to the network parameters.
-    #[allow(non_snake_case)]
     pub fn loss_and_gradient(
         &self,
         field: &SimplicitsField,
         batch: &Batch,
     ) -> (StepLosses, Vec<f64>) {
+        let mut buffers = StepBuffers::default();
+        let losses = self.loss_and_gradient_with(field, batch, &mut buffers);
+        (losses, buffers.gradient)
+    }
+
+    /// [`Problem::loss_and_gradient`] with the gradient left in `buffers.gradient`, reusing
+    /// `buffers`' matrices (the same values).
+    #[allow(non_snake_case)]
+    pub fn loss_and_gradient_with(
+        &self,
+        field: &SimplicitsField,
+        batch: &Batch,
+        buffers: &mut StepBuffers,
+    ) -> StepLosses {
         let Batch {
             sample,
             transforms,
@@ -330,7 +364,8 @@ impl Problem<'_> {
             x
         };
         let inputs = Mat::from_fn(7 * b, 3, |row, d| (stencil(row)[d] - min[d]) / extent[d]);
-        let (y, tape) = field.mlp.forward_with_tape(inputs.as_ref());
+        field.mlp.forward_into(inputs.as_ref(), &mut buffers.tape);
+        let y = buffers.tape.output();
 
         let w = Mat::from_fn(b, m, |i, j| y[(i, j)]);
         let (ortho, d_ortho) = ortho_loss(&w);
@@ -344,20 +379,31 @@ impl Problem<'_> {
                 let xs: [Vector3<f64>; 6] = std::array::from_fn(|s| stencil((s + 1) * b + i));
                 let bars: [Vector4<f64>; 6] = xs.map(|x| Vector4::new(x.x, x.y, x.z, 1.0));
                 let mut energy = 0.0;
+                // The point's weights at its six shifted copies, gathered once (the network's
+                // output rows of one point lie 7b apart): weights[j][s].
+                let weights: Vec<[f64; 6]> = (0..m)
+                    .map(|j| std::array::from_fn(|s| y[((s + 1) * b + i, j)]))
+                    .collect();
+                // images[j][s] = Z_j X̄_s, the handle's affine image of shifted point s: shared by
+                // the displacement u_s = Σ_j W_j Z_j X̄_s and its derivative in W_j.
+                let mut images = vec![[Vector3::<f64>::zeros(); 6]; m];
                 // d_w[j][s]: ∂(elastic sum)/∂W_j at shifted point s.
                 let mut d_w = vec![[0.0; 6]; m];
                 for z in transforms {
+                    for (image, zj) in images.iter_mut().zip(z) {
+                        for (s, bar) in bars.iter().enumerate() {
+                            image[s] = Vector3::from_fn(|r, _| {
+                                zj[4 * r] * bar[0]
+                                    + zj[4 * r + 1] * bar[1]
+                                    + zj[4 * r + 2] * bar[2]
+                                    + zj[4 * r + 3]
+                            });
+                        }
+                    }
                     let u: [Vector3<f64>; 6] = std::array::from_fn(|s| {
                         let mut u = Vector3::zeros();
-                        for (j, zj) in z.iter().enumerate() {
-                            let weight = y[((s + 1) * b + i, j)];
-                            for r in 0..3 {
-                                u[r] += weight
-                                    * (zj[4 * r] * bars[s][0]
-                                        + zj[4 * r + 1] * bars[s][1]
-                                        + zj[4 * r + 2] * bars[s][2]
-                                        + zj[4 * r + 3]);
-                            }
+                        for (w, image) in weights.iter().zip(&images) {
+                            u += image[s] * w[s];
                         }
                         u
                     });
@@ -375,16 +421,8 @@ impl Problem<'_> {
                         let sign = if s % 2 == 0 { 1.0 } else { -1.0 };
                         // ∂Ψ/∂u_s = ± P[:, k] / (2 h_k); u_s = Σ_j W_j Z_j X̄_s.
                         let d_u = P.column(k) * (sign / (2.0 * h[k]));
-                        for (j, zj) in z.iter().enumerate() {
-                            let mut zx = 0.0;
-                            for r in 0..3 {
-                                zx += d_u[r]
-                                    * (zj[4 * r] * bars[s][0]
-                                        + zj[4 * r + 1] * bars[s][1]
-                                        + zj[4 * r + 2] * bars[s][2]
-                                        + zj[4 * r + 3]);
-                            }
-                            d_w[j][s] += zx;
+                        for (d, image) in d_w.iter_mut().zip(&images) {
+                            d[s] += d_u.dot(&image[s]);
                         }
                     }
                 }
@@ -394,23 +432,29 @@ impl Problem<'_> {
         let scale = self.volume / b as f64;
         let elastic = scale * per_point.iter().map(|(e, _)| e).sum::<f64>();
         let total = params.elastic_weight * elastic + params.ortho_weight * ortho;
-        let d_y = Mat::from_fn(7 * b, m, |row, j| {
-            let (block, i) = (row / b, row % b);
-            if block == 0 {
-                params.ortho_weight * d_ortho[(i, j)]
-            } else {
-                params.elastic_weight * scale * per_point[i].1[j][block - 1]
+        let d_y = &mut buffers.d_y;
+        d_y.resize_with(7 * b, m, |_, _| 0.0);
+        for j in 0..m {
+            for (row, v) in d_y.col_as_slice_mut(j).iter_mut().enumerate() {
+                let (block, i) = (row / b, row % b);
+                *v = if block == 0 {
+                    params.ortho_weight * d_ortho[(i, j)]
+                } else {
+                    params.elastic_weight * scale * per_point[i].1[j][block - 1]
+                };
             }
-        });
-        let gradient = field.mlp.backward(&tape, d_y.as_ref());
-        (
-            StepLosses {
-                elastic,
-                ortho,
-                total,
-            },
-            gradient,
-        )
+        }
+        buffers.gradient.resize(field.mlp.parameters().len(), 0.0);
+        field.mlp.backward_into(
+            &mut buffers.tape,
+            buffers.d_y.as_ref(),
+            &mut buffers.gradient,
+        );
+        StepLosses {
+            elastic,
+            ortho,
+            total,
+        }
     }
 }
 
@@ -478,6 +522,7 @@ pub fn train_simplicits(
     };
     let mut first = None;
     let mut last = None;
+    let mut buffers = StepBuffers::default();
     for step in 0..params.steps {
         let ratio = step as f64 / params.steps as f64;
         let sample: Vec<usize> = (0..b)
@@ -489,14 +534,14 @@ pub fn train_simplicits(
             transforms,
             ratio,
         };
-        let (losses, gradient) = problem.loss_and_gradient(&field, &batch);
+        let losses = problem.loss_and_gradient_with(&field, &batch, &mut buffers);
         if !losses.total.is_finite() {
             return Err(SimplicitsError::Diverged {
                 step,
                 loss: losses.total,
             });
         }
-        adam.step(field.mlp.parameters_mut(), &gradient);
+        adam.step(field.mlp.parameters_mut(), &buffers.gradient);
         first.get_or_insert(losses);
         last = Some(losses);
         progress(step, &losses);

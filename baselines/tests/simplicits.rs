@@ -1,7 +1,7 @@
 //! The Simplicits baseline: its derivative pieces against exact answers and finite differences,
 //! a short deterministic training run, and the trained field inside the reduced simulator.
 
-use baselines::simplicits::{Batch, Problem, central_difference_deformation_gradient};
+use baselines::simplicits::{Batch, Problem, StepBuffers, central_difference_deformation_gradient};
 use baselines::{
     Mlp, MlpShape, SimplicitsField, SimplicitsParams, StepLosses, TrainedSimplicits,
     TrainingReport, ortho_loss, train_simplicits,
@@ -133,6 +133,18 @@ fn training_loss_gradient_matches_central_differences() {
         worst < 1e-5,
         "worst gradient error {worst:e} of the largest entry"
     );
+    // Buffers kept from a step on another field and batch give the fresh buffers' result.
+    let mut buffers = StepBuffers::default();
+    let other = with_parameter(&field, 0, 0.3);
+    let other_batch = Batch {
+        sample: vec![1, 2, 3, 7, 9, 9],
+        ..batch.clone()
+    };
+    problem.loss_and_gradient_with(&other, &other_batch, &mut buffers);
+    let losses = problem.loss_and_gradient_with(&field, &batch, &mut buffers);
+    let (fresh_losses, fresh) = problem.loss_and_gradient(&field, &batch);
+    assert_eq!(buffers.gradient, fresh);
+    assert_eq!(losses.total, fresh_losses.total);
 }
 
 fn short_training() -> (SimplicitsField, Vec<f64>) {
