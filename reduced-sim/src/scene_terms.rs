@@ -478,8 +478,10 @@ impl SceneTerms {
 
     /// The friction of the floor and the colliders over the step from `time` to `time +
     /// time_step` (s) that starts at z = `start` (slips are measured from there, moved with
-    /// the surface touched), with contacts, normals and normal forces lagged at z = `contact`
-    /// and the colliders' poses at the step's end; `None` without friction or contact.
+    /// the surface touched), with contacts, normals and normal forces lagged at z = `contact`:
+    /// the start itself (`contact == start`, the colliders then where they are at `time`, their
+    /// normals turned with them to the step's end) or a solution of the step (the colliders at
+    /// `time + time_step`); `None` without friction or contact.
     pub(crate) fn contact_friction<M: HyperelasticMaterial>(
         &self,
         model: &ReducedModel<M>,
@@ -494,7 +496,7 @@ impl SceneTerms {
             return None;
         }
         let map = model.deformation_map();
-        let contact_z = contact;
+        let (start_z, contact_z) = (start, contact);
         let (start, contact) = (map.positions(start), map.positions(contact));
         let volumes = model.volumes();
         let reach = self.floor_contact.reach();
@@ -518,8 +520,12 @@ impl SceneTerms {
         }
         let poses = self.collider_poses(time + time_step);
         let before = self.collider_poses(time);
+        // Lagged at the start of the step: the colliders where they were then.
+        let at_start = contact_z == start_z;
         let distances = if !rubbing {
             Arc::default()
+        } else if at_start {
+            self.collider_distances(contact_z, &before, &contact)
         } else {
             self.collider_distances(contact_z, &poses, &contact)
         };
@@ -540,7 +546,11 @@ impl SceneTerms {
                         point: i,
                         previous: carry.transform_point(&start[i].into()).coords,
                         limit: collider.friction * normal_force(d.distance, i),
-                        normal: d.gradient,
+                        normal: if at_start {
+                            carry.rotation * d.gradient
+                        } else {
+                            d.gradient
+                        },
                     });
                 }
             }
@@ -892,5 +902,47 @@ mod tests {
         assert!(energies[0] > 0.0 && energies[2] > 0.0);
         assert_ne!(energies[0], energies[2]);
         assert_ne!(energies[2], energies[3]);
+    }
+
+    /// Friction lagged at the start of a step takes its contacts with the colliders where they
+    /// were then: a collider moving 0.2 m into the block over the step does not make the points
+    /// it reaches only at the end rub (nor press with the depth it will have then).
+    #[test]
+    fn friction_lagged_at_the_start_of_a_step_sees_the_colliders_where_they_were() {
+        let (model, _) = analytic_model();
+        let key = |time: f64, x: f64| Keyframe {
+            time,
+            rotation: UnitQuaternion::identity(),
+            translation: Vector3::new(x, 0.5, 0.5),
+        };
+        let scene = Scene {
+            colliders: vec![Collider {
+                path: vec![key(0.0, -0.35), key(1.0, 1.65)],
+                friction: 0.5,
+                ..Collider::fixed(
+                    ColliderShape::Box {
+                        half_extents: Vector3::new(0.5, 0.7, 0.7),
+                    },
+                    UnitQuaternion::identity(),
+                    Vector3::zeros(),
+                )
+            }],
+            ..Scene::default()
+        };
+        let terms = SceneTerms::new(&model, &scene, &PenaltyParams::default()).unwrap();
+        let z = vec![0.0; model.deformation_map().layout().len()];
+        let n = model.volumes().len();
+        let inside = |time: f64| {
+            terms
+                .contacts(&model, &z, time)
+                .into_iter()
+                .filter(|&c| c >= n)
+                .map(|c| c - n)
+                .collect::<Vec<usize>>()
+        };
+        let (at_start, at_end) = (inside(0.0), inside(0.1));
+        assert!(!at_start.is_empty() && at_end.len() > at_start.len());
+        let friction = terms.contact_friction(&model, &z, &z, 0.0, 0.1).unwrap();
+        assert_eq!(friction.points(), &at_start[..]);
     }
 }
