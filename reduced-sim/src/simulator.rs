@@ -11,6 +11,7 @@ use optimize::{
 use serde::{Deserialize, Serialize};
 use thiserror::Error;
 
+use crate::contact_friction::ContactFriction;
 use crate::hessian_tangent::{HessianTangent, StepTangents};
 use crate::incremental_potential::{IncrementalPotential, Inertia};
 use crate::reduced_model::ReducedModel;
@@ -392,6 +393,18 @@ impl<M: HyperelasticMaterial> Simulator<M> {
         };
         self.finish_step(z, factor);
         Ok(report)
+    }
+
+    /// The floor's and colliders' friction over the next step lagged at its solution `z`
+    /// (what [`Simulator::step`] re-lags with; `None` without friction or contact there).
+    pub(crate) fn friction_lagged_at(&self, z: &[f64]) -> Option<ContactFriction> {
+        self.terms.contact_friction(
+            &self.model,
+            &self.state.z,
+            z,
+            self.state.time,
+            self.params.time_step,
+        )
     }
 
     /// With the floor's barrier: an error when a point of the current state is on or past the
