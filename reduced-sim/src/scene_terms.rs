@@ -865,25 +865,33 @@ mod tests {
     use crate::analytic_field::analytic_model;
     use crate::collider::{ColliderShape, Keyframe};
 
-    /// The reused collider query answers only for the same z and the same collider poses: a
-    /// moved collider or another z gives what a fresh evaluation gives.
-    #[test]
-    fn the_collider_query_is_reused_only_at_the_same_z_and_poses() {
-        let (model, _) = analytic_model();
+    /// `shape` sliding along x through the block's middle (y = z = 0.5 m), from `from` at t = 0
+    /// to `to` at t = 1 s (m), rubbing with `friction`.
+    fn sliding(shape: ColliderShape, from: f64, to: f64, friction: f64) -> Collider {
         let key = |time: f64, x: f64| Keyframe {
             time,
             rotation: UnitQuaternion::identity(),
             translation: Vector3::new(x, 0.5, 0.5),
         };
+        Collider {
+            path: vec![key(0.0, from), key(1.0, to)],
+            friction,
+            ..Collider::fixed(shape, UnitQuaternion::identity(), Vector3::zeros())
+        }
+    }
+
+    /// The reused collider query answers only for the same z and the same collider poses: a
+    /// moved collider or another z gives what a fresh evaluation gives.
+    #[test]
+    fn the_collider_query_is_reused_only_at_the_same_z_and_poses() {
+        let (model, _) = analytic_model();
         let scene = Scene {
-            colliders: vec![Collider {
-                path: vec![key(0.0, 0.0), key(1.0, 2.0)],
-                ..Collider::fixed(
-                    ColliderShape::Sphere { radius: 0.4 },
-                    UnitQuaternion::identity(),
-                    Vector3::zeros(),
-                )
-            }],
+            colliders: vec![sliding(
+                ColliderShape::Sphere { radius: 0.4 },
+                0.0,
+                2.0,
+                0.0,
+            )],
             ..Scene::default()
         };
         let penalty = PenaltyParams::default();
@@ -910,23 +918,11 @@ mod tests {
     #[test]
     fn friction_lagged_at_the_start_of_a_step_sees_the_colliders_where_they_were() {
         let (model, _) = analytic_model();
-        let key = |time: f64, x: f64| Keyframe {
-            time,
-            rotation: UnitQuaternion::identity(),
-            translation: Vector3::new(x, 0.5, 0.5),
+        let block = ColliderShape::Box {
+            half_extents: Vector3::new(0.5, 0.7, 0.7),
         };
         let scene = Scene {
-            colliders: vec![Collider {
-                path: vec![key(0.0, -0.35), key(1.0, 1.65)],
-                friction: 0.5,
-                ..Collider::fixed(
-                    ColliderShape::Box {
-                        half_extents: Vector3::new(0.5, 0.7, 0.7),
-                    },
-                    UnitQuaternion::identity(),
-                    Vector3::zeros(),
-                )
-            }],
+            colliders: vec![sliding(block, -0.35, 1.65, 0.5)],
             ..Scene::default()
         };
         let terms = SceneTerms::new(&model, &scene, &PenaltyParams::default()).unwrap();
