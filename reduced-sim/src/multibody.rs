@@ -19,7 +19,7 @@
 //! never across steps). After the solve, any
 //! pair closer than d̂ that was not a candidate makes the step solved again with it.
 
-use std::collections::HashSet;
+use std::collections::{HashMap, HashSet};
 use std::ops::Range;
 use std::time::Instant;
 
@@ -183,6 +183,11 @@ pub struct MultiBodySimulator<M: HyperelasticMaterial> {
     /// distance (m): found once per step (and after [`MultiBodySimulator::set_state`]) for the
     /// step's check, [`MultiBodySimulator::contact_gap`] and the contact energy.
     touching: Vec<(SamplePair, f64)>,
+    /// With Hessian reuse: each contact group's last factorization (keyed by its objects) and
+    /// the steps since it was assembled, carried into the group's next step as an object alone
+    /// carries its own (chord steps while they contract; a solve that does not converge that
+    /// way is solved again fresh). Dropped for groups not solved in a step and on a restore.
+    group_factors: HashMap<Vec<usize>, (Llt<f64>, usize)>,
 }
 
 impl<M: HyperelasticMaterial> MultiBodySimulator<M> {
@@ -215,6 +220,7 @@ impl<M: HyperelasticMaterial> MultiBodySimulator<M> {
             contact,
             overlap: 0.0,
             touching: Vec::new(),
+            group_factors: HashMap::new(),
         };
         simulator.touching = simulator.touching_pairs(&simulator.sample_positions());
         Ok(simulator)
@@ -509,6 +515,9 @@ impl<M: HyperelasticMaterial> MultiBodySimulator<M> {
                 .collect();
             search_seconds += check.elapsed().as_secs_f64();
             if missing.is_empty() || resolves >= 3 {
+                // Factorizations only for groups that were solved this step.
+                self.group_factors
+                    .retain(|objects, _| groups.contains(objects));
                 let active_pairs = touching.len();
                 self.touching = touching;
                 return Ok(MultiBodyReport {
@@ -533,6 +542,7 @@ impl<M: HyperelasticMaterial> MultiBodySimulator<M> {
 
     /// Puts every object back to `saved` (their carried Hessians are dropped).
     fn restore(&mut self, saved: &[ReducedState]) {
+        self.group_factors.clear();
         for (b, state) in self.bodies.iter_mut().zip(saved) {
             b.simulator
                 .set_state(state.clone())
@@ -557,7 +567,8 @@ impl<M: HyperelasticMaterial> MultiBodySimulator<M> {
             .iter()
             .map(|&b| self.bodies[b].simulator.predicted_coordinates())
             .collect();
-        let (z, report, offsets, overlap) = {
+        let carried = self.group_factors.remove(group);
+        let (z, report, offsets, overlap, factor, carried_age) = {
             let mut objective = self.group_potential(group, pairs, start, &predicted);
             let start_z: Vec<f64> = group
                 .iter()
@@ -570,8 +581,13 @@ impl<M: HyperelasticMaterial> MultiBodySimulator<M> {
             // back (IPC starts there too).
             let mut z = start_z;
             // One factorization carried through the step's solves (the lagged re-solves
-            // change the objective little), never into the next step.
-            let mut factor = None;
+            // change the objective little) and, while the group stays together, into its next
+            // step.
+            let reuse = newton.hessian_reuse != optimize::HessianReuse::Never;
+            let (mut factor, carried_age) = match carried {
+                Some((factor, age)) if reuse && age < params.hessian_max_age => (Some(factor), age),
+                _ => (None, 0),
+            };
             let mut report = solve_step(&mut objective, &mut z, &newton, &mut factor)?;
             // The normals lagged again at the solution while those of touching pairs turn.
             for _ in 0..MAX_CONTACT_LAGS {
@@ -639,12 +655,32 @@ impl<M: HyperelasticMaterial> MultiBodySimulator<M> {
                             .dot(&GroupPotential::<M>::relative(&positions, &l.pair))
                 })
                 .fold(0.0, f64::max);
-            (z, report, objective.offsets, overlap)
+            (
+                z,
+                report,
+                objective.offsets,
+                overlap,
+                factor.filter(|_| reuse),
+                carried_age,
+            )
         };
         self.overlap = self.overlap.max(overlap);
         for (slot, &b) in group.iter().enumerate() {
             let range = offsets[slot]..offsets[slot + 1];
             self.bodies[b].simulator.commit_step(z[range].to_vec());
+        }
+        // Carried into the group's next step while no object's floor or collider contacts
+        // changed, as an object alone carries its own.
+        let unchanged = group
+            .iter()
+            .all(|&b| !self.bodies[b].simulator.contacts_changed());
+        if let (Some(factor), true) = (factor, unchanged) {
+            let age = if report.hessian_assemblies > 0 {
+                1
+            } else {
+                carried_age + 1
+            };
+            self.group_factors.insert(group.to_vec(), (factor, age));
         }
         Ok(report)
     }
@@ -1304,6 +1340,73 @@ mod tests {
                 "grouped {x_group} m, alone {x_alone} m"
             );
         }
+    }
+
+    /// Two blocks stacked on a floor, solved as one group every step: carrying the group's
+    /// factorization from step to step reaches the states fresh Hessians reach (to 1e-5 m over
+    /// 60 steps, Newton tolerance 1e-8) with fewer Hessians.
+    #[test]
+    fn a_group_carrying_its_factorization_across_steps_reaches_the_fresh_states() {
+        let scene = Scene {
+            gravity: Some(Vector3::new(0.0, -9.8, 0.0)),
+            floor: Some(Floor {
+                normal: Vector3::y(),
+                offset: 0.0,
+                friction: 0.0,
+            }),
+            ..Scene::default()
+        };
+        let run = |reuse: optimize::HessianReuse| {
+            let params = SimulationParams {
+                newton: optimize::NewtonParams {
+                    hessian_reuse: reuse,
+                    tolerance: 1e-8,
+                    ..SimulationParams::default().newton
+                },
+                ..SimulationParams::default()
+            };
+            let bodies = (0..2)
+                .map(|k| {
+                    let shift = Vector3::new(0.0, 1.12 * k as f64 + 0.01, 0.0);
+                    coarse_block(&scene, params, shift, Vector3::zeros(), 1.0 / 3.0)
+                })
+                .collect();
+            let mut sim =
+                MultiBodySimulator::new(bodies, BodyContactParams::with_radius(0.1)).unwrap();
+            let (mut hessians, mut joint) = (0, 0);
+            for _ in 0..60 {
+                let report = sim.step().unwrap();
+                assert!(report.converged());
+                hessians += report
+                    .solves
+                    .iter()
+                    .map(|s| s.hessian_assemblies)
+                    .sum::<usize>();
+                joint += report.joint_groups;
+            }
+            let x: Vec<Vector3<f64>> = sim
+                .bodies()
+                .iter()
+                .flat_map(|b| b.sample_positions())
+                .collect();
+            (x, hessians, joint)
+        };
+        let (fresh, fresh_hessians, _) = run(optimize::HessianReuse::Never);
+        let (carried, carried_hessians, joint) = run(SimulationParams::HESSIAN_REUSE);
+        assert!(joint >= 50, "{joint} joint solves");
+        let deviation = fresh
+            .iter()
+            .zip(&carried)
+            .map(|(a, b)| (a - b).norm())
+            .fold(0.0, f64::max);
+        assert!(deviation < 1e-5, "samples {deviation} m apart");
+        // Measured: 178 Hessians carried, 242 fresh, 198 with the factorization kept within
+        // each step only (the lower block's floor contacts change while it settles, and each
+        // change drops the carried one).
+        assert!(
+            4 * carried_hessians < 3 * fresh_hessians,
+            "{carried_hessians} Hessians carried, {fresh_hessians} fresh"
+        );
     }
 
     /// Two blocks 0.3 m apart closing at 2 m/s without gravity; returns the simulator after

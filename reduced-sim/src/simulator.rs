@@ -203,6 +203,8 @@ pub struct Simulator<M: HyperelasticMaterial> {
     factor_age: usize,
     /// The points in contact with the floor at the current state.
     contacts: Vec<usize>,
+    /// Whether the last step changed `contacts` (a carried Hessian is then dropped).
+    contacts_changed: bool,
 }
 
 impl<M: HyperelasticMaterial> Simulator<M> {
@@ -230,6 +232,7 @@ impl<M: HyperelasticMaterial> Simulator<M> {
             factor: None,
             factor_age: 0,
             contacts: Vec::new(),
+            contacts_changed: false,
         })
     }
 
@@ -426,6 +429,12 @@ impl<M: HyperelasticMaterial> Simulator<M> {
         }
     }
 
+    /// Whether the last step changed the points in contact with the floor and the colliders
+    /// (their Hessian terms changed there, so a carried Hessian is dropped).
+    pub(crate) fn contacts_changed(&self) -> bool {
+        self.contacts_changed
+    }
+
     /// Ends a step whose z was solved elsewhere (objects in contact are solved together by
     /// [`crate::MultiBodySimulator`]): z becomes the state at t + h with `ż = (z − z_t)/h`; the
     /// carried Hessian factorization is dropped.
@@ -439,11 +448,8 @@ impl<M: HyperelasticMaterial> Simulator<M> {
         let h = self.params.time_step;
         let time = self.state.time + h;
         let contacts = self.terms.contacts(&self.model, &z, time);
-        self.factor = if contacts == self.contacts {
-            factor
-        } else {
-            None
-        };
+        self.contacts_changed = contacts != self.contacts;
+        self.factor = if self.contacts_changed { None } else { factor };
         self.contacts = contacts;
         let velocity = z
             .iter()
