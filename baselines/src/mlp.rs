@@ -262,9 +262,9 @@ impl Mlp {
     /// # Panics
     /// If `d_output`'s shape does not match the tape's batch and the output width.
     pub fn backward(&self, tape: &Tape, d_output: MatRef<'_, f64>) -> Vec<f64> {
-        let mut scratch = tape.clone();
         let mut gradient = vec![0.0; self.parameters.len()];
-        self.backward_into(&mut scratch, d_output, &mut gradient);
+        let (mut d_y, mut d_x) = (Mat::new(), Mat::new());
+        self.backward_with(&tape.inputs, d_output, &mut gradient, &mut d_y, &mut d_x);
         gradient
     }
 
@@ -275,6 +275,22 @@ impl Mlp {
     /// If `d_output`'s shape does not match the tape's batch and the output width, or
     /// `gradient` has the wrong length.
     pub fn backward_into(&self, tape: &mut Tape, d_output: MatRef<'_, f64>, gradient: &mut [f64]) {
+        let Tape {
+            inputs, d_y, d_x, ..
+        } = tape;
+        self.backward_with(inputs, d_output, gradient, d_y, d_x);
+    }
+
+    /// The backward pass over the layer inputs `inputs` of a forward pass, with `d_y` and
+    /// `d_x` as scratch (resized as needed).
+    fn backward_with(
+        &self,
+        inputs: &[Mat<f64>],
+        d_output: MatRef<'_, f64>,
+        gradient: &mut [f64],
+        d_y: &mut Mat<f64>,
+        d_x: &mut Mat<f64>,
+    ) {
         assert_eq!(gradient.len(), self.parameters.len(), "gradient length");
         let layers = self.layers();
         let sizes = self.shape.layer_sizes();
@@ -285,9 +301,6 @@ impl Mlp {
             offset += fan_out * fan_in + fan_out;
         }
         assert_eq!(d_output.ncols(), self.shape.outputs, "output width");
-        let Tape {
-            inputs, d_y, d_x, ..
-        } = tape;
         d_y.resize_with(d_output.nrows(), d_output.ncols(), |_, _| 0.0);
         d_y.copy_from(d_output);
         for l in (0..layers.len()).rev() {
