@@ -9,8 +9,8 @@ use faer::sparse::linalg::solvers::Llt;
 use hyperelastic::{HyperelasticMaterial, Tangent};
 use nalgebra::Vector3;
 use optimize::{
-    HessianReuse, NewtonError, NewtonObjective, NewtonParams, NewtonReport, minimize,
-    minimize_reusing,
+    CarriedFactor, HessianReuse, NewtonError, NewtonObjective, NewtonParams, NewtonReport,
+    minimize, minimize_reusing,
 };
 use rayon::prelude::*;
 use serde::{Deserialize, Serialize};
@@ -133,8 +133,7 @@ pub struct FemSimulator<M: HyperelasticMaterial> {
     time: f64,
     length_scale: f64,
     /// With Hessian reuse: the last factorization and the steps since it was made.
-    factor: Option<Llt<usize, f64>>,
-    factor_age: usize,
+    carried: Option<CarriedFactor<Llt<usize, f64>>>,
 }
 
 struct StepProblem<'a> {
@@ -219,8 +218,7 @@ impl<M: HyperelasticMaterial> FemSimulator<M> {
             v,
             time: 0.0,
             length_scale,
-            factor: None,
-            factor_age: 0,
+            carried: None,
         })
     }
 
@@ -395,10 +393,7 @@ impl<M: HyperelasticMaterial> FemSimulator<M> {
             inverse_step_squared: 1.0 / (h * h),
         };
         let newton = self.params.newton;
-        let carried = self
-            .factor
-            .take()
-            .filter(|_| self.factor_age < FEM_FACTOR_MAX_AGE);
+        let (carried, age) = CarriedFactor::usable(self.carried.take(), FEM_FACTOR_MAX_AGE);
         let objective = StepObjective { sim: self, problem };
         let (report, factor) = if newton.hessian_reuse == HessianReuse::Never {
             (minimize(&objective, &mut x, &newton)?, None)
@@ -419,12 +414,7 @@ impl<M: HyperelasticMaterial> FemSimulator<M> {
                 (first.followed_by(&second), factor)
             }
         };
-        self.factor_age = if report.hessian_assemblies > 0 {
-            1
-        } else {
-            self.factor_age + 1
-        };
-        self.factor = factor;
+        self.carried = CarriedFactor::after(factor, age, &report);
         self.v = x.iter().zip(&self.x).map(|(a, b)| (a - b) / h).collect();
         self.x = x;
         self.time += h;

@@ -18,7 +18,7 @@ pub mod nnls;
 mod subset_cholesky;
 
 pub use newton::{
-    HessianReuse, NewtonError, NewtonObjective, NewtonParams, NewtonReport, NewtonStop,
-    NewtonTimings, minimize, minimize_reusing,
+    CarriedFactor, HessianReuse, NewtonError, NewtonObjective, NewtonParams, NewtonReport,
+    NewtonStop, NewtonTimings, minimize, minimize_reusing,
 };
 pub use nnls::{NnlsError, NnlsParams, NnlsSolution, NnlsWarmStart, nnls, nnls_normal};

@@ -201,6 +201,38 @@ impl NewtonReport {
     }
 }
 
+/// A factorization carried from one solve into the next similar one (the next time step, for
+/// [`minimize_reusing`]), with the solves it has been carried across since it was assembled.
+#[derive(Debug)]
+pub struct CarriedFactor<F> {
+    factor: F,
+    age: usize,
+}
+
+impl<F> CarriedFactor<F> {
+    /// For a solve that may use a factorization carried across fewer than `max_age` solves:
+    /// `carried`'s factorization and age, or none (age 0) when there is none or it is older.
+    pub fn usable(carried: Option<Self>, max_age: usize) -> (Option<F>, usize) {
+        match carried {
+            Some(carried) if carried.age < max_age => (Some(carried.factor), carried.age),
+            _ => (None, 0),
+        }
+    }
+
+    /// What to carry after a solve that began with a factorization of age `age` and left
+    /// `factor`: one solve older, or of age 1 when the solve (`report`) assembled a Hessian.
+    pub fn after(factor: Option<F>, age: usize, report: &NewtonReport) -> Option<Self> {
+        factor.map(|factor| CarriedFactor {
+            factor,
+            age: if report.hessian_assemblies > 0 {
+                1
+            } else {
+                age + 1
+            },
+        })
+    }
+}
+
 /// The solve cannot go on; x is left at the last accepted iterate.
 #[derive(Clone, Debug, Error, PartialEq)]
 pub enum NewtonError {
@@ -417,6 +449,29 @@ fn apply(x: &mut [f64], step: &[f64], alpha: f64) {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn a_carried_factor_ages_by_one_solve_resets_on_assembly_and_expires_at_the_cap() {
+        let solved = |hessian_assemblies| NewtonReport {
+            iterations: 1,
+            hessian_assemblies,
+            residual: 0.0,
+            line_search_cuts: 0,
+            lagged_steps: 0,
+            stop: NewtonStop::Converged,
+            energy: 0.0,
+            timings: NewtonTimings::default(),
+        };
+        let carried = CarriedFactor::after(Some("L"), 0, &solved(1));
+        let (factor, age) = CarriedFactor::usable(carried, 3);
+        assert_eq!((factor, age), (Some("L"), 1));
+        let older = CarriedFactor::after(factor, age, &solved(0));
+        let (factor, age) = CarriedFactor::usable(older, 3);
+        assert_eq!((factor, age), (Some("L"), 2));
+        let oldest = CarriedFactor::after(factor, age, &solved(0));
+        assert_eq!(CarriedFactor::usable(oldest, 3), (None, 0));
+        assert!(CarriedFactor::<&str>::after(None, 2, &solved(0)).is_none());
+    }
 
     #[test]
     fn a_followed_report_keeps_the_second_outcome_and_the_work_of_both() {

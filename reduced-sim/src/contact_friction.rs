@@ -72,7 +72,18 @@ pub(crate) struct ContactFriction {
     epsilon: f64,
 }
 
+/// The relative change of the lagged normal forces below which friction is not lagged again
+/// (1%, [`crate::PenaltyParams::friction_lag_iterations`]).
+pub(crate) const LAG_TOLERANCE: f64 = 0.01;
+
 impl ContactFriction {
+    /// Whether this friction, lagged anew at a solution, differs from `lagged`, the one the
+    /// step was solved with (none, other contacts or normals, or a limit off by more than
+    /// [`LAG_TOLERANCE`]): then the step is solved again with it.
+    pub(crate) fn moved_from(&self, lagged: Option<&ContactFriction>) -> bool {
+        lagged.is_none_or(|old| !old.matches(self, LAG_TOLERANCE))
+    }
+
     /// The friction of `contacts` with slip threshold `epsilon` = ε_v h (m); `None` when there
     /// is no contact with a positive limit.
     pub(crate) fn new(contacts: &[FrictionContact], epsilon: f64) -> Option<Self> {

@@ -27,7 +27,7 @@ use faer::linalg::solvers::{Llt, Solve};
 use faer::{Mat, Side};
 use hyperelastic::HyperelasticMaterial;
 use nalgebra::{Matrix3, Vector3};
-use optimize::{NewtonObjective, NewtonReport};
+use optimize::{CarriedFactor, NewtonObjective, NewtonReport};
 use rayon::prelude::*;
 use rkpm_core::SpatialIndex;
 use thiserror::Error;
@@ -36,7 +36,7 @@ use crate::body_contact::{
     BodyContactModel, BodyContactParams, LaggedPair, PairFriction, RelativeDerivatives, SamplePair,
     add_cross_hessians, lagged_friction, repulsion_derivatives,
 };
-use crate::contact_friction::same_lagged_forces;
+use crate::contact_friction::{LAG_TOLERANCE, same_lagged_forces};
 use crate::deformation_map::DeformationMap;
 use crate::hessian_tangent::{HessianTangent, StepTangents};
 use crate::incremental_potential::IncrementalPotential;
@@ -187,7 +187,7 @@ pub struct MultiBodySimulator<M: HyperelasticMaterial> {
     /// the steps since it was assembled, carried into the group's next step as an object alone
     /// carries its own (chord steps while they contract; a solve that does not converge that
     /// way is solved again fresh). Dropped for groups not solved in a step and on a restore.
-    group_factors: HashMap<Vec<usize>, (Llt<f64>, usize)>,
+    group_factors: HashMap<Vec<usize>, CarriedFactor<Llt<f64>>>,
 }
 
 impl<M: HyperelasticMaterial> MultiBodySimulator<M> {
@@ -584,10 +584,8 @@ impl<M: HyperelasticMaterial> MultiBodySimulator<M> {
             // change the objective little) and, while the group stays together, into its next
             // step.
             let reuse = newton.hessian_reuse != optimize::HessianReuse::Never;
-            let (mut factor, carried_age) = match carried {
-                Some((factor, age)) if reuse && age < params.hessian_max_age => (Some(factor), age),
-                _ => (None, 0),
-            };
+            let (mut factor, carried_age) =
+                CarriedFactor::usable(carried.filter(|_| reuse), params.hessian_max_age);
             let mut report = solve_step(&mut objective, &mut z, &newton, &mut factor)?;
             // The normals lagged again at the solution while those of touching pairs turn.
             for _ in 0..MAX_CONTACT_LAGS {
@@ -613,8 +611,8 @@ impl<M: HyperelasticMaterial> MultiBodySimulator<M> {
             // with the floor and the colliders.
             for _ in 0..params.penalty.friction_lag_iterations {
                 let friction = objective.lagged_friction(&z);
-                let pairs_moved =
-                    !friction.is_empty() && !same_friction(&objective.friction, &friction, 0.01);
+                let pairs_moved = !friction.is_empty()
+                    && !same_friction(&objective.friction, &friction, LAG_TOLERANCE);
                 let own: Vec<_> = group
                     .iter()
                     .enumerate()
@@ -623,14 +621,13 @@ impl<M: HyperelasticMaterial> MultiBodySimulator<M> {
                         self.bodies[b].simulator.friction_lagged_at(&z[range])
                     })
                     .collect();
-                let own_moved =
-                    own.iter()
-                        .zip(&objective.potentials)
-                        .any(|(new, potential)| match (new, &potential.friction) {
-                            (Some(new), Some(old)) => !old.matches(new, 0.01),
-                            (Some(_), None) => true,
-                            _ => false,
-                        });
+                let own_moved = own
+                    .iter()
+                    .zip(&objective.potentials)
+                    .any(|(new, potential)| {
+                        new.as_ref()
+                            .is_some_and(|new| new.moved_from(potential.friction.as_ref()))
+                    });
                 if !pairs_moved && !own_moved {
                     break;
                 }
@@ -674,13 +671,10 @@ impl<M: HyperelasticMaterial> MultiBodySimulator<M> {
         let unchanged = group
             .iter()
             .all(|&b| !self.bodies[b].simulator.contacts_changed());
-        if let (Some(factor), true) = (factor, unchanged) {
-            let age = if report.hessian_assemblies > 0 {
-                1
-            } else {
-                carried_age + 1
-            };
-            self.group_factors.insert(group.to_vec(), (factor, age));
+        if let Some(carried) =
+            CarriedFactor::after(factor, carried_age, &report).filter(|_| unchanged)
+        {
+            self.group_factors.insert(group.to_vec(), carried);
         }
         Ok(report)
     }
@@ -1135,6 +1129,19 @@ mod tests {
     }
 
     /// [`block`] integrated on a grid of `spacing` (m).
+    /// Gravity (9.8 m/s² along −y) and the floor y = `offset` (m) with friction `friction`.
+    fn floor_scene(offset: f64, friction: f64) -> Scene {
+        Scene {
+            gravity: Some(Vector3::new(0.0, -9.8, 0.0)),
+            floor: Some(Floor {
+                normal: Vector3::y(),
+                offset,
+                friction,
+            }),
+            ..Scene::default()
+        }
+    }
+
     fn coarse_block(
         scene: &Scene,
         params: SimulationParams,
@@ -1248,15 +1255,7 @@ mod tests {
 
     #[test]
     fn objects_that_never_touch_follow_the_trajectories_they_have_alone() {
-        let scene = Scene {
-            gravity: Some(Vector3::new(0.0, -9.8, 0.0)),
-            floor: Some(Floor {
-                normal: Vector3::y(),
-                offset: -0.2,
-                friction: 0.3,
-            }),
-            ..Scene::default()
-        };
+        let scene = floor_scene(-0.2, 0.3);
         let params = SimulationParams::default();
         let offset = Vector3::new(0.0, 0.0, 3.0);
         let spin = Vector3::new(0.5, 0.0, 0.0);
@@ -1298,15 +1297,7 @@ mod tests {
     /// as the two blocks do alone, landing step included.
     #[test]
     fn a_group_lags_floor_friction_at_the_solution_like_an_object_alone() {
-        let scene = Scene {
-            gravity: Some(Vector3::new(0.0, -9.8, 0.0)),
-            floor: Some(Floor {
-                normal: Vector3::y(),
-                offset: -0.15,
-                friction: 0.5,
-            }),
-            ..Scene::default()
-        };
+        let scene = floor_scene(-0.15, 0.5);
         let params = SimulationParams::default();
         let velocity = Vector3::new(1.0, -1.0, 0.0);
         // The blocks are 1 m deep in z: 1.12 m apart leaves a 0.12 m gap, within the 1.5 d̂
@@ -1347,15 +1338,7 @@ mod tests {
     /// 60 steps, Newton tolerance 1e-8) with fewer Hessians.
     #[test]
     fn a_group_carrying_its_factorization_across_steps_reaches_the_fresh_states() {
-        let scene = Scene {
-            gravity: Some(Vector3::new(0.0, -9.8, 0.0)),
-            floor: Some(Floor {
-                normal: Vector3::y(),
-                offset: 0.0,
-                friction: 0.0,
-            }),
-            ..Scene::default()
-        };
+        let scene = floor_scene(0.0, 0.0);
         let run = |reuse: optimize::HessianReuse| {
             let params = SimulationParams {
                 newton: optimize::NewtonParams {
@@ -1493,15 +1476,7 @@ mod tests {
     /// and the deepest penetration (floor, or shell overlap with the penalty) seen, and the
     /// blocks' final centres (m).
     fn stack(model: BodyContactModel) -> (f64, f64, Vec<Vector3<f64>>) {
-        let scene = Scene {
-            gravity: Some(Vector3::new(0.0, -9.8, 0.0)),
-            floor: Some(Floor {
-                normal: Vector3::y(),
-                offset: 0.0,
-                friction: 0.0,
-            }),
-            ..Scene::default()
-        };
+        let scene = floor_scene(0.0, 0.0);
         // With the barrier between objects, the floor's barrier too (5 cm).
         let floor_contact = match model {
             BodyContactModel::Penalty => crate::FloorContact::Penalty,

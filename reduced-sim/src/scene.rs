@@ -66,6 +66,14 @@ pub struct Floor {
     pub friction: f64,
 }
 
+impl Floor {
+    /// A point's gap to the plane, `n·x − offset` (m): its height above a floor with a unit
+    /// normal, negative below it.
+    pub fn gap(&self, x: &Vector3<f64>) -> f64 {
+        self.normal.dot(x) - self.offset
+    }
+}
+
 /// Everything outside the object that acts on it.
 #[derive(Clone, Debug, Default)]
 pub struct Scene {

@@ -465,7 +465,7 @@ impl SceneTerms {
             |gap: f64, v: f64| self.floor_stiffness * v * self.floor_contact.profile(gap).0;
         if let Some(floor) = &self.floor {
             for (x, &v) in x.iter().zip(model.volumes()) {
-                e += contact(floor.normal.dot(x) - floor.offset, v);
+                e += contact(floor.gap(x), v);
             }
         }
         for distances in self.collider_distances(z, &targets.colliders, &x).iter() {
@@ -507,7 +507,7 @@ impl SceneTerms {
         let mut contacts = Vec::new();
         if let Some(floor) = floor {
             for (i, x) in contact.iter().enumerate() {
-                let gap = floor.normal.dot(x) - floor.offset;
+                let gap = floor.gap(x);
                 if gap < reach {
                     contacts.push(FrictionContact {
                         point: i,
@@ -584,7 +584,7 @@ impl SceneTerms {
         let mut deepest = f64::NEG_INFINITY;
         if let Some(floor) = &self.floor {
             for x in &positions {
-                deepest = deepest.max(floor.offset - floor.normal.dot(x));
+                deepest = deepest.max(-floor.gap(x));
             }
         }
         let poses = self.collider_poses(time);
@@ -636,7 +636,7 @@ impl SceneTerms {
             for (x, dx) in positions.iter().zip(&moves) {
                 let closing = -floor.normal.dot(dx);
                 if closing > 0.0 {
-                    alpha = alpha.min(0.9 * (floor.normal.dot(x) - floor.offset) / closing);
+                    alpha = alpha.min(0.9 * floor.gap(x) / closing);
                 }
             }
         }
@@ -655,8 +655,9 @@ impl SceneTerms {
     }
 
     /// The points in contact at z and time `time` (s), in index order: within the contact's
-    /// reach of the floor ([`FloorContact::reach`]: below it for the penalty), then of collider k, numbered `(k + 1) n + i` (n points). The contact terms' Hessians
-    /// change when this set does.
+    /// reach of the floor ([`FloorContact::reach`]: below it for the penalty), then of
+    /// collider k, numbered `(k + 1) n + i` (n points). The contact terms' Hessians change when
+    /// this set does.
     pub(crate) fn contacts<M: HyperelasticMaterial>(
         &self,
         model: &ReducedModel<M>,
@@ -671,8 +672,7 @@ impl SceneTerms {
         let reach = self.floor_contact.reach();
         let mut contacts = Vec::new();
         if let Some(floor) = &self.floor {
-            contacts
-                .extend((0..n).filter(|&i| floor.normal.dot(&positions[i]) - floor.offset < reach));
+            contacts.extend((0..n).filter(|&i| floor.gap(&positions[i]) < reach));
         }
         let poses = self.collider_poses(time);
         for (k, distances) in self
@@ -738,7 +738,7 @@ impl SceneTerms {
             let mut active_bw = Vec::new();
             let reach = self.floor_contact.reach();
             for (i, x) in map.positions(z).iter().enumerate() {
-                let gap = floor.normal.dot(x) - floor.offset;
+                let gap = floor.gap(x);
                 if gap < reach {
                     let w = self.floor_stiffness * model.volumes()[i];
                     let (_, slope, curvature) = self.floor_contact.profile(gap);

@@ -5,8 +5,8 @@ use faer::linalg::solvers::Llt;
 use hyperelastic::HyperelasticMaterial;
 use nalgebra::Vector3;
 use optimize::{
-    HessianReuse, NewtonError, NewtonObjective, NewtonParams, NewtonReport, minimize,
-    minimize_reusing,
+    CarriedFactor, HessianReuse, NewtonError, NewtonObjective, NewtonParams, NewtonReport,
+    minimize, minimize_reusing,
 };
 use serde::{Deserialize, Serialize};
 use thiserror::Error;
@@ -196,11 +196,9 @@ pub struct Simulator<M: HyperelasticMaterial> {
     terms: SceneTerms,
     params: SimulationParams,
     state: ReducedState,
-    /// The last step's Hessian factorization, kept for the next step when
+    /// The last step's Hessian factorization and its age, kept for the next step when
     /// `params.newton.hessian_reuse` allows it.
-    factor: Option<Llt<f64>>,
-    /// Steps since `factor` was assembled.
-    factor_age: usize,
+    carried: Option<CarriedFactor<Llt<f64>>>,
     /// The points in contact with the floor at the current state.
     contacts: Vec<usize>,
     /// Whether the last step changed `contacts` (a carried Hessian is then dropped).
@@ -229,8 +227,7 @@ impl<M: HyperelasticMaterial> Simulator<M> {
                 velocity: layout.rest(),
                 time: 0.0,
             },
-            factor: None,
-            factor_age: 0,
+            carried: None,
             contacts: Vec::new(),
             contacts_changed: false,
         })
@@ -326,7 +323,7 @@ impl<M: HyperelasticMaterial> Simulator<M> {
         }
         self.contacts = self.terms.contacts(&self.model, &state.z, state.time);
         self.state = state;
-        self.factor = None;
+        self.carried = None;
         Ok(())
     }
 
@@ -346,10 +343,8 @@ impl<M: HyperelasticMaterial> Simulator<M> {
         if !(h > 0.0 && h.is_finite()) {
             return Err(StepError::InvalidTimeStep(h));
         }
-        let mut factor = self.factor.take();
-        if self.factor_age >= self.params.hessian_max_age {
-            factor = None;
-        }
+        let (mut factor, age) =
+            CarriedFactor::usable(self.carried.take(), self.params.hessian_max_age);
         self.check_clear()?;
         let predicted = self.predicted_coordinates();
         let mut potential = self.step_potential(&predicted);
@@ -371,17 +366,10 @@ impl<M: HyperelasticMaterial> Simulator<M> {
         // there, `friction_lag_iterations` times at most, and only while the lagged forces
         // move (the same contacts and normals, limits within 1%, end it).
         for _ in 0..self.params.penalty.friction_lag_iterations {
-            let Some(friction) =
-                self.terms
-                    .contact_friction(&self.model, &self.state.z, &z, self.state.time, h)
-            else {
+            let Some(friction) = self.friction_lagged_at(&z) else {
                 break;
             };
-            if potential
-                .friction
-                .as_ref()
-                .is_some_and(|lagged| lagged.matches(&friction, 0.01))
-            {
+            if !friction.moved_from(potential.friction.as_ref()) {
                 break;
             }
             potential.friction = Some(friction);
@@ -389,12 +377,7 @@ impl<M: HyperelasticMaterial> Simulator<M> {
             report = report.followed_by(&again);
         }
         drop(potential);
-        self.factor_age = if report.hessian_assemblies > 0 {
-            1
-        } else {
-            self.factor_age + 1
-        };
-        self.finish_step(z, factor);
+        self.finish_step(z, CarriedFactor::after(factor, age, &report));
         Ok(report)
     }
 
@@ -442,14 +425,14 @@ impl<M: HyperelasticMaterial> Simulator<M> {
         self.finish_step(z, None);
     }
 
-    /// z becomes the state at t + h with `ż = (z − z_t)/h`; `factor` is carried into the next
+    /// z becomes the state at t + h with `ż = (z − z_t)/h`; `carried` is carried into the next
     /// step while the contact set stays the same.
-    fn finish_step(&mut self, z: Vec<f64>, factor: Option<Llt<f64>>) {
+    fn finish_step(&mut self, z: Vec<f64>, carried: Option<CarriedFactor<Llt<f64>>>) {
         let h = self.params.time_step;
         let time = self.state.time + h;
         let contacts = self.terms.contacts(&self.model, &z, time);
         self.contacts_changed = contacts != self.contacts;
-        self.factor = if self.contacts_changed { None } else { factor };
+        self.carried = carried.filter(|_| !self.contacts_changed);
         self.contacts = contacts;
         let velocity = z
             .iter()
@@ -533,7 +516,7 @@ impl<M: HyperelasticMaterial> Simulator<M> {
         self.terms.prescribe(&mut z, &potential.targets);
         let report = minimize(&potential, &mut z, &self.params.newton)?;
         let layout = self.model.deformation_map().layout();
-        self.factor = None;
+        self.carried = None;
         self.contacts = self.terms.contacts(&self.model, &z, time);
         self.state = ReducedState {
             z,
