@@ -1,15 +1,21 @@
 //! How much of each surface's volume the lattice mesher keeps at several resolutions (issue 19):
 //! `cargo run --release -p fem-ref --example mesh_volumes -- ../shared/data/meshes 16 24 32 48`.
+//! A setting `gN:H:T` meshes graded: N cells across, at most H halvings near the surface,
+//! linearity tolerance T (e.g. `g16:3:0.05`). Each column: volume error, P2 DOFs, smallest
+//! dihedral angle, seconds.
 
 use std::time::Instant;
 
-use fem_ref::{LatticeMesherParams, tetrahedralize};
+use std::collections::HashSet;
+
+use fem_ref::{LatticeMesherParams, LatticeRefinement, TetMesh, tetrahedralize};
 use rkpm_core::read_triangle_mesh;
 
 fn main() {
     let mut args = std::env::args().skip(1);
     let dir = args.next().expect("a folder of meshes");
-    let resolutions: Vec<usize> = args.map(|a| a.parse().expect("cells across")).collect();
+    let settings: Vec<(String, LatticeMesherParams)> =
+        args.map(|a| (a.clone(), setting(&a))).collect();
     let mut paths: Vec<_> = std::fs::read_dir(&dir)
         .expect("readable folder")
         .filter_map(|e| e.ok().map(|e| e.path()))
@@ -31,24 +37,62 @@ fn main() {
             }
         };
         let mut line = format!("{name:>28}");
-        for &cells in &resolutions {
+        for (label, params) in &settings {
             let start = Instant::now();
-            let params = LatticeMesherParams {
-                cells_across: cells,
-                ..Default::default()
-            };
-            match tetrahedralize(&surface, &params) {
+            match tetrahedralize(&surface, params) {
                 Ok((mesh, report)) => {
                     line += &format!(
-                        "  {cells}: {:+.3} ({} v, {:.1}s)",
+                        "  {label}: {:+.3} ({} P2 DOFs, {:.0}°, {:.1}s, held {:?}/{}, deepest {})",
                         report.relative_volume_error,
-                        mesh.vertices().len(),
-                        start.elapsed().as_secs_f64()
+                        p2_dofs(&mesh),
+                        report.quality.min_dihedral_degrees,
+                        start.elapsed().as_secs_f64(),
+                        report.boundary_vertices_held_back,
+                        report.boundary_vertices,
+                        report.deepest_bisection,
                     )
                 }
-                Err(e) => line += &format!("  {cells}: {e}"),
+                Err(e) => line += &format!("  {label}: {e}"),
             }
         }
         println!("{line}");
     }
+}
+
+/// `N` (uniform) or `gN:H:T` (graded) as mesher options.
+fn setting(arg: &str) -> LatticeMesherParams {
+    let parse = |s: &str| s.parse::<f64>().expect("a number");
+    match arg.strip_prefix('g') {
+        None => LatticeMesherParams {
+            cells_across: parse(arg) as usize,
+            ..Default::default()
+        },
+        Some(graded) => {
+            let parts: Vec<f64> = graded.split(':').map(parse).collect();
+            let [cells, halvings, tolerance] = parts[..] else {
+                panic!("gN:H:T, got {arg}")
+            };
+            LatticeMesherParams {
+                cells_across: cells as usize,
+                refinement: LatticeRefinement::Graded {
+                    max_halvings: halvings as usize,
+                    linearity_tolerance: tolerance,
+                },
+                ..Default::default()
+            }
+        }
+    }
+}
+
+/// Degrees of freedom of P2 elements on `mesh`: three per vertex and per edge.
+fn p2_dofs(mesh: &TetMesh) -> usize {
+    let edges: HashSet<(usize, usize)> = mesh
+        .tets()
+        .iter()
+        .flat_map(|t| {
+            [(0, 1), (0, 2), (0, 3), (1, 2), (1, 3), (2, 3)]
+                .map(|(a, b)| (t[a].min(t[b]), t[a].max(t[b])))
+        })
+        .collect();
+    3 * (mesh.vertices().len() + edges.len())
 }

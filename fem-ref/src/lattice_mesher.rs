@@ -31,6 +31,7 @@ use rkpm_core::{InsideTest, SurfaceDistance, TriangleMesh};
 use serde::{Deserialize, Serialize};
 use thiserror::Error;
 
+use crate::kuhn_bisection::BisectionMesh;
 use crate::tet_mesh::{
     KUHN_CUBE_TETS, TetMesh, TetMeshError, TetQuality, dihedral_angle_range, signed_volume,
     sorted_faces,
@@ -55,6 +56,10 @@ pub struct LatticeMesherParams {
     /// A boundary vertex is moved onto the surface only as far as keeps every incident
     /// tetrahedron's smallest dihedral angle at or above this (degrees). Default 10.
     pub min_dihedral_guard_degrees: f64,
+    /// Whether the lattice is refined near the surface before it is cut. Default
+    /// [`LatticeRefinement::Uniform`].
+    #[serde(default)]
+    pub refinement: LatticeRefinement,
 }
 
 impl Default for LatticeMesherParams {
@@ -63,15 +68,44 @@ impl Default for LatticeMesherParams {
             cells_across: 32,
             snap_fraction: 0.3,
             min_dihedral_guard_degrees: 10.0,
+            refinement: LatticeRefinement::Uniform,
         }
     }
+}
+
+/// How the Kuhn lattice is refined before it is cut along the surface.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Serialize, Deserialize)]
+#[serde(rename_all = "snake_case")]
+pub enum LatticeRefinement {
+    /// Every cell the same size, `h = L / cells_across` (the default; the paper-era setting).
+    #[default]
+    Uniform,
+    /// Graded: tetrahedra near the surface are bisected (conforming newest-vertex bisection,
+    /// see the module docs) while the signed distance `φ` is not linear on them, i.e. while
+    /// `|φ(midpoint) − (φ(a) + φ(b))/2| > linearity_tolerance · |b − a|` on one of their edges
+    /// `ab`. `φ` bends where the surface curves and kinks on the medial axis, so this refines
+    /// to the local curvature and, in thin parts, to the local thickness; away from the surface
+    /// the lattice stays coarse.
+    Graded {
+        /// Halvings of the lattice spacing allowed (3 bisections each), e.g. 3 refines
+        /// `cells_across = 16` down to the spacing of a 128-cell lattice where needed.
+        max_halvings: usize,
+        /// See above, in `(0, 1)`; smaller refines more. 0.05 is a sound start.
+        linearity_tolerance: f64,
+    },
 }
 
 /// What [`tetrahedralize`] built and how close it is to the surface.
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
 pub struct LatticeMesherReport {
-    /// Lattice spacing `h` (surface units).
+    /// Lattice spacing `h` (surface units), before any refinement.
     pub cell_size: f64,
+    /// The deepest bisection of a lattice tetrahedron (0 for a uniform lattice; 3 per halving).
+    #[serde(default)]
+    pub deepest_bisection: usize,
+    /// The shortest edge of the refined lattice, before the cut (`cell_size` when uniform).
+    #[serde(default)]
+    pub shortest_lattice_edge: f64,
     /// Lattice cells per axis (with padding).
     pub lattice_cells: [usize; 3],
     /// Vertices of the result.
@@ -276,50 +310,87 @@ fn tetrahedralize_with(
         })
         .collect();
 
-    // 2. Signed distance, clamped and snapped.
+    // 2.-3. Signed distance at the lattice's vertices, snapped, and the lattice tetrahedra to
+    // cut (uniform or refined near the surface).
     let SurfaceQueries { inside, distance } = queries;
-    let snap = params.snap_fraction * h;
-    let phi: Vec<f64> = positions
-        .par_iter()
-        .map(|p| {
-            let d = distance
-                .closest_point(p, 2.0 * h)
-                .map_or(2.0 * h, |c| c.distance);
-            // The side of a point farther than d from the surface is the side of every point
-            // within d of it: query a generic neighbour instead, so rays from lattice points
-            // do not graze the edges of axis-aligned (CAD) surfaces and fall back to the slow
-            // exact winding number.
-            if d < snap {
-                0.0
-            } else if inside.contains(&(p + GENERIC_DIRECTION * (0.5 * d))) {
-                -d
-            } else {
-                d
+    let (phi, background, deepest_bisection, shortest_lattice_edge) = match params.refinement {
+        LatticeRefinement::Uniform => {
+            let snap = params.snap_fraction * h;
+            let phi: Vec<f64> = positions
+                .par_iter()
+                .map(|p| signed_distance(queries, p, 2.0 * h, snap))
+                .collect();
+            let mut background = Vec::new();
+            for i in 0..nx {
+                for j in 0..ny {
+                    for k in 0..nz {
+                        let corner = |[a, b, c]: [usize; 3]| lattice_index(i + a, j + b, k + c);
+                        let any_inside =
+                            (0..8).any(|c| phi[corner([c >> 2 & 1, c >> 1 & 1, c & 1])] <= 0.0);
+                        if any_inside {
+                            background.extend(KUHN_CUBE_TETS.map(|offsets| offsets.map(corner)));
+                        }
+                    }
+                }
             }
-        })
-        .collect();
+            (phi, background, 0, h)
+        }
+        LatticeRefinement::Graded {
+            max_halvings,
+            linearity_tolerance,
+        } => {
+            if !(linearity_tolerance > 0.0 && linearity_tolerance < 1.0) {
+                return Err(LatticeMesherError::InvalidParams(format!(
+                    "linearity_tolerance {linearity_tolerance} is outside (0, 1)"
+                )));
+            }
+            let graded = refine_near_surface(
+                queries,
+                positions,
+                h,
+                [nx, ny, nz],
+                lattice_index,
+                3 * max_halvings,
+                linearity_tolerance,
+            );
+            positions = graded.mesh.positions;
+            let mut phi = graded.phi;
+            // Snap against each vertex's shortest edge, so cut points keep their distance from
+            // the ends at every level.
+            let mut shortest = vec![f64::INFINITY; positions.len()];
+            for tet in &graded.mesh.tets {
+                for (a, b) in tet.edges() {
+                    let length = (positions[b] - positions[a]).norm();
+                    shortest[a] = shortest[a].min(length);
+                    shortest[b] = shortest[b].min(length);
+                }
+            }
+            for (value, edge) in phi.iter_mut().zip(&shortest) {
+                if value.abs() < params.snap_fraction * edge {
+                    *value = 0.0;
+                }
+            }
+            let background: Vec<[usize; 4]> = graded.mesh.tets.iter().map(|t| t.vertices).collect();
+            let deepest = graded.mesh.tets.iter().map(|t| t.generation).max();
+            let shortest_edge = shortest.iter().copied().fold(f64::INFINITY, f64::min);
+            (
+                phi,
+                background,
+                usize::from(deepest.unwrap_or(0)),
+                shortest_edge,
+            )
+        }
+    };
 
-    // 3. Inside parts of the Kuhn tetrahedra.
+    // 3. Inside parts of the lattice tetrahedra.
     let mut builder = PieceBuilder {
         positions: &mut positions,
         phi: &phi,
         cut_points: HashMap::new(),
         tets: Vec::new(),
     };
-    for i in 0..nx {
-        for j in 0..ny {
-            for k in 0..nz {
-                let corner = |[a, b, c]: [usize; 3]| lattice_index(i + a, j + b, k + c);
-                let any_inside =
-                    (0..8).any(|c| phi[corner([c >> 2 & 1, c >> 1 & 1, c & 1])] <= 0.0);
-                if !any_inside {
-                    continue;
-                }
-                for offsets in KUHN_CUBE_TETS {
-                    builder.add_inside_part(offsets.map(corner), inside);
-                }
-            }
-        }
+    for tet in background {
+        builder.add_inside_part(tet, inside);
     }
     let PieceBuilder { mut tets, .. } = builder;
     if tets.is_empty() {
@@ -400,6 +471,8 @@ fn tetrahedralize_with(
     let mesh_volume = mesh.volume();
     let report = LatticeMesherReport {
         cell_size: h,
+        deepest_bisection,
+        shortest_lattice_edge,
         lattice_cells: cells,
         vertices: mesh.vertices().len(),
         tets: mesh.tets().len(),
@@ -413,6 +486,125 @@ fn tetrahedralize_with(
         seconds: start.elapsed().as_secs_f64(),
     };
     Ok((mesh, report))
+}
+
+/// The signed distance from `p` to the surface (negative inside), its magnitude clamped at
+/// `clamp`, and 0 when it is below `snap`.
+fn signed_distance(queries: &SurfaceQueries, p: &Vector3<f64>, clamp: f64, snap: f64) -> f64 {
+    let d = queries
+        .distance
+        .closest_point(p, clamp)
+        .map_or(clamp, |c| c.distance);
+    // The side of a point farther than d from the surface is the side of every point within d
+    // of it: query a generic neighbour instead, so rays from lattice points do not graze the
+    // edges of axis-aligned (CAD) surfaces and fall back to the slow exact winding number.
+    if d < snap || d == 0.0 {
+        0.0
+    } else if queries
+        .inside
+        .contains(&(p + GENERIC_DIRECTION * (0.5 * d)))
+    {
+        -d
+    } else {
+        d
+    }
+}
+
+/// A lattice refined near the surface and the signed distance at its vertices.
+struct GradedLattice {
+    mesh: BisectionMesh,
+    /// Unsnapped signed distance per vertex of `mesh`.
+    phi: Vec<f64>,
+}
+
+/// [`LatticeRefinement::Graded`]: the Kuhn tetrahedra of the cubes near or inside the surface,
+/// bisected (with the conforming closure) while `φ` is not linear on one of their edges, at
+/// most `max_bisections` deep. Only tetrahedra with a vertex closer to the surface than their
+/// longest edge are tested.
+fn refine_near_surface(
+    queries: &SurfaceQueries,
+    positions: Vec<Vector3<f64>>,
+    h: f64,
+    cells: [usize; 3],
+    lattice_index: impl Fn(usize, usize, usize) -> usize,
+    max_bisections: usize,
+    linearity_tolerance: f64,
+) -> GradedLattice {
+    // Distances are clamped well past the reach of the tests below (|φ| < longest edge ≤ √3 h
+    // at a vertex, half an edge more at a midpoint).
+    let clamp = 4.0 * h;
+    let mut phi: Vec<f64> = positions
+        .par_iter()
+        .map(|p| signed_distance(queries, p, clamp, 0.0))
+        .collect();
+    let diagonal = 3f64.sqrt() * h;
+    let keep = |[i, j, k]: [usize; 3]| {
+        (0..8).any(|c| {
+            let value = phi[lattice_index(i + (c >> 2 & 1), j + (c >> 1 & 1), k + (c & 1))];
+            value <= diagonal
+        })
+    };
+    let mut mesh = BisectionMesh::kuhn_lattice(positions, cells, &lattice_index, keep);
+    // φ at edge midpoints already probed; a midpoint that becomes a vertex takes it from here.
+    let mut probed: HashMap<(usize, usize), f64> = HashMap::new();
+    for _ in 0..max_bisections {
+        let positions = &mesh.positions;
+        let length = |(a, b): (usize, usize)| (positions[b] - positions[a]).norm();
+        let candidates: Vec<usize> = (0..mesh.tets.len())
+            .filter(|&t| {
+                let tet = &mesh.tets[t];
+                let longest = tet.edges().map(length).into_iter().fold(0.0, f64::max);
+                usize::from(tet.generation) < max_bisections
+                    && tet.vertices.iter().any(|&v| phi[v].abs() < longest)
+            })
+            .collect();
+        let mut unprobed: Vec<(usize, usize)> = candidates
+            .iter()
+            .flat_map(|&t| mesh.tets[t].edges())
+            .filter(|e| !probed.contains_key(e))
+            .collect();
+        unprobed.sort_unstable();
+        unprobed.dedup();
+        let values: Vec<f64> = unprobed
+            .par_iter()
+            .map(|&(a, b)| midpoint_distance(queries, positions, (a, b), clamp))
+            .collect();
+        probed.extend(unprobed.into_iter().zip(values));
+        let mut marked = vec![false; mesh.tets.len()];
+        for t in candidates {
+            marked[t] = mesh.tets[t].edges().into_iter().any(|e| {
+                let (a, b) = e;
+                let (exact, linear) = (probed[&e], 0.5 * (phi[a] + phi[b]));
+                exact * linear < 0.0 && (exact - linear).abs() > linearity_tolerance * length(e)
+            });
+        }
+        if !marked.iter().any(|&m| m) {
+            break;
+        }
+        let known = phi.len();
+        mesh.refine(marked);
+        let fresh = &mesh.midpoint_edges[known - mesh.lattice_vertices..];
+        let positions = &mesh.positions;
+        let values: Vec<f64> = fresh
+            .par_iter()
+            .map(|e| match probed.get(e) {
+                Some(&value) => value,
+                None => midpoint_distance(queries, positions, *e, clamp),
+            })
+            .collect();
+        phi.extend(values);
+    }
+    GradedLattice { mesh, phi }
+}
+
+/// [`signed_distance`] at the midpoint of the edge `(a, b)`.
+fn midpoint_distance(
+    queries: &SurfaceQueries,
+    positions: &[Vector3<f64>],
+    (a, b): (usize, usize),
+    clamp: f64,
+) -> f64 {
+    signed_distance(queries, &((positions[a] + positions[b]) * 0.5), clamp, 0.0)
 }
 
 /// Accumulates the inside parts of lattice tetrahedra. Vertex ids: lattice vertices first, then

@@ -18,6 +18,7 @@
 pub mod element;
 pub mod fem_model;
 pub mod fem_simulator;
+mod kuhn_bisection;
 pub mod lattice_mesher;
 pub mod point_interpolation;
 pub mod scene;
@@ -32,8 +33,8 @@ pub use fem_simulator::{
     reusing_reference_newton,
 };
 pub use lattice_mesher::{
-    LatticeMesherError, LatticeMesherParams, LatticeMesherReport, VolumeTarget, tetrahedralize,
-    tetrahedralize_to_volume,
+    LatticeMesherError, LatticeMesherParams, LatticeMesherReport, LatticeRefinement, VolumeTarget,
+    tetrahedralize, tetrahedralize_to_volume,
 };
 pub use point_interpolation::{PointInterpolation, PointLocationError};
 pub use scene::{DirichletRegion, FemFloor, FemScene, NodeTarget, NodeTargetFunction};

@@ -4,8 +4,8 @@
 use std::collections::HashMap;
 
 use fem_ref::{
-    LatticeMesherError, LatticeMesherParams, TetMesh, VolumeTarget, tetrahedralize,
-    tetrahedralize_to_volume,
+    LatticeMesherError, LatticeMesherParams, LatticeMesherReport, LatticeRefinement, TetMesh,
+    VolumeTarget, tetrahedralize, tetrahedralize_to_volume,
 };
 use nalgebra::Vector3;
 use rkpm_core::{InsideTest, SurfaceDistance, TriangleMesh, read_triangle_mesh};
@@ -200,5 +200,164 @@ fn invalid_parameters_are_rejected_with_the_parameter_named() {
     ] {
         let message = tetrahedralize(&surface, &params).unwrap_err().to_string();
         assert!(message.contains(field), "{message}");
+    }
+}
+
+/// Graded options: `cells_across`, up to `max_halvings` halvings, tolerance 0.05.
+fn graded(cells_across: usize, max_halvings: usize) -> LatticeMesherParams {
+    LatticeMesherParams {
+        cells_across,
+        refinement: LatticeRefinement::Graded {
+            max_halvings,
+            linearity_tolerance: 0.05,
+        },
+        ..LatticeMesherParams::default()
+    }
+}
+
+/// `surface` rotated by the rotation vector `axis_angle` (rad) about the origin, so its faces
+/// fall on no lattice plane.
+fn rotated(surface: &TriangleMesh, axis_angle: Vector3<f64>) -> TriangleMesh {
+    let rotation = nalgebra::Rotation3::new(axis_angle);
+    TriangleMesh::new(
+        surface.vertices().iter().map(|p| rotation * p).collect(),
+        surface.triangles().to_vec(),
+    )
+    .unwrap()
+}
+
+/// A closed tube along z: outer radius `outer`, inner `inner`, length `length`, `segments`
+/// facets around.
+fn tube(outer: f64, inner: f64, length: f64, segments: usize) -> TriangleMesh {
+    let ring = |radius: f64, z: f64| -> Vec<Vector3<f64>> {
+        (0..segments)
+            .map(|s| {
+                let angle = std::f64::consts::TAU * s as f64 / segments as f64;
+                Vector3::new(radius * angle.cos(), radius * angle.sin(), z)
+            })
+            .collect()
+    };
+    // Rings: 0 outer bottom, 1 outer top, 2 inner bottom, 3 inner top.
+    let vertices = [
+        ring(outer, 0.0),
+        ring(outer, length),
+        ring(inner, 0.0),
+        ring(inner, length),
+    ]
+    .concat();
+    let id = |ring: usize, s: usize| ring * segments + s % segments;
+    let mut triangles = Vec::new();
+    let mut quad = |a: usize, b: usize, c: usize, d: usize| {
+        triangles.push([a, b, c]);
+        triangles.push([a, c, d]);
+    };
+    for s in 0..segments {
+        let t = s + 1;
+        quad(id(0, s), id(0, t), id(1, t), id(1, s)); // outer wall, facing out
+        quad(id(2, s), id(3, s), id(3, t), id(2, t)); // inner wall, facing the axis
+        quad(id(1, s), id(1, t), id(3, t), id(3, s)); // top annulus, facing +z
+        quad(id(0, s), id(2, s), id(2, t), id(0, t)); // bottom annulus, facing −z
+    }
+    TriangleMesh::new(vertices, triangles).unwrap()
+}
+
+/// Checks a graded mesh of `surface`: volume within `tolerance`, conforming and watertight, no
+/// tetrahedron flatter than 3°; returns the report.
+fn assert_graded_mesh_holds_the_volume(
+    name: &str,
+    surface: &TriangleMesh,
+    params: &LatticeMesherParams,
+    tolerance: f64,
+) -> LatticeMesherReport {
+    let meshed = tetrahedralize(surface, params).unwrap_or_else(|e| panic!("{name}: {e}"));
+    assert_holds_the_volume(name, surface, meshed, tolerance)
+}
+
+/// [`assert_graded_mesh_holds_the_volume`] on a mesh already made.
+fn assert_holds_the_volume(
+    name: &str,
+    surface: &TriangleMesh,
+    (mesh, report): (TetMesh, LatticeMesherReport),
+    tolerance: f64,
+) -> LatticeMesherReport {
+    assert_watertight(&outward_boundary_faces(&mesh));
+    let error = (mesh.volume() - surface.volume()) / surface.volume();
+    println!(
+        "{name}: {} tets, volume {:+.3}%, deepest bisection {}, dihedral {:.1}°–{:.1}°, {:.2} s",
+        report.tets,
+        100.0 * error,
+        report.deepest_bisection,
+        report.quality.min_dihedral_degrees,
+        report.quality.max_dihedral_degrees,
+        report.seconds
+    );
+    assert!(
+        error.abs() <= tolerance,
+        "{name}: volume off by {error:+.4}"
+    );
+    assert!(
+        report.quality.min_dihedral_degrees > 3.0,
+        "{name}: dihedral angle {:.2}°",
+        report.quality.min_dihedral_degrees
+    );
+    report
+}
+
+#[test]
+fn graded_lattice_meshes_a_thin_tilted_plate_within_three_percent_of_its_volume() {
+    // 1 × 1 × 0.02: 0.32 of a 16-cell lattice's spacing thick, tilted off the lattice planes.
+    let plate = rotated(
+        &TriangleMesh::cuboid(Vector3::repeat(-0.5), Vector3::new(0.5, 0.5, -0.48)),
+        Vector3::new(0.3, -0.2, 0.1),
+    );
+    let uniform = tetrahedralize(
+        &plate,
+        &LatticeMesherParams {
+            cells_across: 16,
+            ..LatticeMesherParams::default()
+        },
+    );
+    let uniform_error = match uniform {
+        Ok((mesh, _)) => (mesh.volume() - plate.volume()) / plate.volume(),
+        Err(LatticeMesherError::NothingInside { .. }) => -1.0,
+        Err(e) => panic!("{e}"),
+    };
+    assert!(
+        uniform_error < -0.1,
+        "the uniform lattice keeps {uniform_error:+.3}"
+    );
+    // Three halvings: the finest spacing (≈ 0.01) is half the thickness.
+    let report = assert_graded_mesh_holds_the_volume("plate", &plate, &graded(16, 3), 0.03);
+    assert!(report.deepest_bisection > 0);
+}
+
+#[test]
+fn graded_lattice_meshes_a_thin_walled_tube_within_three_percent_of_its_volume() {
+    // Wall 0.04 thick on a radius of 0.5: 0.64 of the 16-cell spacing.
+    let pipe = rotated(&tube(0.5, 0.46, 1.0, 64), Vector3::new(0.2, 0.4, 0.0));
+    assert_graded_mesh_holds_the_volume("tube", &pipe, &graded(16, 2), 0.03);
+}
+
+#[test]
+fn graded_lattices_hold_every_shared_mesh_within_three_percent_under_a_tet_budget() {
+    // The FEM references' graded setting (eval's `ShapeFemParams::graded`): 16 cells across,
+    // two halvings near the surface, the base lattice ×1.5 up to 36 until within 3%.
+    let target = VolumeTarget {
+        max_relative_error: 0.03,
+        max_cells_across: 36,
+        growth: 1.5,
+    };
+    const MAX_TETS: usize = 250_000;
+    for path in shared_meshes() {
+        let name = path.file_name().unwrap().to_string_lossy().into_owned();
+        let surface = read_triangle_mesh(&path).unwrap().normalized().0;
+        let meshed = tetrahedralize_to_volume(&surface, &graded(16, 2), &target)
+            .unwrap_or_else(|e| panic!("{name}: {e}"));
+        let report = assert_holds_the_volume(&name, &surface, meshed, 0.03);
+        assert!(
+            report.tets <= MAX_TETS,
+            "{name}: {} tetrahedra, over the budget of {MAX_TETS}",
+            report.tets
+        );
     }
 }

@@ -9,7 +9,7 @@
 //! the study goes on. FEM trajectories and trained networks are cached, so a rerun (or a run
 //! after an interruption) only computes what is missing.
 
-use fem_ref::{LatticeMesherParams, TetMesh, tetrahedralize};
+use fem_ref::{TetMesh, tetrahedralize};
 use hyperelastic::{LameParameters, MaterialField, MaterialSample, StableNeoHookean};
 use nalgebra::Vector3;
 use optimize::NewtonParams;
@@ -532,17 +532,11 @@ fn run_shape_into(
     let finer = if config.check_convergence {
         let cells = (1.5 * length / report.cell_size).round() as usize;
         Some(
-            tetrahedralize(
-                &surface,
-                &LatticeMesherParams {
-                    cells_across: cells,
-                    ..Default::default()
-                },
-            )
-            .map_err(EvalError::FemMesh)?
-            .0
-            .largest_component()
-            .0,
+            tetrahedralize(&surface, &config.fem.lattice(cells))
+                .map_err(EvalError::FemMesh)?
+                .0
+                .largest_component()
+                .0,
         )
     } else {
         None

@@ -9,6 +9,7 @@
 //! "improvement" is `(S − F) / S` of those averages, and "wins" counts the shapes where our
 //! value is the lower one.
 
+use fem_ref::LatticeRefinement;
 use std::fmt::Write as _;
 
 use serde::Serialize;
@@ -169,11 +170,21 @@ fn settings_lines(study: &ShapeStudy) -> String {
     let _ = writeln!(out, "Boundary conditions: {}", c.boundary.describe());
     let _ = writeln!(
         out,
-        "FEM reference: {:?} tetrahedra on the lattice mesher's mesh, the first of {} cells \
+        "FEM reference: {:?} tetrahedra on the lattice mesher's mesh{}, the first of {} cells \
          across (×1.5, up to {}) whose volume is within {:.0}% of the surface's, else the \
          finest; pieces the lattice cut off from the body dropped (they would fall freely); \
          Dirichlet conditions on the nodes in each region.",
         c.fem.order,
+        match c.fem.refinement {
+            LatticeRefinement::Uniform => String::new(),
+            LatticeRefinement::Graded {
+                max_halvings,
+                linearity_tolerance,
+            } => format!(
+                " graded near the surface (up to {max_halvings} halvings where the signed \
+                 distance departs from linear by {linearity_tolerance} of an edge)"
+            ),
+        },
         c.fem.first_cells_across,
         c.fem.max_cells_across,
         100.0 * c.fem.volume_tolerance
