@@ -3,9 +3,6 @@
 
 use std::time::Instant;
 
-use faer::Side;
-use faer::linalg::solvers::Solve;
-use faer::sparse::linalg::solvers::Llt;
 use hyperelastic::{HyperelasticMaterial, Tangent};
 use nalgebra::Vector3;
 use optimize::{
@@ -18,7 +15,7 @@ use thiserror::Error;
 
 use crate::fem_model::FemModel;
 use crate::scene::{FemFloor, FemScene};
-use crate::sparse_system::SparseSystem;
+use crate::sparse_system::{NumericFactor, SparseSystem};
 use crate::trajectory_cache::{
     Trajectory, TrajectoryCache, TrajectoryCacheError, TrajectoryKey, trajectory_key_builder,
 };
@@ -133,7 +130,7 @@ pub struct FemSimulator<M: HyperelasticMaterial> {
     time: f64,
     length_scale: f64,
     /// With Hessian reuse: the last factorization and the steps since it was made.
-    carried: Option<CarriedFactor<Llt<usize, f64>>>,
+    carried: Option<CarriedFactor<NumericFactor>>,
 }
 
 struct StepProblem<'a> {
@@ -512,16 +509,22 @@ impl<M: HyperelasticMaterial> FemSimulator<M> {
     /// Sparse Hessian values on the free DOFs (lower triangle).
     fn hessian(&self, problem: &StepProblem<'_>, x: &[f64]) -> Vec<f64> {
         let tangent = self.params.tangent;
-        let locals: Vec<Vec<f64>> = (0..self.model.mesh().element_count())
-            .into_par_iter()
-            .map(|e| {
-                self.model
-                    .element_hessian(e, x, tangent, problem.inverse_step_squared)
-            })
-            .collect();
         let mut values = vec![0.0; self.system.nonzeros()];
-        for (e, local) in locals.iter().enumerate() {
-            self.system.scatter_element(e, local, &mut values);
+        // Element matrices in parallel a chunk at a time, scattered in order: a chunk's
+        // matrices stay in cache, and the heap is not grown by every element's at once.
+        const CHUNK: usize = 1024;
+        let elements = self.model.mesh().element_count();
+        for start in (0..elements).step_by(CHUNK) {
+            let locals: Vec<Vec<f64>> = (start..(start + CHUNK).min(elements))
+                .into_par_iter()
+                .map(|e| {
+                    self.model
+                        .element_hessian(e, x, tangent, problem.inverse_step_squared)
+                })
+                .collect();
+            for (e, local) in (start..).zip(&locals) {
+                self.system.scatter_element(e, local, &mut values);
+            }
         }
         if let Some((floor, kappa)) = &self.floor {
             for (a, v) in self.model.node_volumes().iter().enumerate() {
@@ -569,14 +572,10 @@ impl<M: HyperelasticMaterial> FemSimulator<M> {
         (e.max(0.0) / self.model.total_mass()).sqrt() / self.length_scale
     }
 
-    fn solve(&self, llt: &Llt<usize, f64>, gradient_free: &[f64]) -> Vec<f64> {
-        let mut rhs = faer::Mat::<f64>::from_fn(gradient_free.len(), 1, |i, _| -gradient_free[i]);
-        llt.solve_in_place(rhs.as_mut());
-        self.scatter_step(
-            &(0..gradient_free.len())
-                .map(|i| rhs[(i, 0)])
-                .collect::<Vec<_>>(),
-        )
+    fn solve(&self, factor: &NumericFactor, gradient_free: &[f64]) -> Vec<f64> {
+        let mut step: Vec<f64> = gradient_free.iter().map(|g| -g).collect();
+        self.system.solve_in_place(factor, &mut step);
+        self.scatter_step(&step)
     }
 }
 
@@ -589,7 +588,7 @@ struct StepObjective<'a, M: HyperelasticMaterial> {
 
 impl<M: HyperelasticMaterial> NewtonObjective for StepObjective<'_, M> {
     type Hessian = Vec<f64>;
-    type Factor = Llt<usize, f64>;
+    type Factor = NumericFactor;
 
     fn energy(&self, x: &[f64]) -> f64 {
         self.sim.energy(&self.problem, x)
@@ -605,9 +604,7 @@ impl<M: HyperelasticMaterial> NewtonObjective for StepObjective<'_, M> {
     }
 
     fn factor(&self, values: Vec<f64>) -> Option<Self::Factor> {
-        let system = &self.sim.system;
-        Llt::try_new_with_symbolic(system.symbolic.clone(), system.matrix(&values), Side::Lower)
-            .ok()
+        self.sim.system.factorize(&values)
     }
 
     fn solve(&self, factor: &Self::Factor, gradient: &[f64]) -> Vec<f64> {

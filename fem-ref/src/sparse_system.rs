@@ -1,9 +1,14 @@
 //! The sparse pattern of the Newton system on free degrees of freedom, its element scatter
 //! table and the reused symbolic Cholesky analysis (DESIGN 3.8).
 
-use faer::Side;
-use faer::sparse::linalg::solvers::SymbolicLlt;
+use std::sync::{Arc, Mutex, PoisonError};
+
+use faer::dyn_stack::{MemBuffer, MemStack, StackReq};
+use faer::sparse::linalg::cholesky::{
+    LltRef, SymbolicCholesky, SymmetricOrdering, factorize_symbolic_cholesky,
+};
 use faer::sparse::{SparseColMat, SparseColMatRef, Triplet};
+use faer::{Conj, MatMut, Par, Side};
 use hyperelastic::HyperelasticMaterial;
 
 use crate::fem_model::FemModel;
@@ -19,7 +24,31 @@ pub(crate) struct SparseSystem {
     pub(crate) free_count: usize,
     pattern: SparseColMat<usize, f64>,
     scatter: Vec<u32>,
-    pub(crate) symbolic: SymbolicLlt<usize>,
+    symbolic: SymbolicCholesky<usize>,
+    /// Parallelism of the numeric factorization and the solves.
+    par: Par,
+    /// Scratch of the factorization and the solves, kept so they do not page in fresh memory.
+    workspace: Mutex<MemBuffer>,
+    /// Value arrays of dropped factors, reused by the next factorization.
+    spare_factors: Arc<Mutex<Vec<Vec<f64>>>>,
+}
+
+/// A numeric Cholesky factor `L` (`LLᵀ = PAPᵀ`, the fill-reducing permutation P of the
+/// system's symbolic analysis): the values of `L` on the symbolic pattern. Dropping it hands
+/// its array back to the system for the next factorization.
+pub(crate) struct NumericFactor {
+    l_values: Vec<f64>,
+    spare: Arc<Mutex<Vec<Vec<f64>>>>,
+}
+
+impl Drop for NumericFactor {
+    fn drop(&mut self) {
+        let mut spare = self.spare.lock().unwrap_or_else(PoisonError::into_inner);
+        // One spare is enough: a carried factor and the fresh one replacing it.
+        if spare.is_empty() {
+            spare.push(std::mem::take(&mut self.l_values));
+        }
+    }
 }
 
 impl SparseSystem {
@@ -79,14 +108,81 @@ impl SparseSystem {
                 }
             }
         }
-        let symbolic = SymbolicLlt::try_new(pattern.symbolic(), Side::Lower)?;
+        // The ordering and parameters `SymbolicLlt::try_new` uses (approximate minimum degree;
+        // a geometric nested dissection tried instead left 1.2–1.4× the fill on the beam).
+        let symbolic = factorize_symbolic_cholesky(
+            pattern.symbolic(),
+            Side::Lower,
+            SymmetricOrdering::Amd,
+            Default::default(),
+        )?;
+        // On 2 cores the parallel factorization is 1.3× faster than the sequential one (beam,
+        // 27k DOFs).
+        let par = faer::get_global_parallelism();
+        let scratch = StackReq::any_of(&[
+            symbolic.factorize_numeric_llt_scratch::<f64>(par, Default::default()),
+            symbolic.solve_in_place_scratch::<f64>(1, par),
+        ]);
+        let workspace = Mutex::new(MemBuffer::try_new(scratch)?);
         Ok(SparseSystem {
             free_index,
             free_count,
             pattern,
             scatter,
             symbolic,
+            par,
+            workspace,
+            spare_factors: Arc::new(Mutex::new(Vec::new())),
         })
+    }
+
+    /// The Cholesky factor of the matrix with `values` on this pattern, or `None` when it is
+    /// not numerically positive definite.
+    pub(crate) fn factorize(&self, values: &[f64]) -> Option<NumericFactor> {
+        let spare = self
+            .spare_factors
+            .lock()
+            .unwrap_or_else(PoisonError::into_inner)
+            .pop();
+        let mut l_values = spare.unwrap_or_default();
+        // The factorization zeroes the array itself.
+        l_values.resize(self.symbolic.len_val(), 0.0);
+        let mut workspace = self
+            .workspace
+            .lock()
+            .unwrap_or_else(PoisonError::into_inner);
+        let positive_definite = self
+            .symbolic
+            .factorize_numeric_llt(
+                &mut l_values,
+                self.matrix(values),
+                Side::Lower,
+                Default::default(),
+                self.par,
+                MemStack::new(&mut workspace),
+                Default::default(),
+            )
+            .is_ok();
+        let factor = NumericFactor {
+            l_values,
+            spare: Arc::clone(&self.spare_factors),
+        };
+        positive_definite.then_some(factor)
+    }
+
+    /// Solves `A x = rhs` in place with `factor` (of A).
+    pub(crate) fn solve_in_place(&self, factor: &NumericFactor, rhs: &mut [f64]) {
+        let mut workspace = self
+            .workspace
+            .lock()
+            .unwrap_or_else(PoisonError::into_inner);
+        let n = rhs.len();
+        LltRef::new(&self.symbolic, &factor.l_values).solve_in_place_with_conj(
+            Conj::No,
+            MatMut::from_column_major_slice_mut(rhs, n, 1),
+            self.par,
+            MemStack::new(&mut workspace),
+        );
     }
 
     /// Number of stored (lower-triangle) entries.
