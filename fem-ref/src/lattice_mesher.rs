@@ -21,6 +21,17 @@
 //!
 //! Features thinner than about one cell are lost; sharp edges are cut off by O(h²) per unit
 //! length. [`LatticeMesherReport::relative_volume_error`] says how close the result is.
+//!
+//! With [`LatticeRefinement::Graded`], step 1 keeps only the cubes near or inside the surface
+//! and bisects their tetrahedra (conforming newest-vertex bisection, `kuhn_bisection`) where
+//! `φ` is not linear across a sign change: an edge whose midpoint lies on the other side of
+//! the surface than the linear interpolation of its ends says, by more than
+//! `linearity_tolerance` of its length. That is where the surface curves or the solid is
+//! thinner than the edge; flat faces and the interior stay coarse. Steps 2–4 are the same,
+//! the snap distance taken from each vertex's shortest edge instead of `h`. On the 24 shared
+//! meshes (16 cells, two halvings, tolerance 0.05, the base ×1.5 to 36 until within 3%) every
+//! volume is within 3% at 8k–220k tetrahedra, where the uniform lattice needed 64–80 cells
+//! on the thin ones (`fem-ref/examples/mesh_volumes.rs` prints both).
 
 use std::collections::HashMap;
 use std::time::Instant;
@@ -51,7 +62,7 @@ pub struct LatticeMesherParams {
     /// Default 32.
     pub cells_across: usize,
     /// Lattice vertices closer to the surface than `snap_fraction · h` are treated as on it, in
-    /// `[0, 0.5)`. Larger values give fatter boundary tetrahedra. Default 0.3.
+    /// `[0, 0.5)` (graded lattices: `h` is the vertex's shortest edge). Larger values give fatter boundary tetrahedra. Default 0.3.
     pub snap_fraction: f64,
     /// A boundary vertex is moved onto the surface only as far as keeps every incident
     /// tetrahedron's smallest dihedral angle at or above this (degrees). Default 10.

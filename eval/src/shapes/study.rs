@@ -12,7 +12,6 @@
 use fem_ref::{TetMesh, tetrahedralize};
 use hyperelastic::{LameParameters, MaterialField, MaterialSample, StableNeoHookean};
 use nalgebra::Vector3;
-use optimize::NewtonParams;
 use std::path::{Path, PathBuf};
 use std::sync::Mutex;
 use std::sync::atomic::{AtomicUsize, Ordering};
@@ -579,7 +578,7 @@ fn run_shape_into(
                     unconverged_steps: fem.unconverged_steps,
                     cached: fem.cached,
                 });
-                fem.check_converged(NewtonParams::default().max_iterations)?;
+                fem.check_converged(config.fem.newton.max_iterations)?;
                 if let Some(finer) = &finer {
                     match reference_change(&fem, &problem(finer), length, &label, config, progress)
                     {
@@ -641,7 +640,7 @@ fn reference_change(
         &config.cache_dir,
         progress,
     )?;
-    fine.check_converged(NewtonParams::default().max_iterations)?;
+    fine.check_converged(config.fem.newton.max_iterations)?;
     let (inside, fine_frames) = fine.frames_inside(coarse.vertices());
     if inside.is_empty() {
         return Err(EvalError::InvalidInput(

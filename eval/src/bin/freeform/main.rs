@@ -94,6 +94,10 @@ enum Command {
         /// of the surface's, e.g. 0.01.
         #[arg(long)]
         volume_target: Option<f64>,
+        /// Grade the lattice: refine it near the surface by up to this many halvings where the
+        /// signed distance departs from linear (thin parts, curvature; tolerance 0.05).
+        #[arg(long)]
+        graded: Option<usize>,
         /// Keep the file's units (default: scale so the largest side is 1).
         #[arg(long)]
         keep_units: bool,
@@ -218,8 +222,18 @@ fn run(cli: Cli) -> Result<()> {
             surface,
             cells,
             volume_target,
+            graded,
             keep_units,
-        } => mesh::run(&surface, cells, volume_target, keep_units, &cli.out),
+        } => mesh::run(
+            &surface,
+            &mesh::MeshOptions {
+                cells,
+                volume_target,
+                graded,
+                keep_units,
+            },
+            &cli.out,
+        ),
         Command::Simulate { scene, stress } => {
             simulate::run(&scene, stress, &cli.out, &cache, progress)
         }

@@ -4,16 +4,33 @@ use std::path::Path;
 
 use anyhow::Result;
 use artifact::write_atomically;
-use fem_ref::{LatticeMesherParams, VolumeTarget, tetrahedralize, tetrahedralize_to_volume};
+use fem_ref::{
+    LatticeMesherParams, LatticeRefinement, VolumeTarget, tetrahedralize, tetrahedralize_to_volume,
+};
 use freeform::frames::unstructured_grid_vtk;
 use rkpm_core::read_triangle_mesh;
+
+/// What `freeform mesh` was asked for.
+pub(crate) struct MeshOptions {
+    /// Lattice cells across the largest side (the first try with a volume target).
+    pub cells: usize,
+    /// Refine (×1.5, up to 128 cells) until the volume is within this fraction.
+    pub volume_target: Option<f64>,
+    /// Halvings of a lattice graded near the surface (none: uniform).
+    pub graded: Option<usize>,
+    /// Keep the file's units instead of scaling the largest side to 1.
+    pub keep_units: bool,
+}
 
 /// Meshes `path` and writes the tet mesh as VTK under `out`.
 pub(crate) fn run(
     path: &Path,
-    cells: usize,
-    volume_target: Option<f64>,
-    keep_units: bool,
+    &MeshOptions {
+        cells,
+        volume_target,
+        graded,
+        keep_units,
+    }: &MeshOptions,
     out: &Path,
 ) -> Result<()> {
     let surface = read_triangle_mesh(path)?;
@@ -24,6 +41,13 @@ pub(crate) fn run(
     };
     let params = LatticeMesherParams {
         cells_across: cells,
+        refinement: match graded {
+            None => LatticeRefinement::Uniform,
+            Some(max_halvings) => LatticeRefinement::Graded {
+                max_halvings,
+                linearity_tolerance: 0.05,
+            },
+        },
         ..Default::default()
     };
     let (tets, report) = match volume_target {
@@ -45,7 +69,8 @@ pub(crate) fn run(
     )?;
     let q = &report.quality;
     println!(
-        "{}: {} cells across (h = {:.4}), {} vertices, {} tetrahedra\n\
+        "{}: {} cells across (h = {:.4}; shortest lattice edge {:.4}), {} vertices, {} \
+         tetrahedra\n\
          volume {:.6} vs surface {:.6} ({:+.3}%)\n\
          dihedral angles {:.1}°–{:.1}°; boundary vertices {} ({} moved part way, {} kept off \
          the surface to protect quality)\n\
@@ -53,6 +78,7 @@ pub(crate) fn run(
         path.display(),
         (1.0 / report.cell_size * surface.bounding_box().largest_side()).round(),
         report.cell_size,
+        report.shortest_lattice_edge,
         report.vertices,
         report.tets,
         report.mesh_volume,
