@@ -62,7 +62,8 @@ pub struct LatticeMesherParams {
     /// Default 32.
     pub cells_across: usize,
     /// Lattice vertices closer to the surface than `snap_fraction · h` are treated as on it, in
-    /// `[0, 0.5)` (graded lattices: `h` is the vertex's shortest edge). Larger values give fatter boundary tetrahedra. Default 0.3.
+    /// `[0, 0.5)` (graded lattices: `h` is the vertex's shortest edge). Larger values give
+    /// fatter boundary tetrahedra. Default 0.3.
     pub snap_fraction: f64,
     /// A boundary vertex is moved onto the surface only as far as keeps every incident
     /// tetrahedron's smallest dihedral angle at or above this (degrees). Default 10.
@@ -92,16 +93,19 @@ pub enum LatticeRefinement {
     #[default]
     Uniform,
     /// Graded: tetrahedra near the surface are bisected (conforming newest-vertex bisection,
-    /// see the module docs) while the signed distance `φ` is not linear on them, i.e. while
-    /// `|φ(midpoint) − (φ(a) + φ(b))/2| > linearity_tolerance · |b − a|` on one of their edges
-    /// `ab`. `φ` bends where the surface curves and kinks on the medial axis, so this refines
-    /// to the local curvature and, in thin parts, to the local thickness; away from the surface
-    /// the lattice stays coarse.
+    /// see the module docs) while the linear interpolation of the signed distance `φ` puts one
+    /// of their edges' midpoints on the wrong side of the surface by more than a fraction of
+    /// the edge: `φ(mid) · φ̄ < 0` and `|φ(mid) − φ̄| > linearity_tolerance · |b − a|`, with
+    /// `φ̄ = (φ(a) + φ(b))/2` on the edge `ab`. That happens where the surface curves and where
+    /// the solid is thinner than the edge (an edge across a thin plate has both ends outside
+    /// and its midpoint inside); flat faces and the interior stay coarse.
     Graded {
-        /// Halvings of the lattice spacing allowed (3 bisections each), e.g. 3 refines
-        /// `cells_across = 16` down to the spacing of a 128-cell lattice where needed.
+        /// Halvings of the lattice spacing allowed (3 bisections each), e.g. 2 refines
+        /// `cells_across = 16` down to the spacing of a 64-cell lattice where needed.
         max_halvings: usize,
-        /// See above, in `(0, 1)`; smaller refines more. 0.05 is a sound start.
+        /// See above, in `(0, 1)`; smaller refines more. At 0.05 (16 cells, two halvings)
+        /// every shared mesh but four is within 3% of its volume; at 0.15 the thin ones lose
+        /// 5–11%.
         linearity_tolerance: f64,
     },
 }
@@ -528,10 +532,12 @@ struct GradedLattice {
     phi: Vec<f64>,
 }
 
-/// [`LatticeRefinement::Graded`]: the Kuhn tetrahedra of the cubes near or inside the surface,
-/// bisected (with the conforming closure) while `φ` is not linear on one of their edges, at
-/// most `max_bisections` deep. Only tetrahedra with a vertex closer to the surface than their
-/// longest edge are tested.
+/// [`LatticeRefinement::Graded`]: the Kuhn tetrahedra of the cubes near or inside the surface
+/// (a corner within a cube diagonal outside, so thin parts between lattice vertices are kept),
+/// bisected (with the conforming closure) while the interpolated `φ` puts one of their edges'
+/// midpoints on the wrong side of the surface by more than `linearity_tolerance` of the edge,
+/// at most `max_bisections` deep. Only tetrahedra with a vertex closer to the surface than
+/// their longest edge are tested.
 fn refine_near_surface(
     queries: &SurfaceQueries,
     positions: Vec<Vector3<f64>>,

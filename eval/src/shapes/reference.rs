@@ -127,3 +127,35 @@ pub fn mesh_for_fem(
     }
     .map_err(EvalError::FemMesh)
 }
+
+#[cfg(test)]
+mod tests {
+    use nalgebra::{Rotation3, Vector3};
+
+    use super::*;
+
+    #[test]
+    fn graded_references_keep_a_thin_plate_the_default_lattice_loses() {
+        // 1 × 0.5 × 0.03, tilted off the lattice planes: thinner than the default's 16-cell
+        // spacing.
+        let box_ = TriangleMesh::cuboid(Vector3::zeros(), Vector3::new(1.0, 0.5, 0.03));
+        let rotation = Rotation3::new(Vector3::new(0.2, -0.3, 0.1));
+        let plate = TriangleMesh::new(
+            box_.vertices().iter().map(|p| rotation * p).collect(),
+            box_.triangles().to_vec(),
+        )
+        .unwrap();
+        let lost = |params: &ShapeFemParams| match mesh_for_fem(&plate, params) {
+            Ok((_, report)) => report.relative_volume_error,
+            Err(EvalError::FemMesh(LatticeMesherError::NothingInside { .. })) => -1.0,
+            Err(e) => panic!("{e}"),
+        };
+        let uniform = lost(&ShapeFemParams::default());
+        let graded = lost(&ShapeFemParams::graded());
+        assert!(uniform < -0.05, "the uniform lattice keeps {uniform:+.3}");
+        assert!(
+            graded.abs() <= 0.03,
+            "the graded lattice keeps {graded:+.3}"
+        );
+    }
+}

@@ -88,7 +88,8 @@ pub(crate) struct TableOptions {
     fem_reuse: bool,
     /// Tables 2 and 7: mesh the FEM references on uniform lattices (10 cells across ×1.5 up to
     /// 16 until the volume is within 5%, the first tables' setting) or on lattices graded near
-    /// the surface (16 ×1.5 up to 36, two halvings near the surface, within 3%; issue 19).
+    /// the surface (16 ×1.5 up to 36, two halvings near the surface, within 3%; issue 19;
+    /// with --quick the quick lattice, graded).
     #[arg(long, value_enum, default_value_t = FemMesherChoice::Uniform)]
     fem_mesher: FemMesherChoice,
     /// Leave out the exact-pin columns of Tables 1 and 2 (each row is run a second time with
@@ -349,7 +350,17 @@ pub(crate) fn run(
         shapes.default_youngs_modulus = young;
         shapes.check_convergence = check_convergence;
         if fem_mesher == FemMesherChoice::Graded {
-            shapes.fem = ShapeFemParams::graded();
+            let graded = ShapeFemParams::graded();
+            // A quick run keeps its coarse base lattice and grades it.
+            shapes.fem = if quick {
+                ShapeFemParams {
+                    refinement: graded.refinement,
+                    newton: graded.newton,
+                    ..shapes.fem
+                }
+            } else {
+                graded
+            };
         }
         if fem_reuse {
             shapes.fem.newton = fem_ref::reusing_reference_newton();
