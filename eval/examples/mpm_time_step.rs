@@ -18,6 +18,7 @@ use eval::fem_reference::{FemProblem, run_fem};
 use eval::metrics::trajectory_errors;
 use eval::progress::Progress;
 use fem_ref::{ElementOrder, TetMesh};
+use hyperelastic::HessianTangent;
 use optimize::NewtonParams;
 
 fn main() -> Result<(), Box<dyn std::error::Error>> {
@@ -40,6 +41,7 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
                 scene: &test.scene(),
                 time_step: h,
                 newton: NewtonParams::default(),
+                tangent: HessianTangent::ProjectedPsd,
                 steps: steps * substeps,
             },
             &format!("{} P2 res 4 h = {h}", test.name()),

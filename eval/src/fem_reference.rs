@@ -9,7 +9,7 @@ use fem_ref::{
     ElementOrder, FemMesh, FemModel, FemParams, FemSimulator, MassKind, PointInterpolation,
     TetMesh, TrajectoryCache,
 };
-use hyperelastic::StableNeoHookean;
+use hyperelastic::{HessianTangent, StableNeoHookean};
 use nalgebra::Vector3;
 use serde::{Deserialize, Serialize};
 
@@ -132,6 +132,7 @@ pub fn run_fem_beam_with(
             scene: &test.scene(),
             time_step: BEAM_TIME_STEP,
             newton,
+            tangent: HessianTangent::ProjectedPsd,
             steps,
         },
         &label,
@@ -154,6 +155,9 @@ pub struct FemProblem<'a> {
     pub time_step: f64,
     /// Newton options (`NewtonParams::default()` for a reference).
     pub newton: NewtonParams,
+    /// The element tangent of Newton's Hessian ([`HessianTangent::ProjectedPsd`] for the
+    /// references so far; the converged states do not depend on it).
+    pub tangent: HessianTangent,
     /// Steps to run.
     pub steps: usize,
 }
@@ -185,7 +189,7 @@ pub fn run_fem(
     let params = FemParams {
         time_step: problem.time_step,
         newton: problem.newton,
-        ..FemParams::default()
+        tangent: problem.tangent,
     };
     let mut sim = FemSimulator::new(model, fem_scene, params).map_err(EvalError::FemSetup)?;
     let dofs = sim.free_dofs();

@@ -6,7 +6,7 @@
 //! cargo run --release -p fem-ref --example beam_bend -- --order 2 --res 4 --json
 //! ```
 //! Options: `--order 1|2` (default 2), `--res r` (elements across the 1 m side, default 4; the
-//! mesh has 5r × r × r cubes of 6 tetrahedra), `--steps S` (default 100), `--tangent psd|exact`
+//! mesh has 5r × r × r cubes of 6 tetrahedra), `--steps S` (default 100), `--tangent psd|exact|exact-when-definite`
 //! (default psd), `--tolerance T` (Newton, default 1e-6), `--reuse` (carry the Cholesky
 //! factor across steps while chord steps contract), `--json`.
 //!

@@ -14,7 +14,7 @@ mod beam;
 
 use beam::{BeamScene, TangentArg, run_beam};
 use fem_ref::ElementOrder;
-use hyperelastic::Tangent;
+use hyperelastic::HessianTangent;
 
 /// Which scenes to run.
 #[derive(Clone, Copy, clap::ValueEnum)]
@@ -49,7 +49,7 @@ fn run() -> Result<(), String> {
         Scenes::Bend => vec![BeamScene::Bend],
         Scenes::Twist => vec![BeamScene::Twist],
     };
-    let tangent: Tangent = args.tangent.into();
+    let tangent: HessianTangent = args.tangent.into();
     for scene in scenes {
         let (steps, at, what) = match scene {
             BeamScene::Bend => (100, [50, 100], "tip y (m)"),

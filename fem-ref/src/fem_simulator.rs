@@ -1,9 +1,10 @@
 //! Backward Euler with Newton on the full FEM model, exact Dirichlet conditions, per-step
 //! reports (DESIGN 3.8).
 
+use std::sync::{Mutex, PoisonError};
 use std::time::Instant;
 
-use hyperelastic::{HyperelasticMaterial, Tangent};
+use hyperelastic::{HessianTangent, HyperelasticMaterial, Tangent};
 use nalgebra::Vector3;
 use optimize::{
     CarriedFactor, HessianReuse, NewtonError, NewtonObjective, NewtonParams, NewtonReport,
@@ -33,9 +34,11 @@ pub struct FemParams {
     /// step that does not converge that way is solved again with fresh Hessians; the default,
     /// [`HessianReuse::Never`], factors afresh every iteration.
     pub newton: NewtonParams,
-    /// Element tangent (default PSD-projected; `Exact` is only safe while the system stays
-    /// positive definite, and a failed factorization is then reported).
-    pub tangent: Tangent,
+    /// Element tangent (default PSD-projected, the references' setting; `Exact` is only safe
+    /// while the system stays positive definite, and a failed factorization is then reported;
+    /// `ExactWhenDefinite` assembles the exact Hessian and the projected one only when the
+    /// exact one fails to factor, which converges in fewer iterations at large rotations).
+    pub tangent: HessianTangent,
 }
 
 impl Default for FemParams {
@@ -43,7 +46,7 @@ impl Default for FemParams {
         FemParams {
             time_step: 0.01,
             newton: NewtonParams::default(),
-            tangent: Tangent::ProjectedPsd,
+            tangent: HessianTangent::ProjectedPsd,
         }
     }
 }
@@ -391,7 +394,7 @@ impl<M: HyperelasticMaterial> FemSimulator<M> {
         };
         let newton = self.params.newton;
         let (carried, age) = CarriedFactor::usable(self.carried.take(), FEM_FACTOR_MAX_AGE);
-        let objective = StepObjective { sim: self, problem };
+        let objective = StepObjective::new(self, problem);
         let (report, factor) = if newton.hessian_reuse == HessianReuse::Never {
             (minimize(&objective, &mut x, &newton)?, None)
         } else {
@@ -430,7 +433,7 @@ impl<M: HyperelasticMaterial> FemSimulator<M> {
             inverse_step_squared: 0.0,
         };
         let report = minimize(
-            &StepObjective { sim: self, problem },
+            &StepObjective::new(self, problem),
             &mut x,
             &self.params.newton,
         )?;
@@ -506,9 +509,9 @@ impl<M: HyperelasticMaterial> FemSimulator<M> {
         g
     }
 
-    /// Sparse Hessian values on the free DOFs (lower triangle).
-    fn hessian(&self, problem: &StepProblem<'_>, x: &[f64]) -> Vec<f64> {
-        let tangent = self.params.tangent;
+    /// Sparse Hessian values on the free DOFs (lower triangle) with the element tangent
+    /// `tangent`.
+    fn hessian(&self, problem: &StepProblem<'_>, x: &[f64], tangent: Tangent) -> Vec<f64> {
         let mut values = vec![0.0; self.system.nonzeros()];
         // Element matrices in parallel a chunk at a time, scattered in order: a chunk's
         // matrices stay in cache, and the heap is not grown by every element's at once.
@@ -584,6 +587,19 @@ impl<M: HyperelasticMaterial> FemSimulator<M> {
 struct StepObjective<'a, M: HyperelasticMaterial> {
     sim: &'a FemSimulator<M>,
     problem: StepProblem<'a>,
+    /// Where the last exact Hessian was assembled, for the projected one a failed
+    /// factorization falls back to ([`HessianTangent::ExactWhenDefinite`]).
+    exact_at: Mutex<Option<Vec<f64>>>,
+}
+
+impl<'a, M: HyperelasticMaterial> StepObjective<'a, M> {
+    fn new(sim: &'a FemSimulator<M>, problem: StepProblem<'a>) -> Self {
+        StepObjective {
+            sim,
+            problem,
+            exact_at: Mutex::new(None),
+        }
+    }
 }
 
 impl<M: HyperelasticMaterial> NewtonObjective for StepObjective<'_, M> {
@@ -600,11 +616,28 @@ impl<M: HyperelasticMaterial> NewtonObjective for StepObjective<'_, M> {
 
     fn gradient_and_hessian(&self, x: &[f64], gradient: Option<Vec<f64>>) -> (Vec<f64>, Vec<f64>) {
         let gradient = gradient.unwrap_or_else(|| self.gradient(x));
-        (gradient, self.sim.hessian(&self.problem, x))
+        let tangent = self.sim.params.tangent;
+        if tangent == HessianTangent::ExactWhenDefinite {
+            *self.exact_at.lock().unwrap_or_else(PoisonError::into_inner) = Some(x.to_vec());
+        }
+        (
+            gradient,
+            self.sim.hessian(&self.problem, x, tangent.first_try()),
+        )
     }
 
     fn factor(&self, values: Vec<f64>) -> Option<Self::Factor> {
-        self.sim.system.factorize(&values)
+        let factor = self.sim.system.factorize(&values);
+        if factor.is_some() || self.sim.params.tangent != HessianTangent::ExactWhenDefinite {
+            return factor;
+        }
+        let x = self
+            .exact_at
+            .lock()
+            .unwrap_or_else(PoisonError::into_inner)
+            .take()?;
+        let projected = self.sim.hessian(&self.problem, &x, Tangent::ProjectedPsd);
+        self.sim.system.factorize(&projected)
     }
 
     fn solve(&self, factor: &Self::Factor, gradient: &[f64]) -> Vec<f64> {

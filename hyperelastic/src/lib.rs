@@ -20,6 +20,7 @@
 
 pub mod cauchy_stress;
 pub mod determinant;
+pub mod hessian_tangent;
 pub mod lame_parameters;
 pub mod linear_elastic;
 pub mod material;
@@ -35,6 +36,7 @@ pub use cauchy_stress::{
     CauchyStressError, StressSample, cauchy_stress, principal_stresses, von_mises_stress,
 };
 pub use determinant::{Matrix9, cofactor, determinant_hessian};
+pub use hessian_tangent::HessianTangent;
 pub use lame_parameters::{LameParameters, MaterialParameterError};
 pub use linear_elastic::LinearElastic;
 pub use material::{HyperelasticMaterial, Tangent};

@@ -19,47 +19,7 @@
 //! unconverged step → none), the MSE equal to 4 digits (the two trajectories 1e-11 apart).
 //! Hence the default; [`HessianTangent::ProjectedPsd`] stays the paper's setting.
 
-use hyperelastic::Tangent;
-use serde::{Deserialize, Serialize};
-
-/// The material tangent in the Hessian of each Newton iteration.
-///
-/// The converged state does not depend on it (the gradient is exact in every case); only the
-/// path and the number of iterations do.
-#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Serialize, Deserialize)]
-pub enum HessianTangent {
-    /// Every point's `∂P/∂F` projected onto the PSD cone (the paper's setting).
-    #[serde(rename = "ProjectedPsd", alias = "projected_psd")]
-    ProjectedPsd,
-    /// The exact `∂P/∂F` (and the colliders' curvature): only safe while the Newton system
-    /// stays positive definite; a failed factorization is reported.
-    #[serde(rename = "Exact", alias = "exact")]
-    Exact,
-    /// The exact Hessian where it is positive definite (tested by a Cholesky factorization of
-    /// the assembled 12(m + 1) square matrix), the projected one otherwise (default).
-    #[default]
-    #[serde(rename = "ExactWhenDefinite", alias = "exact_when_definite")]
-    ExactWhenDefinite,
-}
-
-impl HessianTangent {
-    /// The tangent assembled first: exact unless always projected.
-    pub fn first_try(self) -> Tangent {
-        match self {
-            HessianTangent::ProjectedPsd => Tangent::ProjectedPsd,
-            HessianTangent::Exact | HessianTangent::ExactWhenDefinite => Tangent::Exact,
-        }
-    }
-}
-
-impl From<Tangent> for HessianTangent {
-    fn from(tangent: Tangent) -> Self {
-        match tangent {
-            Tangent::Exact => HessianTangent::Exact,
-            Tangent::ProjectedPsd => HessianTangent::ProjectedPsd,
-        }
-    }
-}
+pub use hyperelastic::HessianTangent;
 
 /// A step objective made of incremental potentials (one object's, or a group's side by side)
 /// whose tangents a retry in the paper's setting switches

@@ -5,6 +5,7 @@ use fem_ref::{
     ElementOrder, LatticeMesherError, LatticeMesherParams, LatticeMesherReport, LatticeRefinement,
     TetMesh, VolumeTarget, tetrahedralize, tetrahedralize_to_volume,
 };
+use hyperelastic::HessianTangent;
 use optimize::NewtonParams;
 use rkpm_core::TriangleMesh;
 use serde::{Deserialize, Serialize};
@@ -36,6 +37,17 @@ pub struct ShapeFemParams {
     /// ([`ShapeFemParams::graded`]).
     #[serde(default)]
     pub refinement: LatticeRefinement,
+    /// The element tangent of Newton's Hessian (default
+    /// [`HessianTangent::ProjectedPsd`], the first tables' setting;
+    /// [`HessianTangent::ExactWhenDefinite`] projects only when the exact Hessian fails to
+    /// factor). Part of each cached trajectory's key.
+    #[serde(default = "projected_tangent")]
+    pub tangent: HessianTangent,
+}
+
+/// The references' tangent before it could be chosen (for settings stored without one).
+fn projected_tangent() -> HessianTangent {
+    HessianTangent::ProjectedPsd
 }
 
 impl ShapeFemParams {
@@ -81,6 +93,7 @@ impl Default for ShapeFemParams {
             volume_tolerance: 0.05,
             newton: NewtonParams::default(),
             refinement: LatticeRefinement::Uniform,
+            tangent: HessianTangent::ProjectedPsd,
         }
     }
 }

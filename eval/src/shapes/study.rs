@@ -564,6 +564,7 @@ fn run_shape_into(
             scene: &scene,
             time_step: config.boundary.time_step,
             newton: config.fem.newton,
+            tangent: config.fem.tangent,
             steps: config.boundary.steps,
         };
         let outcome =

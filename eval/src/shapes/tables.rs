@@ -10,6 +10,7 @@
 //! value is the lower one.
 
 use fem_ref::LatticeRefinement;
+use hyperelastic::HessianTangent;
 use std::fmt::Write as _;
 
 use serde::Serialize;
@@ -173,7 +174,8 @@ fn settings_lines(study: &ShapeStudy) -> String {
         "FEM reference: {:?} tetrahedra on the lattice mesher's mesh{}, the first of {} cells \
          across (×1.5, up to {}) whose volume is within {:.0}% of the surface's, else the \
          finest; pieces the lattice cut off from the body dropped (they would fall freely); \
-         Dirichlet conditions on the nodes in each region.",
+         Dirichlet conditions on the nodes in each region; Newton to {:e} in at most {} \
+         iterations a step, {} element tangents.",
         c.fem.order,
         match c.fem.refinement {
             LatticeRefinement::Uniform => String::new(),
@@ -187,7 +189,14 @@ fn settings_lines(study: &ShapeStudy) -> String {
         },
         c.fem.first_cells_across,
         c.fem.max_cells_across,
-        100.0 * c.fem.volume_tolerance
+        100.0 * c.fem.volume_tolerance,
+        c.fem.newton.tolerance,
+        c.fem.newton.max_iterations,
+        match c.fem.tangent {
+            HessianTangent::ProjectedPsd => "PSD-projected",
+            HessianTangent::Exact => "exact",
+            HessianTangent::ExactWhenDefinite => "exact (projected when not definite)",
+        }
     );
     let gate = c.max_reference_volume_error;
     let rows: Vec<(&ShapeResult, &ShapeRow)> = study

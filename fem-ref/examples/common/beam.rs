@@ -9,7 +9,7 @@ use fem_ref::{
     NodeTarget, PointInterpolation, TetMesh,
 };
 use hyperelastic::MaterialSample;
-use hyperelastic::{StableNeoHookean, Tangent};
+use hyperelastic::{HessianTangent, StableNeoHookean};
 use nalgebra::{Rotation3, Vector3};
 use optimize::NewtonParams;
 
@@ -20,13 +20,16 @@ pub enum TangentArg {
     Psd,
     /// Exact element tangents.
     Exact,
+    /// Exact element tangents, projected only when the exact Hessian fails to factor.
+    ExactWhenDefinite,
 }
 
-impl From<TangentArg> for Tangent {
-    fn from(t: TangentArg) -> Tangent {
+impl From<TangentArg> for HessianTangent {
+    fn from(t: TangentArg) -> HessianTangent {
         match t {
-            TangentArg::Psd => Tangent::ProjectedPsd,
-            TangentArg::Exact => Tangent::Exact,
+            TangentArg::Psd => HessianTangent::ProjectedPsd,
+            TangentArg::Exact => HessianTangent::Exact,
+            TangentArg::ExactWhenDefinite => HessianTangent::ExactWhenDefinite,
         }
     }
 }
@@ -70,7 +73,7 @@ pub fn run_beam(
     res: usize,
     steps: usize,
     report_at: &[usize],
-    tangent: Tangent,
+    tangent: HessianTangent,
     newton: NewtonParams,
 ) -> Result<BeamRun, String> {
     let tets = TetMesh::cuboid(

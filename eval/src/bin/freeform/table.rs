@@ -18,7 +18,7 @@ use eval::report::table::write_table;
 use eval::shapes::reference::ShapeFemParams;
 use eval::shapes::study::{ShapeStudyConfig, mesh_files, run_shape_study};
 use eval::shapes::tables::{table2, table7};
-use reduced_sim::{CubatureParams, PinModulus, QuadratureRule};
+use reduced_sim::{CubatureParams, HessianTangent, PinModulus, QuadratureRule};
 
 /// Options of `freeform table`.
 #[derive(clap::Args)]
@@ -92,6 +92,11 @@ pub(crate) struct TableOptions {
     /// with --quick the quick lattice, graded).
     #[arg(long, value_enum, default_value_t = FemMesherChoice::Uniform)]
     fem_mesher: FemMesherChoice,
+    /// Tables 2 and 7: the element tangent of the FEM references' Newton Hessian: PSD-projected
+    /// (the first tables' setting) or exact, projected only when the exact Hessian fails to
+    /// factor (fewer iterations at large rotations; the same converged states, cached apart).
+    #[arg(long, value_enum, default_value_t = FemTangentChoice::Projected)]
+    fem_tangent: FemTangentChoice,
     /// Leave out the exact-pin columns of Tables 1 and 2 (each row is run a second time with
     /// the pinned regions held exactly, on a basis built for them).
     #[arg(long)]
@@ -169,6 +174,15 @@ pub(crate) enum FemMesherChoice {
     Graded,
 }
 
+/// The element tangent of the shapes' FEM references.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, clap::ValueEnum)]
+pub(crate) enum FemTangentChoice {
+    /// [`HessianTangent::ProjectedPsd`].
+    Projected,
+    /// [`HessianTangent::ExactWhenDefinite`].
+    ExactWhenDefinite,
+}
+
 /// Where the beam runs integrate the elastic energy.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, clap::ValueEnum)]
 pub(crate) enum QuadratureChoice {
@@ -201,6 +215,7 @@ pub(crate) fn run(
         check_convergence,
         fem_reuse,
         fem_mesher,
+        fem_tangent,
         skip_mpm,
         mpm_spacings,
         mpm_material,
@@ -365,6 +380,10 @@ pub(crate) fn run(
         if fem_reuse {
             shapes.fem.newton = fem_ref::reusing_reference_newton();
         }
+        shapes.fem.tangent = match fem_tangent {
+            FemTangentChoice::Projected => HessianTangent::ProjectedPsd,
+            FemTangentChoice::ExactWhenDefinite => HessianTangent::ExactWhenDefinite,
+        };
         if skip_exact {
             shapes.exact_pins = None;
         } else if let Some(radii) = exact_inset_radii {

@@ -1,0 +1,182 @@
+//! Where a shape's FEM reference spends its time: one boundary condition of Table 2 on the
+//! reference mesh (graded by default, as `freeform table 2 --fem-mesher graded`), stepped
+//! without the cache, with Newton iterations, factorizations, line-search cuts and seconds
+//! split into assembly (gradients and Hessians), solve (factorizations and triangular solves)
+//! and line search (energies), per step and in total. Nothing is cached or scored.
+//!
+//! ```sh
+//! cargo run --release -p eval --example shape_reference_timing -- \
+//!     ../shared/data/meshes/bunny.obj --boundary fix-side --steps 10 --tangent projected
+//! ```
+//! Options: `--boundary fix-side|pull-farthest|pull-boundary` (default fix-side), `--steps N`
+//! (default 40, the tables'), `--tangent projected|exact-when-definite` (default projected),
+//! `--uniform` (the first tables' uniform lattices instead of the graded ones), `--max-iterations
+//! N` (default the mesher choice's: 60 graded, 20 uniform), `--young E` (Pa; default the
+//! catalogue's, 1e5 for an uncatalogued mesh).
+
+use std::path::PathBuf;
+use std::time::Instant;
+
+use anyhow::{Context, Result};
+use clap::Parser;
+use eval::shapes::boundary::{ShapeBoundary, ShapeBoundaryParams};
+use eval::shapes::catalog::{SHAPE_DENSITY, SHAPE_POISSON_RATIO, catalog_entry};
+use eval::shapes::reference::{ShapeFemParams, mesh_for_fem};
+use fem_ref::{FemMesh, FemModel, FemParams, FemSimulator, MassKind};
+use hyperelastic::{HessianTangent, MaterialSample, StableNeoHookean};
+use rkpm_core::read_triangle_mesh;
+
+#[derive(Clone, Copy, Debug, clap::ValueEnum)]
+enum Condition {
+    FixSide,
+    PullFarthest,
+    PullBoundary,
+}
+
+#[derive(Clone, Copy, Debug, clap::ValueEnum)]
+enum TangentArg {
+    Projected,
+    ExactWhenDefinite,
+}
+
+/// Command-line options.
+#[derive(Parser)]
+struct Args {
+    /// A closed triangle mesh (STL, OBJ, PLY, OFF).
+    mesh: PathBuf,
+    /// Boundary condition.
+    #[arg(long, value_enum, default_value_t = Condition::FixSide)]
+    boundary: Condition,
+    /// Steps of 0.01 s.
+    #[arg(long, default_value_t = 40)]
+    steps: usize,
+    /// Element tangent of Newton's Hessian.
+    #[arg(long, value_enum, default_value_t = TangentArg::Projected)]
+    tangent: TangentArg,
+    /// Uniform lattices (the first tables' references) instead of graded ones.
+    #[arg(long)]
+    uniform: bool,
+    /// Newton iterations allowed per step.
+    #[arg(long)]
+    max_iterations: Option<usize>,
+    /// Young's modulus (Pa).
+    #[arg(long)]
+    young: Option<f64>,
+}
+
+fn main() -> Result<()> {
+    let args = Args::parse();
+    let surface = read_triangle_mesh(&args.mesh)
+        .with_context(|| format!("reading {}", args.mesh.display()))?
+        .normalized()
+        .0;
+    let file_name = args
+        .mesh
+        .file_name()
+        .map_or(String::new(), |n| n.to_string_lossy().into_owned());
+    let youngs_modulus = args.young.unwrap_or_else(|| {
+        catalog_entry(&file_name).map_or(1e5, |entry| entry.class.youngs_modulus())
+    });
+    let mut params = if args.uniform {
+        ShapeFemParams::default()
+    } else {
+        ShapeFemParams::graded()
+    };
+    if let Some(n) = args.max_iterations {
+        params.newton.max_iterations = n;
+    }
+    let mesh_start = Instant::now();
+    let (lattice_mesh, report) = mesh_for_fem(&surface, &params)?;
+    let (tets, _) = lattice_mesh.largest_component();
+    let volume_error = (tets.volume() - report.surface_volume) / report.surface_volume;
+    println!(
+        "{file_name}: {} tets, volume {:+.2}%, meshed in {:.1} s",
+        tets.tets().len(),
+        100.0 * volume_error,
+        mesh_start.elapsed().as_secs_f64()
+    );
+    let boundary = match args.boundary {
+        Condition::FixSide => ShapeBoundary::FixSide,
+        Condition::PullFarthest => ShapeBoundary::PullFarthest,
+        Condition::PullBoundary => ShapeBoundary::PullBoundary,
+    };
+    let scene = boundary.scene(&surface, tets.vertices(), &ShapeBoundaryParams::default());
+    let material = MaterialSample {
+        youngs_modulus,
+        poisson_ratio: SHAPE_POISSON_RATIO,
+        density: SHAPE_DENSITY,
+    };
+    let elements = tets.tets().len();
+    let model = FemModel::new(
+        FemMesh::new(tets, params.order),
+        &vec![material; elements],
+        StableNeoHookean,
+        MassKind::Consistent,
+    )?;
+    let fem_scene = scene.fem_scene(model.mesh().nodes(), 1e4)?;
+    let tangent = match args.tangent {
+        TangentArg::Projected => HessianTangent::ProjectedPsd,
+        TangentArg::ExactWhenDefinite => HessianTangent::ExactWhenDefinite,
+    };
+    let fem_params = FemParams {
+        time_step: ShapeBoundaryParams::default().time_step,
+        newton: params.newton,
+        tangent,
+    };
+    let mut sim = FemSimulator::new(model, fem_scene, fem_params)?;
+    println!(
+        "{} {}, E = {youngs_modulus:e} Pa, {:?} tangent: {} free DOFs, {} matrix nonzeros",
+        boundary.title(),
+        if args.uniform { "uniform" } else { "graded" },
+        tangent,
+        sim.free_dofs(),
+        sim.matrix_nonzeros()
+    );
+    println!(
+        "\n| step | iterations | factorizations | cuts | assembly s | solve s | line search s | step s |"
+    );
+    println!("|---|---|---|---|---|---|---|---|");
+    let (mut iterations, mut factorizations, mut cuts) = (0, 0, 0);
+    let (mut assembly, mut solve, mut line_search, mut total) = (0.0, 0.0, 0.0, 0.0);
+    for step in 1..=args.steps {
+        let start = Instant::now();
+        let report = sim.step().with_context(|| format!("step {step}"))?;
+        let seconds = start.elapsed().as_secs_f64();
+        let t = report.timings;
+        println!(
+            "| {step} | {} | {} | {} | {:.3} | {:.3} | {:.3} | {seconds:.3} |{}",
+            report.iterations,
+            report.hessian_assemblies,
+            report.line_search_cuts,
+            t.assembly,
+            t.solve,
+            t.line_search,
+            if report.converged() {
+                ""
+            } else {
+                " not converged"
+            }
+        );
+        iterations += report.iterations;
+        factorizations += report.hessian_assemblies;
+        cuts += report.line_search_cuts;
+        (assembly, solve, line_search, total) = (
+            assembly + t.assembly,
+            solve + t.solve,
+            line_search + t.line_search,
+            total + seconds,
+        );
+    }
+    let n = args.steps.max(1) as f64;
+    println!(
+        "| per step | {:.2} | {:.2} | {:.2} | {:.3} | {:.3} | {:.3} | {:.3} |",
+        iterations as f64 / n,
+        factorizations as f64 / n,
+        cuts as f64 / n,
+        assembly / n,
+        solve / n,
+        line_search / n,
+        total / n
+    );
+    Ok(())
+}
