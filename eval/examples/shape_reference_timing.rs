@@ -12,7 +12,9 @@
 //! (default 40, the tables'), `--tangent projected|exact-when-definite` (default projected),
 //! `--uniform` (the first tables' uniform lattices instead of the graded ones), `--max-iterations
 //! N` (default the mesher choice's: 60 graded, 20 uniform), `--young E` (Pa; default the
-//! catalogue's, 1e5 for an uncatalogued mesh).
+//! catalogue's, 1e5 for an uncatalogued mesh), `--reuse TOL` (the factorization carried across
+//! iterations and steps while chord steps contract, at Newton tolerance TOL; 0 for
+//! `fem_ref::reusing_reference_newton`'s 1e-8).
 
 use std::path::PathBuf;
 use std::time::Instant;
@@ -24,6 +26,7 @@ use eval::shapes::catalog::{SHAPE_DENSITY, SHAPE_POISSON_RATIO, catalog_entry};
 use eval::shapes::reference::{ShapeFemParams, mesh_for_fem};
 use fem_ref::{FemMesh, FemModel, FemParams, FemSimulator, MassKind};
 use hyperelastic::{HessianTangent, MaterialSample, StableNeoHookean};
+use optimize::NewtonParams;
 use rkpm_core::read_triangle_mesh;
 
 #[derive(Clone, Copy, Debug, clap::ValueEnum)]
@@ -62,6 +65,17 @@ struct Args {
     /// Young's modulus (Pa).
     #[arg(long)]
     young: Option<f64>,
+    /// Carry the factorization across iterations and steps while chord steps contract
+    /// (`fem_ref::reusing_reference_newton`), at this Newton tolerance (its 1e-8 if 0).
+    #[arg(long)]
+    reuse: Option<f64>,
+    /// Write every frame's node positions here (raw little-endian f64, frame after frame).
+    #[arg(long)]
+    save: Option<PathBuf>,
+    /// Print the normalized MSE (mean |x − x'|² / L² over the nodes and frames, L = 1 m after
+    /// normalization) and the largest node distance against frames written by `--save`.
+    #[arg(long)]
+    compare: Option<PathBuf>,
 }
 
 fn main() -> Result<()> {
@@ -82,6 +96,18 @@ fn main() -> Result<()> {
     } else {
         ShapeFemParams::graded()
     };
+    if let Some(tolerance) = args.reuse {
+        let reusing = fem_ref::reusing_reference_newton();
+        params.newton = NewtonParams {
+            tolerance: if tolerance > 0.0 {
+                tolerance
+            } else {
+                reusing.tolerance
+            },
+            max_iterations: params.newton.max_iterations,
+            ..reusing
+        };
+    }
     if let Some(n) = args.max_iterations {
         params.newton.max_iterations = n;
     }
@@ -125,28 +151,33 @@ fn main() -> Result<()> {
     };
     let mut sim = FemSimulator::new(model, fem_scene, fem_params)?;
     println!(
-        "{} {}, E = {youngs_modulus:e} Pa, {:?} tangent: {} free DOFs, {} matrix nonzeros",
+        "{} {}, E = {youngs_modulus:e} Pa, {:?} tangent, Newton {:?}: {} free DOFs, {} matrix \
+         nonzeros",
         boundary.title(),
         if args.uniform { "uniform" } else { "graded" },
         tangent,
+        params.newton,
         sim.free_dofs(),
         sim.matrix_nonzeros()
     );
     println!(
-        "\n| step | iterations | factorizations | cuts | assembly s | solve s | line search s | step s |"
+        "\n| step | iterations | factorizations | chord steps | cuts | assembly s | solve s | line search s | step s |"
     );
-    println!("|---|---|---|---|---|---|---|---|");
-    let (mut iterations, mut factorizations, mut cuts) = (0, 0, 0);
+    println!("|---|---|---|---|---|---|---|---|---|");
+    let (mut iterations, mut factorizations, mut chords, mut cuts) = (0, 0, 0, 0);
+    let mut frames: Vec<f64> = Vec::new();
     let (mut assembly, mut solve, mut line_search, mut total) = (0.0, 0.0, 0.0, 0.0);
     for step in 1..=args.steps {
         let start = Instant::now();
         let report = sim.step().with_context(|| format!("step {step}"))?;
         let seconds = start.elapsed().as_secs_f64();
+        frames.extend(sim.positions().iter().flat_map(|p| [p.x, p.y, p.z]));
         let t = report.timings;
         println!(
-            "| {step} | {} | {} | {} | {:.3} | {:.3} | {:.3} | {seconds:.3} |{}",
+            "| {step} | {} | {} | {} | {} | {:.3} | {:.3} | {:.3} | {seconds:.3} |{}",
             report.iterations,
             report.hessian_assemblies,
+            report.lagged_steps,
             report.line_search_cuts,
             t.assembly,
             t.solve,
@@ -159,6 +190,7 @@ fn main() -> Result<()> {
         );
         iterations += report.iterations;
         factorizations += report.hessian_assemblies;
+        chords += report.lagged_steps;
         cuts += report.line_search_cuts;
         (assembly, solve, line_search, total) = (
             assembly + t.assembly,
@@ -169,14 +201,44 @@ fn main() -> Result<()> {
     }
     let n = args.steps.max(1) as f64;
     println!(
-        "| per step | {:.2} | {:.2} | {:.2} | {:.3} | {:.3} | {:.3} | {:.3} |",
+        "| per step | {:.2} | {:.2} | {:.2} | {:.2} | {:.3} | {:.3} | {:.3} | {:.3} |",
         iterations as f64 / n,
         factorizations as f64 / n,
+        chords as f64 / n,
         cuts as f64 / n,
         assembly / n,
         solve / n,
         line_search / n,
         total / n
     );
+    if let Some(path) = &args.save {
+        let bytes: Vec<u8> = frames.iter().flat_map(|v| v.to_le_bytes()).collect();
+        std::fs::write(path, bytes).with_context(|| format!("writing {}", path.display()))?;
+    }
+    if let Some(path) = &args.compare {
+        let bytes = std::fs::read(path).with_context(|| format!("reading {}", path.display()))?;
+        let other: Vec<f64> = bytes
+            .chunks_exact(8)
+            .map(|b| f64::from_le_bytes(b.try_into().expect("8 bytes")))
+            .collect();
+        anyhow::ensure!(
+            other.len() == frames.len(),
+            "{} holds {} values, this run {}",
+            path.display(),
+            other.len(),
+            frames.len()
+        );
+        let squared: Vec<f64> = frames
+            .chunks_exact(3)
+            .zip(other.chunks_exact(3))
+            .map(|(a, b)| (0..3).map(|k| (a[k] - b[k]).powi(2)).sum())
+            .collect();
+        let mse = squared.iter().sum::<f64>() / squared.len().max(1) as f64;
+        let largest = squared.iter().copied().fold(0.0, f64::max).sqrt();
+        println!(
+            "against {}: MSE {mse:.3e}, largest {largest:.3e}",
+            path.display()
+        );
+    }
     Ok(())
 }
