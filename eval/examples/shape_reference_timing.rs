@@ -9,7 +9,8 @@
 //!     ../shared/data/meshes/bunny.obj --boundary fix-side --steps 10 --tangent projected
 //! ```
 //! Options: `--boundary fix-side|pull-farthest|pull-boundary` (default fix-side), `--steps N`
-//! (default 40, the tables'), `--tangent projected|exact-when-definite` (default projected),
+//! (default 40, the tables'), `--tangent projected|exact-when-definite` (default the mesher
+//! choice's: exact-when-definite graded, projected uniform),
 //! `--uniform` (the first tables' uniform lattices instead of the graded ones), `--max-iterations
 //! N` (default the mesher choice's: 60 graded, 20 uniform), `--young E` (Pa; default the
 //! catalogue's, 1e5 for an uncatalogued mesh), `--reuse TOL` (the factorization carried across
@@ -53,9 +54,10 @@ struct Args {
     /// Steps of 0.01 s.
     #[arg(long, default_value_t = 40)]
     steps: usize,
-    /// Element tangent of Newton's Hessian.
-    #[arg(long, value_enum, default_value_t = TangentArg::Projected)]
-    tangent: TangentArg,
+    /// Element tangent of Newton's Hessian (default the mesher choice's: exact-when-definite
+    /// graded, projected uniform).
+    #[arg(long, value_enum)]
+    tangent: Option<TangentArg>,
     /// Uniform lattices (the first tables' references) instead of graded ones.
     #[arg(long)]
     uniform: bool,
@@ -141,8 +143,9 @@ fn main() -> Result<()> {
     )?;
     let fem_scene = scene.fem_scene(model.mesh().nodes(), 1e4)?;
     let tangent = match args.tangent {
-        TangentArg::Projected => HessianTangent::ProjectedPsd,
-        TangentArg::ExactWhenDefinite => HessianTangent::ExactWhenDefinite,
+        None => params.tangent,
+        Some(TangentArg::Projected) => HessianTangent::ProjectedPsd,
+        Some(TangentArg::ExactWhenDefinite) => HessianTangent::ExactWhenDefinite,
     };
     let fem_params = FemParams {
         time_step: ShapeBoundaryParams::default().time_step,

@@ -93,10 +93,11 @@ pub(crate) struct TableOptions {
     #[arg(long, value_enum, default_value_t = FemMesherChoice::Uniform)]
     fem_mesher: FemMesherChoice,
     /// Tables 2 and 7: the element tangent of the FEM references' Newton Hessian: PSD-projected
-    /// (the first tables' setting) or exact, projected only when the exact Hessian fails to
-    /// factor (fewer iterations at large rotations; the same converged states, cached apart).
-    #[arg(long, value_enum, default_value_t = FemTangentChoice::Projected)]
-    fem_tangent: FemTangentChoice,
+    /// or exact, projected only when the exact Hessian fails to factor (fewer iterations at
+    /// large rotations; the same converged states, cached apart). Default: projected on
+    /// uniform lattices (the first tables' setting), exact-when-definite on graded ones.
+    #[arg(long, value_enum)]
+    fem_tangent: Option<FemTangentChoice>,
     /// Leave out the exact-pin columns of Tables 1 and 2 (each row is run a second time with
     /// the pinned regions held exactly, on a basis built for them).
     #[arg(long)]
@@ -371,6 +372,7 @@ pub(crate) fn run(
                 ShapeFemParams {
                     refinement: graded.refinement,
                     newton: graded.newton,
+                    tangent: graded.tangent,
                     ..shapes.fem
                 }
             } else {
@@ -380,10 +382,12 @@ pub(crate) fn run(
         if fem_reuse {
             shapes.fem.newton = fem_ref::reusing_reference_newton();
         }
-        shapes.fem.tangent = match fem_tangent {
-            FemTangentChoice::Projected => HessianTangent::ProjectedPsd,
-            FemTangentChoice::ExactWhenDefinite => HessianTangent::ExactWhenDefinite,
-        };
+        if let Some(choice) = fem_tangent {
+            shapes.fem.tangent = match choice {
+                FemTangentChoice::Projected => HessianTangent::ProjectedPsd,
+                FemTangentChoice::ExactWhenDefinite => HessianTangent::ExactWhenDefinite,
+            };
+        }
         if skip_exact {
             shapes.exact_pins = None;
         } else if let Some(radii) = exact_inset_radii {
