@@ -22,11 +22,11 @@ use std::time::Instant;
 
 use anyhow::{Context, Result};
 use clap::Parser;
+use eval::fem_reference::FemProblem;
 use eval::shapes::boundary::{ShapeBoundary, ShapeBoundaryParams};
 use eval::shapes::catalog::{SHAPE_DENSITY, SHAPE_POISSON_RATIO, catalog_entry};
 use eval::shapes::reference::{ShapeFemParams, mesh_for_fem};
-use fem_ref::{FemMesh, FemModel, FemParams, FemSimulator, MassKind};
-use hyperelastic::{HessianTangent, MaterialSample, StableNeoHookean};
+use hyperelastic::{HessianTangent, MaterialSample};
 use optimize::NewtonParams;
 use rkpm_core::read_triangle_mesh;
 
@@ -128,31 +128,28 @@ fn main() -> Result<()> {
         Condition::PullFarthest => ShapeBoundary::PullFarthest,
         Condition::PullBoundary => ShapeBoundary::PullBoundary,
     };
-    let scene = boundary.scene(&surface, tets.vertices(), &ShapeBoundaryParams::default());
-    let material = MaterialSample {
-        youngs_modulus,
-        poisson_ratio: SHAPE_POISSON_RATIO,
-        density: SHAPE_DENSITY,
-    };
-    let elements = tets.tets().len();
-    let model = FemModel::new(
-        FemMesh::new(tets, params.order),
-        &vec![material; elements],
-        StableNeoHookean,
-        MassKind::Consistent,
-    )?;
-    let fem_scene = scene.fem_scene(model.mesh().nodes(), 1e4)?;
+    let boundary_params = ShapeBoundaryParams::default();
+    let scene = boundary.scene(&surface, tets.vertices(), &boundary_params);
     let tangent = match args.tangent {
         None => params.tangent,
         Some(TangentArg::Projected) => HessianTangent::ProjectedPsd,
         Some(TangentArg::ExactWhenDefinite) => HessianTangent::ExactWhenDefinite,
     };
-    let fem_params = FemParams {
-        time_step: ShapeBoundaryParams::default().time_step,
+    let (mut sim, _) = FemProblem {
+        tets,
+        order: params.order,
+        material: MaterialSample {
+            youngs_modulus,
+            poisson_ratio: SHAPE_POISSON_RATIO,
+            density: SHAPE_DENSITY,
+        },
+        scene: &scene,
+        time_step: boundary_params.time_step,
         newton: params.newton,
         tangent,
-    };
-    let mut sim = FemSimulator::new(model, fem_scene, fem_params)?;
+        steps: args.steps,
+    }
+    .simulator()?;
     println!(
         "{} {}, E = {youngs_modulus:e} Pa, {:?} tangent, Newton {:?}: {} free DOFs, {} matrix \
          nonzeros",

@@ -162,6 +162,35 @@ pub struct FemProblem<'a> {
     pub steps: usize,
 }
 
+impl FemProblem<'_> {
+    /// The P1/P2 simulator of this problem (Stable Neo-Hookean, consistent mass, floor
+    /// penalty factor 1e4) at its rest state, and the node count of each Dirichlet region.
+    ///
+    /// # Errors
+    /// [`EvalError::FemModel`] / [`EvalError::FemSetup`] for a model or scene that cannot be
+    /// built (e.g. a region that selects no node).
+    pub fn simulator(&self) -> Result<(FemSimulator<StableNeoHookean>, Vec<usize>), EvalError> {
+        let elements = self.tets.tets().len();
+        let mesh = FemMesh::new(self.tets.clone(), self.order);
+        let model = FemModel::new(
+            mesh,
+            &vec![self.material; elements],
+            StableNeoHookean,
+            MassKind::Consistent,
+        )
+        .map_err(EvalError::FemModel)?;
+        let fem_scene = self.scene.fem_scene(model.mesh().nodes(), 1e4)?;
+        let region_nodes = fem_scene.dirichlet.iter().map(|r| r.nodes.len()).collect();
+        let params = FemParams {
+            time_step: self.time_step,
+            newton: self.newton,
+            tangent: self.tangent,
+        };
+        let sim = FemSimulator::new(model, fem_scene, params).map_err(EvalError::FemSetup)?;
+        Ok((sim, region_nodes))
+    }
+}
+
 /// Runs (or loads from `<cache_dir>/fem/`, keyed by the mesh, material, scene and options)
 /// `problem`, showing a bar labelled `FEM <label>`.
 ///
@@ -175,23 +204,7 @@ pub fn run_fem(
     cache_dir: &Path,
     progress: &Progress,
 ) -> Result<FemRun, EvalError> {
-    let elements = problem.tets.tets().len();
-    let mesh = FemMesh::new(problem.tets.clone(), problem.order);
-    let model = FemModel::new(
-        mesh,
-        &vec![problem.material; elements],
-        StableNeoHookean,
-        MassKind::Consistent,
-    )
-    .map_err(EvalError::FemModel)?;
-    let fem_scene = problem.scene.fem_scene(model.mesh().nodes(), 1e4)?;
-    let region_nodes = fem_scene.dirichlet.iter().map(|r| r.nodes.len()).collect();
-    let params = FemParams {
-        time_step: problem.time_step,
-        newton: problem.newton,
-        tangent: problem.tangent,
-    };
-    let mut sim = FemSimulator::new(model, fem_scene, params).map_err(EvalError::FemSetup)?;
+    let (mut sim, region_nodes) = problem.simulator()?;
     let dofs = sim.free_dofs();
     let cache = TrajectoryCache::new(cache_dir.join("fem"));
     let steps = problem.steps;
