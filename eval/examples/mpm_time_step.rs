@@ -17,7 +17,7 @@ use eval::beam::{BEAM_MAX, BEAM_MIN, BEAM_TIME_STEP, BeamTest, beam_material};
 use eval::fem_reference::{FemProblem, run_fem};
 use eval::metrics::trajectory_errors;
 use eval::progress::Progress;
-use fem_ref::{ElementOrder, TetMesh};
+use fem_ref::{ElementOrder, FillReducingOrdering, TetMesh};
 use hyperelastic::HessianTangent;
 use optimize::NewtonParams;
 
@@ -42,6 +42,7 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
                 time_step: h,
                 newton: NewtonParams::default(),
                 tangent: HessianTangent::ProjectedPsd,
+                ordering: FillReducingOrdering::default(),
                 steps: steps * substeps,
             },
             &format!("{} P2 res 4 h = {h}", test.name()),

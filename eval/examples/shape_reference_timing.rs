@@ -10,7 +10,8 @@
 //! ```
 //! Options: `--boundary fix-side|pull-farthest|pull-boundary` (default fix-side), `--steps N`
 //! (default 40, the tables'), `--tangent projected|exact-when-definite` (default the mesher
-//! choice's: exact-when-definite graded, projected uniform),
+//! choice's: exact-when-definite graded, projected uniform), `--ordering
+//! amd|nested-dissection` (the factorization's elimination order, default nested dissection),
 //! `--uniform` (the first tables' uniform lattices instead of the graded ones), `--max-iterations
 //! N` (default the mesher choice's: 60 graded, 20 uniform), `--young E` (Pa; default the
 //! catalogue's, 1e5 for an uncatalogued mesh), `--reuse TOL` (the factorization carried across
@@ -26,6 +27,7 @@ use eval::fem_reference::FemProblem;
 use eval::shapes::boundary::{ShapeBoundary, ShapeBoundaryParams};
 use eval::shapes::catalog::{SHAPE_DENSITY, SHAPE_POISSON_RATIO, catalog_entry};
 use eval::shapes::reference::{ShapeFemParams, mesh_for_fem};
+use fem_ref::FillReducingOrdering;
 use hyperelastic::{HessianTangent, MaterialSample};
 use optimize::NewtonParams;
 use rkpm_core::read_triangle_mesh;
@@ -43,6 +45,14 @@ enum TangentArg {
     ExactWhenDefinite,
 }
 
+#[derive(Clone, Copy, Debug, clap::ValueEnum)]
+enum OrderingArg {
+    /// Approximate minimum degree.
+    Amd,
+    /// Nested dissection (METIS).
+    NestedDissection,
+}
+
 /// Command-line options.
 #[derive(Parser)]
 struct Args {
@@ -58,6 +68,9 @@ struct Args {
     /// graded, projected uniform).
     #[arg(long, value_enum)]
     tangent: Option<TangentArg>,
+    /// Elimination order of the sparse Cholesky factorization.
+    #[arg(long, value_enum, default_value_t = OrderingArg::NestedDissection)]
+    ordering: OrderingArg,
     /// Uniform lattices (the first tables' references) instead of graded ones.
     #[arg(long)]
     uniform: bool,
@@ -147,18 +160,24 @@ fn main() -> Result<()> {
         time_step: boundary_params.time_step,
         newton: params.newton,
         tangent,
+        ordering: match args.ordering {
+            OrderingArg::Amd => FillReducingOrdering::ApproximateMinimumDegree,
+            OrderingArg::NestedDissection => FillReducingOrdering::NestedDissection,
+        },
         steps: args.steps,
     }
     .simulator()?;
     println!(
         "{} {}, E = {youngs_modulus:e} Pa, {:?} tangent, Newton {:?}: {} free DOFs, {} matrix \
-         nonzeros",
+         nonzeros, {} factor nonzeros ({:?})",
         boundary.title(),
         if args.uniform { "uniform" } else { "graded" },
         tangent,
         params.newton,
         sim.free_dofs(),
-        sim.matrix_nonzeros()
+        sim.matrix_nonzeros(),
+        sim.factor_nonzeros(),
+        args.ordering,
     );
     println!(
         "\n| step | iterations | factorizations | chord steps | cuts | assembly s | solve s | line search s | step s |"

@@ -6,8 +6,8 @@ use optimize::NewtonParams;
 use std::path::Path;
 
 use fem_ref::{
-    ElementOrder, FemMesh, FemModel, FemParams, FemSimulator, MassKind, PointInterpolation,
-    TetMesh, TrajectoryCache,
+    ElementOrder, FemMesh, FemModel, FemParams, FemSimulator, FillReducingOrdering, MassKind,
+    PointInterpolation, TetMesh, TrajectoryCache,
 };
 use hyperelastic::{HessianTangent, StableNeoHookean};
 use nalgebra::Vector3;
@@ -133,6 +133,7 @@ pub fn run_fem_beam_with(
             time_step: BEAM_TIME_STEP,
             newton,
             tangent: HessianTangent::ProjectedPsd,
+            ordering: FillReducingOrdering::default(),
             steps,
         },
         &label,
@@ -158,6 +159,9 @@ pub struct FemProblem<'a> {
     /// The element tangent of Newton's Hessian ([`HessianTangent::ProjectedPsd`] for the
     /// references so far; the converged states do not depend on it).
     pub tangent: HessianTangent,
+    /// Elimination order of the sparse Cholesky factorization (round-off only; not part of
+    /// the cache key).
+    pub ordering: FillReducingOrdering,
     /// Steps to run.
     pub steps: usize,
 }
@@ -185,6 +189,7 @@ impl FemProblem<'_> {
             time_step: self.time_step,
             newton: self.newton,
             tangent: self.tangent,
+            ordering: self.ordering,
         };
         let sim = FemSimulator::new(model, fem_scene, params).map_err(EvalError::FemSetup)?;
         Ok((sim, region_nodes))

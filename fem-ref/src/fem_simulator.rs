@@ -15,6 +15,7 @@ use serde::{Deserialize, Serialize};
 use thiserror::Error;
 
 use crate::fem_model::FemModel;
+use crate::fill_reducing_ordering::FillReducingOrdering;
 use crate::scene::{FemFloor, FemScene};
 use crate::sparse_system::{NumericFactor, SparseSystem};
 use crate::trajectory_cache::{
@@ -39,6 +40,10 @@ pub struct FemParams {
     /// `ExactWhenDefinite` assembles the exact Hessian and the projected one only when the
     /// exact one fails to factor, which converges in fewer iterations at large rotations).
     pub tangent: HessianTangent,
+    /// Elimination order of the sparse Cholesky factorization (default nested dissection).
+    /// Only round-off depends on it, so it is not part of [`FemSimulator::trajectory_key`].
+    #[serde(default)]
+    pub ordering: FillReducingOrdering,
 }
 
 impl Default for FemParams {
@@ -47,6 +52,7 @@ impl Default for FemParams {
             time_step: 0.01,
             newton: NewtonParams::default(),
             tangent: HessianTangent::ProjectedPsd,
+            ordering: FillReducingOrdering::default(),
         }
     }
 }
@@ -199,7 +205,7 @@ impl<M: HyperelasticMaterial> FemSimulator<M> {
                 ))
             }
         };
-        let system = SparseSystem::new(&model, &fixed)
+        let system = SparseSystem::new(&model, &fixed, params.ordering)
             .map_err(|e| FemSetupError::Symbolic(e.to_string()))?;
         let x: Vec<f64> = model
             .mesh()
@@ -256,6 +262,11 @@ impl<M: HyperelasticMaterial> FemSimulator<M> {
     /// Stored entries of the lower triangle of the Newton matrix.
     pub fn matrix_nonzeros(&self) -> usize {
         self.system.nonzeros()
+    }
+
+    /// Stored entries of its Cholesky factor L (the fill left by [`FemParams::ordering`]).
+    pub fn factor_nonzeros(&self) -> usize {
+        self.system.factor_nonzeros()
     }
 
     /// The cache key of `steps` steps from the rest state: a hash of the mesh, element order,

@@ -18,6 +18,7 @@
 pub mod element;
 pub mod fem_model;
 pub mod fem_simulator;
+pub mod fill_reducing_ordering;
 mod kuhn_bisection;
 pub mod lattice_mesher;
 pub mod point_interpolation;
@@ -32,6 +33,7 @@ pub use fem_simulator::{
     FEM_FACTOR_MAX_AGE, FemParams, FemRunError, FemSetupError, FemSimulator,
     reusing_reference_newton,
 };
+pub use fill_reducing_ordering::FillReducingOrdering;
 pub use lattice_mesher::{
     LatticeMesherError, LatticeMesherParams, LatticeMesherReport, LatticeRefinement, VolumeTarget,
     tetrahedralize, tetrahedralize_to_volume,

@@ -9,7 +9,7 @@
 //! the study goes on. FEM trajectories and trained networks are cached, so a rerun (or a run
 //! after an interruption) only computes what is missing.
 
-use fem_ref::{TetMesh, tetrahedralize};
+use fem_ref::{FillReducingOrdering, TetMesh, tetrahedralize};
 use hyperelastic::{LameParameters, MaterialField, MaterialSample, StableNeoHookean};
 use nalgebra::Vector3;
 use std::path::{Path, PathBuf};
@@ -565,6 +565,7 @@ fn run_shape_into(
             time_step: config.boundary.time_step,
             newton: config.fem.newton,
             tangent: config.fem.tangent,
+            ordering: FillReducingOrdering::default(),
             steps: config.boundary.steps,
         };
         let outcome =

@@ -133,6 +133,7 @@ pub fn run_beam(
         time_step: 0.01,
         newton,
         tangent,
+        ..FemParams::default()
     };
     let mut sim = FemSimulator::new(model, fem_scene, params).map_err(|e| e.to_string())?;
     let (dofs, nonzeros) = (sim.free_dofs(), sim.matrix_nonzeros());
