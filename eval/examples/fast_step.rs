@@ -11,7 +11,10 @@
 //! ```sh
 //! cargo run --release -p eval --example fast_step -- --modes 6,16,32 --tests bend,twist
 //! ```
-//! The FEM runs are cached under `freeform-cache/` (or `$FREEFORM_CACHE`).
+//! `--simulation-points N`, `--basis-points N` and `--kernels K` change the point sets and the
+//! kernel count (the cubature is then trained on, and for, the N simulation points);
+//! `--no-full` leaves out the every-point rows. The FEM runs are cached under
+//! `freeform-cache/` (or `$FREEFORM_CACHE`).
 
 use clap::Parser;
 use eval::beam::reduced::{
@@ -63,13 +66,30 @@ struct Args {
     /// kernel radii (a basis built for them), instead of the pin penalty.
     #[arg(long)]
     exact_pins: Option<f64>,
+    /// Grid points the simulation integrates over (mass, gravity, pins, and the cubature's
+    /// candidates and target), instead of the default 5000.
+    #[arg(long)]
+    simulation_points: Option<usize>,
+    /// Grid points the basis is built on, instead of the default 20 000.
+    #[arg(long)]
+    basis_points: Option<usize>,
+    /// RKPM kernels K, instead of the default 1000.
+    #[arg(long)]
+    kernels: Option<usize>,
+    /// Leave out the full-quadrature rows (the MSE ratio is then to the first cubature row).
+    #[arg(long)]
+    no_full: bool,
 }
 
 fn main() -> anyhow::Result<()> {
     let args = Args::parse();
     let progress = Progress::default();
     let cache = eval::default_cache_dir();
-    let mut rules = vec![QuadratureRule::Full];
+    let mut rules = if args.no_full {
+        Vec::new()
+    } else {
+        vec![QuadratureRule::Full]
+    };
     for &tolerance in &args.cubature_tolerance {
         for &seed in &args.cubature_seed {
             rules.push(QuadratureRule::Cubature(CubatureParams {
@@ -121,9 +141,13 @@ fn main() -> anyhow::Result<()> {
         fem.check_converged(NewtonParams::default().max_iterations)?;
         let reference = fem.vertex_frames();
         for &m in &args.modes {
+            let defaults = ReducedSettings::default();
             let mut base = ReducedSettings {
                 modes: m,
-                ..ReducedSettings::default()
+                simulation_points: args.simulation_points.unwrap_or(defaults.simulation_points),
+                basis_points: args.basis_points.unwrap_or(defaults.basis_points),
+                kernels: args.kernels.unwrap_or(defaults.kernels),
+                ..defaults
             };
             if let Some(radii) = args.exact_pins {
                 base.pins = exact_pin_hold(&base, radii)?;
