@@ -112,8 +112,8 @@ pub fn run_fem_beam_with(
     cache_dir: &Path,
     progress: &Progress,
 ) -> Result<FemRun, EvalError> {
-    let r = resolution.cells_per_metre;
-    let tets = TetMesh::cuboid(BEAM_MIN, BEAM_MAX, [5 * r, r, r]).map_err(EvalError::FemBox)?;
+    let scene = test.scene();
+    let problem = beam_problem(&scene, resolution, material, newton, steps)?;
     let label = if material == beam_material() {
         format!("{} {}", test.name(), resolution.label())
     } else {
@@ -124,22 +124,57 @@ pub fn run_fem_beam_with(
             material.poisson_ratio
         )
     };
-    run_fem(
-        &FemProblem {
-            tets,
-            order: resolution.order,
-            material,
-            scene: &test.scene(),
-            time_step: BEAM_TIME_STEP,
-            newton,
-            tangent: HessianTangent::ProjectedPsd,
-            ordering: FillReducingOrdering::default(),
-            steps,
-        },
-        &label,
-        cache_dir,
-        progress,
-    )
+    run_fem(&problem, &label, cache_dir, progress)
+}
+
+/// The beam's FEM problem for `scene` (a [`BeamTest::scene`]) at `resolution`.
+fn beam_problem(
+    scene: &SceneSpec,
+    resolution: FemResolution,
+    material: MaterialSample,
+    newton: NewtonParams,
+    steps: usize,
+) -> Result<FemProblem<'_>, EvalError> {
+    let r = resolution.cells_per_metre;
+    let tets = TetMesh::cuboid(BEAM_MIN, BEAM_MAX, [5 * r, r, r]).map_err(EvalError::FemBox)?;
+    Ok(FemProblem {
+        tets,
+        order: resolution.order,
+        material,
+        scene,
+        time_step: BEAM_TIME_STEP,
+        newton,
+        tangent: HessianTangent::ProjectedPsd,
+        ordering: FillReducingOrdering::default(),
+        steps,
+    })
+}
+
+/// Fresh steps a cached beam reference is timed over ([`time_fem_beam`]).
+pub const FEM_TIMING_STEPS: usize = 10;
+
+/// Seconds per step of the first `steps` steps of `test` at `resolution` (the beam's material),
+/// run fresh in this process, nothing read from or written to the cache: the FEM's cost
+/// measured beside the method it is compared with, whatever machine or solver produced a
+/// cached trajectory.
+///
+/// # Errors
+/// [`EvalError`] for a model that cannot be built or a failed step.
+pub fn time_fem_beam(
+    test: BeamTest,
+    resolution: FemResolution,
+    newton: NewtonParams,
+    steps: usize,
+) -> Result<f64, EvalError> {
+    let scene = test.scene();
+    let (mut sim, _) =
+        beam_problem(&scene, resolution, beam_material(), newton, steps)?.simulator()?;
+    let start = std::time::Instant::now();
+    for step in 1..=steps {
+        sim.step()
+            .map_err(|source| EvalError::Fem(fem_ref::FemRunError::Step { step, source }))?;
+    }
+    Ok(start.elapsed().as_secs_f64() / steps.max(1) as f64)
 }
 
 /// Everything one FEM reference run needs.

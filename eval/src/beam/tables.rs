@@ -58,7 +58,14 @@ pub(crate) fn settings_lines(config: &BeamStudyConfig, fem: &[FemSummary]) -> St
             f.iterations_per_step,
             f.max_iterations,
             f.unconverged_steps,
-            if f.cached { " (cached)" } else { "" },
+            if f.cached {
+                format!(
+                    " (cached; s/step timed over {} fresh steps in this run)",
+                    f.timed_steps
+                )
+            } else {
+                String::new()
+            },
             f.not_scored.as_ref().map_or(String::new(), |why| format!(
                 " **{} not scored**: {why}.",
                 f.test.name()
