@@ -19,6 +19,19 @@ const MATERIAL: MaterialSample = MaterialSample {
     density: 1000.0,
 };
 
+/// The end x = 0 of `model` held at rest, gravity along −y.
+fn cantilever_under_gravity(model: &FemModel<StableNeoHookean>) -> FemScene {
+    let nodes = model.mesh().nodes();
+    FemScene {
+        gravity: Some(Vector3::new(0.0, -9.8, 0.0)),
+        dirichlet: vec![DirichletRegion {
+            nodes: (0..nodes.len()).filter(|&i| nodes[i].x < 1e-9).collect(),
+            target: NodeTarget::Rest,
+        }],
+        floor: None,
+    }
+}
+
 fn model(cells: [usize; 3], size: Vector3<f64>, order: ElementOrder) -> FemModel<StableNeoHookean> {
     let mesh = FemMesh::new(
         TetMesh::cuboid(Vector3::zeros(), size, cells).unwrap(),
@@ -262,17 +275,7 @@ fn a_step_with_a_carried_factorization_reaches_the_fresh_hessian_state() {
             Vector3::new(3.0, 1.0, 1.0),
             ElementOrder::Quadratic,
         );
-        let fixed: Vec<usize> = (0..model.mesh().nodes().len())
-            .filter(|&i| model.mesh().nodes()[i].x < 1e-9)
-            .collect();
-        let scene = FemScene {
-            gravity: Some(Vector3::new(0.0, -9.8, 0.0)),
-            dirichlet: vec![DirichletRegion {
-                nodes: fixed,
-                target: NodeTarget::Rest,
-            }],
-            floor: None,
-        };
+        let scene = cantilever_under_gravity(&model);
         let params = FemParams {
             newton: NewtonParams {
                 tolerance: 1e-9,
@@ -400,17 +403,7 @@ fn nested_dissection_fills_less_than_minimum_degree_and_reaches_the_same_states(
             Vector3::new(3.0, 1.0, 1.0),
             ElementOrder::Quadratic,
         );
-        let fixed: Vec<usize> = (0..model.mesh().nodes().len())
-            .filter(|&i| model.mesh().nodes()[i].x < 1e-9)
-            .collect();
-        let scene = FemScene {
-            gravity: Some(Vector3::new(0.0, -9.8, 0.0)),
-            dirichlet: vec![DirichletRegion {
-                nodes: fixed,
-                target: NodeTarget::Rest,
-            }],
-            floor: None,
-        };
+        let scene = cantilever_under_gravity(&model);
         let params = FemParams {
             newton: NewtonParams {
                 tolerance: 1e-10,
