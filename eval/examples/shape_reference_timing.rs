@@ -11,7 +11,8 @@
 //! Options: `--boundary fix-side|pull-farthest|pull-boundary` (default fix-side), `--steps N`
 //! (default 40, the tables'), `--tangent projected|exact-when-definite` (default the mesher
 //! choice's: exact-when-definite graded, projected uniform), `--ordering
-//! amd|nested-dissection` (the factorization's elimination order, default nested dissection),
+//! amd|nested-dissection|smaller-factor` (the factorization's elimination order, default the
+//! smaller factor of the two),
 //! `--uniform` (the first tables' uniform lattices instead of the graded ones), `--max-iterations
 //! N` (default the mesher choice's: 60 graded, 20 uniform), `--young E` (Pa; default the
 //! catalogue's, 1e5 for an uncatalogued mesh), `--reuse TOL` (the factorization carried across
@@ -51,6 +52,8 @@ enum OrderingArg {
     Amd,
     /// Nested dissection (METIS).
     NestedDissection,
+    /// Whichever of the two leaves the smaller factor.
+    SmallerFactor,
 }
 
 /// Command-line options.
@@ -69,7 +72,7 @@ struct Args {
     #[arg(long, value_enum)]
     tangent: Option<TangentArg>,
     /// Elimination order of the sparse Cholesky factorization.
-    #[arg(long, value_enum, default_value_t = OrderingArg::NestedDissection)]
+    #[arg(long, value_enum, default_value_t = OrderingArg::SmallerFactor)]
     ordering: OrderingArg,
     /// Uniform lattices (the first tables' references) instead of graded ones.
     #[arg(long)]
@@ -163,6 +166,7 @@ fn main() -> Result<()> {
         ordering: match args.ordering {
             OrderingArg::Amd => FillReducingOrdering::ApproximateMinimumDegree,
             OrderingArg::NestedDissection => FillReducingOrdering::NestedDissection,
+            OrderingArg::SmallerFactor => FillReducingOrdering::SmallerFactor,
         },
         steps: args.steps,
     }

@@ -40,7 +40,8 @@ pub struct FemParams {
     /// `ExactWhenDefinite` assembles the exact Hessian and the projected one only when the
     /// exact one fails to factor, which converges in fewer iterations at large rotations).
     pub tangent: HessianTangent,
-    /// Elimination order of the sparse Cholesky factorization (default nested dissection).
+    /// Elimination order of the sparse Cholesky factorization (default: nested dissection or
+    /// minimum degree, whichever leaves the smaller factor).
     /// Only round-off depends on it, so it is not part of [`FemSimulator::trajectory_key`].
     #[serde(default)]
     pub ordering: FillReducingOrdering,

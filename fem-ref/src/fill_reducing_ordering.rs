@@ -9,20 +9,33 @@ use serde::{Deserialize, Serialize};
 /// memory of each factorization, and nothing else but round-off: converged states agree to the
 /// Newton tolerance, so the order is not part of a trajectory's cache key.
 ///
-/// Measured on P2 graded shape references (`eval` example `shape_reference_timing --ordering`,
-/// 2 cores): nested dissection leaves 19% fewer factor entries than approximate minimum degree
-/// on the bunny (94k free DOFs; 1.24× faster factorizations) and 29% fewer on Thingi10K 243015
-/// (417k free DOFs: 147M against 207M entries, 14.2 against 23.8 s of factorization a step, peak
-/// memory 3.6 against 4.6 GB).
+/// Neither order wins everywhere (`eval` example `shape_reference_timing --ordering`, P2 graded
+/// shape references, Pull farthest, 2 cores; factor entries and factorization + solve seconds
+/// per step, nested dissection against minimum degree):
+///
+/// | mesh | free DOFs | entries ND / AMD | s/step ND / AMD |
+/// |---|---|---|---|
+/// | beam P2 res 6 (Bend) | 27k | | 0.38 / 0.53–0.60 |
+/// | hand | 39k | 7.24M / 6.75M | 0.32 / 0.28 |
+/// | bunny | 94k | 31.8M / 39.0M | 1.30 / 1.60 |
+/// | 37881 | 265k | 99.3M / 152.2M | 10.3 / 16.4 |
+/// | scorpion | 374k | 94.8M / 94.6M | 6.9 / 5.2 |
+/// | 243015 | 417k | 147M / 207M | 14.2 / 23.8 |
+///
+/// Hence the default analyses both (symbolically: well under a second at 400k DOFs, against
+/// seconds per factorization) and keeps the smaller factor.
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Serialize, Deserialize)]
 pub enum FillReducingOrdering {
     /// Approximate minimum degree on the degrees of freedom (faer's default; the references'
     /// order before issue 19's ordering study).
     ApproximateMinimumDegree,
     /// Nested dissection (METIS 5) on the graph of the free nodes, each node's three degrees
-    /// of freedom kept together (the default).
-    #[default]
+    /// of freedom kept together.
     NestedDissection,
+    /// Both analysed, the one whose factor has fewer entries kept (a tie goes to minimum
+    /// degree; the default).
+    #[default]
+    SmallerFactor,
 }
 
 /// The nested-dissection order of a system whose free degrees of freedom come in triples, one
