@@ -129,7 +129,7 @@ enum Command {
         #[arg(required = true, num_args = 1..)]
         numbers: Vec<u32>,
         #[command(flatten)]
-        options: table::TableOptions,
+        options: Box<table::TableOptions>,
     },
     /// Numerical stress suite: extreme ν, stiffness contrast, large dt, fast twists, a 10 m/s
     /// impact, extreme m and K, degenerate sampling. Exits non-zero if any case produces a
@@ -239,7 +239,7 @@ fn run(cli: Cli) -> Result<()> {
         }
         Command::Render { files, options } => render::run(&files, &options, &cli.out),
         Command::Table { numbers, options } => {
-            table::run(&numbers, options, &cli.out, &cache, &progress)
+            table::run(&numbers, *options, &cli.out, &cache, &progress)
         }
         Command::Stress { quick, json } => stress::run(quick, json, &cli.out, &progress),
         Command::Pins {
