@@ -22,7 +22,7 @@ use crate::beam::simplicits::train_beam_simplicits;
 use crate::beam::sph::SphStudyConfig;
 use crate::beam::study::{beam_length_scale, region_drift};
 use crate::beam::{BeamTest, beam_material};
-use crate::fem_reference::{FEM_TIMING_STEPS, FemResolution, run_fem_beam, time_fem_beam};
+use crate::fem_reference::{FemResolution, beam_seconds_per_step_here, run_fem_beam};
 use crate::metrics::trajectory_errors;
 use crate::progress::Progress;
 use crate::report::plot::{AxisScale, PlotSpec, Series};
@@ -503,17 +503,13 @@ pub fn run_bench(config: &BenchConfig, progress: &Progress) -> Result<Vec<BenchR
                     progress,
                 )?;
                 let frames = run.frames_at(&vertices)?;
-                // A cached run's time is of whatever machine and solver produced it.
-                let seconds_per_step = if run.cached {
-                    time_fem_beam(
-                        BeamTest::Bend,
-                        *r,
-                        NewtonParams::default(),
-                        FEM_TIMING_STEPS.min(config.steps),
-                    )?
-                } else {
-                    run.seconds_per_step
-                };
+                let (seconds_per_step, _) = beam_seconds_per_step_here(
+                    &run,
+                    BeamTest::Bend,
+                    *r,
+                    NewtonParams::default(),
+                    config.steps,
+                )?;
                 (
                     "fem",
                     format!("{} ({} DOFs)", r.label(), run.dofs),

@@ -177,6 +177,27 @@ pub fn time_fem_beam(
     Ok(start.elapsed().as_secs_f64() / steps.max(1) as f64)
 }
 
+/// Seconds per step of the beam reference `run` (of `test` at `resolution`) as timed in this
+/// process, and the steps timed: the run's own when it was computed now, [`FEM_TIMING_STEPS`]
+/// fresh steps ([`time_fem_beam`]) when it came from the cache, whose time is of whatever
+/// machine and solver produced it.
+///
+/// # Errors
+/// As [`time_fem_beam`].
+pub fn beam_seconds_per_step_here(
+    run: &FemRun,
+    test: BeamTest,
+    resolution: FemResolution,
+    newton: NewtonParams,
+    steps: usize,
+) -> Result<(f64, usize), EvalError> {
+    if !run.cached {
+        return Ok((run.seconds_per_step, steps));
+    }
+    let timed = FEM_TIMING_STEPS.min(steps);
+    Ok((time_fem_beam(test, resolution, newton, timed)?, timed))
+}
+
 /// Everything one FEM reference run needs.
 pub struct FemProblem<'a> {
     /// The tetrahedral mesh (m).

@@ -21,7 +21,7 @@ use optimize::NewtonObjective;
 
 use crate::contact_friction::ContactFriction;
 use crate::hessian_tangent::{HessianTangent, StepTangents};
-use crate::reduced_model::ReducedModel;
+use crate::reduced_model::{ReducedModel, add_scaled_product};
 use crate::scene_terms::{SceneTerms, StepTargets};
 
 /// `1/(2h²) (z - ẑ)ᵀ M_z (z - ẑ)`.
@@ -141,13 +141,10 @@ impl<M: HyperelasticMaterial> IncrementalPotential<'_, M> {
         let n4 = mass.nrows();
         for r in 0..3 {
             let offset = r * n4;
-            let g = &mut gradient[offset..offset + n4];
-            for b in 0..n4 {
-                let db = k * (z[offset + b] - inertia.predicted[offset + b]);
-                for (ga, m) in g.iter_mut().zip(mass.col_as_slice(b)) {
-                    *ga += m * db;
-                }
-            }
+            let dz: Vec<f64> = (offset..offset + n4)
+                .map(|i| z[i] - inertia.predicted[i])
+                .collect();
+            add_scaled_product(&mut gradient[offset..offset + n4], mass, &dz, k);
             if let Some(h) = hessian.as_deref_mut() {
                 for b in 0..n4 {
                     for (a, m) in mass.col_as_slice(b).iter().enumerate() {
@@ -268,16 +265,11 @@ pub(crate) fn mass_inner<M: HyperelasticMaterial>(
     let mass = model.mass_block();
     let n4 = mass.nrows();
     let mut total = 0.0;
-    // M b_r as a sum of columns (vectorizes; a dot product per column would not).
     let mut mb = vec![0.0; n4];
     for r in 0..3 {
         let (ar, br) = (&a[r * n4..(r + 1) * n4], &b[r * n4..(r + 1) * n4]);
         mb.fill(0.0);
-        for (j, bj) in br.iter().enumerate() {
-            for (y, m) in mb.iter_mut().zip(mass.col_as_slice(j)) {
-                *y += m * bj;
-            }
-        }
+        add_scaled_product(&mut mb, mass, br, 1.0);
         total += ar.iter().zip(&mb).map(|(a, y)| a * y).sum::<f64>();
     }
     total

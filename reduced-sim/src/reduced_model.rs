@@ -329,6 +329,17 @@ struct ElasticSubset {
     lame: Vec<LameParameters>,
 }
 
+/// `y ← y + s · A x` for a small dense A (`y.len() × x.len()`), a column at a time (contiguous,
+/// so it vectorizes; a dot product per row would not).
+pub(crate) fn add_scaled_product(y: &mut [f64], a: &Mat<f64>, x: &[f64], s: f64) {
+    for (j, xj) in x.iter().enumerate() {
+        let c = s * xj;
+        for (yi, aij) in y.iter_mut().zip(a.col_as_slice(j)) {
+            *yi += aij * c;
+        }
+    }
+}
+
 /// Copies the lower triangle's mirror over round-off asymmetry: `A ← (A + Aᵀ)/2`.
 pub(crate) fn symmetrize(a: &mut Mat<f64>) {
     for j in 0..a.ncols() {

@@ -745,12 +745,7 @@ impl SceneTerms {
                 for (gk, ck) in g.iter_mut().zip(&targets.pin_gradient_at_zero[r * n4..]) {
                     *gk += ck;
                 }
-                let zr = &z[r * n4..(r + 1) * n4];
-                for (b, zb) in zr.iter().enumerate() {
-                    for (gk, hk) in g.iter_mut().zip(block.col_as_slice(b)) {
-                        *gk += hk * zb;
-                    }
-                }
+                crate::reduced_model::add_scaled_product(g, block, &z[r * n4..(r + 1) * n4], 1.0);
             }
         }
         if let (Some(block), Some(hessian)) = (&self.pin_hessian_block, hessian.as_deref_mut()) {

@@ -21,7 +21,9 @@ use crate::beam::reduced::{
 use crate::beam::simplicits::train_beam_simplicits;
 use crate::beam::sph::SphStudyConfig;
 use crate::beam::{BEAM_MAX, BEAM_MIN, BEAM_TIME_STEP, BeamTest, beam_material};
-use crate::fem_reference::{FEM_TIMING_STEPS, FemResolution, FemRun, run_fem_beam, time_fem_beam};
+use crate::fem_reference::{
+    FEM_TIMING_STEPS, FemResolution, FemRun, beam_seconds_per_step_here, run_fem_beam,
+};
 use crate::metrics::TrajectoryErrors;
 use crate::progress::Progress;
 use crate::reduced_run::ReducedRun;
@@ -449,20 +451,16 @@ pub(crate) fn fem_references(
             &config.cache_dir,
             progress,
         )?;
-        let (seconds_per_step, timed_steps) = if run.cached {
-            let timed = FEM_TIMING_STEPS.min(steps);
+        if run.cached {
             progress.status(format!(
-                "FEM {} {}: timing {timed} fresh steps",
+                "FEM {} {}: timing {} fresh steps",
                 test.name(),
-                config.fem.label()
+                config.fem.label(),
+                FEM_TIMING_STEPS.min(steps)
             ));
-            (
-                time_fem_beam(test, config.fem, config.fem_newton, timed)?,
-                timed,
-            )
-        } else {
-            (run.seconds_per_step, steps)
-        };
+        }
+        let (seconds_per_step, timed_steps) =
+            beam_seconds_per_step_here(&run, test, config.fem, config.fem_newton, steps)?;
         let not_scored = run
             .check_converged(config.fem_newton.max_iterations)
             .err()
