@@ -13,8 +13,10 @@ use crate::reduced_model::ReducedModel;
 /// The three diagonal and three upper row-block pairs (r, q) of the reduced Hessian.
 const BLOCK_PAIRS: [(usize, usize); 6] = [(0, 0), (1, 1), (2, 2), (0, 1), (0, 2), (1, 2)];
 
-/// Integration points per parallel task when forming `T^{rq}`.
-const POINTS_PER_TASK: usize = 32;
+/// Integration points per chunk of the Hessian assembly: `T^{rq}` of a chunk is
+/// `4(m+1) × 3·POINTS_PER_CHUNK` (about 200 KB at m = 32), so it stays in cache between its
+/// forming and its product.
+const POINTS_PER_CHUNK: usize = 64;
 
 impl<M: HyperelasticMaterial> ReducedModel<M> {
     /// Elastic energy `E_el(z) = Σ_i v_i Ψ(F_i(z))` (J), the sum over the elastic quadrature
@@ -81,6 +83,12 @@ impl<M: HyperelasticMaterial> ReducedModel<M> {
     }
 
     /// Adds the elastic Hessian at the deformation gradients `f` to `h`.
+    ///
+    /// The points are split into one contiguous part per thread. Each part walks its points
+    /// [`POINTS_PER_CHUNK`] at a time: the chunk's material tangents, then for each block pair
+    /// (r, q) the chunk's `T^{rq}` (small enough to stay in cache) and one product
+    /// `T^{rq} G_chunkᵀ` added to the part's own six blocks. The parts' blocks are then summed
+    /// in part order, so the result does not depend on scheduling.
     pub(crate) fn add_elastic_hessian_at(
         &self,
         f: &[Matrix3<f64>],
@@ -88,88 +96,122 @@ impl<M: HyperelasticMaterial> ReducedModel<M> {
         h: &mut Mat<f64>,
     ) {
         let n = f.len();
-        let material = self.material();
-        let lame = self.elastic_lame();
-        let volumes = self.elastic_weights();
-        let mut tangents = vec![Matrix9::zeros(); n];
-        tangents.par_iter_mut().enumerate().for_each(|(i, d)| {
-            let raw = match tangent {
-                Tangent::Exact => material.stress_derivative(&lame[i], &f[i]),
-                Tangent::ProjectedPsd => material.projected_stress_derivative(&lame[i], &f[i]),
-            };
-            *d = raw * volumes[i];
-        });
+        if n == 0 {
+            return;
+        }
         let map = self.elastic_map();
         let n4 = map.layout().block_len();
-        let g = map.gradient_matrix();
-        let mut t_buffer = vec![0.0; n4 * 3 * n];
-        let mut block = Mat::<f64>::zeros(n4, n4);
-        // The loops below are compiled for the widest SIMD the CPU has (AVX2 / AVX-512 via
-        // pulp's runtime dispatch): 1.4× faster assembly at m = 16 than baseline x86-64.
-        let arch = pulp::Arch::new();
-        for (r, q) in BLOCK_PAIRS {
-            t_buffer
-                .par_chunks_mut(3 * n4 * POINTS_PER_TASK)
-                .enumerate()
-                .for_each(|(chunk, t_chunk)| {
-                    arch.dispatch(|| {
-                        for (k, ti) in t_chunk.chunks_exact_mut(3 * n4).enumerate() {
-                            let i = chunk * POINTS_PER_TASK + k;
-                            let gi = map.gradient_block(i);
-                            let d = &tangents[i];
-                            for t in 0..3 {
-                                let col = &mut ti[t * n4..(t + 1) * n4];
-                                let [a0, a1, a2] = [0, 1, 2].map(|s| d[(3 * s + r, 3 * t + q)]);
-                                let (g0, rest) = gi.split_at(n4);
-                                let (g1, g2) = rest.split_at(n4);
-                                for (((c, x), y), w) in col.iter_mut().zip(g0).zip(g1).zip(g2) {
-                                    *c = a0 * x + a1 * y + a2 * w;
-                                }
+        let parts = rayon::current_num_threads().clamp(1, n.div_ceil(POINTS_PER_CHUNK));
+        let part_len = n.div_ceil(parts);
+        let blocks: Vec<[Mat<f64>; 6]> = (0..parts)
+            .into_par_iter()
+            .map(|part| {
+                let range = part * part_len..((part + 1) * part_len).min(n);
+                self.elastic_hessian_blocks(f, range, tangent)
+            })
+            .collect();
+        for part in &blocks {
+            for ((r, q), block) in BLOCK_PAIRS.into_iter().zip(part) {
+                if r == q {
+                    // Only the lower triangle of a diagonal block was computed.
+                    for b in 0..n4 {
+                        for a in b..n4 {
+                            let v = block[(a, b)];
+                            h[(r * n4 + a, r * n4 + b)] += v;
+                            if a != b {
+                                h[(r * n4 + b, r * n4 + a)] += v;
                             }
                         }
-                    })
-                });
-            let t_mat = MatRef::from_column_major_slice(&t_buffer, n4, 3 * n);
-            if r == q {
-                // A^{rr} is symmetric, so is the block: compute its lower triangle only.
-                triangular::matmul(
-                    block.as_mut(),
-                    BlockStructure::TriangularLower,
-                    Accum::Replace,
-                    t_mat,
-                    BlockStructure::Rectangular,
-                    g.transpose(),
-                    BlockStructure::Rectangular,
-                    1.0,
-                    Par::rayon(0),
-                );
-                for b in 0..n4 {
-                    for a in b..n4 {
-                        let v = block[(a, b)];
-                        h[(r * n4 + a, r * n4 + b)] += v;
-                        if a != b {
-                            h[(r * n4 + b, r * n4 + a)] += v;
-                        }
                     }
-                }
-            } else {
-                faer::linalg::matmul::matmul(
-                    block.as_mut(),
-                    Accum::Replace,
-                    t_mat,
-                    g.transpose(),
-                    1.0,
-                    Par::rayon(0),
-                );
-                for b in 0..n4 {
-                    for a in 0..n4 {
-                        let v = block[(a, b)];
-                        h[(r * n4 + a, q * n4 + b)] += v;
-                        h[(q * n4 + b, r * n4 + a)] += v;
+                } else {
+                    for b in 0..n4 {
+                        for a in 0..n4 {
+                            let v = block[(a, b)];
+                            h[(r * n4 + a, q * n4 + b)] += v;
+                            h[(q * n4 + b, r * n4 + a)] += v;
+                        }
                     }
                 }
             }
         }
+    }
+
+    /// The six blocks `Σ_i G_i A_i^{rq} G_iᵀ` (r, q in [`BLOCK_PAIRS`] order, each
+    /// `4(m+1) × 4(m+1)`, the diagonal ones lower triangle only) over the points in `range`,
+    /// on this thread.
+    fn elastic_hessian_blocks(
+        &self,
+        f: &[Matrix3<f64>],
+        range: std::ops::Range<usize>,
+        tangent: Tangent,
+    ) -> [Mat<f64>; 6] {
+        let material = self.material();
+        let lame = self.elastic_lame();
+        let weights = self.elastic_weights();
+        let map = self.elastic_map();
+        let n4 = map.layout().block_len();
+        let g = map.gradient_matrix();
+        let mut blocks: [Mat<f64>; 6] = std::array::from_fn(|_| Mat::zeros(n4, n4));
+        let mut t_buffer = vec![0.0; n4 * 3 * POINTS_PER_CHUNK];
+        let mut tangents = [Matrix9::zeros(); POINTS_PER_CHUNK];
+        // The loops below are compiled for the widest SIMD the CPU has (AVX2 / AVX-512 via
+        // pulp's runtime dispatch): 1.4× faster assembly at m = 16 than baseline x86-64.
+        let arch = pulp::Arch::new();
+        for start in range.clone().step_by(POINTS_PER_CHUNK) {
+            let end = (start + POINTS_PER_CHUNK).min(range.end);
+            let len = end - start;
+            for (d, i) in tangents.iter_mut().zip(start..end) {
+                let raw = match tangent {
+                    Tangent::Exact => material.stress_derivative(&lame[i], &f[i]),
+                    Tangent::ProjectedPsd => material.projected_stress_derivative(&lame[i], &f[i]),
+                };
+                *d = raw * weights[i];
+            }
+            let g_chunk = g.subcols(3 * start, 3 * len);
+            for ((r, q), block) in BLOCK_PAIRS.into_iter().zip(blocks.iter_mut()) {
+                let t_chunk = &mut t_buffer[..3 * n4 * len];
+                arch.dispatch(|| {
+                    for (k, ti) in t_chunk.chunks_exact_mut(3 * n4).enumerate() {
+                        let gi = map.gradient_block(start + k);
+                        let d = &tangents[k];
+                        let (g0, rest) = gi.split_at(n4);
+                        let (g1, g2) = rest.split_at(n4);
+                        for t in 0..3 {
+                            let col = &mut ti[t * n4..(t + 1) * n4];
+                            let [a0, a1, a2] = [0, 1, 2].map(|s| d[(3 * s + r, 3 * t + q)]);
+                            for (((c, x), y), w) in col.iter_mut().zip(g0).zip(g1).zip(g2) {
+                                *c = a0 * x + a1 * y + a2 * w;
+                            }
+                        }
+                    }
+                });
+                let t_mat = MatRef::from_column_major_slice(t_chunk, n4, 3 * len);
+                if r == q {
+                    // A^{rr} is symmetric, so is the block: its lower triangle only.
+                    triangular::matmul(
+                        block.as_mut(),
+                        BlockStructure::TriangularLower,
+                        Accum::Add,
+                        t_mat,
+                        BlockStructure::Rectangular,
+                        g_chunk.transpose(),
+                        BlockStructure::Rectangular,
+                        1.0,
+                        Par::Seq,
+                    );
+                } else {
+                    faer::linalg::matmul::matmul(
+                        block.as_mut(),
+                        Accum::Add,
+                        t_mat,
+                        g_chunk.transpose(),
+                        1.0,
+                        Par::Seq,
+                    );
+                }
+            }
+        }
+        blocks
     }
 }
 
@@ -207,4 +249,85 @@ pub(crate) fn weighted_elastic_gradient<M: HyperelasticMaterial>(
         Par::rayon(0),
     );
     gradient
+}
+
+#[cfg(test)]
+mod tests {
+    use faer::Mat;
+    use hyperelastic::{HyperelasticMaterial, Tangent};
+
+    use crate::analytic_field::analytic_model_with_spacing;
+
+    /// `Σ_i Σ_{s,t} G_i[a, s] v_i ∂²Ψ/∂F_rs∂F_qt G_i[b, t]` in entry `(r·n4 + a, q·n4 + b)`,
+    /// one point and one entry at a time (the definition, without chunks, parts or products).
+    fn hessian_point_by_point(z: &[f64], spacing: f64, tangent: Tangent) -> Mat<f64> {
+        let (model, _) = analytic_model_with_spacing(spacing);
+        let map = model.elastic_map();
+        let n4 = map.layout().block_len();
+        let f = map.deformation_gradients(z);
+        let mut h = Mat::zeros(3 * n4, 3 * n4);
+        for (i, f) in f.iter().enumerate() {
+            let lame = &model.elastic_lame()[i];
+            let d = match tangent {
+                Tangent::Exact => model.material().stress_derivative(lame, f),
+                Tangent::ProjectedPsd => model.material().projected_stress_derivative(lame, f),
+            } * model.elastic_weights()[i];
+            let g = map.gradient_block(i);
+            for (r, q, s, t) in every_index_quadruple() {
+                let a_rq = d[(3 * s + r, 3 * t + q)];
+                for b in 0..n4 {
+                    let right = a_rq * g[t * n4 + b];
+                    for a in 0..n4 {
+                        h[(r * n4 + a, q * n4 + b)] += g[s * n4 + a] * right;
+                    }
+                }
+            }
+        }
+        h
+    }
+
+    /// Every (r, q, s, t) in 0..3⁴.
+    fn every_index_quadruple() -> impl Iterator<Item = (usize, usize, usize, usize)> {
+        (0..81).map(|k| (k / 27, (k / 9) % 3, (k / 3) % 3, k % 3))
+    }
+
+    #[test]
+    fn the_chunked_hessian_is_the_point_by_point_sum_on_any_number_of_threads() {
+        // 0.15 m spacing: several hundred points, so several chunks, uneven parts and a
+        // partial last chunk.
+        let spacing = 0.15;
+        let (model, _) = analytic_model_with_spacing(spacing);
+        assert!(model.elastic_weights().len() > 5 * super::POINTS_PER_CHUNK);
+        let len = model.deformation_map().layout().len();
+        // A pose with large strains, some of them inverted (the projection acts).
+        let z: Vec<f64> = (0..len)
+            .map(|i| 0.5 * ((i as f64 * 1.37).sin() + 0.3 * (i as f64 * 0.71).cos()))
+            .collect();
+        for tangent in [Tangent::Exact, Tangent::ProjectedPsd] {
+            let reference = hessian_point_by_point(&z, spacing, tangent);
+            let scale = (0..len)
+                .flat_map(|i| (0..len).map(move |j| (i, j)))
+                .map(|(i, j)| reference[(i, j)].abs())
+                .fold(0.0, f64::max);
+            for threads in [1, 2, 3, 7] {
+                let pool = rayon::ThreadPoolBuilder::new()
+                    .num_threads(threads)
+                    .build()
+                    .expect("a thread pool");
+                let h = pool.install(|| model.elastic_hessian(&z, tangent));
+                for i in 0..len {
+                    for j in 0..len {
+                        let error = (h[(i, j)] - reference[(i, j)]).abs();
+                        assert!(
+                            error <= 1e-12 * scale,
+                            "{tangent:?}, {threads} threads: entry ({i}, {j}) is {} against \
+                             {} point by point",
+                            h[(i, j)],
+                            reference[(i, j)]
+                        );
+                    }
+                }
+            }
+        }
+    }
 }

@@ -21,7 +21,7 @@ use optimize::NewtonObjective;
 
 use crate::contact_friction::ContactFriction;
 use crate::hessian_tangent::{HessianTangent, StepTangents};
-use crate::reduced_model::{ReducedModel, add_scaled_product};
+use crate::reduced_model::{ReducedModel, add_block_diagonal_product};
 use crate::scene_terms::{SceneTerms, StepTargets};
 
 /// `1/(2h²) (z - ẑ)ᵀ M_z (z - ẑ)`.
@@ -132,20 +132,21 @@ impl<M: HyperelasticMaterial> IncrementalPotential<'_, M> {
     }
 
     /// Adds the inertia term's gradient `M_z (z - ẑ)/h²` and Hessian `M_z/h²`.
-    fn add_inertia(&self, z: &[f64], gradient: &mut [f64], mut hessian: Option<&mut Mat<f64>>) {
+    fn add_inertia(&self, z: &[f64], gradient: &mut [f64], hessian: Option<&mut Mat<f64>>) {
         let Some(inertia) = &self.inertia else {
             return;
         };
         let k = inertia.inverse_step_squared;
         let mass = self.model.mass_block();
         let n4 = mass.nrows();
-        for r in 0..3 {
-            let offset = r * n4;
-            let dz: Vec<f64> = (offset..offset + n4)
-                .map(|i| z[i] - inertia.predicted[i])
-                .collect();
-            add_scaled_product(&mut gradient[offset..offset + n4], mass, &dz, k);
-            if let Some(h) = hessian.as_deref_mut() {
+        let dz: Vec<f64> = z
+            .iter()
+            .zip(inertia.predicted)
+            .map(|(z, predicted)| z - predicted)
+            .collect();
+        add_block_diagonal_product(gradient, mass, &dz, k);
+        if let Some(h) = hessian {
+            for offset in [0, n4, 2 * n4] {
                 for b in 0..n4 {
                     for (a, m) in mass.col_as_slice(b).iter().enumerate() {
                         h[(offset + a, offset + b)] += k * m;
@@ -262,17 +263,9 @@ pub(crate) fn mass_inner<M: HyperelasticMaterial>(
     a: &[f64],
     b: &[f64],
 ) -> f64 {
-    let mass = model.mass_block();
-    let n4 = mass.nrows();
-    let mut total = 0.0;
-    let mut mb = vec![0.0; n4];
-    for r in 0..3 {
-        let (ar, br) = (&a[r * n4..(r + 1) * n4], &b[r * n4..(r + 1) * n4]);
-        mb.fill(0.0);
-        add_scaled_product(&mut mb, mass, br, 1.0);
-        total += ar.iter().zip(&mb).map(|(a, y)| a * y).sum::<f64>();
-    }
-    total
+    let mut mb = vec![0.0; b.len()];
+    add_block_diagonal_product(&mut mb, model.mass_block(), b, 1.0);
+    a.iter().zip(&mb).map(|(a, y)| a * y).sum()
 }
 
 #[cfg(test)]

@@ -329,15 +329,22 @@ struct ElasticSubset {
     lame: Vec<LameParameters>,
 }
 
-/// `y ← y + s · A x` for a small dense A (`y.len() × x.len()`), a column at a time (contiguous,
-/// so it vectorizes; a dot product per row would not).
-pub(crate) fn add_scaled_product(y: &mut [f64], a: &Mat<f64>, x: &[f64], s: f64) {
-    for (j, xj) in x.iter().enumerate() {
-        let c = s * xj;
-        for (yi, aij) in y.iter_mut().zip(a.col_as_slice(j)) {
-            *yi += aij * c;
-        }
-    }
+/// `y ← y + s · blockdiag(A, A, A) x` for a small dense square A (`n × n`; x and y of length
+/// 3n in z's layout): one product `Y ← Y + s A X` with X and Y viewed as column-major `n × 3`
+/// matrices (the three coordinate blocks of z), so the three blocks share one SIMD kernel.
+///
+/// # Panics
+/// If `x.len()` or `y.len()` is not `3 · A.nrows()`.
+pub(crate) fn add_block_diagonal_product(y: &mut [f64], a: &Mat<f64>, x: &[f64], s: f64) {
+    let n = a.nrows();
+    faer::linalg::matmul::matmul(
+        faer::MatMut::from_column_major_slice_mut(y, n, 3),
+        faer::Accum::Add,
+        a.as_ref(),
+        faer::MatRef::from_column_major_slice(x, n, 3),
+        s,
+        faer::Par::Seq,
+    );
 }
 
 /// Copies the lower triangle's mirror over round-off asymmetry: `A ← (A + Aᵀ)/2`.

@@ -740,13 +740,10 @@ impl SceneTerms {
         }
         if let Some(block) = &self.pin_hessian_block {
             // ∂E/∂z_r = κ Σ v_i b_i (x_i − t_i)_r = H z_r + c_r, x_i = X_i + b_iᵀ z_r.
-            for r in 0..3 {
-                let g = &mut gradient[r * n4..(r + 1) * n4];
-                for (gk, ck) in g.iter_mut().zip(&targets.pin_gradient_at_zero[r * n4..]) {
-                    *gk += ck;
-                }
-                crate::reduced_model::add_scaled_product(g, block, &z[r * n4..(r + 1) * n4], 1.0);
+            for (gk, ck) in gradient.iter_mut().zip(&targets.pin_gradient_at_zero) {
+                *gk += ck;
             }
+            crate::reduced_model::add_block_diagonal_product(gradient, block, z, 1.0);
         }
         if let (Some(block), Some(hessian)) = (&self.pin_hessian_block, hessian.as_deref_mut()) {
             for r in 0..3 {
