@@ -1,5 +1,7 @@
 //! Reduced Hessian assembly on the 5 × 1 × 1 m beam with 5000 simulation points, for
-//! m = 6, 9, 16, 32, beside a plain faer GEMM of the same shape as a yardstick.
+//! m = 6, 9, 16, 32, beside a plain faer GEMM of the same shape as a yardstick, and the
+//! one-pass elastic energy and gradient beside the deformation gradients alone (the GEMM
+//! `Zᵀ G`, one read of G: the floor for a pass over the points).
 //! Plain harness: `cargo bench -p reduced-sim`.
 //!
 //! Useful work per assembly: three diagonal blocks computed as lower triangles and three
@@ -40,9 +42,10 @@ fn main() {
     let n = points.len();
     println!("beam, {n} simulation points, best of 5");
     println!(
-        "| m | assembly (ms) | GFLOP/s (assembly) | GEMM n4×3N×n4 (ms) | GFLOP/s (GEMM) | ratio |"
+        "| m | assembly (ms) | GFLOP/s (assembly) | GEMM n4×3N×n4 (ms) | GFLOP/s (GEMM) | ratio | \
+         energy (ms) | gradient (ms) | F alone (ms) |"
     );
-    println!("|---|---|---|---|---|---|");
+    println!("|---|---|---|---|---|---|---|---|---|");
     for m in [6, 9, 16, 32] {
         let params = BasisParams {
             kernels: KernelParams {
@@ -61,6 +64,10 @@ fn main() {
         let len = model.deformation_map().layout().len();
         let z: Vec<f64> = (0..len).map(|i| 0.01 * (i as f64).sin()).collect();
         let assembly = best_of(5, || model.elastic_hessian(&z, Tangent::ProjectedPsd));
+        let energy = best_of(20, || model.elastic_energy(&z));
+        let gradient = best_of(20, || model.elastic_gradient(&z));
+        let deformation_gradients =
+            best_of(20, || model.deformation_map().deformation_gradients(&z));
 
         let n4 = 4 * (m + 1);
         let a = Mat::<f64>::from_fn(n4, 3 * n, |i, j| ((i * 7 + j) % 13) as f64);
@@ -79,12 +86,15 @@ fn main() {
         let gemm_flops = 2.0 * (n4 * n4 * 3 * n) as f64;
         let assembly_flops = 4.5 * gemm_flops;
         println!(
-            "| {m} | {:.2} | {:.1} | {:.3} | {:.1} | {:.2} |",
+            "| {m} | {:.2} | {:.1} | {:.3} | {:.1} | {:.2} | {:.3} | {:.3} | {:.3} |",
             1e3 * assembly,
             assembly_flops / assembly * 1e-9,
             1e3 * gemm,
             gemm_flops / gemm * 1e-9,
             (assembly_flops / assembly) / (gemm_flops / gemm),
+            1e3 * energy,
+            1e3 * gradient,
+            1e3 * deformation_gradients,
         );
     }
 }

@@ -80,15 +80,18 @@ pub struct CubatureParams {
     /// Memory: 4 · 12(m+1) · poses · candidates bytes (0.48 GB at m = 32).
     pub candidates: usize,
     /// Relative force error over the training poses (in the weighted norm of
-    /// [`force_weights`]) at which selection stops (default 0.003). On the beam at m = 32 (5000
+    /// [`force_weights`]) at which selection stops (default 0.001). On the beam at m = 32 (5000
     /// points, pin factor 3e3, `eval/examples/fast_step.rs`) the Bend / Twist MSE against the
     /// FEM was 1.25× / 1.08× the full quadrature's at 0.003 (799 points), 1.21× / 1.01× at
-    /// 0.002 (994) and 1.14× / 1.00× at 0.001 (1434); 0.005 gave 1.5× Bend. The cubature's own
-    /// change of the trajectory ("MSE to full", 4.7e-7 at 0.003) is small against the error
-    /// (1.56e-5) but aligned with it: the cubature makes the beam slightly softer, as the
-    /// penalty pins already do.
+    /// 0.002 (994) and 1.14× / 1.00× at 0.001 (1434); 0.005 gave 1.5× Bend. At m = 16, 0.95× /
+    /// 1.01× at 0.001 (795 points) against 1.03× / 1.04× at 0.003 (483). The step with Hessian
+    /// reuse then took 2.27 ms at m = 32 and 0.81 ms at m = 16 (1.88 and 0.60 ms at 0.003,
+    /// 2026-11-26). The cubature's own change of the trajectory ("MSE to full", 2.0e-7 at 0.001,
+    /// 4.7e-7 at 0.003) is small against the error (1.56e-5) but aligned with it: the
+    /// cubature makes the beam slightly softer, as the penalty pins already do. 0.003 was the
+    /// default before 2026-11-26.
     pub tolerance: f64,
-    /// Most points with positive weight the cubature may hold (default 1500).
+    /// Most points with positive weight the cubature may hold (default 2000).
     pub max_points: usize,
     /// Points added between weight solves while the cubature is small (default 16; later an
     /// eighth of the points it holds).
@@ -113,8 +116,8 @@ impl CubatureParams {
         max_bend: std::f64::consts::PI,
         time_step: 0.01,
         candidates: 5000,
-        tolerance: 0.003,
-        max_points: 1500,
+        tolerance: 0.001,
+        max_points: 2000,
         batch: 16,
         validation_poses_per_amplitude: 3,
         seed: 0,

@@ -25,43 +25,46 @@ impl<M: HyperelasticMaterial> ReducedModel<M> {
     /// # Panics
     /// If `z.len() != 12(m + 1)`.
     pub fn elastic_energy(&self, z: &[f64]) -> f64 {
-        let f = self.elastic_map().deformation_gradients(z);
-        self.elastic_energy_at(&f)
-    }
-
-    /// Elastic energy from precomputed deformation gradients (J).
-    pub(crate) fn elastic_energy_at(&self, f: &[Matrix3<f64>]) -> f64 {
-        let lame = self.elastic_lame();
-        let material = self.material();
-        // Per-point terms in parallel, summed in index order: a parallel `sum` would associate
-        // differently from run to run and make trajectories differ in the last bits.
-        let terms: Vec<f64> = f
-            .par_iter()
-            .zip(lame.par_iter())
-            .zip(self.elastic_weights().par_iter())
-            .map(|((f, p), v)| v * material.energy_density(p, f))
+        let map = self.elastic_map();
+        let n4 = map.layout().block_len();
+        assert_eq!(z.len(), 3 * n4, "z has the wrong length");
+        let (z0, rest) = z.split_at(n4);
+        let (z1, z2) = rest.split_at(n4);
+        let (lame, weights, material) =
+            (self.elastic_lame(), self.elastic_weights(), self.material());
+        let n = map.len();
+        // Parts of fixed size in parallel, summed in part order: the sum does not depend on
+        // the number of threads or on scheduling.
+        let parts: Vec<f64> = (0..n.div_ceil(POINTS_PER_PART))
+            .into_par_iter()
+            .map(|part| {
+                let range = part * POINTS_PER_PART..((part + 1) * POINTS_PER_PART).min(n);
+                pulp::Arch::new().dispatch(EnergyPart {
+                    map,
+                    z: [z0, z1, z2],
+                    energy: &|i: usize, f: &Matrix3<f64>| {
+                        weights[i] * material.energy_density(&lame[i], f)
+                    },
+                    range,
+                })
+            })
             .collect();
-        terms.iter().sum()
+        parts.iter().sum()
     }
 
     /// Gradient `∂E_el/∂z` (J per unit z, length 12(m + 1), z's layout):
-    /// `∂E_el/∂z_r = Σ_i v_i G_i P_i[r, :]ᵀ`, computed as the product `G · P̃` with
-    /// `P̃[3i + s, r] = v_i P_i[r, s]` (`4(m+1) × 3N` times `3N × 3`).
+    /// `∂E_el/∂z_r = Σ_i v_i G_i P_i[r, :]ᵀ`, in one pass over the points that forms each
+    /// `F_i = I + Zᵀ G_i` and adds the point's term while its `G_i` is in cache.
     ///
     /// # Panics
     /// If `z.len() != 12(m + 1)`.
     pub fn elastic_gradient(&self, z: &[f64]) -> Vec<f64> {
-        let f = self.elastic_map().deformation_gradients(z);
-        self.elastic_gradient_at(&f)
-    }
-
-    pub(crate) fn elastic_gradient_at(&self, f: &[Matrix3<f64>]) -> Vec<f64> {
-        weighted_elastic_gradient(
+        weighted_elastic_gradient_at_z(
             self.material(),
             self.elastic_map(),
             self.elastic_lame(),
             self.elastic_weights(),
-            f,
+            z,
         )
     }
 
@@ -217,11 +220,13 @@ impl<M: HyperelasticMaterial> ReducedModel<M> {
     }
 }
 
+/// Points per part of the energy and gradient passes. Parts are summed in part order, so the
+/// sums do not depend on the number of threads.
+const POINTS_PER_PART: usize = 256;
+
 /// `Σ_i w_i G_i P_i(F_i)ᵀ` over the points of `map` (length 12(m + 1), z's layout), with
 /// Lamé parameters `lame`, weights `weights` (volumes or quadrature weights, m³) and
-/// deformation gradients `f`: the elastic gradient of [`ReducedModel::elastic_gradient`],
-/// computed as the product `G · P̃` with `P̃[3i + s, r] = w_i P_i[r, s]` (`4(m+1) × 3N` times
-/// `3N × 3`).
+/// deformation gradients `f`: the elastic gradient of [`ReducedModel::elastic_gradient`].
 pub(crate) fn weighted_elastic_gradient<M: HyperelasticMaterial>(
     material: &M,
     map: &DeformationMap,
@@ -229,28 +234,170 @@ pub(crate) fn weighted_elastic_gradient<M: HyperelasticMaterial>(
     weights: &[f64],
     f: &[Matrix3<f64>],
 ) -> Vec<f64> {
-    let n = f.len();
-    // Per point, the column-major storage of w_i P_i: entry 3s + r is w_i P_i[r, s], so the
-    // whole buffer is P̃ᵀ as a column-major 3 × 3N matrix.
-    let mut stresses_t = vec![0.0; 9 * n];
-    stresses_t
-        .par_chunks_mut(9)
-        .enumerate()
-        .for_each(|(i, out)| {
-            let p = material.first_piola_kirchhoff(&lame[i], &f[i]) * weights[i];
-            out.copy_from_slice(p.as_slice());
-        });
+    accumulate_point_gradients(map, PointDeformation::Given(f), |i, f| {
+        material.first_piola_kirchhoff(&lame[i], f) * weights[i]
+    })
+}
+
+/// [`weighted_elastic_gradient`] at the reduced coordinates `z` (length 12(m + 1)), each
+/// point's `F_i = I + Zᵀ G_i` formed from its `G_i` while that is in cache for the point's
+/// gradient term: one pass over G instead of two (`F` for every point, then `G · P̃`).
+///
+/// # Panics
+/// If `z.len() != 12(m + 1)`.
+pub(crate) fn weighted_elastic_gradient_at_z<M: HyperelasticMaterial>(
+    material: &M,
+    map: &DeformationMap,
+    lame: &[LameParameters],
+    weights: &[f64],
+    z: &[f64],
+) -> Vec<f64> {
     let n4 = map.layout().block_len();
+    assert_eq!(z.len(), 3 * n4, "z has the wrong length");
+    let (z0, rest) = z.split_at(n4);
+    let (z1, z2) = rest.split_at(n4);
+    accumulate_point_gradients(map, PointDeformation::FromZ([z0, z1, z2]), |i, f| {
+        material.first_piola_kirchhoff(&lame[i], f) * weights[i]
+    })
+}
+
+/// `F = I + Zᵀ G_i` from the columns `z_r` of Z (each `4(m+1)`) and G_i (column-major
+/// `4(m+1) × 3`): `F[r, s] = δ_rs + z_r · G_i[:, s]`, the nine dot products in SIMD lanes.
+#[inline(always)]
+fn deformation_gradient_of_block<S: pulp::Simd>(
+    simd: S,
+    z: [&[f64]; 3],
+    gi: &[f64],
+) -> Matrix3<f64> {
+    let n4 = z[0].len();
+    let zs = z.map(S::as_simd_f64s);
+    let gs = [&gi[..n4], &gi[n4..2 * n4], &gi[2 * n4..3 * n4]].map(S::as_simd_f64s);
+    let mut sums = [simd.splat_f64s(0.0); 9];
+    for k in 0..zs[0].0.len() {
+        for (r, zr) in zs.iter().enumerate() {
+            for (s, gs) in gs.iter().enumerate() {
+                sums[3 * s + r] = simd.mul_add_e_f64s(zr.0[k], gs.0[k], sums[3 * s + r]);
+            }
+        }
+    }
+    Matrix3::from_fn(|r, s| {
+        let tail: f64 = zs[r].1.iter().zip(gs[s].1).map(|(a, b)| a * b).sum();
+        f64::from(u8::from(r == s)) + simd.reduce_sum_f64s(sums[3 * s + r]) + tail
+    })
+}
+
+/// Where [`accumulate_point_gradients`] takes each point's deformation gradient from.
+#[derive(Clone, Copy)]
+enum PointDeformation<'a> {
+    /// `F_i` already formed.
+    Given(&'a [Matrix3<f64>]),
+    /// `F_i = I + Zᵀ G_i` from Z's three columns (each `4(m+1)`).
+    FromZ([&'a [f64]; 3]),
+}
+
+/// `Σ_i G_i S_iᵀ` (length 12(m + 1), z's layout: entry `r·4(m+1) + a` is
+/// `Σ_i Σ_s G_i[a, s] S_i[r, s]`) for the 3 × 3 `S_i = stress(i, F_i)`, G_i column-major
+/// `4(m+1) × 3`. The points are taken [`POINTS_PER_PART`] at a time in parallel,
+/// each G_i read once; the parts' sums are added in part order.
+fn accumulate_point_gradients(
+    map: &DeformationMap,
+    deformation: PointDeformation<'_>,
+    stress: impl Fn(usize, &Matrix3<f64>) -> Matrix3<f64> + Sync,
+) -> Vec<f64> {
+    let n = map.len();
+    let n4 = map.layout().block_len();
+    let parts: Vec<Vec<f64>> = (0..n.div_ceil(POINTS_PER_PART))
+        .into_par_iter()
+        .map(|part| {
+            let mut sum = vec![0.0; 3 * n4];
+            let range = part * POINTS_PER_PART..((part + 1) * POINTS_PER_PART).min(n);
+            // Compiled for the widest SIMD the CPU has (pulp's runtime dispatch).
+            pulp::Arch::new().dispatch(GradientPart {
+                map,
+                deformation,
+                stress: &stress,
+                range,
+                sum: &mut sum,
+            });
+            sum
+        })
+        .collect();
     let mut gradient = vec![0.0; 3 * n4];
-    faer::linalg::matmul::matmul(
-        faer::MatMut::from_column_major_slice_mut(&mut gradient, n4, 3),
-        Accum::Replace,
-        map.gradient_matrix(),
-        MatRef::from_column_major_slice(&stresses_t, 3, 3 * n).transpose(),
-        1.0,
-        Par::rayon(0),
-    );
+    for part in &parts {
+        for (g, p) in gradient.iter_mut().zip(part) {
+            *g += p;
+        }
+    }
     gradient
+}
+
+/// One part of [`accumulate_point_gradients`]: the points in `range`, added to `sum`. A
+/// [`pulp::WithSimd`] whose body is `inline(always)`, so that all of it is compiled inside the
+/// dispatched, SIMD-enabled function (a closure's body is not inlined there).
+struct GradientPart<'a, S> {
+    map: &'a DeformationMap,
+    deformation: PointDeformation<'a>,
+    stress: &'a S,
+    range: std::ops::Range<usize>,
+    sum: &'a mut [f64],
+}
+
+impl<S: Fn(usize, &Matrix3<f64>) -> Matrix3<f64>> pulp::WithSimd for GradientPart<'_, S> {
+    type Output = ();
+
+    #[inline(always)]
+    fn with_simd<Simd: pulp::Simd>(self, simd: Simd) {
+        let GradientPart {
+            map,
+            deformation,
+            stress,
+            range,
+            sum,
+        } = self;
+        let n4 = map.layout().block_len();
+        let (s0, rest) = sum.split_at_mut(n4);
+        let (s1, s2) = rest.split_at_mut(n4);
+        for i in range {
+            let gi = map.gradient_block(i);
+            let p = match deformation {
+                PointDeformation::Given(f) => stress(i, &f[i]),
+                PointDeformation::FromZ(z) => {
+                    stress(i, &deformation_gradient_of_block(simd, z, gi))
+                }
+            };
+            let (g0, rest) = gi.split_at(n4);
+            let (g1, g2) = rest.split_at(n4);
+            for (r, out) in [&mut *s0, &mut *s1, &mut *s2].into_iter().enumerate() {
+                let [p0, p1, p2] = [p[(r, 0)], p[(r, 1)], p[(r, 2)]];
+                for (((o, x), y), w) in out.iter_mut().zip(g0).zip(g1).zip(g2) {
+                    *o += x * p0 + y * p1 + w * p2;
+                }
+            }
+        }
+    }
+}
+
+/// One part of [`ReducedModel::elastic_energy`]: `Σ_i energy(i, F_i)` over the points in
+/// `range`, `F_i = I + Zᵀ G_i`, in index order ([`pulp::WithSimd`] as [`GradientPart`]).
+struct EnergyPart<'a, E> {
+    map: &'a DeformationMap,
+    z: [&'a [f64]; 3],
+    energy: &'a E,
+    range: std::ops::Range<usize>,
+}
+
+impl<E: Fn(usize, &Matrix3<f64>) -> f64> pulp::WithSimd for EnergyPart<'_, E> {
+    type Output = f64;
+
+    #[inline(always)]
+    fn with_simd<Simd: pulp::Simd>(self, simd: Simd) -> f64 {
+        let mut sum = 0.0;
+        for i in self.range {
+            let f = deformation_gradient_of_block(simd, self.z, self.map.gradient_block(i));
+            sum += (self.energy)(i, &f);
+        }
+        sum
+    }
 }
 
 #[cfg(test)]
@@ -333,6 +480,61 @@ mod tests {
                     }
                 }
             }
+        }
+    }
+
+    #[test]
+    fn the_one_pass_energy_and_gradient_are_the_point_by_point_sums_and_do_not_depend_on_threads() {
+        let (model, _) = analytic_model_with_spacing(0.15);
+        let map = model.elastic_map();
+        assert!(
+            map.len() > 2 * super::POINTS_PER_PART,
+            "{} points",
+            map.len()
+        );
+        let n4 = map.layout().block_len();
+        let len = 3 * n4;
+        let z: Vec<f64> = (0..len)
+            .map(|i| 0.3 * ((i as f64 * 1.37).sin() + 0.3 * (i as f64 * 0.71).cos()))
+            .collect();
+        // The definitions, one point at a time: Σ_i v_i Ψ(F_i) and Σ_i v_i G_i P_iᵀ, F_i from
+        // the GEMM of `deformation_gradients`.
+        let f = map.deformation_gradients(&z);
+        let (material, lame, weights) = (
+            model.material(),
+            model.elastic_lame(),
+            model.elastic_weights(),
+        );
+        let mut energy = 0.0;
+        let mut gradient = vec![0.0; len];
+        for (i, f) in f.iter().enumerate() {
+            energy += weights[i] * material.energy_density(&lame[i], f);
+            let p = material.first_piola_kirchhoff(&lame[i], f) * weights[i];
+            let g = map.gradient_block(i);
+            for (r, s, a) in
+                (0..3).flat_map(|r| (0..3).flat_map(move |s| (0..n4).map(move |a| (r, s, a))))
+            {
+                gradient[r * n4 + a] += g[s * n4 + a] * p[(r, s)];
+            }
+        }
+        let scale = gradient.iter().fold(0.0f64, |m, g| m.max(g.abs()));
+        let mut first = None;
+        for threads in [1, 2, 3] {
+            let pool = rayon::ThreadPoolBuilder::new()
+                .num_threads(threads)
+                .build()
+                .expect("a thread pool");
+            let (e, g) = pool.install(|| (model.elastic_energy(&z), model.elastic_gradient(&z)));
+            assert!(
+                (e - energy).abs() <= 1e-12 * energy.abs(),
+                "{e} against {energy}"
+            );
+            for (a, (x, y)) in g.iter().zip(&gradient).enumerate() {
+                assert!((x - y).abs() <= 1e-12 * scale, "entry {a}: {x} against {y}");
+            }
+            // Parts of a fixed size summed in order: the same bits on any number of threads.
+            let first = first.get_or_insert((e, g.clone()));
+            assert_eq!((first.0, &first.1), (e, &g), "{threads} threads");
         }
     }
 }
