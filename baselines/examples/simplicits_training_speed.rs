@@ -35,13 +35,15 @@ fn main() {
     };
     let (_, report) = train_simplicits(&points, &lame, &params, |_, _| {}).expect("training");
     println!(
-        "{} points, m = {}, {} steps: {:.2} ms/step (10 000 steps: {:.1} min); loss {:.3e} -> {:.3e}",
+        "{} points, m = {}, {} steps: {:.2} ms/step (10 000 steps: {:.1} min); loss {:.3e} -> {:.3e} \
+         (last exactly {:?}, for bit-for-bit comparisons)",
         points.len(),
         args.modes,
         args.steps,
         1e3 * report.seconds / args.steps as f64,
         report.seconds / args.steps as f64 * 1e4 / 60.0,
         report.first.total,
+        report.last.total,
         report.last.total
     );
 }

@@ -375,58 +375,18 @@ impl Problem<'_> {
         let per_point: Vec<(f64, Vec<[f64; 6]>)> = (0..b)
             .into_par_iter()
             .map(|i| {
-                let p = &lame[sample[i]];
-                let xs: [Vector3<f64>; 6] = std::array::from_fn(|s| stencil((s + 1) * b + i));
-                let bars: [Vector4<f64>; 6] = xs.map(|x| Vector4::new(x.x, x.y, x.z, 1.0));
-                let mut energy = 0.0;
-                // The point's weights at its six shifted copies, gathered once (the network's
-                // output rows of one point lie 7b apart): weights[j][s].
-                let weights: Vec<[f64; 6]> = (0..m)
-                    .map(|j| std::array::from_fn(|s| y[((s + 1) * b + i, j)]))
-                    .collect();
-                // images[j][s] = Z_j X̄_s, the handle's affine image of shifted point s: shared by
-                // the displacement u_s = Σ_j W_j Z_j X̄_s and its derivative in W_j.
-                let mut images = vec![[Vector3::<f64>::zeros(); 6]; m];
-                // d_w[j][s]: ∂(elastic sum)/∂W_j at shifted point s.
-                let mut d_w = vec![[0.0; 6]; m];
-                for z in transforms {
-                    for (image, zj) in images.iter_mut().zip(z) {
-                        for (s, bar) in bars.iter().enumerate() {
-                            image[s] = Vector3::from_fn(|r, _| {
-                                zj[4 * r] * bar[0]
-                                    + zj[4 * r + 1] * bar[1]
-                                    + zj[4 * r + 2] * bar[2]
-                                    + zj[4 * r + 3]
-                            });
-                        }
-                    }
-                    let u: [Vector3<f64>; 6] = std::array::from_fn(|s| {
-                        let mut u = Vector3::zeros();
-                        for (w, image) in weights.iter().zip(&images) {
-                            u += image[s] * w[s];
-                        }
-                        u
-                    });
-                    let F = central_difference_deformation_gradient(
-                        &[u[0], u[2], u[4]],
-                        &[u[1], u[3], u[5]],
-                        &h,
-                    );
-                    energy += (1.0 - ratio) * LinearElastic.energy_density(p, &F)
-                        + ratio * StableNeoHookean.energy_density(p, &F);
-                    let P = LinearElastic.first_piola_kirchhoff(p, &F) * (1.0 - ratio)
-                        + StableNeoHookean.first_piola_kirchhoff(p, &F) * ratio;
-                    for s in 0..6 {
-                        let k = s / 2;
-                        let sign = if s % 2 == 0 { 1.0 } else { -1.0 };
-                        // ∂Ψ/∂u_s = ± P[:, k] / (2 h_k); u_s = Σ_j W_j Z_j X̄_s.
-                        let d_u = P.column(k) * (sign / (2.0 * h[k]));
-                        for (d, image) in d_w.iter_mut().zip(&images) {
-                            d[s] += d_u.dot(&image[s]);
-                        }
-                    }
-                }
-                (energy, d_w)
+                // Compiled for the widest SIMD the CPU has ([`PointTerms`]); the arithmetic is
+                // the same, so are the results.
+                pulp::Arch::new().dispatch(PointTerms {
+                    lame: &lame[sample[i]],
+                    xs: std::array::from_fn(|s| stencil((s + 1) * b + i)),
+                    weights: (0..m)
+                        .map(|j| std::array::from_fn(|s| y[((s + 1) * b + i, j)]))
+                        .collect(),
+                    transforms,
+                    h,
+                    ratio,
+                })
             })
             .collect();
         let scale = self.volume / b as f64;
@@ -557,4 +517,82 @@ pub fn train_simplicits(
             last,
         },
     ))
+}
+
+/// One sampled point's elastic terms of [`Problem::loss_and_gradient_with`]: its energy summed
+/// over the handle sets and `∂/∂W_j` at its six shifted copies (`[j][s]`). A
+/// [`pulp::WithSimd`] with an `inline(always)` body, so that all of it is compiled inside the
+/// dispatched, SIMD-enabled function (a closure's body is not inlined there).
+struct PointTerms<'a> {
+    lame: &'a LameParameters,
+    /// The point's six shifted copies (m): ±h along x, y, z.
+    xs: [Vector3<f64>; 6],
+    /// The network's weights at the six copies: `weights[j][s]`.
+    weights: Vec<[f64; 6]>,
+    transforms: &'a [Vec<[f64; 12]>],
+    h: Vector3<f64>,
+    ratio: f64,
+}
+
+impl pulp::WithSimd for PointTerms<'_> {
+    type Output = (f64, Vec<[f64; 6]>);
+
+    #[inline(always)]
+    #[allow(non_snake_case)]
+    fn with_simd<S: pulp::Simd>(self, _: S) -> Self::Output {
+        let PointTerms {
+            lame: p,
+            xs,
+            weights,
+            transforms,
+            h,
+            ratio,
+        } = self;
+        let m = weights.len();
+        let bars: [Vector4<f64>; 6] = xs.map(|x| Vector4::new(x.x, x.y, x.z, 1.0));
+        let mut energy = 0.0;
+        // images[j][s] = Z_j X̄_s, the handle's affine image of shifted point s: shared by
+        // the displacement u_s = Σ_j W_j Z_j X̄_s and its derivative in W_j.
+        let mut images = vec![[Vector3::<f64>::zeros(); 6]; m];
+        // d_w[j][s]: ∂(elastic sum)/∂W_j at shifted point s.
+        let mut d_w = vec![[0.0; 6]; m];
+        for z in transforms {
+            for (image, zj) in images.iter_mut().zip(z) {
+                for (s, bar) in bars.iter().enumerate() {
+                    image[s] = Vector3::from_fn(|r, _| {
+                        zj[4 * r] * bar[0]
+                            + zj[4 * r + 1] * bar[1]
+                            + zj[4 * r + 2] * bar[2]
+                            + zj[4 * r + 3]
+                    });
+                }
+            }
+            let u: [Vector3<f64>; 6] = std::array::from_fn(|s| {
+                let mut u = Vector3::zeros();
+                for (w, image) in weights.iter().zip(&images) {
+                    u += image[s] * w[s];
+                }
+                u
+            });
+            let F = central_difference_deformation_gradient(
+                &[u[0], u[2], u[4]],
+                &[u[1], u[3], u[5]],
+                &h,
+            );
+            energy += (1.0 - ratio) * LinearElastic.energy_density(p, &F)
+                + ratio * StableNeoHookean.energy_density(p, &F);
+            let P = LinearElastic.first_piola_kirchhoff(p, &F) * (1.0 - ratio)
+                + StableNeoHookean.first_piola_kirchhoff(p, &F) * ratio;
+            for s in 0..6 {
+                let k = s / 2;
+                let sign = if s % 2 == 0 { 1.0 } else { -1.0 };
+                // ∂Ψ/∂u_s = ± P[:, k] / (2 h_k); u_s = Σ_j W_j Z_j X̄_s.
+                let d_u = P.column(k) * (sign / (2.0 * h[k]));
+                for (d, image) in d_w.iter_mut().zip(&images) {
+                    d[s] += d_u.dot(&image[s]);
+                }
+            }
+        }
+        (energy, d_w)
+    }
 }
