@@ -533,13 +533,16 @@ pub fn optimize_cubature_on<M: HyperelasticMaterial>(
             }
             selected_columns.truncate(keep.len() * rows);
         }
-        residual = b.clone();
-        for (i, &w) in weights.iter().enumerate() {
-            let column = &selected_columns[i * rows..(i + 1) * rows];
-            for (r, x) in residual.iter_mut().zip(column) {
-                *r -= w * x;
-            }
-        }
+        // r = b − A_S w, as one product.
+        residual.copy_from_slice(&b);
+        faer::linalg::matmul::matmul(
+            faer::MatMut::from_column_major_slice_mut(&mut residual, rows, 1),
+            Accum::Add,
+            MatRef::from_column_major_slice(&selected_columns, rows, weights.len()),
+            MatRef::from_column_major_slice(&weights, weights.len(), 1),
+            -1.0,
+            Par::rayon(0),
+        );
     }
     let training_error = norm(&residual) / b_norm;
     let (points, weights): (Vec<usize>, Vec<f64>) = selected
@@ -567,9 +570,10 @@ pub fn optimize_cubature_on<M: HyperelasticMaterial>(
 
 /// File kind and format version of cached cubatures. The version is part of the cache key:
 /// bump it whenever the optimization changes its result (2: zero-weight candidates leave the
-/// greedy set).
+/// greedy set; 3: the targets from the one-pass elastic gradient and the residual as one
+/// product, which round differently).
 const CUBATURE_MAGIC: &[u8] = b"FREEFORM-CUBATURE";
-const CUBATURE_FORMAT_VERSION: u32 = 2;
+const CUBATURE_FORMAT_VERSION: u32 = 3;
 
 /// A cached cubature: its points, weights and the report of its optimization.
 #[derive(Serialize, Deserialize)]
