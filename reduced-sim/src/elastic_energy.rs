@@ -26,22 +26,16 @@ impl<M: HyperelasticMaterial> ReducedModel<M> {
     /// If `z.len() != 12(m + 1)`.
     pub fn elastic_energy(&self, z: &[f64]) -> f64 {
         let map = self.elastic_map();
-        let n4 = map.layout().block_len();
-        assert_eq!(z.len(), 3 * n4, "z has the wrong length");
-        let (z0, rest) = z.split_at(n4);
-        let (z1, z2) = rest.split_at(n4);
+        let z = z_columns(map, z);
         let (lame, weights, material) =
             (self.elastic_lame(), self.elastic_weights(), self.material());
-        let n = map.len();
         // Parts of fixed size in parallel, summed in part order: the sum does not depend on
         // the number of threads or on scheduling.
-        let parts: Vec<f64> = (0..n.div_ceil(POINTS_PER_PART))
-            .into_par_iter()
-            .map(|part| {
-                let range = part * POINTS_PER_PART..((part + 1) * POINTS_PER_PART).min(n);
+        let parts: Vec<f64> = point_parts(map.len())
+            .map(|range| {
                 pulp::Arch::new().dispatch(EnergyPart {
                     map,
-                    z: [z0, z1, z2],
+                    z,
                     energy: &|i: usize, f: &Matrix3<f64>| {
                         weights[i] * material.energy_density(&lame[i], f)
                     },
@@ -252,13 +246,27 @@ pub(crate) fn weighted_elastic_gradient_at_z<M: HyperelasticMaterial>(
     weights: &[f64],
     z: &[f64],
 ) -> Vec<f64> {
-    let n4 = map.layout().block_len();
-    assert_eq!(z.len(), 3 * n4, "z has the wrong length");
-    let (z0, rest) = z.split_at(n4);
-    let (z1, z2) = rest.split_at(n4);
-    accumulate_point_gradients(map, PointDeformation::FromZ([z0, z1, z2]), |i, f| {
+    accumulate_point_gradients(map, PointDeformation::FromZ(z_columns(map, z)), |i, f| {
         material.first_piola_kirchhoff(&lame[i], f) * weights[i]
     })
+}
+
+/// The three columns `z_r` of Z (each `4(m+1)`; z's layout).
+///
+/// # Panics
+/// If `z.len() != 12(m + 1)`.
+fn z_columns<'a>(map: &DeformationMap, z: &'a [f64]) -> [&'a [f64]; 3] {
+    let n4 = map.layout().block_len();
+    assert_eq!(z.len(), 3 * n4, "z has the wrong length");
+    [&z[..n4], &z[n4..2 * n4], &z[2 * n4..]]
+}
+
+/// The points `0..n` in consecutive ranges of [`POINTS_PER_PART`], in parallel; collected,
+/// the parts come back in order.
+fn point_parts(n: usize) -> impl IndexedParallelIterator<Item = std::ops::Range<usize>> {
+    (0..n.div_ceil(POINTS_PER_PART))
+        .into_par_iter()
+        .map(move |part| part * POINTS_PER_PART..((part + 1) * POINTS_PER_PART).min(n))
 }
 
 /// `F = I + Zᵀ G_i` from the columns `z_r` of Z (each `4(m+1)`) and G_i (column-major
@@ -304,13 +312,10 @@ fn accumulate_point_gradients(
     deformation: PointDeformation<'_>,
     stress: impl Fn(usize, &Matrix3<f64>) -> Matrix3<f64> + Sync,
 ) -> Vec<f64> {
-    let n = map.len();
     let n4 = map.layout().block_len();
-    let parts: Vec<Vec<f64>> = (0..n.div_ceil(POINTS_PER_PART))
-        .into_par_iter()
-        .map(|part| {
+    let parts: Vec<Vec<f64>> = point_parts(map.len())
+        .map(|range| {
             let mut sum = vec![0.0; 3 * n4];
-            let range = part * POINTS_PER_PART..((part + 1) * POINTS_PER_PART).min(n);
             // Compiled for the widest SIMD the CPU has (pulp's runtime dispatch).
             pulp::Arch::new().dispatch(GradientPart {
                 map,
