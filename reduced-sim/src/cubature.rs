@@ -40,6 +40,7 @@ use rayon::prelude::*;
 use serde::{Deserialize, Serialize};
 use thiserror::Error;
 
+use crate::cubature_gram::ForceGramFactors;
 use crate::deformation_map::DeformationMap;
 use crate::elastic_energy::weighted_elastic_gradient;
 use crate::quadrature::{ElasticQuadrature, QuadratureError};
@@ -374,8 +375,8 @@ pub fn optimize_cubature_on<M: HyperelasticMaterial>(
             omega.iter().map(move |w| w / norm)
         })
         .collect();
-    // Candidate c's column, in f64 (`rows` entries).
-    let force_column = |c: usize, column: &mut [f64]| {
+    // Candidate c's stresses at every pose: `3 × 3K`, `[(s, 3k + r)] = P_k[r, s]`.
+    let stresses_of = |c: usize| -> Mat<f64> {
         let g_c = MatRef::from_column_major_slice(pool_map.gradient_block(c), n4, 3);
         let mut strain = Mat::<f64>::zeros(3 * kept.len(), 3);
         faer::linalg::matmul::matmul(
@@ -396,11 +397,15 @@ pub fn optimize_cubature_on<M: HyperelasticMaterial>(
                 }
             }
         }
+        stresses
+    };
+    // Candidate c's column, in f64 (`rows` entries), from its stresses.
+    let force_column = |c: usize, stresses: MatRef<'_, f64>, column: &mut [f64]| {
         faer::linalg::matmul::matmul(
             faer::MatMut::from_column_major_slice_mut(column, n4, 3 * kept.len()),
             Accum::Replace,
-            g_c,
-            stresses.as_ref(),
+            MatRef::from_column_major_slice(pool_map.gradient_block(c), n4, 3),
+            stresses,
             1.0,
             Par::Seq,
         );
@@ -418,7 +423,7 @@ pub fn optimize_cubature_on<M: HyperelasticMaterial>(
         .map_init(
             || vec![0.0; rows],
             |scratch, (c, column)| {
-                force_column(c, scratch);
+                force_column(c, stresses_of(c).as_ref(), scratch);
                 for (x, &y) in column.iter_mut().zip(scratch.iter()) {
                     *x = y as f32;
                 }
@@ -433,6 +438,8 @@ pub fn optimize_cubature_on<M: HyperelasticMaterial>(
     let mut selected: Vec<usize> = Vec::new();
     let mut in_set = vec![false; pool.len()];
     let mut gram = Mat::<f64>::zeros(0, 0);
+    let pose_scales: Vec<f64> = kept.iter().map(|&p| 1.0 / norms[p]).collect();
+    let mut gram_factors = ForceGramFactors::new(n4, kept.len());
     let mut atb: Vec<f64> = Vec::new();
     let mut weights: Vec<f64> = Vec::new();
     let mut residual = b.clone();
@@ -481,21 +488,23 @@ pub fn optimize_cubature_on<M: HyperelasticMaterial>(
             in_set[c] = true;
         }
         selected_columns.resize((old + added.len()) * rows, 0.0);
+        let added_stresses: Vec<Mat<f64>> = added.par_iter().map(|&c| stresses_of(c)).collect();
         selected_columns[old * rows..]
             .par_chunks_mut(rows)
             .zip(&added)
-            .for_each(|(column, &c)| force_column(c, column));
+            .zip(&added_stresses)
+            .for_each(|((column, &c), stresses)| force_column(c, stresses.as_ref(), column));
+        for (&c, stresses) in added.iter().zip(&added_stresses) {
+            gram_factors.push(
+                pool_map.gradient_block(c),
+                &omega,
+                stresses.as_ref(),
+                &pose_scales,
+            );
+        }
         let k = selected.len();
-        // The new Gram columns [A_S]ᵀ A_new as one product.
-        let mut cross = Mat::<f64>::zeros(k, k - old);
-        faer::linalg::matmul::matmul(
-            cross.as_mut(),
-            Accum::Replace,
-            MatRef::from_column_major_slice(&selected_columns, rows, k).transpose(),
-            MatRef::from_column_major_slice(&selected_columns[old * rows..], rows, k - old),
-            1.0,
-            Par::rayon(0),
-        );
+        // The new Gram columns [A_S]ᵀ A_new from the points' factors (`cubature_gram`).
+        let cross = gram_factors.cross(old);
         let mut grown = Mat::<f64>::zeros(k, k);
         for j in 0..old {
             for i in 0..old {
@@ -532,6 +541,7 @@ pub fn optimize_cubature_on<M: HyperelasticMaterial>(
                 }
             }
             selected_columns.truncate(keep.len() * rows);
+            gram_factors.retain(&keep);
         }
         // r = b − A_S w, as one product.
         residual.copy_from_slice(&b);
@@ -571,9 +581,10 @@ pub fn optimize_cubature_on<M: HyperelasticMaterial>(
 /// File kind and format version of cached cubatures. The version is part of the cache key:
 /// bump it whenever the optimization changes its result (2: zero-weight candidates leave the
 /// greedy set; 3: the targets from the one-pass elastic gradient and the residual as one
-/// product, which round differently).
+/// product, which round differently; 4: the approximations at F formed by the same SIMD kernel as the
+/// targets).
 const CUBATURE_MAGIC: &[u8] = b"FREEFORM-CUBATURE";
-const CUBATURE_FORMAT_VERSION: u32 = 3;
+const CUBATURE_FORMAT_VERSION: u32 = 4;
 
 /// A cached cubature: its points, weights and the report of its optimization.
 #[derive(Serialize, Deserialize)]

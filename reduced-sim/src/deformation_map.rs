@@ -1,6 +1,8 @@
 //! The linear-blend-skinning deformation map at a fixed set of rest points, precomputed once
 //! (DESIGN 3.7, paper Eq. 1).
 
+use std::ops::Range;
+
 use faer::{Accum, MatRef, Par};
 use nalgebra::{Matrix3, Vector3};
 use rayon::prelude::*;
@@ -249,25 +251,27 @@ impl DeformationMap {
             .collect()
     }
 
-    /// Deformation gradients `F_i(z) = I + Zᵀ G_i` (dimensionless).
+    /// Deformation gradients `F_i(z) = I + Zᵀ G_i` (dimensionless), each formed by
+    /// [`deformation_gradient_of_block`]: the same bits as the `F_i` the one-pass elastic
+    /// energy and gradient form, so a gradient taken at these F equals
+    /// [`crate::ReducedModel::elastic_gradient`] at z to the bit.
     ///
     /// # Panics
     /// If `z.len() != 12(m + 1)`.
     pub fn deformation_gradients(&self, z: &[f64]) -> Vec<Matrix3<f64>> {
-        let n = self.len();
-        let mut out = vec![0.0; 9 * n];
-        let zt = self.z_matrix(z).transpose();
-        faer::linalg::matmul::matmul(
-            faer::MatMut::from_column_major_slice_mut(&mut out, 3, 3 * n),
-            Accum::Replace,
-            zt,
-            self.gradient_matrix(),
-            1.0,
-            self.parallelism(),
-        );
-        out.chunks_exact(9)
-            .map(|c| Matrix3::from_column_slice(c) + Matrix3::identity())
-            .collect()
+        let z = self.z_columns(z);
+        let mut out = vec![Matrix3::zeros(); self.len()];
+        out.par_chunks_mut(POINTS_PER_PART)
+            .enumerate()
+            .for_each(|(part, out)| {
+                pulp::Arch::new().dispatch(DeformationGradientPart {
+                    map: self,
+                    z,
+                    first: part * POINTS_PER_PART,
+                    out,
+                })
+            });
+        out
     }
 
     /// The position `x_i(z) = X_i + B_i z` (m) of point i alone.
@@ -363,9 +367,82 @@ impl DeformationMap {
         }
     }
 
+    /// The three columns `z_r` of Z (each `4(m+1)`; z's layout).
+    ///
+    /// # Panics
+    /// If `z.len() != 12(m + 1)`.
+    pub(crate) fn z_columns<'a>(&self, z: &'a [f64]) -> [&'a [f64]; 3] {
+        let n4 = self.layout.block_len();
+        assert_eq!(z.len(), 3 * n4, "z has the wrong length");
+        [&z[..n4], &z[n4..2 * n4], &z[2 * n4..]]
+    }
+
+    /// The points in consecutive ranges of [`POINTS_PER_PART`], in parallel; collected, the
+    /// parts come back in order.
+    pub(crate) fn point_parts(&self) -> impl IndexedParallelIterator<Item = Range<usize>> {
+        let n = self.len();
+        (0..n.div_ceil(POINTS_PER_PART))
+            .into_par_iter()
+            .map(move |part| part * POINTS_PER_PART..((part + 1) * POINTS_PER_PART).min(n))
+    }
+
     /// z viewed as the `4(m+1) × 3` matrix Z = [z_0 z_1 z_2].
     pub(crate) fn z_matrix<'a>(&self, z: &'a [f64]) -> MatRef<'a, f64> {
         assert_eq!(z.len(), self.layout.len(), "z has the wrong length");
         MatRef::from_column_major_slice(z, self.layout.block_len(), 3)
+    }
+}
+
+/// Points per part of the passes over all points (deformation gradients, elastic energy and
+/// gradient). Parts are summed in part order, so sums do not depend on the number of threads.
+pub(crate) const POINTS_PER_PART: usize = 256;
+
+/// `F = I + Zᵀ G_i` from the columns `z_r` of Z (each `4(m+1)`) and G_i (column-major
+/// `4(m+1) × 3`): `F[r, s] = δ_rs + z_r · G_i[:, s]`, the nine dot products in SIMD lanes.
+#[inline(always)]
+pub(crate) fn deformation_gradient_of_block<S: pulp::Simd>(
+    simd: S,
+    z: [&[f64]; 3],
+    gi: &[f64],
+) -> Matrix3<f64> {
+    let n4 = z[0].len();
+    let zs = z.map(S::as_simd_f64s);
+    let gs = [&gi[..n4], &gi[n4..2 * n4], &gi[2 * n4..3 * n4]].map(S::as_simd_f64s);
+    let mut sums = [simd.splat_f64s(0.0); 9];
+    for k in 0..zs[0].0.len() {
+        for (r, zr) in zs.iter().enumerate() {
+            for (s, gs) in gs.iter().enumerate() {
+                sums[3 * s + r] = simd.mul_add_e_f64s(zr.0[k], gs.0[k], sums[3 * s + r]);
+            }
+        }
+    }
+    Matrix3::from_fn(|r, s| {
+        let tail: f64 = zs[r].1.iter().zip(gs[s].1).map(|(a, b)| a * b).sum();
+        f64::from(u8::from(r == s)) + simd.reduce_sum_f64s(sums[3 * s + r]) + tail
+    })
+}
+
+/// One part of [`DeformationMap::deformation_gradients`]: `F_i` of the points `first..` into
+/// `out`. A [`pulp::WithSimd`] with an `inline(always)` body, so that the kernel is compiled
+/// inside the dispatched, SIMD-enabled function (a closure's body is not inlined there).
+struct DeformationGradientPart<'a> {
+    map: &'a DeformationMap,
+    z: [&'a [f64]; 3],
+    first: usize,
+    out: &'a mut [Matrix3<f64>],
+}
+
+impl pulp::WithSimd for DeformationGradientPart<'_> {
+    type Output = ();
+
+    #[inline(always)]
+    fn with_simd<S: pulp::Simd>(self, simd: S) {
+        for (k, f) in self.out.iter_mut().enumerate() {
+            *f = deformation_gradient_of_block(
+                simd,
+                self.z,
+                self.map.gradient_block(self.first + k),
+            );
+        }
     }
 }

@@ -7,7 +7,7 @@ use hyperelastic::{HyperelasticMaterial, LameParameters, Matrix9, Tangent};
 use nalgebra::Matrix3;
 use rayon::prelude::*;
 
-use crate::deformation_map::DeformationMap;
+use crate::deformation_map::{DeformationMap, deformation_gradient_of_block};
 use crate::reduced_model::ReducedModel;
 
 /// The three diagonal and three upper row-block pairs (r, q) of the reduced Hessian.
@@ -26,12 +26,13 @@ impl<M: HyperelasticMaterial> ReducedModel<M> {
     /// If `z.len() != 12(m + 1)`.
     pub fn elastic_energy(&self, z: &[f64]) -> f64 {
         let map = self.elastic_map();
-        let z = z_columns(map, z);
+        let z = map.z_columns(z);
         let (lame, weights, material) =
             (self.elastic_lame(), self.elastic_weights(), self.material());
         // Parts of fixed size in parallel, summed in part order: the sum does not depend on
         // the number of threads or on scheduling.
-        let parts: Vec<f64> = point_parts(map.len())
+        let parts: Vec<f64> = map
+            .point_parts()
             .map(|range| {
                 pulp::Arch::new().dispatch(EnergyPart {
                     map,
@@ -59,6 +60,23 @@ impl<M: HyperelasticMaterial> ReducedModel<M> {
             self.elastic_lame(),
             self.elastic_weights(),
             z,
+        )
+    }
+
+    /// [`ReducedModel::elastic_gradient`] at deformation gradients already formed, `f[i]` at
+    /// elastic point i: at `f = self.elastic_map().deformation_gradients(z)` the same bits as
+    /// `self.elastic_gradient(z)`, without forming F again.
+    ///
+    /// # Panics
+    /// If `f.len()` is not the number of elastic points.
+    pub(crate) fn elastic_gradient_at(&self, f: &[Matrix3<f64>]) -> Vec<f64> {
+        assert_eq!(f.len(), self.elastic_map().len(), "one F per elastic point");
+        weighted_elastic_gradient(
+            self.material(),
+            self.elastic_map(),
+            self.elastic_lame(),
+            self.elastic_weights(),
+            f,
         )
     }
 
@@ -214,10 +232,6 @@ impl<M: HyperelasticMaterial> ReducedModel<M> {
     }
 }
 
-/// Points per part of the energy and gradient passes. Parts are summed in part order, so the
-/// sums do not depend on the number of threads.
-const POINTS_PER_PART: usize = 256;
-
 /// `Σ_i w_i G_i P_i(F_i)ᵀ` over the points of `map` (length 12(m + 1), z's layout), with
 /// Lamé parameters `lame`, weights `weights` (volumes or quadrature weights, m³) and
 /// deformation gradients `f`: the elastic gradient of [`ReducedModel::elastic_gradient`].
@@ -246,51 +260,8 @@ pub(crate) fn weighted_elastic_gradient_at_z<M: HyperelasticMaterial>(
     weights: &[f64],
     z: &[f64],
 ) -> Vec<f64> {
-    accumulate_point_gradients(map, PointDeformation::FromZ(z_columns(map, z)), |i, f| {
+    accumulate_point_gradients(map, PointDeformation::FromZ(map.z_columns(z)), |i, f| {
         material.first_piola_kirchhoff(&lame[i], f) * weights[i]
-    })
-}
-
-/// The three columns `z_r` of Z (each `4(m+1)`; z's layout).
-///
-/// # Panics
-/// If `z.len() != 12(m + 1)`.
-fn z_columns<'a>(map: &DeformationMap, z: &'a [f64]) -> [&'a [f64]; 3] {
-    let n4 = map.layout().block_len();
-    assert_eq!(z.len(), 3 * n4, "z has the wrong length");
-    [&z[..n4], &z[n4..2 * n4], &z[2 * n4..]]
-}
-
-/// The points `0..n` in consecutive ranges of [`POINTS_PER_PART`], in parallel; collected,
-/// the parts come back in order.
-fn point_parts(n: usize) -> impl IndexedParallelIterator<Item = std::ops::Range<usize>> {
-    (0..n.div_ceil(POINTS_PER_PART))
-        .into_par_iter()
-        .map(move |part| part * POINTS_PER_PART..((part + 1) * POINTS_PER_PART).min(n))
-}
-
-/// `F = I + Zᵀ G_i` from the columns `z_r` of Z (each `4(m+1)`) and G_i (column-major
-/// `4(m+1) × 3`): `F[r, s] = δ_rs + z_r · G_i[:, s]`, the nine dot products in SIMD lanes.
-#[inline(always)]
-fn deformation_gradient_of_block<S: pulp::Simd>(
-    simd: S,
-    z: [&[f64]; 3],
-    gi: &[f64],
-) -> Matrix3<f64> {
-    let n4 = z[0].len();
-    let zs = z.map(S::as_simd_f64s);
-    let gs = [&gi[..n4], &gi[n4..2 * n4], &gi[2 * n4..3 * n4]].map(S::as_simd_f64s);
-    let mut sums = [simd.splat_f64s(0.0); 9];
-    for k in 0..zs[0].0.len() {
-        for (r, zr) in zs.iter().enumerate() {
-            for (s, gs) in gs.iter().enumerate() {
-                sums[3 * s + r] = simd.mul_add_e_f64s(zr.0[k], gs.0[k], sums[3 * s + r]);
-            }
-        }
-    }
-    Matrix3::from_fn(|r, s| {
-        let tail: f64 = zs[r].1.iter().zip(gs[s].1).map(|(a, b)| a * b).sum();
-        f64::from(u8::from(r == s)) + simd.reduce_sum_f64s(sums[3 * s + r]) + tail
     })
 }
 
@@ -305,7 +276,7 @@ enum PointDeformation<'a> {
 
 /// `Σ_i G_i S_iᵀ` (length 12(m + 1), z's layout: entry `r·4(m+1) + a` is
 /// `Σ_i Σ_s G_i[a, s] S_i[r, s]`) for the 3 × 3 `S_i = stress(i, F_i)`, G_i column-major
-/// `4(m+1) × 3`. The points are taken [`POINTS_PER_PART`] at a time in parallel,
+/// `4(m+1) × 3`. The points are taken [`POINTS_PER_PART`](crate::deformation_map::POINTS_PER_PART) at a time in parallel,
 /// each G_i read once; the parts' sums are added in part order.
 fn accumulate_point_gradients(
     map: &DeformationMap,
@@ -313,7 +284,8 @@ fn accumulate_point_gradients(
     stress: impl Fn(usize, &Matrix3<f64>) -> Matrix3<f64> + Sync,
 ) -> Vec<f64> {
     let n4 = map.layout().block_len();
-    let parts: Vec<Vec<f64>> = point_parts(map.len())
+    let parts: Vec<Vec<f64>> = map
+        .point_parts()
         .map(|range| {
             let mut sum = vec![0.0; 3 * n4];
             // Compiled for the widest SIMD the CPU has (pulp's runtime dispatch).
@@ -409,6 +381,7 @@ impl<E: Fn(usize, &Matrix3<f64>) -> f64> pulp::WithSimd for EnergyPart<'_, E> {
 mod tests {
     use faer::Mat;
     use hyperelastic::{HyperelasticMaterial, StableNeoHookean, Tangent};
+    use nalgebra::Matrix3;
 
     use crate::analytic_field::analytic_model_with_spacing;
     use crate::reduced_model::ReducedModel;
@@ -489,11 +462,12 @@ mod tests {
     }
 
     #[test]
-    fn the_one_pass_energy_and_gradient_are_the_point_by_point_sums_and_do_not_depend_on_threads() {
+    fn the_one_pass_energy_gradient_and_f_are_the_point_by_point_definitions_and_do_not_depend_on_threads()
+     {
         let (model, _) = analytic_model_with_spacing(0.15);
         let map = model.elastic_map();
         assert!(
-            map.len() > 2 * super::POINTS_PER_PART,
+            map.len() > 2 * crate::deformation_map::POINTS_PER_PART,
             "{} points",
             map.len()
         );
@@ -502,9 +476,17 @@ mod tests {
         let z: Vec<f64> = (0..len)
             .map(|i| 0.3 * ((i as f64 * 1.37).sin() + 0.3 * (i as f64 * 0.71).cos()))
             .collect();
-        // The definitions, one point at a time: Σ_i v_i Ψ(F_i) and Σ_i v_i G_i P_iᵀ, F_i from
-        // the GEMM of `deformation_gradients`.
-        let f = map.deformation_gradients(&z);
+        // The definitions, one point at a time: F_i = I + Zᵀ G_i, Σ_i v_i Ψ(F_i) and
+        // Σ_i v_i G_i P_iᵀ.
+        let f: Vec<Matrix3<f64>> = (0..map.len())
+            .map(|i| {
+                let g = map.gradient_block(i);
+                Matrix3::from_fn(|r, s| {
+                    let dot: f64 = (0..n4).map(|a| z[r * n4 + a] * g[s * n4 + a]).sum();
+                    f64::from(u8::from(r == s)) + dot
+                })
+            })
+            .collect();
         let (material, lame, weights) = (
             model.material(),
             model.elastic_lame(),
@@ -529,7 +511,19 @@ mod tests {
                 .num_threads(threads)
                 .build()
                 .expect("a thread pool");
-            let (e, g) = pool.install(|| (model.elastic_energy(&z), model.elastic_gradient(&z)));
+            let (e, g, formed) = pool.install(|| {
+                (
+                    model.elastic_energy(&z),
+                    model.elastic_gradient(&z),
+                    map.deformation_gradients(&z),
+                )
+            });
+            for (i, (x, y)) in formed.iter().zip(&f).enumerate() {
+                assert!((x - y).amax() <= 1e-13, "F of point {i}: {x} against {y}");
+            }
+            // The Newton iterations take the gradient at F formed once for it and the Hessian:
+            // the same bits as the one-pass gradient.
+            assert_eq!(model.elastic_gradient_at(&formed), g, "{threads} threads");
             assert!(
                 (e - energy).abs() <= 1e-12 * energy.abs(),
                 "{e} against {energy}"

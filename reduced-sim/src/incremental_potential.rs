@@ -81,10 +81,10 @@ impl<M: HyperelasticMaterial> IncrementalPotential<'_, M> {
 
     /// [`IncrementalPotential::derivatives`] with the material tangent `tangent`.
     fn derivatives_with(&self, z: &[f64], tangent: Tangent) -> (Vec<f64>, Mat<f64>) {
-        // The gradient from the same pass as `gradient` below (bit for bit the same), the
-        // deformation gradients formed apart for the Hessian.
-        let mut gradient = self.model.elastic_gradient(z);
+        // F formed once for the gradient and the Hessian; the same bits as the F of the
+        // one-pass gradient of `gradient` below, so the two gradients agree to the bit.
         let f = self.model.elastic_map().deformation_gradients(z);
+        let mut gradient = self.model.elastic_gradient_at(&f);
         let mut hessian = Mat::zeros(z.len(), z.len());
         self.model.add_elastic_hessian_at(&f, tangent, &mut hessian);
         self.terms.add_derivatives(

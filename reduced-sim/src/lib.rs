@@ -48,6 +48,7 @@ pub mod body_contact;
 pub mod collider;
 mod contact_friction;
 pub mod cubature;
+mod cubature_gram;
 pub mod deformation_map;
 pub mod elastic_energy;
 mod held_regions;
