@@ -13,7 +13,7 @@
 //! ```
 //! `--simulation-points N`, `--basis-points N` and `--kernels K` change the point sets and the
 //! kernel count (the cubature is then trained on, and for, the N simulation points);
-//! `--no-full` leaves out the every-point rows. `--cubature-smallest-amplitude` and
+//! `--no-full` leaves out the every-point rows, `--pin-factor F` changes the pin penalty. `--cubature-smallest-amplitude` and
 //! `--cubature-amplitude-levels` change the cubature's training-pose strains (on the beam at
 //! m = 32, 0.005 over 5 levels did not lower the Bend MSE of 0.02 over 4). The FEM runs are cached under
 //! `freeform-cache/` (or `$FREEFORM_CACHE`).
@@ -84,6 +84,9 @@ struct Args {
     /// RKPM kernels K, instead of the default 1000.
     #[arg(long)]
     kernels: Option<usize>,
+    /// Pin penalty factor (default the library's, `ReducedSettings::default().pin_factor`).
+    #[arg(long)]
+    pin_factor: Option<f64>,
     /// Leave out the full-quadrature rows (the MSE ratio is then to the first cubature row).
     #[arg(long)]
     no_full: bool,
@@ -157,6 +160,7 @@ fn main() -> anyhow::Result<()> {
                 simulation_points: args.simulation_points.unwrap_or(defaults.simulation_points),
                 basis_points: args.basis_points.unwrap_or(defaults.basis_points),
                 kernels: args.kernels.unwrap_or(defaults.kernels),
+                pin_factor: args.pin_factor.unwrap_or(defaults.pin_factor),
                 ..defaults
             };
             if let Some(radii) = args.exact_pins {

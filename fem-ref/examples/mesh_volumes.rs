@@ -1,7 +1,8 @@
 //! How much of each surface's volume the lattice mesher keeps at several resolutions (issue 19):
 //! `cargo run --release -p fem-ref --example mesh_volumes -- ../shared/data/meshes 16 24 32 48`.
 //! A setting `gN:H:T` meshes graded: N cells across, at most H halvings near the surface,
-//! linearity tolerance T (e.g. `g16:3:0.05`). Each column: volume error, P2 DOFs, smallest
+//! linearity tolerance T (e.g. `g16:3:0.05`), optionally `gN:H:T:G` with the snap's dihedral
+//! guard G (degrees, default 10) or `gN:H:T:G:S` with the snap fraction S too. Each column: volume error, P2 DOFs, smallest
 //! dihedral angle, seconds.
 
 use std::time::Instant;
@@ -69,8 +70,18 @@ fn setting(arg: &str) -> LatticeMesherParams {
         },
         Some(graded) => {
             let parts: Vec<f64> = graded.split(':').map(parse).collect();
-            let [cells, halvings, tolerance] = parts[..] else {
-                panic!("gN:H:T, got {arg}")
+            let defaults = LatticeMesherParams::default();
+            let (cells, halvings, tolerance, guard, snap) = match parts[..] {
+                [c, h, t] => (
+                    c,
+                    h,
+                    t,
+                    defaults.min_dihedral_guard_degrees,
+                    defaults.snap_fraction,
+                ),
+                [c, h, t, g] => (c, h, t, g, defaults.snap_fraction),
+                [c, h, t, g, s] => (c, h, t, g, s),
+                _ => panic!("gN:H:T[:G[:S]], got {arg}"),
             };
             LatticeMesherParams {
                 cells_across: cells as usize,
@@ -78,7 +89,8 @@ fn setting(arg: &str) -> LatticeMesherParams {
                     max_halvings: halvings as usize,
                     linearity_tolerance: tolerance,
                 },
-                ..Default::default()
+                min_dihedral_guard_degrees: guard,
+                snap_fraction: snap,
             }
         }
     }

@@ -1,7 +1,8 @@
 //! Reduced Hessian assembly on the 5 × 1 × 1 m beam with 5000 simulation points, for
 //! m = 6, 9, 16, 32, beside a plain faer GEMM of the same shape as a yardstick, and the
-//! one-pass elastic energy and gradient beside the deformation gradients alone (the GEMM
-//! `Zᵀ G`, one read of G: the floor for a pass over the points).
+//! one-pass elastic energy and gradient beside the deformation gradients alone
+//! (`DeformationMap::deformation_gradients`, the passes' own SIMD kernel for `F = I + Zᵀ G_i`,
+//! one read of G: the floor for a pass over the points).
 //! Plain harness: `cargo bench -p reduced-sim`.
 //!
 //! Useful work per assembly: three diagonal blocks computed as lower triangles and three
