@@ -246,6 +246,7 @@ impl FemProblem<'_> {
             newton: self.newton,
             tangent: self.tangent,
             ordering: self.ordering,
+            ..FemParams::default()
         };
         let sim = FemSimulator::new(model, fem_scene, params).map_err(EvalError::FemSetup)?;
         Ok((sim, region_nodes))

@@ -14,10 +14,11 @@ use rayon::prelude::*;
 use serde::{Deserialize, Serialize};
 use thiserror::Error;
 
+use crate::factor_memory::FactorMemoryLimit;
 use crate::fem_model::FemModel;
 use crate::fill_reducing_ordering::FillReducingOrdering;
 use crate::scene::{FemFloor, FemScene};
-use crate::sparse_system::{NumericFactor, SparseSystem};
+use crate::sparse_system::{NumericFactor, SparseSystem, SystemSetupError};
 use crate::trajectory_cache::{
     Trajectory, TrajectoryCache, TrajectoryCacheError, TrajectoryKey, trajectory_key_builder,
 };
@@ -45,6 +46,11 @@ pub struct FemParams {
     /// Only round-off depends on it, so it is not part of [`FemSimulator::trajectory_key`].
     #[serde(default)]
     pub ordering: FillReducingOrdering,
+    /// The most memory the sparse Cholesky factors may take (default
+    /// [`FactorMemoryLimit::Available`]: what the operating system reports available at
+    /// setup); a larger need is refused at setup. Not part of the trajectory key.
+    #[serde(default)]
+    pub factor_memory: FactorMemoryLimit,
 }
 
 impl Default for FemParams {
@@ -54,6 +60,7 @@ impl Default for FemParams {
             newton: NewtonParams::default(),
             tangent: HessianTangent::ProjectedPsd,
             ordering: FillReducingOrdering::default(),
+            factor_memory: FactorMemoryLimit::default(),
         }
     }
 }
@@ -83,6 +90,25 @@ pub enum FemSetupError {
     /// The sparse symbolic analysis failed (out of memory).
     #[error("sparse symbolic analysis failed: {0}")]
     Symbolic(String),
+    /// The sparse Cholesky factors would need more memory than [`FemParams::factor_memory`]
+    /// allows (found by the symbolic analysis, before any numeric work).
+    #[error(
+        "the FEM's Cholesky factors of {dofs} DOFs ({factor_nonzeros} nonzeros) need {:.1} GB, \
+         more than the {:.1} GB allowed (FemParams::factor_memory)",
+        *.bytes as f64 / 1e9,
+        *.limit as f64 / 1e9
+    )]
+    FactorTooLarge {
+        /// Free DOFs.
+        dofs: usize,
+        /// Nonzeros of one factor.
+        factor_nonzeros: usize,
+        /// Bytes needed: two factors (a carried or previous one and the fresh one) and the
+        /// factorization's workspace.
+        bytes: u64,
+        /// The limit (bytes).
+        limit: u64,
+    },
 }
 
 /// A cached run failed.
@@ -206,8 +232,21 @@ impl<M: HyperelasticMaterial> FemSimulator<M> {
                 ))
             }
         };
-        let system = SparseSystem::new(&model, &fixed, params.ordering)
-            .map_err(|e| FemSetupError::Symbolic(e.to_string()))?;
+        let system = SparseSystem::new(&model, &fixed, params.ordering, params.factor_memory)
+            .map_err(|e| match e {
+                SystemSetupError::FactorTooLarge {
+                    dofs,
+                    nonzeros,
+                    bytes,
+                    limit,
+                } => FemSetupError::FactorTooLarge {
+                    dofs,
+                    factor_nonzeros: nonzeros,
+                    bytes,
+                    limit,
+                },
+                e => FemSetupError::Symbolic(e.to_string()),
+            })?;
         let x: Vec<f64> = model
             .mesh()
             .nodes()

@@ -16,6 +16,7 @@
 //! Units: SI (m, s, kg, Pa). Positions are flat `[x0, y0, z0, x1, …]` where noted.
 
 pub mod element;
+pub mod factor_memory;
 pub mod fem_model;
 pub mod fem_simulator;
 pub mod fill_reducing_ordering;
@@ -28,6 +29,7 @@ pub mod tet_mesh;
 pub mod trajectory_cache;
 
 pub use element::{ElementOrder, FemMesh};
+pub use factor_memory::FactorMemoryLimit;
 pub use fem_model::{FemModel, FemModelError, MassKind};
 pub use fem_simulator::{
     FEM_FACTOR_MAX_AGE, FemParams, FemRunError, FemSetupError, FemSimulator,

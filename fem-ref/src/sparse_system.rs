@@ -12,6 +12,7 @@ use faer::sparse::{SparseColMat, SparseColMatRef, Triplet};
 use faer::{Conj, MatMut, Par, Side};
 use hyperelastic::HyperelasticMaterial;
 
+use crate::factor_memory::FactorMemoryLimit;
 use crate::fem_model::FemModel;
 use crate::fill_reducing_ordering::{FillReducingOrdering, nested_dissection_of_node_triples};
 
@@ -24,6 +25,18 @@ pub(crate) enum SystemSetupError {
     /// The nested-dissection ordering failed.
     #[error("nested-dissection ordering: {0}")]
     Ordering(#[from] nested_dissection::NestedDissectionError),
+    /// The factors would need more memory than allowed.
+    #[error("the Cholesky factors of {dofs} DOFs need {bytes} bytes, over the limit of {limit}")]
+    FactorTooLarge {
+        /// Free DOFs.
+        dofs: usize,
+        /// Nonzeros of one factor.
+        nonzeros: usize,
+        /// Bytes needed (two factors and the workspace).
+        bytes: u64,
+        /// The limit (bytes).
+        limit: u64,
+    },
 }
 
 /// Sentinel of the scatter table: the entry is dropped (a fixed DOF or the upper triangle).
@@ -69,6 +82,7 @@ impl SparseSystem {
         model: &FemModel<M>,
         fixed_nodes: &[bool],
         ordering: FillReducingOrdering,
+        memory: FactorMemoryLimit,
     ) -> Result<Self, SystemSetupError> {
         let mesh = model.mesh();
         let mut free_index = vec![usize::MAX; 3 * mesh.nodes().len()];
@@ -160,6 +174,18 @@ impl SparseSystem {
             symbolic.factorize_numeric_llt_scratch::<f64>(par, Default::default()),
             symbolic.solve_in_place_scratch::<f64>(1, par),
         ]);
+        // A carried (or previous) factor and the fresh one live at once, beside the workspace.
+        let bytes = 2 * 8 * symbolic.len_val() as u64 + scratch.unaligned_bytes_required() as u64;
+        if let Some(limit) = memory.bytes()
+            && bytes > limit
+        {
+            return Err(SystemSetupError::FactorTooLarge {
+                dofs: free_count,
+                nonzeros: symbolic.len_val(),
+                bytes,
+                limit,
+            });
+        }
         let workspace = Mutex::new(
             MemBuffer::try_new(scratch)
                 .map_err(|_| SystemSetupError::Faer(faer::sparse::FaerError::OutOfMemory))?,

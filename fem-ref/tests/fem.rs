@@ -4,8 +4,9 @@
 use std::sync::Arc;
 
 use fem_ref::{
-    DirichletRegion, ElementOrder, FemMesh, FemModel, FemParams, FemScene, FemSimulator,
-    FillReducingOrdering, MassKind, NodeTarget, PointInterpolation, TetMesh,
+    DirichletRegion, ElementOrder, FactorMemoryLimit, FemMesh, FemModel, FemParams, FemScene,
+    FemSetupError, FemSimulator, FillReducingOrdering, MassKind, NodeTarget, PointInterpolation,
+    TetMesh,
 };
 use hyperelastic::MaterialSample;
 use hyperelastic::{HessianTangent, StableNeoHookean, Tangent};
@@ -434,4 +435,50 @@ fn the_elimination_order_changes_the_fill_not_the_states_and_the_default_keeps_t
     );
     assert_eq!(default_fill, nested_fill.min(amd_fill));
     assert_eq!(default, nested);
+}
+
+#[test]
+fn a_factor_over_the_memory_limit_is_refused_at_setup_with_its_size_and_one_within_it_runs() {
+    let simulator = |factor_memory: FactorMemoryLimit| {
+        let model = model(
+            [6, 2, 2],
+            Vector3::new(3.0, 1.0, 1.0),
+            ElementOrder::Quadratic,
+        );
+        let scene = cantilever_under_gravity(&model);
+        FemSimulator::new(
+            model,
+            scene,
+            FemParams {
+                factor_memory,
+                ..FemParams::default()
+            },
+        )
+    };
+    let Err(FemSetupError::FactorTooLarge {
+        dofs,
+        factor_nonzeros,
+        bytes,
+        limit,
+    }) = simulator(FactorMemoryLimit::Bytes(1))
+    else {
+        panic!("a one-byte limit must refuse the factor");
+    };
+    assert_eq!(limit, 1);
+    assert!(
+        dofs > 0 && factor_nonzeros >= dofs,
+        "{dofs} DOFs, {factor_nonzeros} nonzeros"
+    );
+    // Two factors of 8-byte values at least.
+    assert!(bytes >= 16 * factor_nonzeros as u64, "{bytes} bytes");
+    let message = simulator(FactorMemoryLimit::Bytes(bytes - 1))
+        .err()
+        .expect("one byte short is refused")
+        .to_string();
+    assert!(message.contains(&format!("{dofs} DOFs")), "{message}");
+    // Exactly the need is allowed, and the simulator steps with the factor it sized.
+    let mut sim = simulator(FactorMemoryLimit::Bytes(bytes)).expect("the need itself fits");
+    assert!(sim.step().unwrap().converged());
+    assert_eq!(sim.factor_nonzeros(), factor_nonzeros);
+    assert!(simulator(FactorMemoryLimit::Unlimited).is_ok());
 }
