@@ -280,6 +280,16 @@ pub fn run_fem(
             "FEM {label}: loaded from the cache ({})",
             cache.dir().display()
         ));
+    } else {
+        // A line per computed reference, also where bars are hidden (parallel shapes, stderr
+        // not a terminal): long tables show where their time goes.
+        progress.status(format!(
+            "FEM {label}: {steps} steps on {dofs} DOFs in {:.0} s ({:.2} s per step, {:.1} Newton \
+             iterations per step)",
+            trajectory.seconds,
+            trajectory.seconds / steps.max(1) as f64,
+            trajectory.iterations.iter().sum::<usize>() as f64 / steps.max(1) as f64
+        ));
     }
     let frames = trajectory
         .frames
