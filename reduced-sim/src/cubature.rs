@@ -19,7 +19,9 @@
 //! zero weight leave Q for good. Selection stops when the relative residual
 //! `‖Σ_q w_q g_q − f‖ / ‖f‖` over all poses is at most [`CubatureParams::tolerance`] or Q holds
 //! [`CubatureParams::max_points`] points. Candidates are ranked on an f32 copy of their force
-//! columns (ranking only; weights, residual and errors are f64).
+//! columns (ranking only; weights, residual and errors are f64), and the Gram matrix of the
+//! chosen columns is formed from small per-point factors instead of the columns
+//! (`cubature_gram`: 4.6× fewer flops at m = 32).
 //!
 //! One cubature serves every scene on that shape and material; a scene may add poses of its own
 //! ([`optimize_cubature_on`]).
@@ -581,8 +583,8 @@ pub fn optimize_cubature_on<M: HyperelasticMaterial>(
 /// File kind and format version of cached cubatures. The version is part of the cache key:
 /// bump it whenever the optimization changes its result (2: zero-weight candidates leave the
 /// greedy set; 3: the targets from the one-pass elastic gradient and the residual as one
-/// product, which round differently; 4: the approximations at F formed by the same SIMD kernel as the
-/// targets).
+/// product, which round differently; 4: the approximations' F from the targets' SIMD kernel
+/// and the Gram columns from per-point factors, which round differently again).
 const CUBATURE_MAGIC: &[u8] = b"FREEFORM-CUBATURE";
 const CUBATURE_FORMAT_VERSION: u32 = 4;
 

@@ -66,7 +66,11 @@ impl ForceGramFactors {
         assert_eq!(gradient.len(), 3 * n4, "a 4(m+1) × 3 gradient block");
         assert_eq!(omega.len(), 3 * n4, "one force weight per component of z");
         assert_eq!(pose_scales.len(), self.poses, "one scale per pose");
-        assert_eq!(stresses.ncols(), 3 * self.poses, "3 × 3K stresses");
+        assert_eq!(
+            (stresses.nrows(), stresses.ncols()),
+            (3, 3 * self.poses),
+            "3 × 3K stresses"
+        );
         for r in 0..3 {
             let w = &omega[r * n4..(r + 1) * n4];
             for s in 0..3 {
