@@ -1,7 +1,8 @@
 //! What each shortcut of a fast step buys and costs on the beam (issue 18): for each test and
 //! m, the reduced run with every combination of elastic quadrature (every point, the paper's
 //! setting, or an optimized cubature at each `--cubature-tolerance`) and Hessian reuse (fresh
-//! Hessians, the paper's setting, or `HessianReuse::WhileContracting { contraction: 0.5 }`),
+//! Hessians, the paper's setting, or `HessianReuse::WhileContracting { contraction }` at each
+//! `--reuse-contraction`, default the library's 0.5),
 //! all against the FEM ground truth (P2, 6 per metre): ms per step split into assembly / solve
 //! / line search, Hessians and Newton iterations per step, quadrature points and cubature
 //! training time, normalized MSE and its ratio to the full-quadrature, fresh-Hessian MSE, and
@@ -66,6 +67,10 @@ struct Args {
     /// Skip the Hessian-reuse rows.
     #[arg(long)]
     no_reuse: bool,
+    /// Contraction ratios of the Hessian-reuse rows, comma-separated (default the library's,
+    /// `SimulationParams::HESSIAN_REUSE`).
+    #[arg(long, value_delimiter = ',')]
+    reuse_contraction: Vec<f64>,
     /// Also run every configuration with the exact tangent wherever the Newton system is
     /// definite (`HessianTangent::ExactWhenDefinite`).
     #[arg(long)]
@@ -116,11 +121,16 @@ fn main() -> anyhow::Result<()> {
             }));
         }
     }
-    let reuses: &[HessianReuse] = if args.no_reuse {
-        &[HessianReuse::Never]
-    } else {
-        &[HessianReuse::Never, SimulationParams::HESSIAN_REUSE]
-    };
+    let mut reuses = vec![HessianReuse::Never];
+    if !args.no_reuse && args.reuse_contraction.is_empty() {
+        reuses.push(SimulationParams::HESSIAN_REUSE);
+    } else if !args.no_reuse {
+        reuses.extend(
+            args.reuse_contraction
+                .iter()
+                .map(|&contraction| HessianReuse::WhileContracting { contraction }),
+        );
+    }
     let tangents: &[HessianTangent] = if args.exact_when_definite {
         &[
             HessianTangent::ProjectedPsd,
@@ -224,10 +234,11 @@ fn main() -> anyhow::Result<()> {
                             other => other.name().to_string(),
                         },
                         r.quadrature.points,
-                        if hessian_reuse == HessianReuse::Never {
-                            "fresh"
-                        } else {
-                            "reused"
+                        match hessian_reuse {
+                            HessianReuse::Never => "fresh".to_string(),
+                            HessianReuse::WhileContracting { contraction } => {
+                                format!("reused ({contraction})")
+                            }
                         },
                         tangent,
                         r.ms_per_step,
