@@ -275,6 +275,9 @@ pub fn run_fem(
         .run_cached(steps, &problem.scene.label(), &cache, |_| bar.inc(1))
         .map_err(EvalError::Fem)?;
     bar.finish_and_clear();
+    let seconds_per_step = trajectory.seconds / steps.max(1) as f64;
+    let iterations_per_step =
+        trajectory.iterations.iter().sum::<usize>() as f64 / steps.max(1) as f64;
     if cached {
         progress.status(format!(
             "FEM {label}: loaded from the cache ({})",
@@ -284,11 +287,9 @@ pub fn run_fem(
         // A line per computed reference, also where bars are hidden (parallel shapes, stderr
         // not a terminal): long tables show where their time goes.
         progress.status(format!(
-            "FEM {label}: {steps} steps on {dofs} DOFs in {:.0} s ({:.2} s per step, {:.1} Newton \
-             iterations per step)",
-            trajectory.seconds,
-            trajectory.seconds / steps.max(1) as f64,
-            trajectory.iterations.iter().sum::<usize>() as f64 / steps.max(1) as f64
+            "FEM {label}: {steps} steps on {dofs} DOFs in {:.0} s ({seconds_per_step:.2} s per \
+             step, {iterations_per_step:.1} Newton iterations per step)",
+            trajectory.seconds
         ));
     }
     let frames = trajectory
@@ -299,9 +300,8 @@ pub fn run_fem(
     Ok(FemRun {
         mesh: sim.model().mesh().clone(),
         frames,
-        seconds_per_step: trajectory.seconds / steps.max(1) as f64,
-        iterations_per_step: trajectory.iterations.iter().sum::<usize>() as f64
-            / steps.max(1) as f64,
+        seconds_per_step,
+        iterations_per_step,
         unconverged_steps: trajectory.converged.iter().filter(|c| !**c).count(),
         step_iterations: trajectory.iterations.clone(),
         step_converged: trajectory.converged.clone(),

@@ -2,8 +2,8 @@
 //! `cargo run --release -p fem-ref --example mesh_volumes -- ../shared/data/meshes 16 24 32 48`.
 //! A setting `gN:H:T` meshes graded: N cells across, at most H halvings near the surface,
 //! linearity tolerance T (e.g. `g16:3:0.05`), optionally `gN:H:T:G` with the snap's dihedral
-//! guard G (degrees, default 10) or `gN:H:T:G:S` with the snap fraction S too. Each column: volume error, P2 DOFs, smallest
-//! dihedral angle, seconds.
+//! guard G (degrees, default 10) or `gN:H:T:G:S` with the snap fraction S too. Each column:
+//! volume error, P2 DOFs, smallest dihedral angle, seconds.
 
 use std::time::Instant;
 

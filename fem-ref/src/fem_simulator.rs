@@ -236,12 +236,12 @@ impl<M: HyperelasticMaterial> FemSimulator<M> {
             .map_err(|e| match e {
                 SystemSetupError::FactorTooLarge {
                     dofs,
-                    nonzeros,
+                    factor_nonzeros,
                     bytes,
                     limit,
                 } => FemSetupError::FactorTooLarge {
                     dofs,
-                    factor_nonzeros: nonzeros,
+                    factor_nonzeros,
                     bytes,
                     limit,
                 },

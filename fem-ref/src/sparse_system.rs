@@ -31,7 +31,7 @@ pub(crate) enum SystemSetupError {
         /// Free DOFs.
         dofs: usize,
         /// Nonzeros of one factor.
-        nonzeros: usize,
+        factor_nonzeros: usize,
         /// Bytes needed (two factors and the workspace).
         bytes: u64,
         /// The limit (bytes).
@@ -181,7 +181,7 @@ impl SparseSystem {
         {
             return Err(SystemSetupError::FactorTooLarge {
                 dofs: free_count,
-                nonzeros: symbolic.len_val(),
+                factor_nonzeros: symbolic.len_val(),
                 bytes,
                 limit,
             });

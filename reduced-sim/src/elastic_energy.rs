@@ -276,8 +276,9 @@ enum PointDeformation<'a> {
 
 /// `Σ_i G_i S_iᵀ` (length 12(m + 1), z's layout: entry `r·4(m+1) + a` is
 /// `Σ_i Σ_s G_i[a, s] S_i[r, s]`) for the 3 × 3 `S_i = stress(i, F_i)`, G_i column-major
-/// `4(m+1) × 3`. The points are taken [`POINTS_PER_PART`](crate::deformation_map::POINTS_PER_PART) at a time in parallel,
-/// each G_i read once; the parts' sums are added in part order.
+/// `4(m+1) × 3`. The points are taken
+/// [`POINTS_PER_PART`](crate::deformation_map::POINTS_PER_PART) at a time in parallel, each G_i
+/// read once; the parts' sums are added in part order.
 fn accumulate_point_gradients(
     map: &DeformationMap,
     deformation: PointDeformation<'_>,
