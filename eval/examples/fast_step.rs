@@ -2,7 +2,7 @@
 //! m, the reduced run with every combination of elastic quadrature (every point, the paper's
 //! setting, or an optimized cubature at each `--cubature-tolerance`) and Hessian reuse (fresh
 //! Hessians, the paper's setting, or `HessianReuse::WhileContracting { contraction }` at each
-//! `--reuse-contraction`, default the library's 0.5),
+//! `--reuse-contraction`, default the library's 0.7),
 //! all against the FEM ground truth (P2, 6 per metre): ms per step split into assembly / solve
 //! / line search, Hessians and Newton iterations per step, quadrature points and cubature
 //! training time, normalized MSE and its ratio to the full-quadrature, fresh-Hessian MSE, and

@@ -46,7 +46,7 @@ pub struct ReducedSettings {
     pub simulation_sampling: SimulationSampling,
     /// Whether Newton carries its Hessian factorization across steps (default
     /// [`HessianReuse::Never`], the paper's setting; the bench's "Hessian reuse" series runs
-    /// `WhileContracting { contraction: 0.5 }`).
+    /// [`reduced_sim::SimulationParams::HESSIAN_REUSE`]).
     #[serde(default)]
     pub hessian_reuse: HessianReuse,
     /// Where the elastic energy is integrated (default [`QuadratureRule::PAPER`], every

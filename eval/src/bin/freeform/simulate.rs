@@ -34,12 +34,18 @@ pub(crate) fn run(
     file.simulation.stress |= stress;
     let report = simulate_scene_file(&file, &out, Some(cache), &BarProgress::new(progress))?;
     println!(
-        "{} frames written to {}; basis {:.2} s, {:.2} ms/step, {} unconverged \
+        "{} frames written to {}; basis {:.2} s, {:.2} ms/step (assembly {:.2}, solve {:.2}, \
+         line search {:.2}), {:.1} Newton iterations ({:.2} Hessians) per step, {} unconverged \
          steps, final max displacement {:.4} m, deepest penetration {:.2e} m",
         report.frames_written,
         out.display(),
         report.basis_seconds,
         report.ms_per_step,
+        report.ms_split_per_step[0],
+        report.ms_split_per_step[1],
+        report.ms_split_per_step[2],
+        report.iterations_per_step,
+        report.hessians_per_step,
         report.unconverged_steps,
         report.final_max_displacement,
         report.max_penetration

@@ -66,7 +66,7 @@ pub(crate) struct TableOptions {
     #[arg(long, default_value_t = CubatureParams::DEFAULT.tolerance)]
     cubature_tolerance: f64,
     /// Tables 1, 5, 6: carry the Hessian factorization across steps while chord steps
-    /// contract by 0.5 (the paper's setting assembles a fresh Hessian every iteration).
+    /// contract by 0.7 (the paper's setting assembles a fresh Hessian every iteration).
     #[arg(long)]
     hessian_reuse: bool,
     /// Tables 1, 5, 6: simulate on a grid of about this many points (default 5000, the
