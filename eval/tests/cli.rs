@@ -124,6 +124,14 @@ fn simulate_writes_ply_and_vtk_frames_of_the_deformed_surface() {
     // Gravity pulls the free end down: something moved, and by less than the box is long.
     let moved = summary["final_max_displacement"].as_f64().unwrap();
     assert!(moved > 1e-4 && moved < 1.0, "{moved}");
+    // The printed line names the run's Newton iterations and Hessians per step.
+    let stdout = String::from_utf8_lossy(&run.stdout);
+    let expected = format!(
+        "{:.1} Newton iterations ({:.2} Hessians) per step",
+        summary["iterations_per_step"].as_f64().unwrap(),
+        summary["hessians_per_step"].as_f64().unwrap()
+    );
+    assert!(stdout.contains(&expected), "{expected} not in {stdout}");
     // A 512² picture of the last frame.
     let png = std::fs::read(out.join("preview.png")).unwrap();
     assert_eq!(&png[1..4], b"PNG");
