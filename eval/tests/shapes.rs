@@ -2,6 +2,8 @@
 //! regions (the end-to-end `freeform table 2 7 --quick` run is in `cli.rs`).
 
 use eval::shapes::boundary::{ShapeBoundary, ShapeBoundaryParams};
+use eval::shapes::reference::ShapeFemParams;
+use fem_ref::tetrahedralize;
 use freeform::scene::Motion;
 use nalgebra::Vector3;
 use rkpm_core::TriangleMesh;
@@ -130,4 +132,45 @@ fn pull_farthest_pulls_four_distinct_corners_outward_within_the_radius() {
             assert!((a - b).norm() > 1.0, "patches {a:?} and {b:?} are close");
         }
     }
+}
+
+#[test]
+fn fix_sides_reference_on_the_shifted_lattice_holds_nodes_up_to_the_slabs_face() {
+    // The 1 × 2 × 0.5 box at 16 cells across (h = 0.125): the clamp's face x = 0.1 lies
+    // between the default lattice's vertex planes x = 0 and 0.125.
+    let (surface, _) = box_and_cell_centres();
+    let mut fem = ShapeFemParams::graded();
+    let scene = ShapeBoundary::FixSide.scene(
+        &surface,
+        surface.vertices(),
+        &ShapeBoundaryParams::default(),
+    );
+    let deepest_held = |fem: &ShapeFemParams| {
+        let plane = fem.clamp_plane(ShapeBoundary::FixSide, &scene);
+        let (mesh, _) = tetrahedralize(&surface, &fem.lattice_through(16, plane)).unwrap();
+        let held = scene.select(mesh.vertices(), "mesh vertices").unwrap();
+        held[0]
+            .iter()
+            .map(|&i| mesh.vertices()[i].x)
+            .fold(f64::NEG_INFINITY, f64::max)
+    };
+    // (Bisection midpoints on the plane round to within 1e-16 of it.)
+    let unshifted = deepest_held(&fem);
+    assert!(
+        unshifted.abs() < 1e-12,
+        "the unshifted lattice stops at x = 0: {unshifted}"
+    );
+    fem.clamp_on_lattice_plane = true;
+    let shifted = deepest_held(&fem);
+    assert!(
+        (shifted - 0.1).abs() < 1e-12,
+        "the shifted lattice reaches the face: {shifted}"
+    );
+    // Other conditions keep the shape's one mesh.
+    let pull = ShapeBoundary::PullBoundary.scene(
+        &surface,
+        surface.vertices(),
+        &ShapeBoundaryParams::default(),
+    );
+    assert_eq!(fem.clamp_plane(ShapeBoundary::PullBoundary, &pull), None);
 }

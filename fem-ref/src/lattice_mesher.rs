@@ -72,6 +72,13 @@ pub struct LatticeMesherParams {
     /// [`LatticeRefinement::Uniform`].
     #[serde(default)]
     pub refinement: LatticeRefinement,
+    /// Per axis, a coordinate that one of the lattice's vertex planes passes through exactly
+    /// (the lattice shifted by less than a cell along that axis), e.g. the face of a clamped
+    /// slab, so that the mesh's nodes on the clamped side fill the slab and no tetrahedron
+    /// crosses its face. Default none: every lattice starts one cell below the surface's
+    /// bounding box.
+    #[serde(default)]
+    pub vertex_planes: [Option<f64>; 3],
 }
 
 impl Default for LatticeMesherParams {
@@ -81,6 +88,7 @@ impl Default for LatticeMesherParams {
             snap_fraction: 0.3,
             min_dihedral_guard_degrees: 10.0,
             refinement: LatticeRefinement::Uniform,
+            vertex_planes: [None; 3],
         }
     }
 }
@@ -309,8 +317,27 @@ fn tetrahedralize_with(
     }
     let bbox = surface.bounding_box();
     let h = bbox.largest_side() / params.cells_across as f64;
-    let origin = bbox.min - Vector3::repeat(h);
-    let cells: [usize; 3] = std::array::from_fn(|d| (bbox.extent()[d] / h).ceil() as usize + 2);
+    // Per axis, the coordinate of lattice plane `i` is `anchor + (i − anchor_index) · h`: the
+    // plane one cell below the bounding box, or, for an aligned axis, the given plane itself
+    // (exactly), with the lattice extended by one cell below the box.
+    let mut anchor = bbox.min - Vector3::repeat(h);
+    let mut anchor_index = [0_usize; 3];
+    let mut cells: [usize; 3] = std::array::from_fn(|d| (bbox.extent()[d] / h).ceil() as usize + 2);
+    for d in 0..3 {
+        if let Some(value) = params.vertex_planes[d] {
+            if !value.is_finite() {
+                return Err(LatticeMesherError::InvalidParams(format!(
+                    "vertex plane {value} on axis {d} is not finite"
+                )));
+            }
+            let below = ((value - anchor[d]) / h).ceil().max(0.0) as usize;
+            let index = below + 1;
+            anchor[d] = value;
+            anchor_index[d] = index;
+            cells[d] = ((bbox.max[d] + h - value) / h).ceil().max(1.0) as usize + index;
+        }
+    }
+    let coordinate = |d: usize, i: usize| anchor[d] + (i as f64 - anchor_index[d] as f64) * h;
     let [nx, ny, nz] = cells;
     let lattice_index = |i: usize, j: usize, k: usize| (i * (ny + 1) + j) * (nz + 1) + k;
     let lattice_vertices = (nx + 1) * (ny + 1) * (nz + 1);
@@ -321,7 +348,7 @@ fn tetrahedralize_with(
                 (v / (nz + 1)) % (ny + 1),
                 v % (nz + 1),
             );
-            origin + Vector3::new(i as f64, j as f64, k as f64) * h
+            Vector3::new(coordinate(0, i), coordinate(1, j), coordinate(2, k))
         })
         .collect();
 

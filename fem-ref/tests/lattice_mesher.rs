@@ -144,6 +144,65 @@ fn box_aligned_with_the_lattice_is_meshed_exactly() {
 }
 
 #[test]
+fn a_vertex_plane_puts_lattice_vertices_exactly_on_it_and_no_tetrahedron_across_it() {
+    // A tilted box and a plane x = 0.137 that no default lattice plane hits (cells of 1/12):
+    // with the plane asked for, vertices lie on it exactly and every tetrahedron away from the
+    // surface is on one side (boundary vertices snapped onto the surface may leave the plane).
+    let surface = rotated(
+        &TriangleMesh::cuboid(Vector3::zeros(), Vector3::new(1.0, 0.5, 0.4)),
+        Vector3::new(0.1, 0.2, -0.15),
+    );
+    let plane = surface.bounding_box().min.x + 0.137;
+    for refinement in [LatticeRefinement::Uniform, graded(12, 1).refinement] {
+        let params = |vertex_planes| LatticeMesherParams {
+            cells_across: 12,
+            refinement,
+            vertex_planes,
+            ..LatticeMesherParams::default()
+        };
+        let crossing = |mesh: &TetMesh| {
+            let boundary: std::collections::HashSet<usize> =
+                outward_boundary_faces(mesh).into_iter().flatten().collect();
+            mesh.tets()
+                .iter()
+                .filter(|t| {
+                    let xs = t.map(|v| mesh.vertices()[v].x - plane);
+                    xs.iter().any(|&x| x < -1e-12)
+                        && xs.iter().any(|&x| x > 1e-12)
+                        && !t.iter().any(|v| boundary.contains(v))
+                })
+                .count()
+        };
+        let (free, free_report) = tetrahedralize(&surface, &params([None; 3])).unwrap();
+        assert!(
+            crossing(&free) > 0,
+            "{refinement:?}: the default lattice already fits"
+        );
+        let (aligned, report) =
+            tetrahedralize(&surface, &params([Some(plane), None, None])).unwrap();
+        let on_plane = aligned.vertices().iter().filter(|v| v.x == plane).count();
+        assert!(
+            on_plane > 20,
+            "{refinement:?}: {on_plane} vertices on the plane"
+        );
+        assert_eq!(crossing(&aligned), 0, "{refinement:?}");
+        // The shift costs no accuracy: the volume is as close as the default lattice's.
+        assert!(
+            report.relative_volume_error.abs() < free_report.relative_volume_error.abs() + 0.01,
+            "{refinement:?}: volume {:+.4} against {:+.4}",
+            report.relative_volume_error,
+            free_report.relative_volume_error
+        );
+    }
+    let bad = LatticeMesherParams {
+        vertex_planes: [None, Some(f64::NAN), None],
+        ..LatticeMesherParams::default()
+    };
+    let message = tetrahedralize(&surface, &bad).unwrap_err().to_string();
+    assert!(message.contains("vertex plane"), "{message}");
+}
+
+#[test]
 fn shape_thinner_than_the_lattice_is_an_error_naming_the_resolution() {
     let plate = TriangleMesh::cuboid(Vector3::zeros(), Vector3::new(1.0, 1.0, 1e-3));
     let coarse = LatticeMesherParams {

@@ -528,15 +528,21 @@ fn run_shape_into(
         dropped_volume_fraction: dropped / report.surface_volume,
     });
     let points = sample_on(&surface, settings.simulation_points, "simulation points")?;
-    let finer = if config.check_convergence {
-        let cells = (1.5 * length / report.cell_size).round() as usize;
-        Some(
-            tetrahedralize(&surface, &config.fem.lattice(cells))
+    let cells = (length / report.cell_size).round() as usize;
+    let finer_cells = (1.5 * length / report.cell_size).round() as usize;
+    // The largest piece of the lattice mesh at `cells` across, with a vertex plane through
+    // `plane` on the x axis where given.
+    let lattice_mesh = |cells: usize, plane: Option<f64>| -> Result<TetMesh, EvalError> {
+        Ok(
+            tetrahedralize(&surface, &config.fem.lattice_through(cells, plane))
                 .map_err(EvalError::FemMesh)?
                 .0
                 .largest_component()
                 .0,
         )
+    };
+    let finer = if config.check_convergence {
+        Some(lattice_mesh(finer_cells, None)?)
     } else {
         None
     };
@@ -557,6 +563,31 @@ fn run_shape_into(
         };
         let scene = boundary.scene(&surface, tets.vertices(), &config.boundary);
         let label = format!("{} {}", result.name, boundary.title());
+        // Fix side's reference on the lattice whose vertex plane is the clamp's face, if asked.
+        let clamped = match config.fem.clamp_plane(boundary, &scene) {
+            Some(plane) => {
+                let meshes = lattice_mesh(cells, Some(plane)).and_then(|tets| {
+                    let finer = match &finer {
+                        Some(_) => Some(lattice_mesh(finer_cells, Some(plane))?),
+                        None => None,
+                    };
+                    Ok((tets, finer))
+                });
+                match meshes {
+                    Ok(meshes) => Some(meshes),
+                    Err(e) => {
+                        row.error = Some(e.to_string());
+                        result.rows.push(row);
+                        continue;
+                    }
+                }
+            }
+            None => None,
+        };
+        let (tets, finer) = match &clamped {
+            Some((tets, finer)) => (tets, finer.as_ref()),
+            None => (&tets, finer.as_ref()),
+        };
         let problem = |tets: &TetMesh| FemProblem {
             tets: tets.clone(),
             order: config.fem.order,
@@ -569,7 +600,7 @@ fn run_shape_into(
             steps: config.boundary.steps,
         };
         let outcome =
-            run_fem(&problem(&tets), &label, &config.cache_dir, progress).and_then(|fem| {
+            run_fem(&problem(tets), &label, &config.cache_dir, progress).and_then(|fem| {
                 fem_seconds += fem.seconds_per_step * config.boundary.steps as f64;
                 row.fem = Some(FemRunSummary {
                     region_nodes: fem.region_nodes.clone(),
@@ -581,7 +612,7 @@ fn run_shape_into(
                     cached: fem.cached,
                 });
                 fem.check_converged(config.fem.newton.max_iterations)?;
-                if let Some(finer) = &finer {
+                if let Some(finer) = finer {
                     match reference_change(&fem, &problem(finer), length, &label, config, progress)
                     {
                         Ok(change) => row.reference_change = Some(change),

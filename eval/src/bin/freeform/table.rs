@@ -91,6 +91,11 @@ pub(crate) struct TableOptions {
     /// 27k–62k DOFs); their trajectories are cached apart from the default ones.
     #[arg(long)]
     fem_reuse: bool,
+    /// Tables 2 and 7: mesh Fix side's FEM reference on the lattice shifted so that a vertex
+    /// plane is the clamped slab's face (its nodes then fill the slab; on the unshifted lattice
+    /// they stop at the last node plane inside it, 0.031 L deep instead of 0.05 L at 16 cells).
+    #[arg(long)]
+    fem_clamp_on_plane: bool,
     /// Tables 2 and 7: mesh the FEM references on uniform lattices (10 cells across ×1.5 up to
     /// 16 until the volume is within 5%, the first tables' setting) or on lattices graded near
     /// the surface (16 ×1.5 up to 36, two halvings near the surface, within 3%; issue 19;
@@ -221,6 +226,7 @@ pub(crate) fn run(
         exact_inset_radii,
         check_convergence,
         fem_reuse,
+        fem_clamp_on_plane,
         fem_mesher,
         fem_tangent,
         skip_mpm,
@@ -394,6 +400,7 @@ pub(crate) fn run(
         if fem_reuse {
             shapes.fem.newton = fem_ref::reusing_reference_newton();
         }
+        shapes.fem.clamp_on_lattice_plane = fem_clamp_on_plane;
         if let Some(choice) = fem_tangent {
             shapes.fem.tangent = match choice {
                 FemTangentChoice::Projected => HessianTangent::ProjectedPsd,
