@@ -139,7 +139,10 @@ fn fix_sides_reference_on_the_shifted_lattice_holds_nodes_up_to_the_slabs_face()
     // The 1 × 2 × 0.5 box at 16 cells across (h = 0.125): the clamp's face x = 0.1 lies
     // between the default lattice's vertex planes x = 0 and 0.125.
     let (surface, _) = box_and_cell_centres();
-    let mut fem = ShapeFemParams::graded();
+    let mut fem = ShapeFemParams {
+        clamp_on_lattice_plane: false,
+        ..ShapeFemParams::graded()
+    };
     let scene = ShapeBoundary::FixSide.scene(
         &surface,
         surface.vertices(),

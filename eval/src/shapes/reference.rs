@@ -47,7 +47,7 @@ pub struct ShapeFemParams {
     pub tangent: HessianTangent,
     /// Mesh Fix side's reference (and its convergence check) on the same lattice shifted so
     /// that a vertex plane is the clamped slab's face (default false: every condition on the
-    /// shape's one mesh). On the unshifted lattice the nodes with `x ≤ x_min + 0.05 L` fill
+    /// shape's one mesh, the first tables' setting; [`ShapeFemParams::graded`] sets it). On the unshifted lattice the nodes with `x ≤ x_min + 0.05 L` fill
     /// the slab only to the last node plane inside it, which moves with the lattice: at 16
     /// cells across the clamped depth is 0.031 L, at 24 cells 0.042 L, against the 0.05 L the
     /// reduced methods hold.
@@ -71,7 +71,11 @@ impl ShapeFemParams {
     /// Fix side the projected one crawls (steps of 1e-6 L, contraction 0.97) where a part
     /// buckles; exact-when-definite takes 6.0 instead of 9.7 iterations a step on Spot (one
     /// step unconverged at 60 before, none after), 6.2 instead of 11.5 on the koala, 4.1
-    /// instead of 4.4 on the bunny (`eval/examples/shape_reference_timing.rs`).
+    /// instead of 4.4 on the bunny (`eval/examples/shape_reference_timing.rs`). Fix side is
+    /// clamped on a lattice plane ([`ShapeFemParams::clamp_on_lattice_plane`]): on five shapes
+    /// the 1.5× finer reference then changed the trajectory 4–15× less on four (hand 2.2e-5 →
+    /// 3.7e-6, ghost 3.2e-5 → 8.2e-6, 37620 6.1e-13 → 1.0e-13, 93070 1.3e-11 → 8.8e-13) and
+    /// 1.2× more on the squirrel (1.7e-5 → 2.1e-5), 2026-11-26.
     pub fn graded() -> Self {
         ShapeFemParams {
             first_cells_across: 16,
@@ -86,6 +90,7 @@ impl ShapeFemParams {
                 ..NewtonParams::default()
             },
             tangent: HessianTangent::ExactWhenDefinite,
+            clamp_on_lattice_plane: true,
             ..ShapeFemParams::default()
         }
     }

@@ -91,11 +91,14 @@ pub(crate) struct TableOptions {
     /// 27k–62k DOFs); their trajectories are cached apart from the default ones.
     #[arg(long)]
     fem_reuse: bool,
-    /// Tables 2 and 7: mesh Fix side's FEM reference on the lattice shifted so that a vertex
-    /// plane is the clamped slab's face (its nodes then fill the slab; on the unshifted lattice
-    /// they stop at the last node plane inside it, 0.031 L deep instead of 0.05 L at 16 cells).
-    #[arg(long)]
-    fem_clamp_on_plane: bool,
+    /// Tables 2 and 7: where Fix side's FEM reference is clamped: `plane` meshes it (and its
+    /// convergence check) on the lattice shifted so that a vertex plane is the clamped slab's
+    /// face, so the held nodes fill the slab; `lattice` keeps the shape's one mesh, whose held
+    /// nodes stop at the last node plane inside the slab (0.031 L deep instead of 0.05 L at 16
+    /// cells). Default: `plane` on graded lattices, `lattice` on uniform ones (the first
+    /// tables' setting).
+    #[arg(long, value_enum)]
+    fem_clamp: Option<FemClampChoice>,
     /// Tables 2 and 7: mesh the FEM references on uniform lattices (10 cells across ×1.5 up to
     /// 16 until the volume is within 5%, the first tables' setting) or on lattices graded near
     /// the surface (16 ×1.5 up to 36, two halvings near the surface, within 3%; issue 19;
@@ -176,6 +179,16 @@ pub(crate) enum PinModulusChoice {
     PWave,
 }
 
+/// Where Fix side's FEM reference is clamped.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, clap::ValueEnum)]
+pub(crate) enum FemClampChoice {
+    /// On the shape's one lattice mesh: the nodes inside the slab.
+    Lattice,
+    /// On the lattice shifted to put a vertex plane on the slab's face
+    /// ([`ShapeFemParams::clamp_on_lattice_plane`]).
+    Plane,
+}
+
 /// How the shapes' FEM references are meshed.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, clap::ValueEnum)]
 pub(crate) enum FemMesherChoice {
@@ -226,7 +239,7 @@ pub(crate) fn run(
         exact_inset_radii,
         check_convergence,
         fem_reuse,
-        fem_clamp_on_plane,
+        fem_clamp,
         fem_mesher,
         fem_tangent,
         skip_mpm,
@@ -391,6 +404,7 @@ pub(crate) fn run(
                     refinement: graded.refinement,
                     newton: graded.newton,
                     tangent: graded.tangent,
+                    clamp_on_lattice_plane: graded.clamp_on_lattice_plane,
                     ..shapes.fem
                 }
             } else {
@@ -400,7 +414,9 @@ pub(crate) fn run(
         if fem_reuse {
             shapes.fem.newton = fem_ref::reusing_reference_newton();
         }
-        shapes.fem.clamp_on_lattice_plane = fem_clamp_on_plane;
+        if let Some(choice) = fem_clamp {
+            shapes.fem.clamp_on_lattice_plane = choice == FemClampChoice::Plane;
+        }
         if let Some(choice) = fem_tangent {
             shapes.fem.tangent = match choice {
                 FemTangentChoice::Projected => HessianTangent::ProjectedPsd,
