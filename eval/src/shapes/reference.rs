@@ -72,10 +72,11 @@ impl ShapeFemParams {
     /// buckles; exact-when-definite takes 6.0 instead of 9.7 iterations a step on Spot (one
     /// step unconverged at 60 before, none after), 6.2 instead of 11.5 on the koala, 4.1
     /// instead of 4.4 on the bunny (`eval/examples/shape_reference_timing.rs`). Fix side is
-    /// clamped on a lattice plane ([`ShapeFemParams::clamp_on_lattice_plane`]): on five shapes
-    /// the 1.5× finer reference then changed the trajectory 4–15× less on four (hand 2.2e-5 →
-    /// 3.7e-6, ghost 3.2e-5 → 8.2e-6, 37620 6.1e-13 → 1.0e-13, 93070 1.3e-11 → 8.8e-13) and
-    /// 1.2× more on the squirrel (1.7e-5 → 2.1e-5), 2026-11-26.
+    /// clamped on a lattice plane ([`ShapeFemParams::clamp_on_lattice_plane`]): on the eight
+    /// gated shapes the 1.5× finer reference then changed the trajectory 4–15× less on six
+    /// (hand 2.2e-5 → 3.7e-6, ghost 3.2e-5 → 8.2e-6, cat 1.6e-6 → 3.2e-7, goat head 4.7e-6 →
+    /// 7.5e-7, 37620 6.1e-13 → 1.0e-13, 93070 1.3e-11 → 8.8e-13) and 1.2–1.6× more on two
+    /// (squirrel 1.7e-5 → 2.1e-5, 94492 4.3e-10 → 6.8e-10), 2026-11-26.
     pub fn graded() -> Self {
         ShapeFemParams {
             first_cells_across: 16,
