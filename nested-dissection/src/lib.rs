@@ -11,7 +11,15 @@
 //! This crate is the workspace's only `unsafe` code: the call into METIS, whose inputs
 //! [`nested_dissection_order`] checks first.
 
+use std::sync::Mutex;
+
 use thiserror::Error;
+
+/// METIS draws from GKlib's random number generator, whose state is one process-wide array,
+/// not per thread: two orderings at once would race on it (a data race in C) and each get a
+/// sequence the other perturbed, so the same graph could be ordered differently from run to
+/// run. Every call holds this lock; each call seeds the generator afresh.
+static METIS: Mutex<()> = Mutex::new(());
 
 /// A graph METIS cannot order.
 #[derive(Clone, Debug, Error, PartialEq, Eq)]
@@ -69,7 +77,8 @@ pub enum NestedDissectionError {
 ///
 /// Returns `order` with `order[k]` = the vertex eliminated k-th, i.e. row k of the permuted
 /// matrix `PAPᵀ` is row `order[k]` of A (METIS's `perm`). It is a permutation of
-/// `0..vertices`. Deterministic: METIS's default options, fixed seed.
+/// `0..vertices`. Deterministic: METIS's default options, fixed seed, one call at a time in
+/// the process (concurrent callers wait; the ordering is a small part of a factorization).
 ///
 /// ```
 /// // A path 0 – 1 – 2.
@@ -134,6 +143,11 @@ pub fn nested_dissection_order(
     // has nvtxs + 1 entries ending at adjncy.len(), every adjncy entry is a vertex other than
     // its own (checked above), `perm` and `iperm` have nvtxs entries, and the null vertex
     // weights mean "unit weights". METIS reads these and writes only perm and iperm.
+    // A panic cannot leave METIS's state half-written (it never unwinds through C here), so a
+    // poisoned lock is still good.
+    let _metis = METIS
+        .lock()
+        .unwrap_or_else(|poisoned| poisoned.into_inner());
     #[allow(unsafe_code)]
     let code = unsafe {
         metis_sys::METIS_SetDefaultOptions(options.as_mut_ptr());
@@ -236,6 +250,37 @@ mod tests {
             (nested as f64) < 0.5 * banded as f64,
             "nested dissection {nested} entries, natural order {banded}"
         );
+    }
+
+    #[test]
+    fn orderings_made_on_many_threads_at_once_equal_the_one_made_alone() {
+        // Graphs large enough that METIS coarsens them with random matchings.
+        let graphs: Vec<(Vec<usize>, Vec<usize>)> = [30, 31, 32, 33].map(grid_graph).into();
+        let alone: Vec<Vec<usize>> = graphs
+            .iter()
+            .map(|(o, n)| nested_dissection_order(o, n).unwrap())
+            .collect();
+        std::thread::scope(|scope| {
+            let handles: Vec<_> = (0..8)
+                .map(|t| {
+                    let (graphs, alone) = (&graphs, &alone);
+                    scope.spawn(move || {
+                        for round in 0..5 {
+                            let g = (t + round) % graphs.len();
+                            let (o, n) = &graphs[g];
+                            assert_eq!(
+                                nested_dissection_order(o, n).unwrap(),
+                                alone[g],
+                                "thread {t}, round {round}, graph {g}"
+                            );
+                        }
+                    })
+                })
+                .collect();
+            for h in handles {
+                h.join().unwrap();
+            }
+        });
     }
 
     #[test]
