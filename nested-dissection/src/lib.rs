@@ -139,15 +139,15 @@ pub fn nested_dissection_order(
     let mut options = [0 as metis_sys::idx_t; metis_sys::METIS_NOPTIONS as usize];
     let mut perm = vec![0 as metis_sys::idx_t; vertices];
     let mut iperm = vec![0 as metis_sys::idx_t; vertices];
-    // SAFETY: `options` has METIS_NOPTIONS entries, as METIS_SetDefaultOptions writes; `xadj`
-    // has nvtxs + 1 entries ending at adjncy.len(), every adjncy entry is a vertex other than
-    // its own (checked above), `perm` and `iperm` have nvtxs entries, and the null vertex
-    // weights mean "unit weights". METIS reads these and writes only perm and iperm.
     // A panic cannot leave METIS's state half-written (it never unwinds through C here), so a
     // poisoned lock is still good.
     let _metis = METIS
         .lock()
         .unwrap_or_else(|poisoned| poisoned.into_inner());
+    // SAFETY: `options` has METIS_NOPTIONS entries, as METIS_SetDefaultOptions writes; `xadj`
+    // has nvtxs + 1 entries ending at adjncy.len(), every adjncy entry is a vertex other than
+    // its own (checked above), `perm` and `iperm` have nvtxs entries, and the null vertex
+    // weights mean "unit weights". METIS reads these and writes only perm and iperm.
     #[allow(unsafe_code)]
     let code = unsafe {
         metis_sys::METIS_SetDefaultOptions(options.as_mut_ptr());

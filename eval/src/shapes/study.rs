@@ -564,25 +564,21 @@ fn run_shape_into(
         let scene = boundary.scene(&surface, tets.vertices(), &config.boundary);
         let label = format!("{} {}", result.name, boundary.title());
         // Fix side's reference on the lattice whose vertex plane is the clamp's face, if asked.
-        let clamped = match config.fem.clamp_plane(boundary, &scene) {
-            Some(plane) => {
-                let meshes = lattice_mesh(cells, Some(plane)).and_then(|tets| {
-                    let finer = match &finer {
-                        Some(_) => Some(lattice_mesh(finer_cells, Some(plane))?),
-                        None => None,
-                    };
-                    Ok((tets, finer))
-                });
-                match meshes {
-                    Ok(meshes) => Some(meshes),
-                    Err(e) => {
-                        row.error = Some(e.to_string());
-                        result.rows.push(row);
-                        continue;
-                    }
-                }
+        let clamped = config.fem.clamp_plane(boundary, &scene).map(|plane| {
+            let tets = lattice_mesh(cells, Some(plane))?;
+            let finer = finer
+                .as_ref()
+                .map(|_| lattice_mesh(finer_cells, Some(plane)))
+                .transpose()?;
+            Ok::<_, EvalError>((tets, finer))
+        });
+        let clamped = match clamped.transpose() {
+            Ok(clamped) => clamped,
+            Err(e) => {
+                row.error = Some(e.to_string());
+                result.rows.push(row);
+                continue;
             }
-            None => None,
         };
         let (tets, finer) = match &clamped {
             Some((tets, finer)) => (tets, finer.as_ref()),
