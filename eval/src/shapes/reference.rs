@@ -161,6 +161,29 @@ pub struct FemMeshSummary {
     pub dropped_volume_fraction: f64,
 }
 
+impl FemMeshSummary {
+    /// The largest face-connected piece of the lattice mesh `mesh` (made by the mesher that
+    /// wrote `report`, of a surface whose largest side is `length`) and its summary. The
+    /// dropped islands count against the volume: `relative_volume_error` is that of the piece.
+    pub fn largest_piece(
+        mesh: &TetMesh,
+        report: &LatticeMesherReport,
+        length: f64,
+    ) -> (TetMesh, FemMeshSummary) {
+        let pieces = mesh.face_connected_components().len();
+        let (piece, dropped) = mesh.largest_component();
+        let summary = FemMeshSummary {
+            cells_across: (length / report.cell_size).round() as usize,
+            vertices: piece.vertices().len(),
+            tets: piece.tets().len(),
+            relative_volume_error: (piece.volume() - report.surface_volume) / report.surface_volume,
+            dropped_pieces: pieces.saturating_sub(1),
+            dropped_volume_fraction: dropped / report.surface_volume,
+        };
+        (piece, summary)
+    }
+}
+
 /// The FEM mesh of `surface`: the first lattice from `first_cells_across` up (×1.5) whose
 /// volume is within the tolerance, else the `max_cells_across` lattice as it is (islands
 /// included; the caller drops them).

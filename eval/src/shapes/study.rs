@@ -204,6 +204,11 @@ pub struct ShapeRow {
     /// Why the convergence check could not be made, when it was asked for.
     #[serde(default)]
     pub reference_check_error: Option<String>,
+    /// This row's own FEM mesh when it is not the shape's ([`ShapeResult::fem_mesh`]): Fix
+    /// side's on the lattice with a vertex plane on the clamp's face
+    /// ([`ShapeFemParams::clamp_on_lattice_plane`]). `None`: the shape's mesh.
+    #[serde(default)]
+    pub fem_mesh: Option<FemMeshSummary>,
     /// Reduced integration points in each constrained region.
     pub region_points: Vec<usize>,
     /// Why something is missing.
@@ -240,12 +245,19 @@ pub struct ShapeResult {
 }
 
 impl ShapeResult {
+    /// The tet mesh `row`'s reference ran on: the row's own ([`ShapeRow::fem_mesh`]) or else
+    /// the shape's.
+    pub fn reference_mesh(&self, row: &ShapeRow) -> Option<FemMeshSummary> {
+        row.fem_mesh.or(self.fem_mesh)
+    }
+
     /// Why `row`'s FEM reference cannot be trusted, or `None` when it passes the quality gate:
-    /// its tet mesh keeps the surface's volume within `max_volume_error` (relative), its every
-    /// step converged, and, when the convergence check ran, the 1.5× finer reference changes it
-    /// by less than a tenth of the smaller of the methods' MSEs.
+    /// the tet mesh it ran on ([`Self::reference_mesh`]) keeps the surface's volume within
+    /// `max_volume_error` (relative), its every step converged, and, when the convergence check
+    /// ran, the 1.5× finer reference changes it by less than a tenth of the smaller of the
+    /// methods' MSEs.
     pub fn untrusted_reference(&self, row: &ShapeRow, max_volume_error: f64) -> Option<String> {
-        let Some(mesh) = &self.fem_mesh else {
+        let Some(mesh) = self.reference_mesh(row) else {
             return Some("no FEM mesh".into());
         };
         if !(mesh.relative_volume_error.abs() <= max_volume_error) {
@@ -517,32 +529,22 @@ fn run_shape_into(
 
     let (lattice_mesh, report) = mesh_for_fem(&surface, &config.fem)?;
     // Islands the lattice cut off from the body would fall freely in the FEM reference.
-    let pieces = lattice_mesh.face_connected_components().len();
-    let (tets, dropped) = lattice_mesh.largest_component();
-    result.fem_mesh = Some(FemMeshSummary {
-        cells_across: (length / report.cell_size).round() as usize,
-        vertices: tets.vertices().len(),
-        tets: tets.tets().len(),
-        relative_volume_error: (tets.volume() - report.surface_volume) / report.surface_volume,
-        dropped_pieces: pieces - 1,
-        dropped_volume_fraction: dropped / report.surface_volume,
-    });
+    let (tets, summary) = FemMeshSummary::largest_piece(&lattice_mesh, &report, length);
+    result.fem_mesh = Some(summary);
     let points = sample_on(&surface, settings.simulation_points, "simulation points")?;
     let cells = (length / report.cell_size).round() as usize;
     let finer_cells = (1.5 * length / report.cell_size).round() as usize;
     // The largest piece of the lattice mesh at `cells` across, with a vertex plane through
-    // `plane` on the x axis where given.
-    let lattice_mesh = |cells: usize, plane: Option<f64>| -> Result<TetMesh, EvalError> {
-        Ok(
-            tetrahedralize(&surface, &config.fem.lattice_through(cells, plane))
-                .map_err(EvalError::FemMesh)?
-                .0
-                .largest_component()
-                .0,
-        )
+    // `plane` on the x axis where given, and its summary.
+    let lattice_mesh = |cells: usize,
+                        plane: Option<f64>|
+     -> Result<(TetMesh, FemMeshSummary), EvalError> {
+        let (mesh, report) = tetrahedralize(&surface, &config.fem.lattice_through(cells, plane))
+            .map_err(EvalError::FemMesh)?;
+        Ok(FemMeshSummary::largest_piece(&mesh, &report, length))
     };
     let finer = if config.check_convergence {
-        Some(lattice_mesh(finer_cells, None)?)
+        Some(lattice_mesh(finer_cells, None)?.0)
     } else {
         None
     };
@@ -558,6 +560,7 @@ fn run_shape_into(
             exact_error: None,
             reference_change: None,
             reference_check_error: None,
+            fem_mesh: None,
             region_points: Vec::new(),
             error: None,
         };
@@ -565,10 +568,11 @@ fn run_shape_into(
         let label = format!("{} {}", result.name, boundary.title());
         // Fix side's reference on the lattice whose vertex plane is the clamp's face, if asked.
         let clamped = config.fem.clamp_plane(boundary, &scene).map(|plane| {
-            let tets = lattice_mesh(cells, Some(plane))?;
+            let (tets, summary) = lattice_mesh(cells, Some(plane))?;
+            row.fem_mesh = Some(summary);
             let finer = finer
                 .as_ref()
-                .map(|_| lattice_mesh(finer_cells, Some(plane)))
+                .map(|_| lattice_mesh(finer_cells, Some(plane)).map(|(finer, _)| finer))
                 .transpose()?;
             Ok::<_, EvalError>((tets, finer))
         });

@@ -20,6 +20,7 @@ use crate::report::paper;
 use crate::report::table::{RenderedTable, not_run_or, sci};
 use crate::shapes::boundary::ShapeBoundary;
 use crate::shapes::catalog::{SHAPE_DENSITY, SHAPE_POISSON_RATIO, ShapeCollection};
+use crate::shapes::reference::FemMeshSummary;
 use crate::shapes::study::{MethodScores, ShapeResult, ShapeRow, ShapeStudy};
 
 /// Which number of a method's scores a table reports.
@@ -417,25 +418,30 @@ pub fn table2(study: &ShapeStudy) -> RenderedTable {
     );
     let mut rows = Vec::new();
     for shape in &study.shapes {
-        let mesh = shape.fem_mesh.map_or("—".into(), |m| {
-            format!(
-                "{} cells, {} vertices, volume {:+.1}%{}",
-                m.cells_across,
-                m.vertices,
-                100.0 * m.relative_volume_error,
-                if m.dropped_pieces > 0 {
-                    format!(
-                        " ({} island(s) of {:.1}% dropped)",
-                        m.dropped_pieces,
-                        100.0 * m.dropped_volume_fraction
-                    )
-                } else {
-                    String::new()
-                }
-            )
-        });
+        let describe = |mesh: Option<FemMeshSummary>| {
+            mesh.map_or("—".into(), |m| {
+                format!(
+                    "{} cells, {} vertices, volume {:+.1}%{}",
+                    m.cells_across,
+                    m.vertices,
+                    100.0 * m.relative_volume_error,
+                    if m.dropped_pieces > 0 {
+                        format!(
+                            " ({} island(s) of {:.1}% dropped)",
+                            m.dropped_pieces,
+                            100.0 * m.dropped_volume_fraction
+                        )
+                    } else {
+                        String::new()
+                    }
+                )
+            })
+        };
         for boundary in ShapeBoundary::ALL {
             let row = shape.rows.iter().find(|r| r.boundary == boundary);
+            // The mesh this row's reference ran on (Fix side's may be its own).
+            let reference_mesh = row.and_then(|r| shape.reference_mesh(r)).or(shape.fem_mesh);
+            let mesh = describe(reference_mesh);
             let ours = row.and_then(|r| r.ours);
             let theirs = row.and_then(|r| r.simplicits);
             let exact = row.and_then(|r| r.exact);
@@ -521,7 +527,7 @@ pub fn table2(study: &ShapeStudy) -> RenderedTable {
                 "ours_unconverged_steps": ours.map(|s| s.unconverged_steps),
                 "simplicits_unconverged_steps": theirs.map(|s| s.unconverged_steps),
                 "ours_max_pin_deviation": ours.map(|s| s.max_pin_deviation),
-                "fem_volume_error": shape.fem_mesh.map(|m| m.relative_volume_error),
+                "fem_volume_error": reference_mesh.map(|m| m.relative_volume_error),
                 "trusted": row.is_some() && untrusted.is_none(),
                 "why_untrusted": untrusted,
                 "reference_change": row.and_then(|r| r.reference_change),
@@ -536,7 +542,7 @@ pub fn table2(study: &ShapeStudy) -> RenderedTable {
                 "basis_seconds": shape.basis_seconds,
                 "training_seconds": shape.training_seconds,
                 "fem_seconds": shape.fem_seconds,
-                "fem_mesh": shape.fem_mesh,
+                "fem_mesh": reference_mesh,
                 "error": error,
             }));
         }
@@ -653,7 +659,6 @@ mod tests {
     use std::path::PathBuf;
 
     use super::*;
-    use crate::shapes::reference::FemMeshSummary;
     use crate::shapes::study::{FemRunSummary, ShapeStudyConfig};
 
     fn scores(mse: f64) -> MethodScores {
@@ -707,6 +712,7 @@ mod tests {
                     exact_error: None,
                     reference_change: None,
                     reference_check_error: None,
+                    fem_mesh: None,
                     region_points: vec![5],
                     error: None,
                 })
@@ -730,6 +736,17 @@ mod tests {
         for row in &mut good.rows {
             row.reference_change = Some(1e-6);
         }
+        // Fix side ran on its own mesh (a shifted lattice), which lost a tenth of the volume
+        // while the shape's mesh kept it: that row alone is out.
+        let mut clamped = shape("clamped", 0.0, 0, 1e-2);
+        for row in &mut clamped.rows {
+            row.reference_change = Some(1e-6);
+        }
+        clamped.rows[0].fem_mesh = clamped.fem_mesh.map(|m| FemMeshSummary {
+            relative_volume_error: -0.1,
+            ..m
+        });
+        assert_eq!(clamped.rows[0].boundary, ShapeBoundary::FixSide);
         let study = ShapeStudy {
             config,
             shapes: vec![
@@ -737,6 +754,7 @@ mod tests {
                 shape("thin", -0.40, 0, 1e-1),
                 shape("stalled", 0.01, 2, 1e-2),
                 coarse,
+                clamped,
             ],
             seconds: 1.0,
         };
@@ -769,19 +787,42 @@ mod tests {
             of("coarse")
         );
         assert_eq!(of("good")["reference_change"].as_f64(), Some(1e-6));
-        // Only the trusted shape enters the averages: its MSE, over one shape.
+        let clamped_rows: Vec<&Value> = rows.iter().filter(|r| r["name"] == "clamped").collect();
+        let (fix, pulls) = clamped_rows.split_first().unwrap();
+        assert_eq!(fix["bc"], "fix_side");
+        assert_eq!(fix["trusted"], false);
+        assert!(
+            fix["why_untrusted"]
+                .as_str()
+                .unwrap()
+                .contains("-10.0% of the surface's volume"),
+            "{fix}"
+        );
+        assert_eq!(fix["fem_volume_error"].as_f64(), Some(-0.1));
+        for pull in pulls {
+            assert_eq!(pull["trusted"], true, "{pull}");
+            assert_eq!(pull["fem_volume_error"].as_f64(), Some(0.0));
+        }
+        // Only the trusted rows enter the averages: Fix side has "good" alone, the Pulls
+        // "good" and "clamped".
         for average in t2.json["averages"].as_array().unwrap() {
-            assert_eq!(average["shapes"], 1, "{average}");
-            assert_eq!(average["ours_mse"].as_f64(), Some(1e-4), "{average}");
+            let (shapes, mse) = if average["bc"] == "fix_side" {
+                (1, 1e-4)
+            } else {
+                (2, 0.5 * (1e-4 + 1e-2))
+            };
+            assert_eq!(average["shapes"], shapes, "{average}");
+            let ours = average["ours_mse"].as_f64().unwrap();
+            assert!((ours - mse).abs() < 1e-15, "{average}");
         }
         assert!(t2.markdown.contains("no trustworthy reference"));
         let t7 = table7(&study);
-        assert!(
-            t7.json["averages"]
-                .as_array()
-                .unwrap()
-                .iter()
-                .all(|a| a["shapes"] == 1)
-        );
+        let averages = t7.json["averages"].as_array().unwrap();
+        // Per collection, in ShapeBoundary::ALL's order: Fix side, Pull farthest, Pull boundary.
+        assert!(!averages.is_empty());
+        for collection in averages.chunks(3) {
+            let shapes: Vec<&Value> = collection.iter().map(|a| &a["shapes"]).collect();
+            assert_eq!(shapes, [1, 2, 2], "{collection:?}");
+        }
     }
 }
