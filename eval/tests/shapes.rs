@@ -8,7 +8,7 @@ use freeform::scene::Motion;
 use nalgebra::Vector3;
 use rkpm_core::TriangleMesh;
 
-/// Cell size of the test grid: 1/16, so no cell centre lies on a slab plane (0.131, 1.869).
+/// Cell size of the test grid: 1/16, so no cell centre lies on a slab plane (0.1, 1.9).
 const H: f64 = 0.0625;
 
 /// The 1 × 2 × 0.5 m box (y longest, L = 2) and the centres of its 16 × 32 × 8 cells.
@@ -149,8 +149,8 @@ fn fix_sides_reference_on_the_shifted_lattice_holds_nodes_up_to_the_slabs_face()
         &ShapeBoundaryParams::default(),
     );
     let deepest_held = |fem: &ShapeFemParams| {
-        let plane = fem.clamp_plane(ShapeBoundary::FixSide, &scene);
-        let (mesh, _) = tetrahedralize(&surface, &fem.lattice_through(16, plane)).unwrap();
+        let faces = fem.slab_faces(ShapeBoundary::FixSide, &scene);
+        let (mesh, _) = tetrahedralize(&surface, &fem.lattice_through(16, 2.0, faces)).unwrap();
         let held = scene.select(mesh.vertices(), "mesh vertices").unwrap();
         held[0]
             .iter()
@@ -170,10 +170,58 @@ fn fix_sides_reference_on_the_shifted_lattice_holds_nodes_up_to_the_slabs_face()
         "the shifted lattice reaches the face: {shifted}"
     );
     // Other conditions keep the shape's one mesh.
+    fem.pull_slabs_on_lattice_planes = false;
     let pull = ShapeBoundary::PullBoundary.scene(
         &surface,
         surface.vertices(),
         &ShapeBoundaryParams::default(),
     );
-    assert_eq!(fem.clamp_plane(ShapeBoundary::PullBoundary, &pull), None);
+    assert_eq!(fem.slab_faces(ShapeBoundary::PullBoundary, &pull), None);
+    let farthest = ShapeBoundary::PullFarthest.scene(
+        &surface,
+        surface.vertices(),
+        &ShapeBoundaryParams::default(),
+    );
+    assert_eq!(fem.slab_faces(ShapeBoundary::PullFarthest, &farthest), None);
+}
+
+#[test]
+fn pull_boundarys_reference_on_the_aligned_lattice_holds_nodes_up_to_both_slabs_faces() {
+    // The 1 × 2 × 0.5 box (L = 2) pulled along y: slabs y ≤ 0.1 and y ≥ 1.9, faces 1.8 apart.
+    // At 16 cells across (h = 0.125, graded down to h/4 near the surface) neither face is a
+    // vertex plane; aligned, h = 1.8/14 and both are.
+    let (surface, _) = box_and_cell_centres();
+    let mut fem = ShapeFemParams {
+        pull_slabs_on_lattice_planes: false,
+        ..ShapeFemParams::graded()
+    };
+    let scene = ShapeBoundary::PullBoundary.scene(
+        &surface,
+        surface.vertices(),
+        &ShapeBoundaryParams::default(),
+    );
+    // How deep each pulled region's nodes reach into the body: its innermost node's y.
+    let innermost = |fem: &ShapeFemParams| {
+        let faces = fem.slab_faces(ShapeBoundary::PullBoundary, &scene);
+        let (mesh, _) = tetrahedralize(&surface, &fem.lattice_through(16, 2.0, faces)).unwrap();
+        let held = scene.select(mesh.vertices(), "mesh vertices").unwrap();
+        let y = |i: &usize| mesh.vertices()[*i].y;
+        (
+            held[0].iter().map(y).fold(f64::NEG_INFINITY, f64::max),
+            held[1].iter().map(y).fold(f64::INFINITY, f64::min),
+        )
+    };
+    let (low, high) = innermost(&fem);
+    assert!(
+        low < 0.1 - 0.01 && high > 1.9 + 0.01,
+        "the unaligned lattice stops short of both faces: {low}, {high}"
+    );
+    fem.pull_slabs_on_lattice_planes = true;
+    let faces = fem.slab_faces(ShapeBoundary::PullBoundary, &scene).unwrap();
+    assert_eq!((faces.axis, faces.first, faces.second), (1, 0.1, Some(1.9)));
+    let (low, high) = innermost(&fem);
+    assert!(
+        (low - 0.1).abs() < 1e-12 && (high - 1.9).abs() < 1e-12,
+        "the aligned lattice reaches both faces: {low}, {high}"
+    );
 }

@@ -91,7 +91,7 @@ fn setting(arg: &str) -> LatticeMesherParams {
                 },
                 min_dihedral_guard_degrees: guard,
                 snap_fraction: snap,
-                vertex_planes: [None; 3],
+                ..defaults
             }
         }
     }

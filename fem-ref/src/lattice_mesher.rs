@@ -79,6 +79,12 @@ pub struct LatticeMesherParams {
     /// bounding box.
     #[serde(default)]
     pub vertex_planes: [Option<f64>; 3],
+    /// The lattice spacing `h` (surface units) in place of `L / cells_across`, e.g. the
+    /// distance between two coordinates divided by a whole number of cells, so that with a
+    /// vertex plane through one of them ([`Self::vertex_planes`]) the other lies on a vertex
+    /// plane too (both faces of a body pulled at both ends). Default none.
+    #[serde(default)]
+    pub cell_size: Option<f64>,
 }
 
 impl Default for LatticeMesherParams {
@@ -89,6 +95,7 @@ impl Default for LatticeMesherParams {
             min_dihedral_guard_degrees: 10.0,
             refinement: LatticeRefinement::Uniform,
             vertex_planes: [None; 3],
+            cell_size: None,
         }
     }
 }
@@ -267,8 +274,9 @@ pub fn tetrahedralize_to_volume(
 /// docs for the method). Vertices are in the surface's units.
 ///
 /// # Errors
-/// [`LatticeMesherError::InvalidParams`] for `cells_across = 0` or a snap fraction outside
-/// `[0, 0.5)`; [`LatticeMesherError::NothingInside`] when the lattice misses the solid.
+/// [`LatticeMesherError::InvalidParams`] for `cells_across = 0`, a `cell_size` that is not a
+/// positive length, a non-finite vertex plane or a snap fraction outside `[0, 0.5)`;
+/// [`LatticeMesherError::NothingInside`] when the lattice misses the solid.
 pub fn tetrahedralize(
     surface: &TriangleMesh,
     params: &LatticeMesherParams,
@@ -316,7 +324,15 @@ fn tetrahedralize_with(
         )));
     }
     let bbox = surface.bounding_box();
-    let h = bbox.largest_side() / params.cells_across as f64;
+    let h = match params.cell_size {
+        None => bbox.largest_side() / params.cells_across as f64,
+        Some(h) if h.is_finite() && h > 0.0 => h,
+        Some(h) => {
+            return Err(LatticeMesherError::InvalidParams(format!(
+                "cell_size {h} is not a positive length"
+            )));
+        }
+    };
     // Per axis, the coordinate of lattice plane `i` is `anchor + (i − anchor_index) · h`: the
     // plane one cell below the bounding box, or, for an aligned axis, the given plane itself
     // (exactly), with the lattice extended by one cell below the box.

@@ -203,6 +203,57 @@ fn a_vertex_plane_puts_lattice_vertices_exactly_on_it_and_no_tetrahedron_across_
 }
 
 #[test]
+fn a_cell_size_dividing_two_planes_distance_puts_both_on_vertex_planes() {
+    // Planes x = min + 0.137 and x = min + 0.737 on the tilted box: 0.6 apart, 7.2 default
+    // cells of 1/12. With h = 0.6 / 7 and a vertex plane through the first, the second is a
+    // vertex plane too.
+    let surface = rotated(
+        &TriangleMesh::cuboid(Vector3::zeros(), Vector3::new(1.0, 0.5, 0.4)),
+        Vector3::new(0.1, 0.2, -0.15),
+    );
+    let min = surface.bounding_box().min.x;
+    let (first, second) = (min + 0.137, min + 0.737);
+    for refinement in [LatticeRefinement::Uniform, graded(12, 1).refinement] {
+        let params = |cell_size| LatticeMesherParams {
+            cells_across: 12,
+            refinement,
+            vertex_planes: [Some(first), None, None],
+            cell_size,
+            ..LatticeMesherParams::default()
+        };
+        let on = |mesh: &TetMesh, plane: f64| {
+            mesh.vertices()
+                .iter()
+                .filter(|v| (v.x - plane).abs() < 1e-12)
+                .count()
+        };
+        let (default, _) = tetrahedralize(&surface, &params(None)).unwrap();
+        assert_eq!(on(&default, second), 0, "{refinement:?}");
+        let (aligned, report) = tetrahedralize(&surface, &params(Some(0.6 / 7.0))).unwrap();
+        assert_eq!(report.cell_size, 0.6 / 7.0);
+        assert!(on(&aligned, first) > 20, "{refinement:?}");
+        assert!(on(&aligned, second) > 20, "{refinement:?}");
+        assert!(
+            report.relative_volume_error.abs() < 0.05,
+            "{refinement:?}: volume {:+.4}",
+            report.relative_volume_error
+        );
+    }
+    for bad in [0.0, -0.1, f64::INFINITY, f64::NAN] {
+        let message = tetrahedralize(
+            &surface,
+            &LatticeMesherParams {
+                cell_size: Some(bad),
+                ..LatticeMesherParams::default()
+            },
+        )
+        .unwrap_err()
+        .to_string();
+        assert!(message.contains("cell_size"), "{bad}: {message}");
+    }
+}
+
+#[test]
 fn shape_thinner_than_the_lattice_is_an_error_naming_the_resolution() {
     let plate = TriangleMesh::cuboid(Vector3::zeros(), Vector3::new(1.0, 1.0, 1e-3));
     let coarse = LatticeMesherParams {

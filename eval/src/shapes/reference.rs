@@ -53,6 +53,25 @@ pub struct ShapeFemParams {
     /// reduced methods hold.
     #[serde(default)]
     pub clamp_on_lattice_plane: bool,
+    /// Mesh Pull boundary's reference (and its convergence check) on a lattice whose vertex
+    /// planes are both pulled slabs' faces: shifted to put one face on a plane, its spacing
+    /// the faces' distance over the nearest whole number of `L / cells` cells (default false,
+    /// the first tables' setting; [`ShapeFemParams::graded`] sets it). The unshifted lattice
+    /// pulls each end only to its last node plane inside the slab, as with Fix side above.
+    #[serde(default)]
+    pub pull_slabs_on_lattice_planes: bool,
+}
+
+/// The faces of a condition's held slabs that its reference's lattice puts on vertex planes.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct SlabFaces {
+    /// The axis the slabs are cut across (0 = x).
+    pub axis: usize,
+    /// One face's coordinate on `axis` (m): a vertex plane passes through it exactly.
+    pub first: f64,
+    /// The other slab's face, when there are two (m): on a vertex plane up to round-off, the
+    /// spacing adjusted to divide the faces' distance.
+    pub second: Option<f64>,
 }
 
 /// The references' tangent before it could be chosen (for settings stored without one).
@@ -92,6 +111,7 @@ impl ShapeFemParams {
             },
             tangent: HessianTangent::ExactWhenDefinite,
             clamp_on_lattice_plane: true,
+            pull_slabs_on_lattice_planes: true,
             ..ShapeFemParams::default()
         }
     }
@@ -105,14 +125,37 @@ impl ShapeFemParams {
         }
     }
 
-    /// The vertex plane `boundary`'s reference needs in `scene` (its scene on the shape):
-    /// with [`ShapeFemParams::clamp_on_lattice_plane`], Fix side's clamped slab's face
-    /// `x = x_min + 0.05 L`; otherwise none, and the condition shares the shape's mesh.
-    pub fn clamp_plane(&self, boundary: ShapeBoundary, scene: &SceneSpec) -> Option<f64> {
+    /// The slab faces `boundary`'s reference puts on lattice vertex planes in `scene` (its
+    /// scene on the shape): with [`ShapeFemParams::clamp_on_lattice_plane`], Fix side's
+    /// clamped face `x = x_min + 0.05 L`; with
+    /// [`ShapeFemParams::pull_slabs_on_lattice_planes`], Pull boundary's two faces
+    /// `x_a = min + 0.05 L` and `x_a = max − 0.05 L`; otherwise none, and the condition shares
+    /// the shape's mesh.
+    pub fn slab_faces(&self, boundary: ShapeBoundary, scene: &SceneSpec) -> Option<SlabFaces> {
         match (boundary, &scene.constraints[..]) {
             (ShapeBoundary::FixSide, [clamp]) if self.clamp_on_lattice_plane => {
                 match clamp.region {
-                    Region::Below { axis: 0, value } => Some(value),
+                    Region::Below { axis, value } => Some(SlabFaces {
+                        axis,
+                        first: value,
+                        second: None,
+                    }),
+                    _ => None,
+                }
+            }
+            (ShapeBoundary::PullBoundary, [low, high]) if self.pull_slabs_on_lattice_planes => {
+                match (&low.region, &high.region) {
+                    (
+                        &Region::Below { axis, value: first },
+                        &Region::Above {
+                            axis: high_axis,
+                            value: second,
+                        },
+                    ) if axis == high_axis && first < second => Some(SlabFaces {
+                        axis,
+                        first,
+                        second: Some(second),
+                    }),
                     _ => None,
                 }
             }
@@ -120,12 +163,27 @@ impl ShapeFemParams {
         }
     }
 
-    /// [`ShapeFemParams::lattice`] with a vertex plane through `x = plane`, if any.
-    pub fn lattice_through(&self, cells_across: usize, plane: Option<f64>) -> LatticeMesherParams {
-        LatticeMesherParams {
-            vertex_planes: [plane, None, None],
-            ..self.lattice(cells_across)
+    /// [`ShapeFemParams::lattice`] at `cells_across` along `length` (the surface's largest
+    /// side, m), with `faces` on vertex planes: a plane through `first`, and with a `second`
+    /// face the spacing `d / k`, `d` the faces' distance and `k ≥ 1` the whole number of
+    /// cells nearest `d / (length / cells_across)` (the lattice then differs from the
+    /// unaligned one's by under half a cell over `d`).
+    pub fn lattice_through(
+        &self,
+        cells_across: usize,
+        length: f64,
+        faces: Option<SlabFaces>,
+    ) -> LatticeMesherParams {
+        let mut params = self.lattice(cells_across);
+        if let Some(faces) = faces {
+            params.vertex_planes[faces.axis] = Some(faces.first);
+            if let Some(second) = faces.second {
+                let distance = (second - faces.first).abs();
+                let cells = (distance * cells_across as f64 / length).round().max(1.0);
+                params.cell_size = Some(distance / cells);
+            }
         }
+        params
     }
 }
 
@@ -140,6 +198,7 @@ impl Default for ShapeFemParams {
             refinement: LatticeRefinement::Uniform,
             tangent: HessianTangent::ProjectedPsd,
             clamp_on_lattice_plane: false,
+            pull_slabs_on_lattice_planes: false,
         }
     }
 }

@@ -38,7 +38,7 @@ use crate::shapes::catalog::{
     DEFAULT_SHAPE_YOUNGS_MODULUS, MaterialClass, SHAPE_DENSITY, SHAPE_POISSON_RATIO,
     ShapeCollection, catalog_entry,
 };
-use crate::shapes::reference::{FemMeshSummary, ShapeFemParams, mesh_for_fem};
+use crate::shapes::reference::{FemMeshSummary, ShapeFemParams, SlabFaces, mesh_for_fem};
 use freeform::scene::SceneSpec;
 use freeform::{PinHold, Simulation};
 
@@ -204,9 +204,10 @@ pub struct ShapeRow {
     /// Why the convergence check could not be made, when it was asked for.
     #[serde(default)]
     pub reference_check_error: Option<String>,
-    /// This row's own FEM mesh when it is not the shape's ([`ShapeResult::fem_mesh`]): Fix
-    /// side's on the lattice with a vertex plane on the clamp's face
-    /// ([`ShapeFemParams::clamp_on_lattice_plane`]). `None`: the shape's mesh.
+    /// This row's own FEM mesh when it is not the shape's ([`ShapeResult::fem_mesh`]): on the
+    /// lattice whose vertex planes are the held slabs' faces
+    /// ([`ShapeFemParams::clamp_on_lattice_plane`],
+    /// [`ShapeFemParams::pull_slabs_on_lattice_planes`]). `None`: the shape's mesh.
     #[serde(default)]
     pub fem_mesh: Option<FemMeshSummary>,
     /// Reduced integration points in each constrained region.
@@ -534,15 +535,14 @@ fn run_shape_into(
     let points = sample_on(&surface, settings.simulation_points, "simulation points")?;
     let cells = (length / report.cell_size).round() as usize;
     let finer_cells = (1.5 * length / report.cell_size).round() as usize;
-    // The largest piece of the lattice mesh at `cells` across, with a vertex plane through
-    // `plane` on the x axis where given, and its summary.
-    let lattice_mesh = |cells: usize,
-                        plane: Option<f64>|
-     -> Result<(TetMesh, FemMeshSummary), EvalError> {
-        let (mesh, report) = tetrahedralize(&surface, &config.fem.lattice_through(cells, plane))
-            .map_err(EvalError::FemMesh)?;
-        Ok(FemMeshSummary::largest_piece(&mesh, &report, length))
-    };
+    // The largest piece of the lattice mesh at `cells` across, with `faces` on vertex planes
+    // where given, and its summary.
+    let lattice_mesh =
+        |cells: usize, faces: Option<SlabFaces>| -> Result<(TetMesh, FemMeshSummary), EvalError> {
+            let params = config.fem.lattice_through(cells, length, faces);
+            let (mesh, report) = tetrahedralize(&surface, &params).map_err(EvalError::FemMesh)?;
+            Ok(FemMeshSummary::largest_piece(&mesh, &report, length))
+        };
     let finer = if config.check_convergence {
         Some(lattice_mesh(finer_cells, None)?.0)
     } else {
@@ -566,13 +566,13 @@ fn run_shape_into(
         };
         let scene = boundary.scene(&surface, tets.vertices(), &config.boundary);
         let label = format!("{} {}", result.name, boundary.title());
-        // Fix side's reference on the lattice whose vertex plane is the clamp's face, if asked.
-        let clamped = config.fem.clamp_plane(boundary, &scene).map(|plane| {
-            let (tets, summary) = lattice_mesh(cells, Some(plane))?;
+        // The reference on a lattice whose vertex planes are the held slabs' faces, if asked.
+        let clamped = config.fem.slab_faces(boundary, &scene).map(|faces| {
+            let (tets, summary) = lattice_mesh(cells, Some(faces))?;
             row.fem_mesh = Some(summary);
             let finer = finer
                 .as_ref()
-                .map(|_| lattice_mesh(finer_cells, Some(plane)).map(|(finer, _)| finer))
+                .map(|_| lattice_mesh(finer_cells, Some(faces)).map(|(finer, _)| finer))
                 .transpose()?;
             Ok::<_, EvalError>((tets, finer))
         });

@@ -98,7 +98,14 @@ pub(crate) struct TableOptions {
     /// cells). Default: `plane` on graded lattices, `lattice` on uniform ones (the first
     /// tables' setting).
     #[arg(long, value_enum)]
-    fem_clamp: Option<FemClampChoice>,
+    fem_clamp: Option<SlabFaceChoice>,
+    /// Tables 2 and 7: where Pull boundary's FEM reference holds its two pulled slabs: `plane`
+    /// meshes it (and its convergence check) on a lattice whose vertex planes are both slabs'
+    /// faces (shifted, its spacing the faces' distance over a whole number of cells); `lattice`
+    /// keeps the shape's one mesh. Default: `plane` on graded lattices, `lattice` on uniform
+    /// ones.
+    #[arg(long, value_enum)]
+    fem_pull_slabs: Option<SlabFaceChoice>,
     /// Tables 2 and 7: mesh the FEM references on uniform lattices (10 cells across ×1.5 up to
     /// 16 until the volume is within 5%, the first tables' setting) or on lattices graded near
     /// the surface (16 ×1.5 up to 36, two halvings near the surface, within 3%; issue 19;
@@ -179,13 +186,14 @@ pub(crate) enum PinModulusChoice {
     PWave,
 }
 
-/// Where Fix side's FEM reference is clamped.
+/// Where an FEM reference's held slabs end.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, clap::ValueEnum)]
-pub(crate) enum FemClampChoice {
+pub(crate) enum SlabFaceChoice {
     /// On the shape's one lattice mesh: the nodes inside the slab.
     Lattice,
-    /// On the lattice shifted to put a vertex plane on the slab's face
-    /// ([`ShapeFemParams::clamp_on_lattice_plane`]).
+    /// On a lattice whose vertex planes are the slabs' faces
+    /// ([`ShapeFemParams::clamp_on_lattice_plane`],
+    /// [`ShapeFemParams::pull_slabs_on_lattice_planes`]).
     Plane,
 }
 
@@ -240,6 +248,7 @@ pub(crate) fn run(
         check_convergence,
         fem_reuse,
         fem_clamp,
+        fem_pull_slabs,
         fem_mesher,
         fem_tangent,
         skip_mpm,
@@ -405,6 +414,7 @@ pub(crate) fn run(
                     newton: graded.newton,
                     tangent: graded.tangent,
                     clamp_on_lattice_plane: graded.clamp_on_lattice_plane,
+                    pull_slabs_on_lattice_planes: graded.pull_slabs_on_lattice_planes,
                     ..shapes.fem
                 }
             } else {
@@ -415,7 +425,10 @@ pub(crate) fn run(
             shapes.fem.newton = fem_ref::reusing_reference_newton();
         }
         if let Some(choice) = fem_clamp {
-            shapes.fem.clamp_on_lattice_plane = choice == FemClampChoice::Plane;
+            shapes.fem.clamp_on_lattice_plane = choice == SlabFaceChoice::Plane;
+        }
+        if let Some(choice) = fem_pull_slabs {
+            shapes.fem.pull_slabs_on_lattice_planes = choice == SlabFaceChoice::Plane;
         }
         if let Some(choice) = fem_tangent {
             shapes.fem.tangent = match choice {
