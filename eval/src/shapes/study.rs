@@ -38,7 +38,9 @@ use crate::shapes::catalog::{
     DEFAULT_SHAPE_YOUNGS_MODULUS, MaterialClass, SHAPE_DENSITY, SHAPE_POISSON_RATIO,
     ShapeCollection, catalog_entry,
 };
-use crate::shapes::reference::{FemMeshSummary, ShapeFemParams, SlabFaces, mesh_for_fem};
+use crate::shapes::reference::{
+    FemMeshSummary, ShapeFemParams, SlabFaces, mesh_for_fem, mesh_through,
+};
 use freeform::scene::SceneSpec;
 use freeform::{PinHold, Simulation};
 
@@ -536,15 +538,14 @@ fn run_shape_into(
     let cells = (length / report.cell_size).round() as usize;
     let finer_cells = (1.5 * length / report.cell_size).round() as usize;
     // The largest piece of the lattice mesh at `cells` across, with `faces` on vertex planes
-    // where given, and its summary.
-    let lattice_mesh =
-        |cells: usize, faces: Option<SlabFaces>| -> Result<(TetMesh, FemMeshSummary), EvalError> {
-            let params = config.fem.lattice_through(cells, length, faces);
-            let (mesh, report) = tetrahedralize(&surface, &params).map_err(EvalError::FemMesh)?;
-            Ok(FemMeshSummary::largest_piece(&mesh, &report, length))
-        };
+    // where given.
+    let lattice_mesh = |cells: usize, faces: Option<SlabFaces>| -> Result<TetMesh, EvalError> {
+        let params = config.fem.lattice_through(cells, length, faces);
+        let (mesh, report) = tetrahedralize(&surface, &params).map_err(EvalError::FemMesh)?;
+        Ok(FemMeshSummary::largest_piece(&mesh, &report, length).0)
+    };
     let finer = if config.check_convergence {
-        Some(lattice_mesh(finer_cells, None)?.0)
+        Some(lattice_mesh(finer_cells, None)?)
     } else {
         None
     };
@@ -567,12 +568,16 @@ fn run_shape_into(
         let scene = boundary.scene(&surface, tets.vertices(), &config.boundary);
         let label = format!("{} {}", result.name, boundary.title());
         // The reference on a lattice whose vertex planes are the held slabs' faces, if asked.
+        // (Finer by 1.5× the cells of its own mesh, which may be finer than the shape's when
+        // the aligned lattice at the shape's cells loses volume.)
         let clamped = config.fem.slab_faces(boundary, &scene).map(|faces| {
-            let (tets, summary) = lattice_mesh(cells, Some(faces))?;
+            let (tets, summary, cells) =
+                mesh_through(&surface, &config.fem, cells, length, Some(faces))?;
             row.fem_mesh = Some(summary);
+            let finer_cells = (1.5 * cells as f64).round() as usize;
             let finer = finer
                 .as_ref()
-                .map(|_| lattice_mesh(finer_cells, Some(faces)).map(|(finer, _)| finer))
+                .map(|_| lattice_mesh(finer_cells, Some(faces)))
                 .transpose()?;
             Ok::<_, EvalError>((tets, finer))
         });
