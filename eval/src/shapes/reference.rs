@@ -95,7 +95,11 @@ impl ShapeFemParams {
     /// gated shapes the 1.5× finer reference then changed the trajectory 4–15× less on six
     /// (hand 2.2e-5 → 3.7e-6, ghost 3.2e-5 → 8.2e-6, cat 1.6e-6 → 3.2e-7, goat head 4.7e-6 →
     /// 7.5e-7, 37620 6.1e-13 → 1.0e-13, 93070 1.3e-11 → 8.8e-13) and 1.2–1.6× more on two
-    /// (squirrel 1.7e-5 → 2.1e-5, 94492 4.3e-10 → 6.8e-10), 2026-11-26.
+    /// (squirrel 1.7e-5 → 2.1e-5, 94492 4.3e-10 → 6.8e-10), 2026-11-26. Pull boundary's two
+    /// slabs likewise ([`ShapeFemParams::pull_slabs_on_lattice_planes`]): on those eight shapes
+    /// and the bunny and the koala the finer reference's change fell 1.6–24× on eight (37620
+    /// 2.3e-7 → 2.6e-8, 94492 4.8e-7 → 9.7e-8, hand 3.9e-6 → 1.6e-7 at 24 cells), stayed on the
+    /// cat and rose 1.4× on 93070, which took the trusted Pull boundary rows from 6 to 9 of 10.
     pub fn graded() -> Self {
         ShapeFemParams {
             first_cells_across: 16,
