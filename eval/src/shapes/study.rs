@@ -570,7 +570,7 @@ fn run_shape_into(
         // The reference on a lattice whose vertex planes are the held slabs' faces, if asked.
         // (Finer by 1.5× the cells of its own mesh, which may be finer than the shape's when
         // the aligned lattice at the shape's cells loses volume.)
-        let clamped = config.fem.slab_faces(boundary, &scene).map(|faces| {
+        let aligned = config.fem.slab_faces(boundary, &scene).map(|faces| {
             let (tets, summary, cells) =
                 mesh_through(&surface, &config.fem, cells, length, Some(faces))?;
             row.fem_mesh = Some(summary);
@@ -581,15 +581,15 @@ fn run_shape_into(
                 .transpose()?;
             Ok::<_, EvalError>((tets, finer))
         });
-        let clamped = match clamped.transpose() {
-            Ok(clamped) => clamped,
+        let aligned = match aligned.transpose() {
+            Ok(aligned) => aligned,
             Err(e) => {
                 row.error = Some(e.to_string());
                 result.rows.push(row);
                 continue;
             }
         };
-        let (tets, finer) = match &clamped {
+        let (tets, finer) = match &aligned {
             Some((tets, finer)) => (tets, finer.as_ref()),
             None => (&tets, finer.as_ref()),
         };
