@@ -194,7 +194,7 @@ fn write_preview(report: &SimulateReport, file: &SceneFile, png: &Path) -> Resul
     )
 }
 
-/// [`write_preview`] of `points` (m) with their `values` (colour scale) or grey, opaque or
+/// `write_preview` of `points` (m) with their `values` (colour scale) or grey, opaque or
 /// with the given opacities (0 … 1).
 fn write_points_preview(
     points: &[Vector3<f64>],

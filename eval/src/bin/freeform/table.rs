@@ -87,7 +87,7 @@ pub(crate) struct TableOptions {
     #[arg(long)]
     check_convergence: bool,
     /// Tables 2 and 7: solve the FEM references with the Cholesky factor carried across steps
-    /// at Newton tolerance 1e-8 ([`fem_ref::reusing_reference_newton`], 2.4–4× faster on
+    /// at Newton tolerance 1e-8 (`fem_ref::reusing_reference_newton`, 2.4–4× faster on
     /// 27k–62k DOFs); their trajectories are cached apart from the default ones.
     #[arg(long)]
     fem_reuse: bool,
@@ -191,27 +191,26 @@ pub(crate) enum PinModulusChoice {
 pub(crate) enum SlabFaceChoice {
     /// On the shape's one lattice mesh: the nodes inside the slab.
     Lattice,
-    /// On a lattice whose vertex planes are the slabs' faces
-    /// ([`ShapeFemParams::clamp_on_lattice_plane`],
-    /// [`ShapeFemParams::pull_slabs_on_lattice_planes`]).
+    /// On a lattice whose vertex planes are the slabs' faces, so the held nodes fill them
+    /// (`ShapeFemParams::{clamp_on_lattice_plane, pull_slabs_on_lattice_planes}`).
     Plane,
 }
 
 /// How the shapes' FEM references are meshed.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, clap::ValueEnum)]
 pub(crate) enum FemMesherChoice {
-    /// Uniform lattices ([`ShapeFemParams::default`]).
+    /// Uniform lattices (`ShapeFemParams::default`).
     Uniform,
-    /// Lattices graded near the surface ([`ShapeFemParams::graded`]).
+    /// Lattices graded near the surface (`ShapeFemParams::graded`).
     Graded,
 }
 
 /// The element tangent of the shapes' FEM references.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, clap::ValueEnum)]
 pub(crate) enum FemTangentChoice {
-    /// [`HessianTangent::ProjectedPsd`].
+    /// `HessianTangent::ProjectedPsd`.
     Projected,
-    /// [`HessianTangent::ExactWhenDefinite`].
+    /// `HessianTangent::ExactWhenDefinite`.
     ExactWhenDefinite,
 }
 
