@@ -310,18 +310,23 @@ mod tests {
 
     use super::*;
 
+    /// A 1 × 0.5 × `thickness` plate tilted off the lattice planes.
+    fn tilted_plate(thickness: f64) -> TriangleMesh {
+        let box_ = TriangleMesh::cuboid(Vector3::zeros(), Vector3::new(1.0, 0.5, thickness));
+        let rotation = Rotation3::new(Vector3::new(0.2, -0.3, 0.1));
+        TriangleMesh::new(
+            box_.vertices().iter().map(|p| rotation * p).collect(),
+            box_.triangles().to_vec(),
+        )
+        .unwrap()
+    }
+
     #[test]
     fn a_rows_own_mesh_climbs_the_lattice_ladder_until_its_volume_is_within_tolerance() {
         // A tilted 1 × 0.5 × 0.1 plate, Fix side's face on a vertex plane: at 6 cells across the
         // uniform lattice loses more than 3% of the volume; the ladder refines until it keeps it,
         // and stops at the largest lattice allowed (its error then reported, not hidden).
-        let box_ = TriangleMesh::cuboid(Vector3::zeros(), Vector3::new(1.0, 0.5, 0.1));
-        let rotation = Rotation3::new(Vector3::new(0.2, -0.3, 0.1));
-        let plate = TriangleMesh::new(
-            box_.vertices().iter().map(|p| rotation * p).collect(),
-            box_.triangles().to_vec(),
-        )
-        .unwrap();
+        let plate = tilted_plate(0.1);
         let bbox = plate.bounding_box();
         let faces = Some(SlabFaces {
             axis: 0,
@@ -351,13 +356,7 @@ mod tests {
     fn graded_references_keep_a_thin_plate_the_default_lattice_loses() {
         // 1 × 0.5 × 0.03, tilted off the lattice planes: thinner than the default's 16-cell
         // spacing.
-        let box_ = TriangleMesh::cuboid(Vector3::zeros(), Vector3::new(1.0, 0.5, 0.03));
-        let rotation = Rotation3::new(Vector3::new(0.2, -0.3, 0.1));
-        let plate = TriangleMesh::new(
-            box_.vertices().iter().map(|p| rotation * p).collect(),
-            box_.triangles().to_vec(),
-        )
-        .unwrap();
+        let plate = tilted_plate(0.03);
         let lost = |params: &ShapeFemParams| match mesh_for_fem(&plate, params) {
             Ok((_, report)) => report.relative_volume_error,
             Err(EvalError::FemMesh(LatticeMesherError::NothingInside { .. })) => -1.0,
