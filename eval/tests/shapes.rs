@@ -4,7 +4,7 @@
 use eval::shapes::boundary::{ShapeBoundary, ShapeBoundaryParams};
 use eval::shapes::reference::ShapeFemParams;
 use fem_ref::tetrahedralize;
-use freeform::scene::Motion;
+use freeform::scene::{Motion, SceneSpec};
 use nalgebra::Vector3;
 use rkpm_core::TriangleMesh;
 
@@ -134,6 +134,27 @@ fn pull_farthest_pulls_four_distinct_corners_outward_within_the_radius() {
     }
 }
 
+/// `boundary`'s scene on `surface` (the box), slabs measured from its own vertices.
+fn box_scene(surface: &TriangleMesh, boundary: ShapeBoundary) -> SceneSpec {
+    boundary.scene(surface, surface.vertices(), &ShapeBoundaryParams::default())
+}
+
+/// The positions of the FEM mesh vertices each of `boundary`'s regions holds, on the lattice
+/// `fem` meshes the box's reference on at 16 cells across (L = 2).
+fn held_nodes(
+    surface: &TriangleMesh,
+    fem: &ShapeFemParams,
+    boundary: ShapeBoundary,
+) -> Vec<Vec<Vector3<f64>>> {
+    let scene = box_scene(surface, boundary);
+    let faces = fem.slab_faces(boundary, &scene);
+    let (mesh, _) = tetrahedralize(surface, &fem.lattice_through(16, 2.0, faces)).unwrap();
+    let held = scene.select(mesh.vertices(), "mesh vertices").unwrap();
+    held.iter()
+        .map(|region| region.iter().map(|&i| mesh.vertices()[i]).collect())
+        .collect()
+}
+
 #[test]
 fn fix_sides_reference_on_the_shifted_lattice_holds_nodes_up_to_the_slabs_face() {
     // The 1 × 2 × 0.5 box at 16 cells across (h = 0.125): the clamp's face x = 0.1 lies
@@ -143,18 +164,10 @@ fn fix_sides_reference_on_the_shifted_lattice_holds_nodes_up_to_the_slabs_face()
         clamp_on_lattice_plane: false,
         ..ShapeFemParams::graded()
     };
-    let scene = ShapeBoundary::FixSide.scene(
-        &surface,
-        surface.vertices(),
-        &ShapeBoundaryParams::default(),
-    );
     let deepest_held = |fem: &ShapeFemParams| {
-        let faces = fem.slab_faces(ShapeBoundary::FixSide, &scene);
-        let (mesh, _) = tetrahedralize(&surface, &fem.lattice_through(16, 2.0, faces)).unwrap();
-        let held = scene.select(mesh.vertices(), "mesh vertices").unwrap();
-        held[0]
+        held_nodes(&surface, fem, ShapeBoundary::FixSide)[0]
             .iter()
-            .map(|&i| mesh.vertices()[i].x)
+            .map(|p| p.x)
             .fold(f64::NEG_INFINITY, f64::max)
     };
     // (Bisection midpoints on the plane round to within 1e-16 of it.)
@@ -171,18 +184,9 @@ fn fix_sides_reference_on_the_shifted_lattice_holds_nodes_up_to_the_slabs_face()
     );
     // Other conditions keep the shape's one mesh.
     fem.pull_slabs_on_lattice_planes = false;
-    let pull = ShapeBoundary::PullBoundary.scene(
-        &surface,
-        surface.vertices(),
-        &ShapeBoundaryParams::default(),
-    );
-    assert_eq!(fem.slab_faces(ShapeBoundary::PullBoundary, &pull), None);
-    let farthest = ShapeBoundary::PullFarthest.scene(
-        &surface,
-        surface.vertices(),
-        &ShapeBoundaryParams::default(),
-    );
-    assert_eq!(fem.slab_faces(ShapeBoundary::PullFarthest, &farthest), None);
+    for other in [ShapeBoundary::PullBoundary, ShapeBoundary::PullFarthest] {
+        assert_eq!(fem.slab_faces(other, &box_scene(&surface, other)), None);
+    }
 }
 
 #[test]
@@ -195,20 +199,15 @@ fn pull_boundarys_reference_on_the_aligned_lattice_holds_nodes_up_to_both_slabs_
         pull_slabs_on_lattice_planes: false,
         ..ShapeFemParams::graded()
     };
-    let scene = ShapeBoundary::PullBoundary.scene(
-        &surface,
-        surface.vertices(),
-        &ShapeBoundaryParams::default(),
-    );
     // How deep each pulled region's nodes reach into the body: its innermost node's y.
     let innermost = |fem: &ShapeFemParams| {
-        let faces = fem.slab_faces(ShapeBoundary::PullBoundary, &scene);
-        let (mesh, _) = tetrahedralize(&surface, &fem.lattice_through(16, 2.0, faces)).unwrap();
-        let held = scene.select(mesh.vertices(), "mesh vertices").unwrap();
-        let y = |i: &usize| mesh.vertices()[*i].y;
+        let held = held_nodes(&surface, fem, ShapeBoundary::PullBoundary);
         (
-            held[0].iter().map(y).fold(f64::NEG_INFINITY, f64::max),
-            held[1].iter().map(y).fold(f64::INFINITY, f64::min),
+            held[0]
+                .iter()
+                .map(|p| p.y)
+                .fold(f64::NEG_INFINITY, f64::max),
+            held[1].iter().map(|p| p.y).fold(f64::INFINITY, f64::min),
         )
     };
     let (low, high) = innermost(&fem);
@@ -217,6 +216,7 @@ fn pull_boundarys_reference_on_the_aligned_lattice_holds_nodes_up_to_both_slabs_
         "the unaligned lattice stops short of both faces: {low}, {high}"
     );
     fem.pull_slabs_on_lattice_planes = true;
+    let scene = box_scene(&surface, ShapeBoundary::PullBoundary);
     let faces = fem.slab_faces(ShapeBoundary::PullBoundary, &scene).unwrap();
     assert_eq!((faces.axis, faces.first, faces.second), (1, 0.1, Some(1.9)));
     let (low, high) = innermost(&fem);

@@ -575,9 +575,9 @@ fn run_shape_into(
                 mesh_through(&surface, &config.fem, cells, length, Some(faces))?;
             row.fem_mesh = Some(summary);
             let finer_cells = (1.5 * cells as f64).round() as usize;
-            let finer = finer
-                .as_ref()
-                .map(|_| lattice_mesh(finer_cells, Some(faces)))
+            let finer = config
+                .check_convergence
+                .then(|| lattice_mesh(finer_cells, Some(faces)))
                 .transpose()?;
             Ok::<_, EvalError>((tets, finer))
         });

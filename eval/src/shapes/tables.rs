@@ -417,29 +417,30 @@ pub fn table2(study: &ShapeStudy) -> RenderedTable {
         "name,bc,ours_mse,ours_max,simplicits_mse,simplicits_max,ours_fit,simplicits_fit,error\n",
     );
     let mut rows = Vec::new();
+    let describe = |mesh: Option<FemMeshSummary>| {
+        mesh.map_or("—".into(), |m| {
+            format!(
+                "{} cells, {} vertices, volume {:+.1}%{}",
+                m.cells_across,
+                m.vertices,
+                100.0 * m.relative_volume_error,
+                if m.dropped_pieces > 0 {
+                    format!(
+                        " ({} island(s) of {:.1}% dropped)",
+                        m.dropped_pieces,
+                        100.0 * m.dropped_volume_fraction
+                    )
+                } else {
+                    String::new()
+                }
+            )
+        })
+    };
     for shape in &study.shapes {
-        let describe = |mesh: Option<FemMeshSummary>| {
-            mesh.map_or("—".into(), |m| {
-                format!(
-                    "{} cells, {} vertices, volume {:+.1}%{}",
-                    m.cells_across,
-                    m.vertices,
-                    100.0 * m.relative_volume_error,
-                    if m.dropped_pieces > 0 {
-                        format!(
-                            " ({} island(s) of {:.1}% dropped)",
-                            m.dropped_pieces,
-                            100.0 * m.dropped_volume_fraction
-                        )
-                    } else {
-                        String::new()
-                    }
-                )
-            })
-        };
         for boundary in ShapeBoundary::ALL {
             let row = shape.rows.iter().find(|r| r.boundary == boundary);
-            // The mesh this row's reference ran on (Fix side's may be its own).
+            // The mesh this row's reference ran on (Fix side's and Pull boundary's may be their
+            // own).
             let reference_mesh = row.and_then(|r| shape.reference_mesh(r)).or(shape.fem_mesh);
             let mesh = describe(reference_mesh);
             let ours = row.and_then(|r| r.ours);
