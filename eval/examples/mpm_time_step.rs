@@ -43,6 +43,7 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
                 newton: NewtonParams::default(),
                 tangent: HessianTangent::ProjectedPsd,
                 ordering: FillReducingOrdering::default(),
+                failed_step_halvings: 0,
                 steps: steps * substeps,
             },
             &format!("{} P2 res 4 h = {h}", test.name()),

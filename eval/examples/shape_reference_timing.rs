@@ -168,6 +168,7 @@ fn main() -> Result<()> {
             OrderingArg::NestedDissection => FillReducingOrdering::NestedDissection,
             OrderingArg::SmallerFactor => FillReducingOrdering::SmallerFactor,
         },
+        failed_step_halvings: params.failed_step_halvings,
         steps: args.steps,
     }
     .simulator()?;

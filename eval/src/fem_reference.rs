@@ -146,6 +146,7 @@ fn beam_problem(
         newton,
         tangent: HessianTangent::ProjectedPsd,
         ordering: FillReducingOrdering::default(),
+        failed_step_halvings: 0,
         steps,
     })
 }
@@ -218,6 +219,9 @@ pub struct FemProblem<'a> {
     /// Elimination order of the sparse Cholesky factorization (round-off only; not part of
     /// the cache key).
     pub ordering: FillReducingOrdering,
+    /// How deep a step that does not converge whole is split into backward-Euler half steps
+    /// ([`FemParams::failed_step_halvings`]; 0 for the beam's references).
+    pub failed_step_halvings: usize,
     /// Steps to run.
     pub steps: usize,
 }
@@ -246,6 +250,7 @@ impl FemProblem<'_> {
             newton: self.newton,
             tangent: self.tangent,
             ordering: self.ordering,
+            failed_step_halvings: self.failed_step_halvings,
             ..FemParams::default()
         };
         let sim = FemSimulator::new(model, fem_scene, params).map_err(EvalError::FemSetup)?;
@@ -286,9 +291,13 @@ pub fn run_fem(
     } else {
         // A line per computed reference, also where bars are hidden (parallel shapes, stderr
         // not a terminal): long tables show where their time goes.
+        let split = match sim.split_steps() {
+            0 => String::new(),
+            n => format!(", {n} split in halves"),
+        };
         progress.status(format!(
             "FEM {label}: {steps} steps on {dofs} DOFs in {:.0} s ({seconds_per_step:.2} s per \
-             step, {iterations_per_step:.1} Newton iterations per step)",
+             step, {iterations_per_step:.1} Newton iterations per step{split})",
             trajectory.seconds
         ));
     }

@@ -4,6 +4,7 @@
 use std::sync::{Mutex, PoisonError};
 use std::time::Instant;
 
+use artifact::ContentKeyBuilder;
 use hyperelastic::{HessianTangent, HyperelasticMaterial, Tangent};
 use nalgebra::Vector3;
 use optimize::{
@@ -51,6 +52,17 @@ pub struct FemParams {
     /// setup); a larger need is refused at setup. Not part of the trajectory key.
     #[serde(default)]
     pub factor_memory: FactorMemoryLimit,
+    /// How deep a step whose Newton solve does not converge (iteration cap, stalled line
+    /// search, a failed factorization or a non-finite value) is split: the step of h is taken
+    /// again from its start as two backward-Euler steps of h/2, each of which may be split
+    /// again, at most this many halvings deep (default 0: the step is kept unconverged and
+    /// reported so, the first tables' setting). Frames stay at multiples of h; a step that
+    /// still fails at the deepest level is reported unconverged (or its error returned).
+    /// Not part of [`FemSimulator::trajectory_key`]: a trajectory whose every step converged
+    /// whole is what any depth computes, and [`FemSimulator::run_cached`] stores one that
+    /// needed a split under its own key ([`FemSimulator::split_trajectory_key`]).
+    #[serde(default)]
+    pub failed_step_halvings: usize,
 }
 
 impl Default for FemParams {
@@ -61,6 +73,7 @@ impl Default for FemParams {
             tangent: HessianTangent::ProjectedPsd,
             ordering: FillReducingOrdering::default(),
             factor_memory: FactorMemoryLimit::default(),
+            failed_step_halvings: 0,
         }
     }
 }
@@ -167,6 +180,8 @@ pub struct FemSimulator<M: HyperelasticMaterial> {
     length_scale: f64,
     /// With Hessian reuse: the last factorization and the steps since it was made.
     carried: Option<CarriedFactor<NumericFactor>>,
+    /// Steps taken as halves since construction ([`FemParams::failed_step_halvings`]).
+    split_steps: usize,
 }
 
 struct StepProblem<'a> {
@@ -265,6 +280,7 @@ impl<M: HyperelasticMaterial> FemSimulator<M> {
             time: 0.0,
             length_scale,
             carried: None,
+            split_steps: 0,
         })
     }
 
@@ -294,6 +310,12 @@ impl<M: HyperelasticMaterial> FemSimulator<M> {
             .collect()
     }
 
+    /// Steps of h that did not converge whole and were taken as halves
+    /// ([`FemParams::failed_step_halvings`]) since the simulator was built.
+    pub fn split_steps(&self) -> usize {
+        self.split_steps
+    }
+
     /// Unknowns of the Newton system (free DOFs).
     pub fn free_dofs(&self) -> usize {
         self.system.free_count
@@ -315,6 +337,20 @@ impl<M: HyperelasticMaterial> FemSimulator<M> {
     /// cannot be hashed: `scene_label` must name them uniquely (e.g. "twist 2160 deg/s to 720
     /// deg about y = z = 0.5").
     pub fn trajectory_key(&self, scene_label: &str, steps: usize) -> TrajectoryKey {
+        self.key_builder(scene_label, steps).finish()
+    }
+
+    /// The cache key of a run of `steps` steps some of whose steps were split
+    /// ([`FemParams::failed_step_halvings`]): [`Self::trajectory_key`]'s inputs and the
+    /// splitting depth.
+    pub fn split_trajectory_key(&self, scene_label: &str, steps: usize) -> TrajectoryKey {
+        self.key_builder(scene_label, steps)
+            .str("failed steps split in halves, at most this deep")
+            .u64(self.params.failed_step_halvings as u64)
+            .finish()
+    }
+
+    fn key_builder(&self, scene_label: &str, steps: usize) -> ContentKeyBuilder {
         let mut key = trajectory_key_builder();
         let mesh = self.model.mesh();
         let tets = mesh.tet_mesh();
@@ -364,13 +400,19 @@ impl<M: HyperelasticMaterial> FemSimulator<M> {
             .str(&format!("{:?}", self.params.tangent))
             .str(scene_label)
             .u64(steps as u64);
-        key.finish()
+        key
     }
 
     /// `steps` steps from the current state, recording all node positions per frame (frame 0 =
-    /// the current state) — or the cached trajectory when `cache` holds one for
-    /// [`Self::trajectory_key`]. Returns the trajectory and whether it came from the cache; a
-    /// fresh run is stored. `progress(step)` is called after each computed step.
+    /// the current state) — or the cached trajectory when `cache` holds one. Returns the
+    /// trajectory and whether it came from the cache; a fresh run is stored.
+    /// `progress(step)` is called after each computed step.
+    ///
+    /// A run is stored under [`Self::trajectory_key`], or under
+    /// [`Self::split_trajectory_key`] when it split a step
+    /// ([`FemParams::failed_step_halvings`]). With splitting allowed, a trajectory under the
+    /// first key is taken only when every step converged (it is then what splitting computes
+    /// too); one with unconverged steps was run without splitting and is run again.
     ///
     /// Only meaningful from the rest state at t = 0 (what the key describes).
     ///
@@ -385,9 +427,17 @@ impl<M: HyperelasticMaterial> FemSimulator<M> {
         mut progress: impl FnMut(usize),
     ) -> Result<(Trajectory, bool), FemRunError> {
         let key = self.trajectory_key(scene_label, steps);
-        if let Some(t) = cache.load(key).map_err(FemRunError::Cache)? {
+        let split_key = self.split_trajectory_key(scene_label, steps);
+        let splitting = self.params.failed_step_halvings > 0;
+        if let Some(t) = cache.load(key).map_err(FemRunError::Cache)?
+            && (!splitting || t.converged.iter().all(|&c| c))
+        {
             return Ok((t, true));
         }
+        if splitting && let Some(t) = cache.load(split_key).map_err(FemRunError::Cache)? {
+            return Ok((t, true));
+        }
+        let split_before = self.split_steps;
         let start = Instant::now();
         let frame = |sim: &Self| -> Vec<[f64; 3]> {
             sim.x.chunks_exact(3).map(|c| [c[0], c[1], c[2]]).collect()
@@ -410,6 +460,11 @@ impl<M: HyperelasticMaterial> FemSimulator<M> {
             progress(step);
         }
         trajectory.seconds = start.elapsed().as_secs_f64();
+        let key = if self.split_steps > split_before {
+            split_key
+        } else {
+            key
+        };
         match cache.store(key, &trajectory) {
             Ok(_) => Ok((trajectory, false)),
             Err(e) => Err(FemRunError::CacheWrite {
@@ -430,12 +485,55 @@ impl<M: HyperelasticMaterial> FemSimulator<M> {
         }
     }
 
-    /// One backward-Euler step of h.
+    /// One backward-Euler step of h, split into halves where it does not converge whole
+    /// ([`FemParams::failed_step_halvings`]). The report sums the iterations of every try
+    /// (the failed whole step's included) and is converged only when every piece is.
     ///
     /// # Errors
-    /// [`NewtonError`]; the state is then unchanged.
+    /// [`NewtonError`] of the deepest try; the state is then that of the last piece that
+    /// succeeded (unchanged when none did, as without splitting).
     pub fn step(&mut self) -> Result<NewtonReport, NewtonError> {
-        let h = self.params.time_step;
+        let (report, split) =
+            self.step_split(self.params.time_step, self.params.failed_step_halvings)?;
+        self.split_steps += usize::from(split);
+        Ok(report)
+    }
+
+    /// A step of `h` that may split `halvings` levels deep, and whether it split.
+    fn step_split(&mut self, h: f64, halvings: usize) -> Result<(NewtonReport, bool), NewtonError> {
+        if halvings == 0 {
+            return Ok((self.backward_euler_step(h)?, false));
+        }
+        let (x, v, time) = (self.x.clone(), self.v.clone(), self.time);
+        let whole = match self.backward_euler_step(h) {
+            Ok(report) if report.converged() => return Ok((report, false)),
+            Ok(report) => Some(report),
+            Err(_) => None,
+        };
+        // Again from the step's start in two halves; a carried factor belongs to h's system.
+        (self.x, self.v, self.time) = (x, v, time);
+        self.carried = None;
+        let (first, _) = self.step_split(0.5 * h, halvings - 1)?;
+        let (second, _) = self.step_split(0.5 * h, halvings - 1)?;
+        self.time = time + h;
+        let halves = if first.converged() {
+            first.followed_by(&second)
+        } else {
+            NewtonReport {
+                stop: first.stop,
+                residual: first.residual,
+                ..first.followed_by(&second)
+            }
+        };
+        let report = match whole {
+            Some(whole) => whole.followed_by(&halves),
+            None => halves,
+        };
+        Ok((report, true))
+    }
+
+    /// One backward-Euler step of `h` (s).
+    fn backward_euler_step(&mut self, h: f64) -> Result<NewtonReport, NewtonError> {
         let mut predicted: Vec<f64> = self.x.iter().zip(&self.v).map(|(x, v)| x + h * v).collect();
         self.apply_targets(&mut predicted, self.time + h);
         let mut x = predicted.clone();

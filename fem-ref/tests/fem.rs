@@ -482,3 +482,103 @@ fn a_factor_over_the_memory_limit_is_refused_at_setup_with_its_size_and_one_with
     assert_eq!(sim.factor_nonzeros(), factor_nonzeros);
     assert!(simulator(FactorMemoryLimit::Unlimited).is_ok());
 }
+
+/// A soft P1 cantilever (E = 2 kPa, 4 × 1 × 1 m) falling under gravity with Newton capped at
+/// `max_iterations` and steps split `failed_step_halvings` deep.
+fn soft_falling_cantilever(
+    time_step: f64,
+    max_iterations: usize,
+    failed_step_halvings: usize,
+) -> FemSimulator<StableNeoHookean> {
+    let mesh = FemMesh::new(
+        TetMesh::cuboid(Vector3::zeros(), Vector3::new(4.0, 1.0, 1.0), [4, 1, 1]).unwrap(),
+        ElementOrder::Linear,
+    );
+    let soft = MaterialSample {
+        youngs_modulus: 2e3,
+        ..MATERIAL
+    };
+    let n = mesh.element_count();
+    let model =
+        FemModel::new(mesh, &vec![soft; n], StableNeoHookean, MassKind::Consistent).unwrap();
+    let scene = cantilever_under_gravity(&model);
+    let params = FemParams {
+        time_step,
+        newton: NewtonParams {
+            max_iterations,
+            tolerance: 1e-10,
+            ..NewtonParams::default()
+        },
+        failed_step_halvings,
+        ..FemParams::default()
+    };
+    FemSimulator::new(model, scene, params).unwrap()
+}
+
+/// At h = 0.2 s the first step of [`soft_falling_cantilever`] needs 18 Newton iterations,
+/// each half of it at h = 0.1 s 5 and 7: capped at 10, the whole step fails and its halves
+/// converge. Split, the step lands where two backward-Euler steps of h/2 do.
+#[test]
+fn a_step_that_fails_whole_is_taken_as_two_backward_euler_half_steps() {
+    let mut whole = soft_falling_cantilever(0.2, 10, 0);
+    assert!(!whole.step().unwrap().converged());
+    let mut split = soft_falling_cantilever(0.2, 10, 1);
+    let report = split.step().unwrap();
+    assert!(report.converged());
+    assert_eq!(split.split_steps(), 1);
+    assert!(
+        report.iterations > 10,
+        "{} iterations: the failed whole step's 10 are counted",
+        report.iterations
+    );
+    let mut halves = soft_falling_cantilever(0.1, 100, 0);
+    assert!(halves.step().unwrap().converged() && halves.step().unwrap().converged());
+    assert_eq!(split.time(), 0.2);
+    let deviation = |a: Vec<Vector3<f64>>, b: Vec<Vector3<f64>>| {
+        a.iter()
+            .zip(&b)
+            .map(|(p, q)| (p - q).norm())
+            .fold(0.0, f64::max)
+    };
+    let positions = deviation(split.positions(), halves.positions());
+    let velocities = deviation(split.velocities(), halves.velocities());
+    assert!(positions < 1e-8, "positions differ by {positions} m");
+    assert!(velocities < 1e-7, "velocities differ by {velocities} m/s");
+    // Capped at 10 with no level left to split into, the step stays unconverged.
+    let mut shallow = soft_falling_cantilever(0.4, 10, 1);
+    assert!(!shallow.step().unwrap().converged());
+}
+
+/// A trajectory that split a step is cached under its own key; a run that may split does not
+/// take an unsplit run's unconverged trajectory, and converged ones serve every depth.
+#[test]
+fn split_trajectories_are_cached_apart_and_unconverged_ones_are_not_served_to_splitting_runs() {
+    use fem_ref::TrajectoryCache;
+    let dir = test_support::fixtures::scratch_dir("fem-split-cache");
+    let cache = TrajectoryCache::new(&dir);
+    let run = |h: f64, halvings: usize, expect_cached: bool| {
+        let mut computed = 0;
+        let (trajectory, cached) = soft_falling_cantilever(h, 10, halvings)
+            .run_cached(2, "falling", &cache, |_| computed += 1)
+            .unwrap();
+        assert_eq!(cached, expect_cached, "h {h}, {halvings} halvings");
+        assert_eq!(computed, if cached { 0 } else { 2 });
+        trajectory
+    };
+    let unsplit = run(0.2, 0, false);
+    assert!(!unsplit.converged[0]);
+    let split = run(0.2, 1, false);
+    assert!(split.converged.iter().all(|&c| c));
+    assert_eq!(run(0.2, 1, true), split);
+    assert_eq!(run(0.2, 0, true), unsplit);
+    // Every step converged whole: one trajectory for every depth.
+    let smooth = run(0.025, 2, false);
+    assert!(smooth.converged.iter().all(|&c| c));
+    assert_eq!(run(0.025, 0, true), smooth);
+    let key = |halvings| soft_falling_cantilever(0.2, 10, halvings).split_trajectory_key("x", 2);
+    assert_ne!(key(1), key(2));
+    assert_eq!(
+        soft_falling_cantilever(0.2, 10, 1).trajectory_key("x", 2),
+        soft_falling_cantilever(0.2, 10, 2).trajectory_key("x", 2)
+    );
+}

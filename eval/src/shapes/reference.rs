@@ -60,6 +60,13 @@ pub struct ShapeFemParams {
     /// pulls each end only to its last node plane inside the slab, as with Fix side above.
     #[serde(default)]
     pub pull_slabs_on_lattice_planes: bool,
+    /// How deep a reference's step whose Newton solve does not converge within
+    /// `newton.max_iterations` is split into backward-Euler half steps
+    /// ([`fem_ref::FemParams::failed_step_halvings`]; default 0, the first tables' setting:
+    /// the step stays unconverged and the row is not scored; [`ShapeFemParams::graded`]
+    /// sets 2). Cached references that converged whole stay valid.
+    #[serde(default)]
+    pub failed_step_halvings: usize,
 }
 
 /// The faces of a condition's held slabs that its reference's lattice puts on vertex planes.
@@ -116,6 +123,7 @@ impl ShapeFemParams {
             tangent: HessianTangent::ExactWhenDefinite,
             clamp_on_lattice_plane: true,
             pull_slabs_on_lattice_planes: true,
+            failed_step_halvings: 2,
             ..ShapeFemParams::default()
         }
     }
@@ -203,6 +211,7 @@ impl Default for ShapeFemParams {
             tangent: HessianTangent::ProjectedPsd,
             clamp_on_lattice_plane: false,
             pull_slabs_on_lattice_planes: false,
+            failed_step_halvings: 0,
         }
     }
 }

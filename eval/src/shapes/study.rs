@@ -602,6 +602,7 @@ fn run_shape_into(
             newton: config.fem.newton,
             tangent: config.fem.tangent,
             ordering: FillReducingOrdering::default(),
+            failed_step_halvings: config.fem.failed_step_halvings,
             steps: config.boundary.steps,
         };
         let outcome =

@@ -118,6 +118,13 @@ pub(crate) struct TableOptions {
     /// uniform lattices (the first tables' setting), exact-when-definite on graded ones.
     #[arg(long, value_enum)]
     fem_tangent: Option<FemTangentChoice>,
+    /// Tables 2 and 7: how deep a FEM reference's step whose Newton solve does not converge
+    /// within the iteration cap is split into backward-Euler half steps (0 keeps it
+    /// unconverged, and its row is not scored). Default: 2 on graded lattices, 0 on uniform
+    /// ones (the first tables' setting). References that converged whole are the same at
+    /// every depth and stay cached.
+    #[arg(long)]
+    fem_step_halvings: Option<usize>,
     /// Leave out the exact-pin columns of Tables 1 and 2 (each row is run a second time with
     /// the pinned regions held exactly, on a basis built for them).
     #[arg(long)]
@@ -250,6 +257,7 @@ pub(crate) fn run(
         fem_pull_slabs,
         fem_mesher,
         fem_tangent,
+        fem_step_halvings,
         skip_mpm,
         mpm_spacings,
         mpm_material,
@@ -414,6 +422,7 @@ pub(crate) fn run(
                     tangent: graded.tangent,
                     clamp_on_lattice_plane: graded.clamp_on_lattice_plane,
                     pull_slabs_on_lattice_planes: graded.pull_slabs_on_lattice_planes,
+                    failed_step_halvings: graded.failed_step_halvings,
                     ..shapes.fem
                 }
             } else {
@@ -428,6 +437,9 @@ pub(crate) fn run(
         }
         if let Some(choice) = fem_pull_slabs {
             shapes.fem.pull_slabs_on_lattice_planes = choice == SlabFaceChoice::Plane;
+        }
+        if let Some(halvings) = fem_step_halvings {
+            shapes.fem.failed_step_halvings = halvings;
         }
         if let Some(choice) = fem_tangent {
             shapes.fem.tangent = match choice {
