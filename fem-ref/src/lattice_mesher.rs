@@ -208,6 +208,18 @@ pub struct VolumeTarget {
     pub growth: f64,
 }
 
+impl VolumeTarget {
+    /// The lattice tried after one of `cells_across` cells: `⌈growth · cells_across⌉`, at
+    /// least one cell more and at most `max_cells_across`; `None` once `max_cells_across` is
+    /// reached.
+    pub fn next_cells_across(&self, cells_across: usize) -> Option<usize> {
+        (cells_across < self.max_cells_across).then(|| {
+            ((cells_across as f64 * self.growth).ceil() as usize)
+                .clamp(cells_across + 1, self.max_cells_across)
+        })
+    }
+}
+
 impl Default for VolumeTarget {
     fn default() -> Self {
         VolumeTarget {
@@ -258,15 +270,14 @@ pub fn tetrahedralize_to_volume(
             Err(LatticeMesherError::NothingInside { .. }) => -1.0,
             Err(e) => return Err(e),
         };
-        if cells_across >= target.max_cells_across {
+        let Some(next) = target.next_cells_across(cells_across) else {
             return Err(LatticeMesherError::VolumeNotReached {
                 cells_across,
                 relative_volume_error,
                 target: target.max_relative_error,
             });
-        }
-        cells_across = ((cells_across as f64 * target.growth).ceil() as usize)
-            .clamp(cells_across + 1, target.max_cells_across);
+        };
+        cells_across = next;
     }
 }
 

@@ -283,6 +283,27 @@ fn shape_thinner_than_the_lattice_is_an_error_naming_the_resolution() {
 }
 
 #[test]
+fn the_volume_ladder_grows_by_its_factor_rounded_up_and_stops_at_its_finest_lattice() {
+    let ladder = |first: usize, target: &VolumeTarget| {
+        std::iter::successors(Some(first), |&c| target.next_cells_across(c)).collect::<Vec<_>>()
+    };
+    let graded = VolumeTarget {
+        max_cells_across: 36,
+        ..VolumeTarget::default()
+    };
+    assert_eq!(ladder(16, &graded), [16, 24, 36]);
+    assert_eq!(ladder(10, &graded), [10, 15, 23, 35, 36]);
+    // A growth that rounds to no new cell still adds one.
+    let slow = VolumeTarget {
+        growth: 1.01,
+        max_cells_across: 4,
+        ..VolumeTarget::default()
+    };
+    assert_eq!(ladder(2, &slow), [2, 3, 4]);
+    assert_eq!(ladder(40, &graded), [40]);
+}
+
+#[test]
 fn invalid_parameters_are_rejected_with_the_parameter_named() {
     let surface = TriangleMesh::cuboid(Vector3::zeros(), Vector3::repeat(1.0));
     for (params, field) in [

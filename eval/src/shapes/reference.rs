@@ -128,6 +128,17 @@ impl ShapeFemParams {
         }
     }
 
+    /// The volume ladder from a lattice of `first_cells_across`: ×1.5 up to
+    /// `max_cells_across` (or `first_cells_across` when that is finer) until the volume is
+    /// within `volume_tolerance`.
+    pub fn volume_target(&self, first_cells_across: usize) -> VolumeTarget {
+        VolumeTarget {
+            max_relative_error: self.volume_tolerance,
+            max_cells_across: self.max_cells_across.max(first_cells_across),
+            growth: 1.5,
+        }
+    }
+
     /// The mesher options at `cells_across`.
     pub fn lattice(&self, cells_across: usize) -> LatticeMesherParams {
         LatticeMesherParams {
@@ -274,16 +285,18 @@ pub fn mesh_through(
     length: f64,
     faces: Option<SlabFaces>,
 ) -> Result<(TetMesh, FemMeshSummary, usize), EvalError> {
-    let max_cells = params.max_cells_across.max(cells_across);
+    let target = params.volume_target(cells_across);
     let mut cells = cells_across;
     loop {
         let lattice = params.lattice_through(cells, length, faces);
         let (mesh, report) = tetrahedralize(surface, &lattice).map_err(EvalError::FemMesh)?;
         let (piece, summary) = FemMeshSummary::largest_piece(&mesh, &report, length);
-        if summary.relative_volume_error.abs() <= params.volume_tolerance || cells >= max_cells {
-            return Ok((piece, summary, cells));
+        match target.next_cells_across(cells) {
+            Some(next) if summary.relative_volume_error.abs() > target.max_relative_error => {
+                cells = next;
+            }
+            _ => return Ok((piece, summary, cells)),
         }
-        cells = ((1.5 * cells as f64).ceil() as usize).clamp(cells + 1, max_cells);
     }
 }
 
@@ -298,11 +311,7 @@ pub fn mesh_for_fem(
     params: &ShapeFemParams,
 ) -> Result<(TetMesh, LatticeMesherReport), EvalError> {
     let lattice = params.lattice(params.first_cells_across);
-    let target = VolumeTarget {
-        max_relative_error: params.volume_tolerance,
-        max_cells_across: params.max_cells_across.max(params.first_cells_across),
-        growth: 1.5,
-    };
+    let target = params.volume_target(params.first_cells_across);
     match tetrahedralize_to_volume(surface, &lattice, &target) {
         Ok(mesh) => Ok(mesh),
         Err(LatticeMesherError::VolumeNotReached { cells_across, .. }) => {

@@ -535,7 +535,7 @@ fn run_shape_into(
     let (tets, summary) = FemMeshSummary::largest_piece(&lattice_mesh, &report, length);
     result.fem_mesh = Some(summary);
     let points = sample_on(&surface, settings.simulation_points, "simulation points")?;
-    let cells = (length / report.cell_size).round() as usize;
+    let cells = summary.cells_across;
     let finer_cells = (1.5 * length / report.cell_size).round() as usize;
     // The largest piece of the lattice mesh at `cells` across, with `faces` on vertex planes
     // where given.
