@@ -73,6 +73,8 @@ pub struct FemRun {
     /// Nodes held in each constrained region of the scene (a region held by one or two nodes
     /// is a hinge).
     pub region_nodes: Vec<usize>,
+    /// How deep an unconverged step was allowed to split ([`FemProblem::failed_step_halvings`]).
+    pub failed_step_halvings: usize,
 }
 
 /// Runs (or loads from `cache_dir`) `steps` steps of `test` at `resolution` with the Newton
@@ -317,6 +319,7 @@ pub fn run_fem(
         dofs,
         cached,
         region_nodes,
+        failed_step_halvings: problem.failed_step_halvings,
     })
 }
 
@@ -336,8 +339,12 @@ pub struct FieldScores {
 #[derive(Clone, Debug, PartialEq, Eq, Serialize, Deserialize, thiserror::Error)]
 #[error(
     "the FEM reference's Newton solve did not converge at frame(s) {} of {steps} (cap {iteration_cap} \
-     iterations): not a reference, not scored",
-    list(frames)
+     iterations{}): not a reference, not scored",
+    list(frames),
+    match step_halvings {
+        0 => String::new(),
+        n => format!(", steps split into halves {n} deep"),
+    }
 )]
 pub struct UnconvergedReference {
     /// The frames (= 1-based steps) whose Newton solve did not converge.
@@ -346,6 +353,9 @@ pub struct UnconvergedReference {
     pub steps: usize,
     /// The Newton iteration cap the run used.
     pub iteration_cap: usize,
+    /// How deep the run split a step that did not converge whole (0: not at all).
+    #[serde(default)]
+    pub step_halvings: usize,
 }
 
 fn list(frames: &[usize]) -> String {
@@ -386,6 +396,7 @@ impl FemRun {
                 frames,
                 steps: self.step_converged.len(),
                 iteration_cap,
+                step_halvings: self.failed_step_halvings,
             })
         }
     }
@@ -466,5 +477,33 @@ impl FemRun {
             .map(|f| interpolation.interpolate(f))
             .collect();
         (inside, frames)
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn an_unconverged_reference_names_its_frames_cap_and_split_depth() {
+        let why = |step_halvings| {
+            UnconvergedReference {
+                frames: vec![28, 31],
+                steps: 40,
+                iteration_cap: 60,
+                step_halvings,
+            }
+            .to_string()
+        };
+        assert!(
+            why(0).contains("frame(s) 28, 31 of 40 (cap 60 iterations): not a reference"),
+            "{}",
+            why(0)
+        );
+        assert!(
+            why(2).contains("(cap 60 iterations, steps split into halves 2 deep)"),
+            "{}",
+            why(2)
+        );
     }
 }
