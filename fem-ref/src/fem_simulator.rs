@@ -427,14 +427,17 @@ impl<M: HyperelasticMaterial> FemSimulator<M> {
         mut progress: impl FnMut(usize),
     ) -> Result<(Trajectory, bool), FemRunError> {
         let key = self.trajectory_key(scene_label, steps);
-        let split_key = self.split_trajectory_key(scene_label, steps);
-        let splitting = self.params.failed_step_halvings > 0;
+        // Only a run that may split has a split key (each key hashes the whole mesh).
+        let split_key = (self.params.failed_step_halvings > 0)
+            .then(|| self.split_trajectory_key(scene_label, steps));
         if let Some(t) = cache.load(key).map_err(FemRunError::Cache)?
-            && (!splitting || t.converged.iter().all(|&c| c))
+            && (split_key.is_none() || t.converged.iter().all(|&c| c))
         {
             return Ok((t, true));
         }
-        if splitting && let Some(t) = cache.load(split_key).map_err(FemRunError::Cache)? {
+        if let Some(split_key) = split_key
+            && let Some(t) = cache.load(split_key).map_err(FemRunError::Cache)?
+        {
             return Ok((t, true));
         }
         let split_before = self.split_steps;
@@ -460,10 +463,9 @@ impl<M: HyperelasticMaterial> FemSimulator<M> {
             progress(step);
         }
         trajectory.seconds = start.elapsed().as_secs_f64();
-        let key = if self.split_steps > split_before {
-            split_key
-        } else {
-            key
+        let key = match split_key {
+            Some(split_key) if self.split_steps > split_before => split_key,
+            _ => key,
         };
         match cache.store(key, &trajectory) {
             Ok(_) => Ok((trajectory, false)),
