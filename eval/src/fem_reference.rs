@@ -6,8 +6,8 @@ use optimize::NewtonParams;
 use std::path::Path;
 
 use fem_ref::{
-    ElementOrder, FemMesh, FemModel, FemParams, FemSimulator, FillReducingOrdering, MassKind,
-    PointInterpolation, TetMesh, TrajectoryCache,
+    ElementOrder, FemMesh, FemModel, FemParams, FemScene, FemSimulator, FillReducingOrdering,
+    MassKind, PointInterpolation, TetMesh, TrajectoryCache,
 };
 use hyperelastic::{HessianTangent, StableNeoHookean};
 use nalgebra::Vector3;
@@ -236,6 +236,15 @@ impl FemProblem<'_> {
     /// [`EvalError::FemModel`] / [`EvalError::FemSetup`] for a model or scene that cannot be
     /// built (e.g. a region that selects no node).
     pub fn simulator(&self) -> Result<(FemSimulator<StableNeoHookean>, Vec<usize>), EvalError> {
+        let parts = self.parts()?;
+        let region_nodes = parts.region_nodes();
+        let sim = FemSimulator::new(parts.model, parts.scene, parts.params)
+            .map_err(EvalError::FemSetup)?;
+        Ok((sim, region_nodes))
+    }
+
+    /// What [`Self::simulator`] builds the simulator from.
+    fn parts(&self) -> Result<SimulatorParts, EvalError> {
         let elements = self.tets.tets().len();
         let mesh = FemMesh::new(self.tets.clone(), self.order);
         let model = FemModel::new(
@@ -245,8 +254,7 @@ impl FemProblem<'_> {
             MassKind::Consistent,
         )
         .map_err(EvalError::FemModel)?;
-        let fem_scene = self.scene.fem_scene(model.mesh().nodes(), 1e4)?;
-        let region_nodes = fem_scene.dirichlet.iter().map(|r| r.nodes.len()).collect();
+        let scene = self.scene.fem_scene(model.mesh().nodes(), 1e4)?;
         let params = FemParams {
             time_step: self.time_step,
             newton: self.newton,
@@ -255,8 +263,25 @@ impl FemProblem<'_> {
             failed_step_halvings: self.failed_step_halvings,
             ..FemParams::default()
         };
-        let sim = FemSimulator::new(model, fem_scene, params).map_err(EvalError::FemSetup)?;
-        Ok((sim, region_nodes))
+        Ok(SimulatorParts {
+            model,
+            scene,
+            params,
+        })
+    }
+}
+
+/// A [`FemProblem`]'s model, scene and options: [`FemSimulator::new`]'s inputs.
+struct SimulatorParts {
+    model: FemModel<StableNeoHookean>,
+    scene: FemScene,
+    params: FemParams,
+}
+
+impl SimulatorParts {
+    /// Nodes held in each Dirichlet region.
+    fn region_nodes(&self) -> Vec<usize> {
+        self.scene.dirichlet.iter().map(|r| r.nodes.len()).collect()
     }
 }
 
@@ -273,15 +298,44 @@ pub fn run_fem(
     cache_dir: &Path,
     progress: &Progress,
 ) -> Result<FemRun, EvalError> {
-    let (mut sim, region_nodes) = problem.simulator()?;
-    let dofs = sim.free_dofs();
+    let parts = problem.parts()?;
+    let region_nodes = parts.region_nodes();
     let cache = TrajectoryCache::new(cache_dir.join("fem"));
     let steps = problem.steps;
-    let bar = progress.bar(steps, format!("FEM {label} ({dofs} DOFs)"));
-    let (trajectory, cached) = sim
-        .run_cached(steps, &problem.scene.label(), &cache, |_| bar.inc(1))
-        .map_err(EvalError::Fem)?;
-    bar.finish_and_clear();
+    let label_of_scene = problem.scene.label();
+    // A cached reference is found before the simulator is built: its symbolic factorization
+    // would be a fifth of a warm-cache Table 2.
+    let cached_trajectory = FemSimulator::load_cached(
+        &parts.model,
+        &parts.scene,
+        &parts.params,
+        steps,
+        &label_of_scene,
+        &cache,
+    )
+    .map_err(|e| EvalError::Fem(fem_ref::FemRunError::Cache(e)))?;
+    let (mesh, trajectory, dofs, cached, split_steps) = match cached_trajectory {
+        Some(trajectory) => {
+            let held = parts
+                .scene
+                .held_nodes(parts.model.mesh().nodes().len())
+                .map_err(EvalError::FemSetup)?;
+            let dofs = 3 * held.iter().filter(|&&h| !h).count();
+            (parts.model.mesh().clone(), trajectory, dofs, true, 0)
+        }
+        None => {
+            let mut sim = FemSimulator::new(parts.model, parts.scene, parts.params)
+                .map_err(EvalError::FemSetup)?;
+            let dofs = sim.free_dofs();
+            let bar = progress.bar(steps, format!("FEM {label} ({dofs} DOFs)"));
+            let (trajectory, cached) = sim
+                .run_cached(steps, &label_of_scene, &cache, |_| bar.inc(1))
+                .map_err(EvalError::Fem)?;
+            bar.finish_and_clear();
+            let mesh = sim.model().mesh().clone();
+            (mesh, trajectory, dofs, cached, sim.split_steps())
+        }
+    };
     let seconds_per_step = trajectory.seconds / steps.max(1) as f64;
     let iterations_per_step =
         trajectory.iterations.iter().sum::<usize>() as f64 / steps.max(1) as f64;
@@ -293,7 +347,7 @@ pub fn run_fem(
     } else {
         // A line per computed reference, also where bars are hidden (parallel shapes, stderr
         // not a terminal): long tables show where their time goes.
-        let split = match sim.split_steps() {
+        let split = match split_steps {
             0 => String::new(),
             n => format!(", {n} split in halves"),
         };
@@ -309,7 +363,7 @@ pub fn run_fem(
         .map(|f| f.iter().map(|p| Vector3::from(*p)).collect())
         .collect();
     Ok(FemRun {
-        mesh: sim.model().mesh().clone(),
+        mesh,
         frames,
         seconds_per_step,
         iterations_per_step,

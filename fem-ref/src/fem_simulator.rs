@@ -184,6 +184,137 @@ pub struct FemSimulator<M: HyperelasticMaterial> {
     split_steps: usize,
 }
 
+/// The largest side of the mesh's bounding box (m): the length the floor penalty scales by.
+fn length_scale<M: HyperelasticMaterial>(model: &FemModel<M>) -> f64 {
+    rkpm_core::Aabb::from_points(model.mesh().nodes())
+        .expect("non-empty mesh")
+        .largest_side()
+}
+
+/// The scene's floor with a unit normal and its penalty stiffness
+/// `κ = floor_factor · (λ + 2μ)_max / L²` (Pa/m², L = [`length_scale`]).
+fn penalized_floor<M: HyperelasticMaterial>(
+    model: &FemModel<M>,
+    scene: &FemScene,
+) -> Result<Option<(FemFloor, f64)>, FemSetupError> {
+    let Some(f) = scene.floor else {
+        return Ok(None);
+    };
+    let norm = f.normal.norm();
+    if !(norm > 0.0 && norm.is_finite() && f.offset.is_finite() && f.floor_factor > 0.0) {
+        return Err(FemSetupError::InvalidScene(format!("invalid floor {f:?}")));
+    }
+    let kappa = f.floor_factor * model.max_p_wave_modulus() / length_scale(model).powi(2);
+    let floor = FemFloor {
+        normal: f.normal / norm,
+        offset: f.offset / norm,
+        ..f
+    };
+    Ok(Some((floor, kappa)))
+}
+
+/// What a run's cache key hashes: [`FemSimulator::new`]'s inputs, the floor's stiffness worked
+/// out.
+struct KeyInputs<'a, M: HyperelasticMaterial> {
+    model: &'a FemModel<M>,
+    scene: &'a FemScene,
+    floor: Option<&'a (FemFloor, f64)>,
+    params: &'a FemParams,
+}
+
+/// The keys a run is stored under: whole, and split when it may split.
+struct RunKeys {
+    whole: TrajectoryKey,
+    split: Option<TrajectoryKey>,
+}
+
+impl RunKeys {
+    /// The cached trajectory for these keys: under `whole` only if every step converged when the
+    /// run may split (an unconverged one was run without splitting), else under `split`.
+    fn load(&self, cache: &TrajectoryCache) -> Result<Option<Trajectory>, TrajectoryCacheError> {
+        if let Some(t) = cache.load(self.whole)?
+            && (self.split.is_none() || t.converged.iter().all(|&c| c))
+        {
+            return Ok(Some(t));
+        }
+        match self.split {
+            Some(split) => cache.load(split),
+            None => Ok(None),
+        }
+    }
+}
+
+impl<M: HyperelasticMaterial> KeyInputs<'_, M> {
+    fn keys(&self, scene_label: &str, steps: usize) -> RunKeys {
+        RunKeys {
+            whole: self.builder(scene_label, steps).finish(),
+            // Only a run that may split has a split key (each key hashes the whole mesh).
+            split: (self.params.failed_step_halvings > 0)
+                .then(|| self.split_key(scene_label, steps)),
+        }
+    }
+
+    fn split_key(&self, scene_label: &str, steps: usize) -> TrajectoryKey {
+        self.builder(scene_label, steps)
+            .str("failed steps split in halves, at most this deep")
+            .u64(self.params.failed_step_halvings as u64)
+            .finish()
+    }
+
+    fn builder(&self, scene_label: &str, steps: usize) -> ContentKeyBuilder {
+        let mut key = trajectory_key_builder();
+        let mesh = self.model.mesh();
+        let tets = mesh.tet_mesh();
+        let vertices: Vec<f64> = tets
+            .vertices()
+            .iter()
+            .flat_map(|v| [v.x, v.y, v.z])
+            .collect();
+        key.f64s(&vertices);
+        key.u64(tets.tets().len() as u64);
+        for t in tets.tets() {
+            for &v in t {
+                key.u64(v as u64);
+            }
+        }
+        key.str(&format!("{:?} {:?}", mesh.order(), self.model.mass_kind()));
+        key.str(self.model.material().name());
+        let lame: Vec<f64> = self
+            .model
+            .lame_parameters()
+            .iter()
+            .flat_map(|l| [l.lambda(), l.mu()])
+            .collect();
+        key.f64s(&lame).f64s(self.model.densities());
+        match self.scene.gravity {
+            Some(g) => key.f64s(g.as_slice()),
+            None => key.str("no gravity"),
+        };
+        for d in &self.scene.dirichlet {
+            key.u64(d.nodes.len() as u64);
+            for &n in &d.nodes {
+                key.u64(n as u64);
+            }
+            key.str(match d.target {
+                crate::scene::NodeTarget::Rest => "rest",
+                crate::scene::NodeTarget::Moving(_) => "moving",
+            });
+        }
+        match self.floor {
+            Some((f, kappa)) => key.f64s(&[f.normal.x, f.normal.y, f.normal.z, f.offset, *kappa]),
+            None => key.str("no floor"),
+        };
+        let n = &self.params.newton;
+        key.f64s(&[self.params.time_step, n.tolerance, n.armijo])
+            .u64(n.max_iterations as u64)
+            .u64(n.max_line_search_cuts as u64)
+            .str(&format!("{:?}", self.params.tangent))
+            .str(scene_label)
+            .u64(steps as u64);
+        key
+    }
+}
+
 struct StepProblem<'a> {
     predicted: Option<&'a [f64]>,
     inverse_step_squared: f64,
@@ -202,23 +333,7 @@ impl<M: HyperelasticMaterial> FemSimulator<M> {
         if !(params.time_step > 0.0 && params.time_step.is_finite()) {
             return Err(FemSetupError::InvalidTimeStep(params.time_step));
         }
-        let nodes = model.mesh().nodes().len();
-        let mut fixed = vec![false; nodes];
-        for (region, d) in scene.dirichlet.iter().enumerate() {
-            for &node in &d.nodes {
-                if node >= nodes {
-                    return Err(FemSetupError::NodeOutOfRange {
-                        region,
-                        node,
-                        nodes,
-                    });
-                }
-                fixed[node] = true;
-            }
-        }
-        if fixed.iter().all(|&f| f) {
-            return Err(FemSetupError::NothingFree);
-        }
+        let fixed = scene.held_nodes(model.mesh().nodes().len())?;
         if let Some(g) = scene.gravity
             && !g.iter().all(|c| c.is_finite())
         {
@@ -226,27 +341,8 @@ impl<M: HyperelasticMaterial> FemSimulator<M> {
                 "gravity {g:?} is not finite"
             )));
         }
-        let bounds = rkpm_core::Aabb::from_points(model.mesh().nodes()).expect("non-empty mesh");
-        let length_scale = bounds.largest_side();
-        let floor = match scene.floor {
-            None => None,
-            Some(f) => {
-                let norm = f.normal.norm();
-                if !(norm > 0.0 && norm.is_finite() && f.offset.is_finite() && f.floor_factor > 0.0)
-                {
-                    return Err(FemSetupError::InvalidScene(format!("invalid floor {f:?}")));
-                }
-                let kappa = f.floor_factor * model.max_p_wave_modulus() / length_scale.powi(2);
-                Some((
-                    FemFloor {
-                        normal: f.normal / norm,
-                        offset: f.offset / norm,
-                        ..f
-                    },
-                    kappa,
-                ))
-            }
-        };
+        let length_scale = length_scale(&model);
+        let floor = penalized_floor(&model, &scene)?;
         let system = SparseSystem::new(&model, &fixed, params.ordering, params.factor_memory)
             .map_err(|e| match e {
                 SystemSetupError::FactorTooLarge {
@@ -337,70 +433,51 @@ impl<M: HyperelasticMaterial> FemSimulator<M> {
     /// cannot be hashed: `scene_label` must name them uniquely (e.g. "twist 2160 deg/s to 720
     /// deg about y = z = 0.5").
     pub fn trajectory_key(&self, scene_label: &str, steps: usize) -> TrajectoryKey {
-        self.key_builder(scene_label, steps).finish()
+        self.key_inputs().builder(scene_label, steps).finish()
     }
 
     /// The cache key of a run of `steps` steps some of whose steps were split
     /// ([`FemParams::failed_step_halvings`]): [`Self::trajectory_key`]'s inputs and the
     /// splitting depth.
     pub fn split_trajectory_key(&self, scene_label: &str, steps: usize) -> TrajectoryKey {
-        self.key_builder(scene_label, steps)
-            .str("failed steps split in halves, at most this deep")
-            .u64(self.params.failed_step_halvings as u64)
-            .finish()
+        self.key_inputs().split_key(scene_label, steps)
     }
 
-    fn key_builder(&self, scene_label: &str, steps: usize) -> ContentKeyBuilder {
-        let mut key = trajectory_key_builder();
-        let mesh = self.model.mesh();
-        let tets = mesh.tet_mesh();
-        let vertices: Vec<f64> = tets
-            .vertices()
-            .iter()
-            .flat_map(|v| [v.x, v.y, v.z])
-            .collect();
-        key.f64s(&vertices);
-        key.u64(tets.tets().len() as u64);
-        for t in tets.tets() {
-            for &v in t {
-                key.u64(v as u64);
-            }
+    fn key_inputs(&self) -> KeyInputs<'_, M> {
+        KeyInputs {
+            model: &self.model,
+            scene: &self.scene,
+            floor: self.floor.as_ref(),
+            params: &self.params,
         }
-        key.str(&format!("{:?} {:?}", mesh.order(), self.model.mass_kind()));
-        key.str(self.model.material().name());
-        let lame: Vec<f64> = self
-            .model
-            .lame_parameters()
-            .iter()
-            .flat_map(|l| [l.lambda(), l.mu()])
-            .collect();
-        key.f64s(&lame).f64s(self.model.densities());
-        match self.scene.gravity {
-            Some(g) => key.f64s(g.as_slice()),
-            None => key.str("no gravity"),
+    }
+
+    /// The trajectory [`Self::run_cached`] would load from `cache` for the simulator
+    /// `FemSimulator::new(model.clone(), scene.clone(), *params)` at rest, found without
+    /// building it: no fill-reducing ordering, no symbolic factorization (seconds at 100k DOFs,
+    /// a fifth of a warm-cache Table 2). `None` when the run must be computed, or when `new`
+    /// would refuse the scene (it then names why).
+    ///
+    /// # Errors
+    /// [`TrajectoryCacheError`]: the cache could not be read.
+    pub fn load_cached(
+        model: &FemModel<M>,
+        scene: &FemScene,
+        params: &FemParams,
+        steps: usize,
+        scene_label: &str,
+        cache: &TrajectoryCache,
+    ) -> Result<Option<Trajectory>, TrajectoryCacheError> {
+        let Ok(floor) = penalized_floor(model, scene) else {
+            return Ok(None);
         };
-        for d in &self.scene.dirichlet {
-            key.u64(d.nodes.len() as u64);
-            for &n in &d.nodes {
-                key.u64(n as u64);
-            }
-            key.str(match d.target {
-                crate::scene::NodeTarget::Rest => "rest",
-                crate::scene::NodeTarget::Moving(_) => "moving",
-            });
-        }
-        match &self.floor {
-            Some((f, kappa)) => key.f64s(&[f.normal.x, f.normal.y, f.normal.z, f.offset, *kappa]),
-            None => key.str("no floor"),
+        let inputs = KeyInputs {
+            model,
+            scene,
+            floor: floor.as_ref(),
+            params,
         };
-        let n = &self.params.newton;
-        key.f64s(&[self.params.time_step, n.tolerance, n.armijo])
-            .u64(n.max_iterations as u64)
-            .u64(n.max_line_search_cuts as u64)
-            .str(&format!("{:?}", self.params.tangent))
-            .str(scene_label)
-            .u64(steps as u64);
-        key
+        inputs.keys(scene_label, steps).load(cache)
     }
 
     /// `steps` steps from the current state, recording all node positions per frame (frame 0 =
@@ -426,18 +503,8 @@ impl<M: HyperelasticMaterial> FemSimulator<M> {
         cache: &TrajectoryCache,
         mut progress: impl FnMut(usize),
     ) -> Result<(Trajectory, bool), FemRunError> {
-        let key = self.trajectory_key(scene_label, steps);
-        // Only a run that may split has a split key (each key hashes the whole mesh).
-        let split_key = (self.params.failed_step_halvings > 0)
-            .then(|| self.split_trajectory_key(scene_label, steps));
-        if let Some(t) = cache.load(key).map_err(FemRunError::Cache)?
-            && (split_key.is_none() || t.converged.iter().all(|&c| c))
-        {
-            return Ok((t, true));
-        }
-        if let Some(split_key) = split_key
-            && let Some(t) = cache.load(split_key).map_err(FemRunError::Cache)?
-        {
+        let keys = self.key_inputs().keys(scene_label, steps);
+        if let Some(t) = keys.load(cache).map_err(FemRunError::Cache)? {
             return Ok((t, true));
         }
         let split_before = self.split_steps;
@@ -463,9 +530,9 @@ impl<M: HyperelasticMaterial> FemSimulator<M> {
             progress(step);
         }
         trajectory.seconds = start.elapsed().as_secs_f64();
-        let key = match split_key {
+        let key = match keys.split {
             Some(split_key) if self.split_steps > split_before => split_key,
-            _ => key,
+            _ => keys.whole,
         };
         match cache.store(key, &trajectory) {
             Ok(_) => Ok((trajectory, false)),

@@ -11,7 +11,8 @@
 //! - [`PointInterpolation`]: positions at arbitrary points inside the mesh (e.g. the beam's tip
 //!   lattice).
 //! - [`TrajectoryCache`]: trajectories on disk keyed by a hash of every input
-//!   ([`FemSimulator::trajectory_key`], [`FemSimulator::run_cached`]).
+//!   ([`FemSimulator::trajectory_key`], [`FemSimulator::run_cached`]; a stored run is found
+//!   from the simulator's inputs alone by [`FemSimulator::load_cached`]).
 //!
 //! Units: SI (m, s, kg, Pa). Positions are flat `[x0, y0, z0, x1, …]` where noted.
 

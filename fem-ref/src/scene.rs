@@ -6,6 +6,8 @@ use std::sync::Arc;
 use nalgebra::Vector3;
 use serde::{Deserialize, Serialize};
 
+use crate::fem_simulator::FemSetupError;
+
 /// A target position (m) as a function of rest position X (m) and time t (s).
 pub type NodeTargetFunction = Arc<dyn Fn(&Vector3<f64>, f64) -> Vector3<f64> + Send + Sync>;
 
@@ -67,4 +69,32 @@ pub struct FemScene {
     pub dirichlet: Vec<DirichletRegion>,
     /// Optional floor.
     pub floor: Option<FemFloor>,
+}
+
+impl FemScene {
+    /// Which of a model's `nodes` nodes the Dirichlet regions hold (`held[a]` for node a); the
+    /// free DOFs are three per node not held.
+    ///
+    /// # Errors
+    /// [`FemSetupError::NodeOutOfRange`] for a region naming a node past `nodes`,
+    /// [`FemSetupError::NothingFree`] when every node is held.
+    pub fn held_nodes(&self, nodes: usize) -> Result<Vec<bool>, FemSetupError> {
+        let mut held = vec![false; nodes];
+        for (region, d) in self.dirichlet.iter().enumerate() {
+            for &node in &d.nodes {
+                if node >= nodes {
+                    return Err(FemSetupError::NodeOutOfRange {
+                        region,
+                        node,
+                        nodes,
+                    });
+                }
+                held[node] = true;
+            }
+        }
+        if held.iter().all(|&h| h) {
+            return Err(FemSetupError::NothingFree);
+        }
+        Ok(held)
+    }
 }

@@ -490,6 +490,17 @@ fn soft_falling_cantilever(
     max_iterations: usize,
     failed_step_halvings: usize,
 ) -> FemSimulator<StableNeoHookean> {
+    let (model, scene, params) =
+        soft_falling_cantilever_inputs(time_step, max_iterations, failed_step_halvings);
+    FemSimulator::new(model, scene, params).unwrap()
+}
+
+/// What [`soft_falling_cantilever`] builds its simulator from.
+fn soft_falling_cantilever_inputs(
+    time_step: f64,
+    max_iterations: usize,
+    failed_step_halvings: usize,
+) -> (FemModel<StableNeoHookean>, FemScene, FemParams) {
     let mesh = FemMesh::new(
         TetMesh::cuboid(Vector3::zeros(), Vector3::new(4.0, 1.0, 1.0), [4, 1, 1]).unwrap(),
         ElementOrder::Linear,
@@ -512,7 +523,7 @@ fn soft_falling_cantilever(
         failed_step_halvings,
         ..FemParams::default()
     };
-    FemSimulator::new(model, scene, params).unwrap()
+    (model, scene, params)
 }
 
 /// At h = 0.2 s the first step of [`soft_falling_cantilever`] needs 18 Newton iterations,
@@ -580,5 +591,42 @@ fn split_trajectories_are_cached_apart_and_unconverged_ones_are_not_served_to_sp
     assert_eq!(
         soft_falling_cantilever(0.2, 10, 1).trajectory_key("x", 2),
         soft_falling_cantilever(0.2, 10, 2).trajectory_key("x", 2)
+    );
+}
+
+/// `load_cached` finds a run from the simulator's inputs alone, exactly where `run_cached`
+/// would serve it: not before it is stored, not an unsplit run's unconverged trajectory to a
+/// run that may split, not under another label or step count, not for a scene `new` refuses.
+#[test]
+fn a_cached_run_is_found_from_the_simulators_inputs_exactly_where_run_cached_serves_it() {
+    use fem_ref::{FemFloor, TrajectoryCache};
+    let dir = test_support::fixtures::scratch_dir("fem-load-cached");
+    let cache = TrajectoryCache::new(&dir);
+    let load = |h: f64, halvings: usize, steps: usize, label: &str| {
+        let (model, scene, params) = soft_falling_cantilever_inputs(h, 10, halvings);
+        FemSimulator::load_cached(&model, &scene, &params, steps, label, &cache).unwrap()
+    };
+    assert_eq!(load(0.2, 0, 2, "falling"), None);
+    let (unsplit, _) = soft_falling_cantilever(0.2, 10, 0)
+        .run_cached(2, "falling", &cache, |_| ())
+        .unwrap();
+    assert!(!unsplit.converged[0]);
+    assert_eq!(load(0.2, 0, 2, "falling"), Some(unsplit));
+    assert_eq!(load(0.2, 1, 2, "falling"), None);
+    let (split, _) = soft_falling_cantilever(0.2, 10, 1)
+        .run_cached(2, "falling", &cache, |_| ())
+        .unwrap();
+    assert_eq!(load(0.2, 1, 2, "falling"), Some(split));
+    assert_eq!(load(0.2, 1, 3, "falling"), None);
+    assert_eq!(load(0.2, 1, 2, "other"), None);
+    let (model, mut scene, params) = soft_falling_cantilever_inputs(0.2, 10, 0);
+    scene.floor = Some(FemFloor {
+        normal: Vector3::zeros(),
+        offset: 0.0,
+        floor_factor: 1e4,
+    });
+    assert_eq!(
+        FemSimulator::load_cached(&model, &scene, &params, 2, "falling", &cache).unwrap(),
+        None
     );
 }
