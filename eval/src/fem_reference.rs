@@ -538,6 +538,41 @@ impl FemRun {
 mod tests {
     use super::*;
 
+    /// A run served from the cache (found before the simulator is built) reports what the
+    /// computed run did: the same frames, mesh, free DOFs, held nodes and iterations.
+    #[test]
+    fn a_reference_from_the_cache_matches_the_computed_one_field_for_field() {
+        let dir = test_support::fixtures::scratch_dir("eval-fem-run-cache");
+        let run = || {
+            run_fem_beam(
+                BeamTest::Bend,
+                FemResolution {
+                    order: ElementOrder::Quadratic,
+                    cells_per_metre: 1,
+                },
+                NewtonParams::default(),
+                2,
+                &dir,
+                &Progress {
+                    quiet: true,
+                    hide_bars: true,
+                },
+            )
+            .unwrap()
+        };
+        let computed = run();
+        let cached = run();
+        assert!(!computed.cached && cached.cached);
+        assert!(computed.dofs > 0 && computed.region_nodes.iter().all(|&n| n > 0));
+        assert_eq!(cached.dofs, computed.dofs);
+        assert_eq!(cached.region_nodes, computed.region_nodes);
+        assert_eq!(cached.mesh.nodes(), computed.mesh.nodes());
+        assert_eq!(cached.frames, computed.frames);
+        assert_eq!(cached.step_iterations, computed.step_iterations);
+        assert_eq!(cached.step_converged, computed.step_converged);
+        assert_eq!(cached.seconds_per_step, computed.seconds_per_step);
+    }
+
     #[test]
     fn an_unconverged_reference_names_its_frames_cap_and_split_depth() {
         let why = |step_halvings| {
