@@ -1,7 +1,15 @@
-//! Progress bars on stderr for long work, silent with `--quiet` (or when stderr is not a
-//! terminal, indicatif hides them itself).
+//! Progress bars on stderr for long work, silent with `--quiet`. Where a bar is not drawn
+//! (stderr not a terminal, or work running in parallel), long work prints a line a minute
+//! instead, so a log shows how far an hour-long reference has come.
+
+use std::sync::{Mutex, PoisonError};
+use std::time::{Duration, Instant};
 
 use indicatif::{ProgressBar, ProgressDrawTarget, ProgressStyle};
+
+/// How often a bar that is not drawn prints its progress as a line (none for work that ends
+/// sooner).
+pub const HIDDEN_BAR_LINE_INTERVAL: Duration = Duration::from_secs(60);
 
 /// Makes progress bars, or none when quiet.
 #[derive(Clone, Copy, Debug, Default)]
@@ -14,8 +22,18 @@ pub struct Progress {
 }
 
 impl Progress {
-    /// A bar of `len` steps labelled `label`.
-    pub fn bar(&self, len: usize, label: impl Into<String>) -> ProgressBar {
+    /// A bar of `len` steps labelled `label`; not drawn, it prints a line every
+    /// [`HIDDEN_BAR_LINE_INTERVAL`] (none with `quiet`).
+    pub fn bar(&self, len: usize, label: impl Into<String>) -> StepBar {
+        self.bar_with_lines_every(len, label, HIDDEN_BAR_LINE_INTERVAL)
+    }
+
+    fn bar_with_lines_every(
+        &self,
+        len: usize,
+        label: impl Into<String>,
+        interval: Duration,
+    ) -> StepBar {
         let bar = ProgressBar::new(len as u64);
         if self.quiet || self.hide_bars {
             bar.set_draw_target(ProgressDrawTarget::hidden());
@@ -28,7 +46,14 @@ impl Progress {
             .progress_chars("=> "),
         );
         bar.set_message(label.into());
-        bar
+        let now = Instant::now();
+        StepBar {
+            bar,
+            quiet: self.quiet,
+            interval,
+            started: now,
+            last_line: Mutex::new(now),
+        }
     }
 
     /// The same, without bars.
@@ -47,11 +72,73 @@ impl Progress {
     }
 }
 
+/// A progress bar of counted steps ([`Progress::bar`]); where it is not drawn, its progress
+/// as a line on stderr at most every `interval`.
+#[derive(Debug)]
+pub struct StepBar {
+    bar: ProgressBar,
+    quiet: bool,
+    interval: Duration,
+    started: Instant,
+    last_line: Mutex<Instant>,
+}
+
+impl StepBar {
+    /// One more step done.
+    pub fn inc(&self, steps: u64) {
+        self.bar.inc(steps);
+        if let Some(line) = self.due_line() {
+            eprintln!("{line}");
+        }
+    }
+
+    /// Relabels the bar (and its lines).
+    pub fn set_message(&self, message: impl Into<String>) {
+        self.bar.set_message(message.into());
+    }
+
+    /// Removes the bar.
+    pub fn finish_and_clear(&self) {
+        self.bar.finish_and_clear();
+    }
+
+    /// "label: 12/40 steps, 610 s, about 1420 s left" when the bar is not drawn, output is
+    /// wanted and `interval` has passed since the last line (or the start).
+    fn due_line(&self) -> Option<String> {
+        if self.quiet || !self.bar.is_hidden() {
+            return None;
+        }
+        let mut last = self
+            .last_line
+            .lock()
+            .unwrap_or_else(PoisonError::into_inner);
+        if last.elapsed() < self.interval {
+            return None;
+        }
+        *last = Instant::now();
+        let done = self.bar.position();
+        let len = self.bar.length().unwrap_or(0);
+        let elapsed = self.started.elapsed().as_secs_f64();
+        let left = if done > 0 {
+            format!(
+                ", about {:.0} s left",
+                elapsed / done as f64 * len.saturating_sub(done) as f64
+            )
+        } else {
+            String::new()
+        };
+        Some(format!(
+            "{}: {done}/{len} steps, {elapsed:.0} s{left}",
+            self.bar.message()
+        ))
+    }
+}
+
 /// [`Progress`] behind the library's [`freeform::Progress`] trait: one bar per stage.
 #[derive(Debug, Default)]
 pub struct BarProgress {
     settings: Progress,
-    bar: std::sync::Mutex<Option<ProgressBar>>,
+    bar: Mutex<Option<StepBar>>,
 }
 
 impl BarProgress {
@@ -59,15 +146,12 @@ impl BarProgress {
     pub fn new(settings: Progress) -> Self {
         BarProgress {
             settings,
-            bar: std::sync::Mutex::new(None),
+            bar: Mutex::new(None),
         }
     }
 
-    fn with_bar(&self, f: impl FnOnce(&mut Option<ProgressBar>)) {
-        let mut bar = self
-            .bar
-            .lock()
-            .unwrap_or_else(std::sync::PoisonError::into_inner);
+    fn with_bar(&self, f: impl FnOnce(&mut Option<StepBar>)) {
+        let mut bar = self.bar.lock().unwrap_or_else(PoisonError::into_inner);
         f(&mut bar);
     }
 }
@@ -95,5 +179,40 @@ impl freeform::Progress for BarProgress {
 
     fn status(&self, line: &str) {
         self.settings.status(line);
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn a_bar_that_is_not_drawn_prints_its_progress_once_its_interval_has_passed() {
+        let hidden = Progress {
+            quiet: false,
+            hide_bars: true,
+        };
+        let bar = hidden.bar_with_lines_every(4, "FEM shape Fix side", Duration::ZERO);
+        bar.inc(1);
+        let line = bar.due_line().expect("a line is due");
+        assert!(
+            line.starts_with("FEM shape Fix side: 1/4 steps, "),
+            "{line}"
+        );
+        assert!(line.contains("s left"), "{line}");
+        bar.set_message("relabelled");
+        assert!(bar.due_line().unwrap().starts_with("relabelled: 1/4"));
+        let hour = Duration::from_secs(3600);
+        assert_eq!(hidden.bar_with_lines_every(4, "x", hour).due_line(), None);
+        let quiet = Progress {
+            quiet: true,
+            hide_bars: true,
+        };
+        assert_eq!(
+            quiet
+                .bar_with_lines_every(4, "x", Duration::ZERO)
+                .due_line(),
+            None
+        );
     }
 }
