@@ -4,7 +4,6 @@
 use std::sync::{Mutex, PoisonError};
 use std::time::Instant;
 
-use artifact::ContentKeyBuilder;
 use hyperelastic::{HessianTangent, HyperelasticMaterial, Tangent};
 use nalgebra::Vector3;
 use optimize::{
@@ -18,11 +17,10 @@ use thiserror::Error;
 use crate::factor_memory::FactorMemoryLimit;
 use crate::fem_model::FemModel;
 use crate::fill_reducing_ordering::FillReducingOrdering;
+use crate::run_keys::KeyInputs;
 use crate::scene::{FemFloor, FemScene};
 use crate::sparse_system::{NumericFactor, SparseSystem, SystemSetupError};
-use crate::trajectory_cache::{
-    Trajectory, TrajectoryCache, TrajectoryCacheError, TrajectoryKey, trajectory_key_builder,
-};
+use crate::trajectory_cache::{Trajectory, TrajectoryCache, TrajectoryCacheError, TrajectoryKey};
 
 /// Options of a FEM simulation.
 #[derive(Clone, Copy, Debug, PartialEq, Serialize, Deserialize)]
@@ -211,108 +209,6 @@ fn penalized_floor<M: HyperelasticMaterial>(
         ..f
     };
     Ok(Some((floor, kappa)))
-}
-
-/// What a run's cache key hashes: [`FemSimulator::new`]'s inputs, the floor's stiffness worked
-/// out.
-struct KeyInputs<'a, M: HyperelasticMaterial> {
-    model: &'a FemModel<M>,
-    scene: &'a FemScene,
-    floor: Option<&'a (FemFloor, f64)>,
-    params: &'a FemParams,
-}
-
-/// The keys a run is stored under: whole, and split when it may split.
-struct RunKeys {
-    whole: TrajectoryKey,
-    split: Option<TrajectoryKey>,
-}
-
-impl RunKeys {
-    /// The cached trajectory for these keys: under `whole` only if every step converged when the
-    /// run may split (an unconverged one was run without splitting), else under `split`.
-    fn load(&self, cache: &TrajectoryCache) -> Result<Option<Trajectory>, TrajectoryCacheError> {
-        if let Some(t) = cache.load(self.whole)?
-            && (self.split.is_none() || t.converged.iter().all(|&c| c))
-        {
-            return Ok(Some(t));
-        }
-        match self.split {
-            Some(split) => cache.load(split),
-            None => Ok(None),
-        }
-    }
-}
-
-impl<M: HyperelasticMaterial> KeyInputs<'_, M> {
-    fn keys(&self, scene_label: &str, steps: usize) -> RunKeys {
-        RunKeys {
-            whole: self.builder(scene_label, steps).finish(),
-            // Only a run that may split has a split key (each key hashes the whole mesh).
-            split: (self.params.failed_step_halvings > 0)
-                .then(|| self.split_key(scene_label, steps)),
-        }
-    }
-
-    fn split_key(&self, scene_label: &str, steps: usize) -> TrajectoryKey {
-        self.builder(scene_label, steps)
-            .str("failed steps split in halves, at most this deep")
-            .u64(self.params.failed_step_halvings as u64)
-            .finish()
-    }
-
-    fn builder(&self, scene_label: &str, steps: usize) -> ContentKeyBuilder {
-        let mut key = trajectory_key_builder();
-        let mesh = self.model.mesh();
-        let tets = mesh.tet_mesh();
-        let vertices: Vec<f64> = tets
-            .vertices()
-            .iter()
-            .flat_map(|v| [v.x, v.y, v.z])
-            .collect();
-        key.f64s(&vertices);
-        key.u64(tets.tets().len() as u64);
-        for t in tets.tets() {
-            for &v in t {
-                key.u64(v as u64);
-            }
-        }
-        key.str(&format!("{:?} {:?}", mesh.order(), self.model.mass_kind()));
-        key.str(self.model.material().name());
-        let lame: Vec<f64> = self
-            .model
-            .lame_parameters()
-            .iter()
-            .flat_map(|l| [l.lambda(), l.mu()])
-            .collect();
-        key.f64s(&lame).f64s(self.model.densities());
-        match self.scene.gravity {
-            Some(g) => key.f64s(g.as_slice()),
-            None => key.str("no gravity"),
-        };
-        for d in &self.scene.dirichlet {
-            key.u64(d.nodes.len() as u64);
-            for &n in &d.nodes {
-                key.u64(n as u64);
-            }
-            key.str(match d.target {
-                crate::scene::NodeTarget::Rest => "rest",
-                crate::scene::NodeTarget::Moving(_) => "moving",
-            });
-        }
-        match self.floor {
-            Some((f, kappa)) => key.f64s(&[f.normal.x, f.normal.y, f.normal.z, f.offset, *kappa]),
-            None => key.str("no floor"),
-        };
-        let n = &self.params.newton;
-        key.f64s(&[self.params.time_step, n.tolerance, n.armijo])
-            .u64(n.max_iterations as u64)
-            .u64(n.max_line_search_cuts as u64)
-            .str(&format!("{:?}", self.params.tangent))
-            .str(scene_label)
-            .u64(steps as u64);
-        key
-    }
 }
 
 struct StepProblem<'a> {

@@ -24,6 +24,7 @@ pub mod fill_reducing_ordering;
 mod kuhn_bisection;
 pub mod lattice_mesher;
 pub mod point_interpolation;
+mod run_keys;
 pub mod scene;
 mod sparse_system;
 pub mod tet_mesh;
