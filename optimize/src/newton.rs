@@ -334,7 +334,12 @@ fn solve<O: NewtonObjective>(
             let t = Instant::now();
             let step = objective.solve(f, &gradient);
             timings.solve += t.elapsed().as_secs_f64();
-            let residual = objective.step_norm(&step);
+            // A non-finite lagged step (a solve that could not be had) is no step.
+            let residual = if step.iter().all(|s| s.is_finite()) {
+                objective.step_norm(&step)
+            } else {
+                f64::INFINITY
+            };
             if residual.is_finite() && residual < params.tolerance {
                 report.residual = residual;
                 let alpha = objective.max_step(x, &step).min(1.0);

@@ -287,3 +287,60 @@ fn chord_steps_on_rosenbrock_reach_the_same_minimum_with_fewer_hessians() {
     );
     assert!(reused.hessian_assemblies <= fresh.hessian_assemblies);
 }
+
+/// [`quadratic`] whose every second solve (the lagged convergence test's, with the last
+/// iteration's factor) cannot be had and comes back non-finite, measured by a norm that maps
+/// NaN to 0 as `f64::max` does.
+struct LaggedSolveFails {
+    inner: Dense,
+    solves: std::cell::Cell<usize>,
+}
+
+impl NewtonObjective for LaggedSolveFails {
+    type Hessian = Mat<f64>;
+    type Factor = Llt<f64>;
+
+    fn energy(&self, x: &[f64]) -> f64 {
+        self.inner.energy(x)
+    }
+
+    fn gradient(&self, x: &[f64]) -> Vec<f64> {
+        self.inner.gradient(x)
+    }
+
+    fn gradient_and_hessian(&self, x: &[f64], gradient: Option<Vec<f64>>) -> (Vec<f64>, Mat<f64>) {
+        self.inner.gradient_and_hessian(x, gradient)
+    }
+
+    fn factor(&self, hessian: Mat<f64>) -> Option<Llt<f64>> {
+        self.inner.factor(hessian)
+    }
+
+    fn solve(&self, factor: &Llt<f64>, gradient: &[f64]) -> Vec<f64> {
+        self.solves.set(self.solves.get() + 1);
+        if self.solves.get() % 2 == 0 {
+            return vec![f64::NAN; gradient.len()];
+        }
+        self.inner.solve(factor, gradient)
+    }
+
+    fn step_norm(&self, step: &[f64]) -> f64 {
+        step.iter().map(|s| s * s).sum::<f64>().max(0.0).sqrt()
+    }
+}
+
+#[test]
+fn a_lagged_step_that_is_not_finite_is_no_convergence_and_a_new_hessian_decides() {
+    let objective = LaggedSolveFails {
+        inner: quadratic(),
+        solves: std::cell::Cell::new(0),
+    };
+    let mut x = vec![0.0, 0.0];
+    let report = minimize(&objective, &mut x, &NewtonParams::default()).unwrap();
+    assert!(report.converged());
+    assert!(
+        (x[0] - 1.0 / 11.0).abs() < 1e-12 && (x[1] - 7.0 / 11.0).abs() < 1e-12,
+        "{x:?}"
+    );
+    assert_eq!(report.hessian_assemblies, 2);
+}
