@@ -318,7 +318,7 @@ impl NewtonObjective for LaggedSolveFails {
 
     fn solve(&self, factor: &Llt<f64>, gradient: &[f64]) -> Vec<f64> {
         self.solves.set(self.solves.get() + 1);
-        if self.solves.get() % 2 == 0 {
+        if self.solves.get().is_multiple_of(2) {
             return vec![f64::NAN; gradient.len()];
         }
         self.inner.solve(factor, gradient)
