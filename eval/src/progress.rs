@@ -84,7 +84,7 @@ pub struct StepBar {
 }
 
 impl StepBar {
-    /// One more step done.
+    /// `steps` more steps done.
     pub fn inc(&self, steps: u64) {
         self.bar.inc(steps);
         if let Some(line) = self.due_line() {
