@@ -5,7 +5,8 @@ use std::path::Path;
 use anyhow::Result;
 use artifact::write_atomically;
 use fem_ref::{
-    LatticeMesherParams, LatticeRefinement, VolumeTarget, tetrahedralize, tetrahedralize_to_volume,
+    ElementOrder, FemMesh, LatticeMesherParams, LatticeRefinement, VolumeTarget, tetrahedralize,
+    tetrahedralize_to_volume,
 };
 use freeform::frames::unstructured_grid_vtk;
 use rkpm_core::read_triangle_mesh;
@@ -67,10 +68,12 @@ pub(crate) fn run(
         &file,
         unstructured_grid_vtk(tets.vertices(), tets.vertices(), tets.tets(), 0.0, None).as_bytes(),
     )?;
+    // What a FEM reference on it solves for: the P2 nodes (vertices and edge midpoints).
+    let quadratic_nodes = FemMesh::new(tets, ElementOrder::Quadratic).nodes().len();
     let q = &report.quality;
     println!(
         "{}: {} cells across (h = {:.4}; shortest lattice edge {:.4}), {} vertices, {} \
-         tetrahedra\n\
+         tetrahedra; P2: {} nodes, {} DOFs before any are held\n\
          volume {:.6} vs surface {:.6} ({:+.3}%)\n\
          dihedral angles {:.1}°–{:.1}°; boundary vertices {} ({} moved part way, {} kept off \
          the surface to protect quality)\n\
@@ -81,6 +84,8 @@ pub(crate) fn run(
         report.shortest_lattice_edge,
         report.vertices,
         report.tets,
+        quadratic_nodes,
+        3 * quadratic_nodes,
         report.mesh_volume,
         report.surface_volume,
         100.0 * report.relative_volume_error,
