@@ -56,13 +56,16 @@ impl PointInterpolation {
         let inverses: Vec<_> = (0..mesh.element_count())
             .map(|e| tets.edge_matrix(e).try_inverse().expect("positive volume"))
             .collect();
+        let grid = ElementGrid::new(mesh);
         let mut entries = Vec::with_capacity(points.len());
         let mut inside = Vec::with_capacity(points.len());
         for (i, p) in points.iter().enumerate() {
+            // The element whose smallest barycentric coordinate at p is largest (the first of
+            // equals): only elements whose box holds p can have it non-negative.
             let mut best: Option<(usize, Vector4<f64>, f64)> = None;
-            for (e, inv) in inverses.iter().enumerate() {
+            for &e in grid.candidates(p) {
                 let x0 = tets.vertices()[tets.tets()[e][0]];
-                let l = inv * (p - x0);
+                let l = inverses[e] * (p - x0);
                 let lambda = Vector4::new(1.0 - l.sum(), l.x, l.y, l.z);
                 let worst = lambda.min();
                 if best.as_ref().is_none_or(|b| worst > b.2) {
@@ -97,6 +100,113 @@ impl PointInterpolation {
     }
 }
 
+/// A uniform grid over the mesh's bounding box listing, per cell, the elements whose bounding
+/// box (widened by a millionth of its diagonal, far more than the location tolerance) meets
+/// the cell, in ascending order: a point's candidates are its cell's list. About one cell per
+/// element. Points outside the grid are clamped into it (their candidates then all leave them
+/// outside, as every element would).
+struct ElementGrid {
+    origin: Vector3<f64>,
+    cell: f64,
+    dims: [usize; 3],
+    /// Elements of cell c: `elements[starts[c]..starts[c + 1]]`.
+    starts: Vec<usize>,
+    elements: Vec<usize>,
+}
+
+impl ElementGrid {
+    fn new(mesh: &FemMesh) -> Self {
+        let tets = mesh.tet_mesh();
+        let vertices = tets.vertices();
+        let boxes: Vec<(Vector3<f64>, Vector3<f64>)> = tets
+            .tets()
+            .iter()
+            .map(|t| {
+                let (mut lo, mut hi) = (vertices[t[0]], vertices[t[0]]);
+                for &v in &t[1..] {
+                    lo = lo.inf(&vertices[v]);
+                    hi = hi.sup(&vertices[v]);
+                }
+                let widen = Vector3::repeat(1e-6 * (hi - lo).norm());
+                (lo - widen, hi + widen)
+            })
+            .collect();
+        let (mut lo, mut hi) = boxes
+            .first()
+            .copied()
+            .unwrap_or((Vector3::zeros(), Vector3::zeros()));
+        for (a, b) in &boxes {
+            lo = lo.inf(a);
+            hi = hi.sup(b);
+        }
+        let extent = hi - lo;
+        let volume = extent.x.max(f64::MIN_POSITIVE)
+            * extent.y.max(f64::MIN_POSITIVE)
+            * extent.z.max(f64::MIN_POSITIVE);
+        let cell = (volume / boxes.len().max(1) as f64)
+            .cbrt()
+            .max(f64::MIN_POSITIVE);
+        let dims = [0, 1, 2].map(|k| ((extent[k] / cell).ceil() as usize).clamp(1, 1 << 10));
+        let mut grid = ElementGrid {
+            origin: lo,
+            cell,
+            dims,
+            starts: Vec::new(),
+            elements: Vec::new(),
+        };
+        // Counting sort of (cell, element) pairs: each cell's elements ascending.
+        let cells = dims[0] * dims[1] * dims[2];
+        let mut counts = vec![0usize; cells + 1];
+        let mut pairs = Vec::new();
+        for (e, (a, b)) in boxes.iter().enumerate() {
+            let (from, to) = (grid.index3(a), grid.index3(b));
+            for z in from[2]..=to[2] {
+                for y in from[1]..=to[1] {
+                    for x in from[0]..=to[0] {
+                        let c = grid.flat([x, y, z]);
+                        counts[c + 1] += 1;
+                        pairs.push((c, e));
+                    }
+                }
+            }
+        }
+        for c in 0..cells {
+            counts[c + 1] += counts[c];
+        }
+        let mut next = counts.clone();
+        let mut elements = vec![0; pairs.len()];
+        for (c, e) in pairs {
+            elements[next[c]] = e;
+            next[c] += 1;
+        }
+        grid.starts = counts;
+        grid.elements = elements;
+        grid
+    }
+
+    /// The cell holding `p`, clamped into the grid.
+    fn index3(&self, p: &Vector3<f64>) -> [usize; 3] {
+        [0, 1, 2].map(|k| {
+            let i = ((p[k] - self.origin[k]) / self.cell).floor();
+            if i.is_nan() || i < 0.0 {
+                0
+            } else {
+                (i as usize).min(self.dims[k] - 1)
+            }
+        })
+    }
+
+    fn flat(&self, [x, y, z]: [usize; 3]) -> usize {
+        (z * self.dims[1] + y) * self.dims[0] + x
+    }
+
+    /// The elements whose widened box may hold `p`, ascending.
+    fn candidates(&self, p: &Vector3<f64>) -> &[usize] {
+        let c = self.flat(self.index3(p));
+        &self.elements[self.starts[c]..self.starts[c + 1]]
+    }
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -124,5 +234,75 @@ mod tests {
         }
         let error = PointInterpolation::new(&mesh, &points).err().unwrap();
         assert_eq!(error.point, 1);
+    }
+
+    /// Every element tried for every point: what the grid must reproduce.
+    fn located_by_every_element(mesh: &FemMesh, points: &[Vector3<f64>]) -> Vec<Option<usize>> {
+        let tets = mesh.tet_mesh();
+        points
+            .iter()
+            .map(|p| {
+                let mut best: Option<(usize, f64)> = None;
+                for e in 0..mesh.element_count() {
+                    let inv = tets.edge_matrix(e).try_inverse().unwrap();
+                    let l = inv * (p - tets.vertices()[tets.tets()[e][0]]);
+                    let worst = Vector4::new(1.0 - l.sum(), l.x, l.y, l.z).min();
+                    if best.is_none_or(|b| worst > b.1) {
+                        best = Some((e, worst));
+                    }
+                }
+                best.filter(|b| b.1 >= -LOCATION_TOLERANCE).map(|b| b.0)
+            })
+            .collect()
+    }
+
+    #[test]
+    fn the_grid_locates_every_point_in_the_element_a_search_of_all_elements_picks() {
+        let tets = TetMesh::cuboid(
+            Vector3::new(-0.3, 0.1, 0.0),
+            Vector3::new(2.0, 1.0, 0.5),
+            [9, 4, 3],
+        )
+        .expect("a valid box");
+        // Sheared, so that element boxes overlap unevenly.
+        let sheared: Vec<Vector3<f64>> = tets
+            .vertices()
+            .iter()
+            .map(|v| Vector3::new(v.x + 0.3 * v.y, v.y, v.z + 0.2 * v.x))
+            .collect();
+        let tets = TetMesh::new(sheared, tets.tets().to_vec()).expect("still valid");
+        let mesh = FemMesh::new(tets, ElementOrder::Quadratic);
+        // Interior points, the vertices and edge midpoints themselves (on faces and edges),
+        // and points outside on every side.
+        let mut state = 12345u64;
+        let mut uniform = || {
+            state = state
+                .wrapping_mul(6364136223846793005)
+                .wrapping_add(1442695040888963407);
+            (state >> 11) as f64 / (1u64 << 53) as f64
+        };
+        let mut points: Vec<Vector3<f64>> = (0..400)
+            .map(|_| {
+                Vector3::new(
+                    -0.6 + 3.4 * uniform(),
+                    -0.1 + 1.3 * uniform(),
+                    -0.2 + 1.2 * uniform(),
+                )
+            })
+            .collect();
+        points.extend(mesh.nodes().iter().copied());
+        let expected = located_by_every_element(&mesh, &points);
+        let (interpolation, inside) = PointInterpolation::inside(&mesh, &points);
+        let located: Vec<usize> = expected.iter().flatten().copied().collect();
+        assert_eq!(
+            inside,
+            (0..points.len())
+                .filter(|&i| expected[i].is_some())
+                .collect::<Vec<_>>()
+        );
+        assert!(inside.len() > mesh.nodes().len() && inside.len() < points.len());
+        for ((nodes, _), e) in interpolation.entries.iter().zip(located) {
+            assert_eq!(nodes.as_slice(), mesh.element(e));
+        }
     }
 }
