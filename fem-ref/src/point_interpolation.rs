@@ -143,10 +143,16 @@ impl ElementGrid {
         let volume = extent.x.max(f64::MIN_POSITIVE)
             * extent.y.max(f64::MIN_POSITIVE)
             * extent.z.max(f64::MIN_POSITIVE);
-        let cell = (volume / boxes.len().max(1) as f64)
+        let mut cell = (volume / boxes.len().max(1) as f64)
             .cbrt()
             .max(f64::MIN_POSITIVE);
-        let dims = [0, 1, 2].map(|k| ((extent[k] / cell).ceil() as usize).clamp(1, 1 << 10));
+        let dims_of =
+            |cell: f64| [0, 1, 2].map(|k| ((extent[k] / cell).ceil() as usize).clamp(1, 1 << 10));
+        // At most eight cells an element, however flat the box.
+        while dims_of(cell).iter().product::<usize>() > 8 * (boxes.len() + 1) {
+            cell *= 1.5;
+        }
+        let dims = dims_of(cell);
         let mut grid = ElementGrid {
             origin: lo,
             cell,
