@@ -43,7 +43,7 @@ impl ParticleConfig<'_> {
     }
 
     /// A relative cost of one 0.01 s frame at `spacing` (particles on the 5 m beam's unit
-    /// volume × solver steps per frame, SPH's weighted by [`SPH_STEP_COST`]), to run the cheap
+    /// volume × solver steps per frame, SPH's weighted by `SPH_STEP_COST`), to run the cheap
     /// ones first.
     pub fn cost_per_frame(&self, spacing: f64) -> f64 {
         match self {
