@@ -311,4 +311,40 @@ mod tests {
             assert_eq!(nodes.as_slice(), mesh.element(e));
         }
     }
+
+    proptest::proptest! {
+        #![proptest_config(proptest::prelude::ProptestConfig { cases: 32, ..Default::default() })]
+
+        /// On any sheared box mesh, for points inside, outside and on its nodes, the grid's
+        /// pick is the full search's.
+        #[test]
+        fn the_grid_agrees_with_the_full_search_on_any_sheared_box(
+            cells in proptest::array::uniform3(1usize..5),
+            shear in proptest::array::uniform3(-0.8f64..0.8),
+            points in proptest::collection::vec(proptest::array::uniform3(-0.3f64..1.3), 1..60),
+        ) {
+            let tets = TetMesh::cuboid(Vector3::zeros(), Vector3::new(1.0, 1.0, 1.0), cells)
+                .expect("a valid box");
+            let sheared: Vec<Vector3<f64>> = tets
+                .vertices()
+                .iter()
+                .map(|v| Vector3::new(v.x + shear[0] * v.y, v.y + shear[1] * v.z, v.z + shear[2] * v.x))
+                .collect();
+            let tets = TetMesh::new(sheared.clone(), tets.tets().to_vec()).expect("still valid");
+            let mesh = FemMesh::new(tets, ElementOrder::Linear);
+            let mut queries: Vec<Vector3<f64>> = points
+                .iter()
+                .map(|p| Vector3::new(p[0] + shear[0] * p[1], p[1] + shear[1] * p[2], p[2] + shear[2] * p[0]))
+                .collect();
+            queries.extend(sheared);
+            let expected = located_by_every_element(&mesh, &queries);
+            let (interpolation, inside) = PointInterpolation::inside(&mesh, &queries);
+            let expected_inside: Vec<usize> =
+                (0..queries.len()).filter(|&i| expected[i].is_some()).collect();
+            proptest::prop_assert_eq!(&inside, &expected_inside);
+            for ((nodes, _), e) in interpolation.entries.iter().zip(expected.iter().flatten()) {
+                proptest::prop_assert_eq!(nodes.as_slice(), mesh.element(*e));
+            }
+        }
+    }
 }
