@@ -190,10 +190,11 @@ fn length_scale<M: HyperelasticMaterial>(model: &FemModel<M>) -> f64 {
 }
 
 /// The scene's floor with a unit normal and its penalty stiffness
-/// `κ = floor_factor · (λ + 2μ)_max / L²` (Pa/m², L = [`length_scale`]).
+/// `κ = floor_factor · (λ + 2μ)_max / L²` (Pa/m², L = [`length_scale`] of the model).
 fn penalized_floor<M: HyperelasticMaterial>(
     model: &FemModel<M>,
     scene: &FemScene,
+    length_scale: f64,
 ) -> Result<Option<(FemFloor, f64)>, FemSetupError> {
     let Some(f) = scene.floor else {
         return Ok(None);
@@ -202,7 +203,7 @@ fn penalized_floor<M: HyperelasticMaterial>(
     if !(norm > 0.0 && norm.is_finite() && f.offset.is_finite() && f.floor_factor > 0.0) {
         return Err(FemSetupError::InvalidScene(format!("invalid floor {f:?}")));
     }
-    let kappa = f.floor_factor * model.max_p_wave_modulus() / length_scale(model).powi(2);
+    let kappa = f.floor_factor * model.max_p_wave_modulus() / length_scale.powi(2);
     let floor = FemFloor {
         normal: f.normal / norm,
         offset: f.offset / norm,
@@ -238,7 +239,7 @@ impl<M: HyperelasticMaterial> FemSimulator<M> {
             )));
         }
         let length_scale = length_scale(&model);
-        let floor = penalized_floor(&model, &scene)?;
+        let floor = penalized_floor(&model, &scene, length_scale)?;
         let system = SparseSystem::new(&model, &fixed, params.ordering, params.factor_memory)
             .map_err(|e| match e {
                 SystemSetupError::FactorTooLarge {
@@ -364,7 +365,7 @@ impl<M: HyperelasticMaterial> FemSimulator<M> {
         scene_label: &str,
         cache: &TrajectoryCache,
     ) -> Result<Option<Trajectory>, TrajectoryCacheError> {
-        let Ok(floor) = penalized_floor(model, scene) else {
+        let Ok(floor) = penalized_floor(model, scene, length_scale(model)) else {
             return Ok(None);
         };
         let inputs = KeyInputs {

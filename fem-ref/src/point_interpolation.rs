@@ -1,6 +1,7 @@
 //! Interpolating the FEM displacement at arbitrary points inside the mesh.
 
 use nalgebra::{Vector3, Vector4};
+use rkpm_core::Aabb;
 use thiserror::Error;
 
 use crate::element::{FemMesh, shape_values};
@@ -118,28 +119,23 @@ impl ElementGrid {
     fn new(mesh: &FemMesh) -> Self {
         let tets = mesh.tet_mesh();
         let vertices = tets.vertices();
-        let boxes: Vec<(Vector3<f64>, Vector3<f64>)> = tets
+        let boxes: Vec<Aabb> = tets
             .tets()
             .iter()
             .map(|t| {
-                let (mut lo, mut hi) = (vertices[t[0]], vertices[t[0]]);
-                for &v in &t[1..] {
-                    lo = lo.inf(&vertices[v]);
-                    hi = hi.sup(&vertices[v]);
+                let b = Aabb::from_points(t.iter().map(|&v| &vertices[v])).expect("four corners");
+                let widen = Vector3::repeat(1e-6 * b.extent().norm());
+                Aabb {
+                    min: b.min - widen,
+                    max: b.max + widen,
                 }
-                let widen = Vector3::repeat(1e-6 * (hi - lo).norm());
-                (lo - widen, hi + widen)
             })
             .collect();
-        let (mut lo, mut hi) = boxes
-            .first()
-            .copied()
-            .unwrap_or((Vector3::zeros(), Vector3::zeros()));
-        for (a, b) in &boxes {
-            lo = lo.inf(a);
-            hi = hi.sup(b);
-        }
-        let extent = hi - lo;
+        let all = Aabb::from_points(boxes.iter().flat_map(|b| [&b.min, &b.max])).unwrap_or(Aabb {
+            min: Vector3::zeros(),
+            max: Vector3::zeros(),
+        });
+        let extent = all.extent();
         let volume = extent.x.max(f64::MIN_POSITIVE)
             * extent.y.max(f64::MIN_POSITIVE)
             * extent.z.max(f64::MIN_POSITIVE);
@@ -154,7 +150,7 @@ impl ElementGrid {
         }
         let dims = dims_of(cell);
         let mut grid = ElementGrid {
-            origin: lo,
+            origin: all.min,
             cell,
             dims,
             starts: Vec::new(),
@@ -164,8 +160,8 @@ impl ElementGrid {
         let cells = dims[0] * dims[1] * dims[2];
         let mut counts = vec![0usize; cells + 1];
         let mut pairs = Vec::new();
-        for (e, (a, b)) in boxes.iter().enumerate() {
-            let (from, to) = (grid.index3(a), grid.index3(b));
+        for (e, b) in boxes.iter().enumerate() {
+            let (from, to) = (grid.index3(&b.min), grid.index3(&b.max));
             for z in from[2]..=to[2] {
                 for y in from[1]..=to[1] {
                     for x in from[0]..=to[0] {
