@@ -1,7 +1,7 @@
 //! Interpolating the FEM displacement at arbitrary points inside the mesh.
 
 use nalgebra::{Vector3, Vector4};
-use rkpm_core::Aabb;
+use rkpm_core::{Aabb, GridBins};
 use thiserror::Error;
 
 use crate::element::{FemMesh, shape_values};
@@ -57,14 +57,14 @@ impl PointInterpolation {
         let inverses: Vec<_> = (0..mesh.element_count())
             .map(|e| tets.edge_matrix(e).try_inverse().expect("positive volume"))
             .collect();
-        let grid = ElementGrid::new(mesh);
+        let grid = element_grid(mesh);
         let mut entries = Vec::with_capacity(points.len());
         let mut inside = Vec::with_capacity(points.len());
         for (i, p) in points.iter().enumerate() {
             // The element whose smallest barycentric coordinate at p is largest (the first of
             // equals): only elements whose box holds p can have it non-negative.
             let mut best: Option<(usize, Vector4<f64>, f64)> = None;
-            for &e in grid.candidates(p) {
+            for e in grid.items_at((*p).into()).iter().map(|&e| e as usize) {
                 let x0 = tets.vertices()[tets.tets()[e][0]];
                 let l = inverses[e] * (p - x0);
                 let lambda = Vector4::new(1.0 - l.sum(), l.x, l.y, l.z);
@@ -101,112 +101,45 @@ impl PointInterpolation {
     }
 }
 
-/// A uniform grid over the mesh's bounding box listing, per cell, the elements whose bounding
-/// box (widened by a millionth of its diagonal, far more than the location tolerance) meets
-/// the cell, in ascending order: a point's candidates are its cell's list. About one cell per
-/// element. Points outside the grid are clamped into it (their candidates then all leave them
-/// outside, as every element would).
-struct ElementGrid {
-    origin: Vector3<f64>,
-    cell: f64,
-    dims: [usize; 3],
-    /// Elements of cell c: `elements[starts[c]..starts[c + 1]]`.
-    starts: Vec<usize>,
-    elements: Vec<usize>,
-}
-
-impl ElementGrid {
-    fn new(mesh: &FemMesh) -> Self {
-        let tets = mesh.tet_mesh();
-        let vertices = tets.vertices();
-        let boxes: Vec<Aabb> = tets
-            .tets()
-            .iter()
-            .map(|t| {
-                let b = Aabb::from_points(t.iter().map(|&v| &vertices[v])).expect("four corners");
-                let widen = Vector3::repeat(1e-6 * b.extent().norm());
-                Aabb {
-                    min: b.min - widen,
-                    max: b.max + widen,
-                }
-            })
-            .collect();
-        let all = Aabb::from_points(boxes.iter().flat_map(|b| [&b.min, &b.max])).unwrap_or(Aabb {
-            min: Vector3::zeros(),
-            max: Vector3::zeros(),
-        });
-        let extent = all.extent();
-        let volume = extent.x.max(f64::MIN_POSITIVE)
-            * extent.y.max(f64::MIN_POSITIVE)
-            * extent.z.max(f64::MIN_POSITIVE);
-        let mut cell = (volume / boxes.len().max(1) as f64)
-            .cbrt()
-            .max(f64::MIN_POSITIVE);
-        let dims_of =
-            |cell: f64| [0, 1, 2].map(|k| ((extent[k] / cell).ceil() as usize).clamp(1, 1 << 10));
-        // At most eight cells an element, however flat the box.
-        while dims_of(cell).iter().product::<usize>() > 8 * (boxes.len() + 1) {
-            cell *= 1.5;
-        }
-        let dims = dims_of(cell);
-        let mut grid = ElementGrid {
-            origin: all.min,
-            cell,
-            dims,
-            starts: Vec::new(),
-            elements: Vec::new(),
-        };
-        // Counting sort of (cell, element) pairs: each cell's elements ascending.
-        let cells = dims[0] * dims[1] * dims[2];
-        let mut counts = vec![0usize; cells + 1];
-        let mut pairs = Vec::new();
-        for (e, b) in boxes.iter().enumerate() {
-            let (from, to) = (grid.index3(&b.min), grid.index3(&b.max));
-            for z in from[2]..=to[2] {
-                for y in from[1]..=to[1] {
-                    for x in from[0]..=to[0] {
-                        let c = grid.flat([x, y, z]);
-                        counts[c + 1] += 1;
-                        pairs.push((c, e));
-                    }
-                }
-            }
-        }
-        for c in 0..cells {
-            counts[c + 1] += counts[c];
-        }
-        let mut next = counts.clone();
-        let mut elements = vec![0; pairs.len()];
-        for (c, e) in pairs {
-            elements[next[c]] = e;
-            next[c] += 1;
-        }
-        grid.starts = counts;
-        grid.elements = elements;
-        grid
-    }
-
-    /// The cell holding `p`, clamped into the grid.
-    fn index3(&self, p: &Vector3<f64>) -> [usize; 3] {
-        [0, 1, 2].map(|k| {
-            let i = ((p[k] - self.origin[k]) / self.cell).floor();
-            if i.is_nan() || i < 0.0 {
-                0
-            } else {
-                (i as usize).min(self.dims[k] - 1)
+/// The mesh's elements binned on a uniform grid over its bounding box by their bounding boxes
+/// (widened by a millionth of their diagonal, far more than the location tolerance): a point's
+/// candidates are its cell's list, ascending. About one cell per element, at most eight.
+/// Points outside the grid are clamped into it (their candidates then all leave them outside,
+/// as every element would).
+fn element_grid(mesh: &FemMesh) -> GridBins<3> {
+    let tets = mesh.tet_mesh();
+    let vertices = tets.vertices();
+    let boxes: Vec<Aabb> = tets
+        .tets()
+        .iter()
+        .map(|t| {
+            let b = Aabb::from_points(t.iter().map(|&v| &vertices[v])).expect("four corners");
+            let widen = Vector3::repeat(1e-6 * b.extent().norm());
+            Aabb {
+                min: b.min - widen,
+                max: b.max + widen,
             }
         })
+        .collect();
+    let all = Aabb::from_points(boxes.iter().flat_map(|b| [&b.min, &b.max])).unwrap_or(Aabb {
+        min: Vector3::zeros(),
+        max: Vector3::zeros(),
+    });
+    let extent = all.extent();
+    let volume = extent.x.max(f64::MIN_POSITIVE)
+        * extent.y.max(f64::MIN_POSITIVE)
+        * extent.z.max(f64::MIN_POSITIVE);
+    let mut cell = (volume / boxes.len().max(1) as f64)
+        .cbrt()
+        .max(f64::MIN_POSITIVE);
+    let dims_of =
+        |cell: f64| [0, 1, 2].map(|k| ((extent[k] / cell).ceil() as usize).clamp(1, 1 << 10));
+    // At most eight cells an element, however flat the box.
+    while dims_of(cell).iter().product::<usize>() > 8 * (boxes.len() + 1) {
+        cell *= 1.5;
     }
-
-    fn flat(&self, [x, y, z]: [usize; 3]) -> usize {
-        (z * self.dims[1] + y) * self.dims[0] + x
-    }
-
-    /// The elements whose widened box may hold `p`, ascending.
-    fn candidates(&self, p: &Vector3<f64>) -> &[usize] {
-        let c = self.flat(self.index3(p));
-        &self.elements[self.starts[c]..self.starts[c + 1]]
-    }
+    let corners: Vec<_> = boxes.iter().map(|b| (b.min.into(), b.max.into())).collect();
+    GridBins::new(all.min.into(), [cell; 3], dims_of(cell), &corners)
 }
 
 #[cfg(test)]

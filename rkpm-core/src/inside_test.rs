@@ -9,10 +9,11 @@
 //! are detected with a relative tolerance and answered by the exact generalized winding number
 //! `w(q) = Σ_t Ω_t(q) / 4π` (Van Oosterom-Strackee solid angles), which is robust but O(#triangles).
 
-use nalgebra::{Vector2, Vector3};
+use nalgebra::Vector3;
 use rayon::prelude::*;
 
 use crate::aabb::Aabb;
+use crate::grid_bins::GridBins;
 use crate::triangle_mesh::TriangleMesh;
 
 /// Accelerated inside/outside test for one closed mesh. Build once, query many times.
@@ -20,13 +21,8 @@ use crate::triangle_mesh::TriangleMesh;
 pub struct InsideTest {
     triangles: Vec<[Vector3<f64>; 3]>,
     bbox: Aabb,
-    /// Bin grid over (y, z): `bins_y × bins_z` cells of size `cell`.
-    bins_y: usize,
-    bins_z: usize,
-    cell: Vector2<f64>,
-    /// CSR layout: triangles of bin `b` are `bin_triangles[bin_offsets[b]..bin_offsets[b + 1]]`.
-    bin_offsets: Vec<usize>,
-    bin_triangles: Vec<u32>,
+    /// The triangles binned by their (y, z) bounding boxes.
+    bins: GridBins<2>,
     /// Absolute tolerance for degenerate-ray detection (units² for edge functions).
     area_tolerance: f64,
     length_tolerance: f64,
@@ -49,64 +45,25 @@ impl InsideTest {
         let target = ((triangles.len() as f64).sqrt() * 1.5).clamp(1.0, 1024.0);
         let bins_y = ((target * ext.y / ext.y.max(ext.z)).ceil() as usize).max(1);
         let bins_z = ((target * ext.z / ext.y.max(ext.z)).ceil() as usize).max(1);
-        let cell = Vector2::new(
+        let cell = [
             (ext.y / bins_y as f64).max(f64::MIN_POSITIVE),
             (ext.z / bins_z as f64).max(f64::MIN_POSITIVE),
-        );
-        let mut this = InsideTest {
-            triangles,
-            bbox,
-            bins_y,
-            bins_z,
-            cell,
-            bin_offsets: Vec::new(),
-            bin_triangles: Vec::new(),
-            area_tolerance: 1e-12 * scale * scale,
-            length_tolerance: 1e-12 * scale,
-        };
-        let ranges: Vec<_> = this
-            .triangles
+        ];
+        let shadows: Vec<_> = triangles
             .iter()
             .map(|t| {
                 let (lo, hi) = (t[0].inf(&t[1].inf(&t[2])), t[0].sup(&t[1].sup(&t[2])));
-                (this.bin_of(lo.y, lo.z), this.bin_of(hi.y, hi.z))
+                ([lo.y, lo.z], [hi.y, hi.z])
             })
             .collect();
-        let mut counts = vec![0usize; bins_y * bins_z + 1];
-        for &((y0, z0), (y1, z1)) in &ranges {
-            for y in y0..=y1 {
-                for z in z0..=z1 {
-                    counts[y * bins_z + z + 1] += 1;
-                }
-            }
+        let bins = GridBins::new([bbox.min.y, bbox.min.z], cell, [bins_y, bins_z], &shadows);
+        InsideTest {
+            triangles,
+            bbox,
+            bins,
+            area_tolerance: 1e-12 * scale * scale,
+            length_tolerance: 1e-12 * scale,
         }
-        for b in 1..counts.len() {
-            counts[b] += counts[b - 1];
-        }
-        let mut fill = counts.clone();
-        let mut bin_triangles = vec![0u32; counts[counts.len() - 1]];
-        for (t, &((y0, z0), (y1, z1))) in ranges.iter().enumerate() {
-            for y in y0..=y1 {
-                for z in z0..=z1 {
-                    let b = y * bins_z + z;
-                    bin_triangles[fill[b]] = t as u32;
-                    fill[b] += 1;
-                }
-            }
-        }
-        this.bin_offsets = counts;
-        this.bin_triangles = bin_triangles;
-        this
-    }
-
-    fn bin_of(&self, y: f64, z: f64) -> (usize, usize) {
-        let by = ((y - self.bbox.min.y) / self.cell.x)
-            .floor()
-            .clamp(0.0, (self.bins_y - 1) as f64);
-        let bz = ((z - self.bbox.min.z) / self.cell.y)
-            .floor()
-            .clamp(0.0, (self.bins_z - 1) as f64);
-        (by as usize, bz as usize)
     }
 
     /// Whether `q` lies inside the solid (points on the surface count as inside).
@@ -143,10 +100,8 @@ impl InsideTest {
     }
 
     fn ray_winding(&self, q: &Vector3<f64>) -> RayResult {
-        let (by, bz) = self.bin_of(q.y, q.z);
-        let b = by * self.bins_z + bz;
         let mut winding = 0;
-        for &t in &self.bin_triangles[self.bin_offsets[b]..self.bin_offsets[b + 1]] {
+        for &t in self.bins.items_at([q.y, q.z]) {
             let [a, b, c] = &self.triangles[t as usize];
             // Edge functions in the (y, z) projection.
             let orient = |p: &Vector3<f64>, r: &Vector3<f64>| {

@@ -23,6 +23,7 @@
 
 pub mod aabb;
 pub mod geometry_io;
+pub mod grid_bins;
 pub mod inside_test;
 pub mod integration_points;
 pub mod kernels;
@@ -37,6 +38,7 @@ pub use geometry_io::{
     GeometryFormat, GeometryReadError, parse_point_cloud, parse_triangle_mesh, read_point_cloud,
     read_triangle_mesh,
 };
+pub use grid_bins::GridBins;
 pub use inside_test::InsideTest;
 pub use integration_points::{
     CloudVolume, GridSamplingParams, IntegrationPoints, PointCloudSamplingParams,
