@@ -69,9 +69,9 @@ pub(crate) struct TableOptions {
     /// contract by 0.7 (the paper's setting assembles a fresh Hessian every iteration).
     #[arg(long)]
     hessian_reuse: bool,
-    /// Tables 1, 5, 6: simulate on a grid of about this many points (default 5000, the
+    /// Tables 1, 2, 5, 6, 7: simulate on a grid of about this many points (default 5000, the
     /// paper's); 20000 is the basis's own grid, where the m = 32 Bend error is about 4× lower
-    /// (issue 18).
+    /// (issue 18). On the shapes the grid fills each surface, for both methods.
     #[arg(long)]
     simulation_points: Option<usize>,
     /// Pin penalty factor (default the library's, 3e3; tables 1, 2, 5, 6, 7).
@@ -455,6 +455,9 @@ pub(crate) fn run(
         shapes.jobs = jobs;
         shapes.settings.pin_factor = config.settings.pin_factor;
         shapes.settings.pin_modulus = config.settings.pin_modulus;
+        if simulation_points.is_some() {
+            shapes.settings.simulation_points = config.settings.simulation_points;
+        }
         if let Some(cells) = fem_cells {
             if cells == 0 {
                 bail!("--fem-cells must be at least 1");
