@@ -373,6 +373,35 @@ fn a_quick_shape_run_fills_tables_2_and_7_reports_a_broken_mesh_and_reuses_its_c
             assert_eq!(b["fem"]["cached"], true);
         }
     }
+
+    // `--simulation-points` reaches the shapes: about twice the points, more of them in every
+    // held region, the same cached references.
+    let denser_args = [&args[..], &["--simulation-points", "2000"]].concat();
+    let denser = freeform(&denser_args, &dir);
+    assert!(
+        denser.status.success(),
+        "{}",
+        String::from_utf8_lossy(&denser.stderr)
+    );
+    let denser: serde_json::Value = serde_json::from_slice(&denser.stdout).unwrap();
+    let denser = table(&denser, 2);
+    assert_eq!(denser["settings"]["settings"]["simulation_points"], 2000);
+    let held = |row: &serde_json::Value| -> u64 {
+        row["region_points"]
+            .as_array()
+            .unwrap()
+            .iter()
+            .map(|n| n.as_u64().unwrap())
+            .sum()
+    };
+    for (a, b) in rows
+        .iter()
+        .zip(denser["shapes"].as_array().unwrap())
+        .filter(|(a, _)| a["name"] == "bunny.obj")
+    {
+        assert_eq!(b["fem"]["cached"], true);
+        assert!(held(b) > held(a), "{} → {}", held(a), held(b));
+    }
 }
 
 #[test]
