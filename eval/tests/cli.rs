@@ -374,9 +374,19 @@ fn a_quick_shape_run_fills_tables_2_and_7_reports_a_broken_mesh_and_reuses_its_c
         }
     }
 
-    // `--simulation-points` reaches the shapes: about twice the points, more of them in every
-    // held region, the same cached references.
-    let denser_args = [&args[..], &["--simulation-points", "2000"]].concat();
+    // `--simulation-points` and the fast step reach the shapes: about twice the points, more of
+    // them in every held region, a cubature of fewer, the same cached references.
+    let denser_args = [
+        &args[..],
+        &[
+            "--simulation-points",
+            "2000",
+            "--quadrature",
+            "cubature",
+            "--hessian-reuse",
+        ],
+    ]
+    .concat();
     let denser = freeform(&denser_args, &dir);
     assert!(
         denser.status.success(),
@@ -386,6 +396,10 @@ fn a_quick_shape_run_fills_tables_2_and_7_reports_a_broken_mesh_and_reuses_its_c
     let denser: serde_json::Value = serde_json::from_slice(&denser.stdout).unwrap();
     let denser = table(&denser, 2);
     assert_eq!(denser["settings"]["settings"]["simulation_points"], 2000);
+    assert_eq!(
+        denser["settings"]["settings"]["quadrature"]["kind"],
+        "cubature"
+    );
     let held = |row: &serde_json::Value| -> u64 {
         row["region_points"]
             .as_array()
@@ -401,6 +415,14 @@ fn a_quick_shape_run_fills_tables_2_and_7_reports_a_broken_mesh_and_reuses_its_c
     {
         assert_eq!(b["fem"]["cached"], true);
         assert!(held(b) > held(a), "{} → {}", held(a), held(b));
+        for method in ["ours", "simplicits"] {
+            let points = |row: &serde_json::Value| {
+                row[format!("{method}_quadrature_points")].as_u64().unwrap()
+            };
+            assert!(points(a) > 900, "every point of the quick grid: {a}");
+            assert!(points(b) < points(a), "a cubature of fewer: {b}");
+            assert!(b[format!("{method}_ms_per_step")].as_f64().unwrap() > 0.0);
+        }
     }
 }
 

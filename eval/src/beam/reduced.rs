@@ -142,6 +142,32 @@ fn paper_quadrature() -> QuadratureRule {
 }
 
 impl ReducedSettings {
+    /// The elastic quadrature in words, for table preambles: "every simulation point (the
+    /// paper's setting)", a random subset, or an optimized cubature.
+    pub fn quadrature_label(&self) -> String {
+        match self.quadrature {
+            QuadratureRule::Full => "every simulation point (the paper's setting)".to_string(),
+            QuadratureRule::RandomSubset { points, seed } => {
+                format!("{points} random simulation points (seed {seed}), volumes rescaled")
+            }
+            QuadratureRule::Cubature(p) => format!(
+                "optimized cubature (An et al. 2008) to relative force error {} on the basis's \
+                 training poses, at most {} points",
+                p.tolerance, p.max_points
+            ),
+        }
+    }
+
+    /// When the Newton Hessian is rebuilt, in words, for table preambles.
+    pub fn hessian_reuse_label(&self) -> String {
+        match self.hessian_reuse {
+            HessianReuse::Never => "fresh every Newton iteration (the paper's setting)".to_string(),
+            HessianReuse::WhileContracting { contraction } => {
+                format!("reused across steps while chord steps contract by {contraction}")
+            }
+        }
+    }
+
     /// The pin penalty in words, for table preambles: "κ_pin = 3e3 · max E / L² (the library
     /// default, chosen against the FEM by `freeform pins`)".
     pub fn pin_rule_label(&self) -> String {

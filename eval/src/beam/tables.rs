@@ -3,8 +3,6 @@
 
 use std::fmt::Write as _;
 
-use optimize::HessianReuse;
-use reduced_sim::QuadratureRule;
 use serde_json::{Value, json};
 
 use crate::beam::particle_baseline::ParticleMethod;
@@ -26,23 +24,8 @@ pub(crate) fn settings_lines(config: &BeamStudyConfig, fem: &[FemSummary]) -> St
         s.simulation_points,
         s.tolerance,
         s.pin_rule_label(),
-        match s.quadrature {
-            QuadratureRule::Full => "every simulation point (the paper's setting)".to_string(),
-            QuadratureRule::RandomSubset { points, seed } => {
-                format!("{points} random simulation points (seed {seed}), volumes rescaled")
-            }
-            QuadratureRule::Cubature(p) => format!(
-                "optimized cubature (An et al. 2008) to relative force error {} on the basis's \
-                 training poses, at most {} points",
-                p.tolerance, p.max_points
-            ),
-        },
-        match s.hessian_reuse {
-            HessianReuse::Never => "fresh every Newton iteration (the paper's setting)".to_string(),
-            HessianReuse::WhileContracting { contraction } => {
-                format!("reused across steps while chord steps contract by {contraction}")
-            }
-        }
+        s.quadrature_label(),
+        s.hessian_reuse_label(),
     );
     for f in fem {
         let _ = writeln!(

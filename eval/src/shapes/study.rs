@@ -154,6 +154,9 @@ pub struct MethodScores {
     pub fitting_residual: f64,
     /// Wall time per step (ms).
     pub ms_per_step: f64,
+    /// Points the elastic energy is integrated on (all simulation points, or a cubature's).
+    #[serde(default)]
+    pub quadrature_points: usize,
     /// Steps whose Newton solve did not converge.
     pub unconverged_steps: usize,
     /// Largest distance of a constrained integration point from its target (m): how far the
@@ -630,6 +633,8 @@ fn run_shape_into(
                     material,
                     scene: &scene,
                     params: settings.simulation_params(config.boundary.time_step),
+                    quadrature: settings.quadrature,
+                    cache_dir: &config.cache_dir,
                     fem: &fem,
                     steps: config.boundary.steps,
                     length,
@@ -738,6 +743,10 @@ struct BoundaryRun<'a> {
     material: MaterialSample,
     scene: &'a SceneSpec,
     params: SimulationParams,
+    /// Where the elastic energy is integrated (the paper's setting: every point).
+    quadrature: QuadratureRule,
+    /// Where an optimized cubature is cached.
+    cache_dir: &'a Path,
     fem: &'a FemRun,
     steps: usize,
     length: f64,
@@ -763,9 +772,8 @@ impl BoundaryRun<'_> {
                     material_model: StableNeoHookean,
                     scene: self.scene,
                     params: self.params,
-                    // The paper's setting; Table 2 does not yet compare quadratures.
-                    quadrature: QuadratureRule::Full,
-                    cache_dir: None,
+                    quadrature: self.quadrature,
+                    cache_dir: Some(self.cache_dir),
                     pin_hold,
                 },
                 output_points: self.fem.vertices(),
@@ -780,6 +788,7 @@ impl BoundaryRun<'_> {
             max: scores.errors.normalized_max,
             fitting_residual: scores.fitting_residual,
             ms_per_step: run.report.ms_per_step,
+            quadrature_points: run.report.quadrature.points,
             unconverged_steps: run.report.unconverged_steps,
             max_pin_deviation: match pin_hold {
                 PinHold::Penalty => run.report.max_pin_deviation,

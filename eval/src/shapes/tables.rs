@@ -159,7 +159,8 @@ fn settings_lines(study: &ShapeStudy) -> String {
         "Settings: every mesh scaled so its largest bounding-box side is L = 1 m; ν = {}, ρ = {} \
          kg/m³, E per shape (10⁵ Pa organic, 10⁸ Pa manufactured; `eval::shapes::catalog`, shown \
          per shape below). m = {}, K = {} kernels; our basis and Simplicits on the same ≈{} grid \
-         points; simulation on ≈{} grid points; Newton tolerance {:e}; pin penalty {}.\n",
+         points; simulation on ≈{} grid points; Newton tolerance {:e}; pin penalty {}. Elastic \
+         quadrature: {}; Hessians: {}.\n",
         SHAPE_POISSON_RATIO,
         SHAPE_DENSITY,
         s.modes,
@@ -167,7 +168,9 @@ fn settings_lines(study: &ShapeStudy) -> String {
         s.basis_points,
         s.simulation_points,
         s.tolerance,
-        s.pin_rule_label()
+        s.pin_rule_label(),
+        s.quadrature_label(),
+        s.hessian_reuse_label()
     );
     let _ = writeln!(out, "Boundary conditions: {}", c.boundary.describe());
     let _ = writeln!(
@@ -528,6 +531,10 @@ pub fn table2(study: &ShapeStudy) -> RenderedTable {
                 "ours_unconverged_steps": ours.map(|s| s.unconverged_steps),
                 "simplicits_unconverged_steps": theirs.map(|s| s.unconverged_steps),
                 "ours_max_pin_deviation": ours.map(|s| s.max_pin_deviation),
+                "ours_ms_per_step": ours.map(|s| s.ms_per_step),
+                "simplicits_ms_per_step": theirs.map(|s| s.ms_per_step),
+                "ours_quadrature_points": ours.map(|s| s.quadrature_points),
+                "simplicits_quadrature_points": theirs.map(|s| s.quadrature_points),
                 "fem_volume_error": reference_mesh.map(|m| m.relative_volume_error),
                 "trusted": row.is_some() && untrusted.is_none(),
                 "why_untrusted": untrusted,
@@ -668,6 +675,7 @@ mod tests {
             max: mse.sqrt(),
             fitting_residual: 0.1 * mse,
             ms_per_step: 1.0,
+            quadrature_points: 100,
             unconverged_steps: 0,
             max_pin_deviation: 0.0,
         }

@@ -58,14 +58,14 @@ pub(crate) struct TableOptions {
     /// paper's 10 000 in a full run): networks are cached per step count.
     #[arg(long)]
     simplicits_steps: Option<usize>,
-    /// Tables 1, 5, 6: integrate the elastic energy on every simulation point (`full`, the
+    /// Tables 1, 2, 5, 6, 7: integrate the elastic energy on every simulation point (`full`, the
     /// paper's setting) or on an optimized cubature (`cubature`, issue 18).
     #[arg(long, value_enum, default_value_t = QuadratureChoice::Full)]
     quadrature: QuadratureChoice,
     /// With `--quadrature cubature`: the relative force error it is optimized to.
     #[arg(long, default_value_t = CubatureParams::DEFAULT.tolerance)]
     cubature_tolerance: f64,
-    /// Tables 1, 5, 6: carry the Hessian factorization across steps while chord steps
+    /// Tables 1, 2, 5, 6, 7: carry the Hessian factorization across steps while chord steps
     /// contract by 0.7 (the paper's setting assembles a fresh Hessian every iteration).
     #[arg(long)]
     hessian_reuse: bool,
@@ -458,6 +458,8 @@ pub(crate) fn run(
         if simulation_points.is_some() {
             shapes.settings.simulation_points = config.settings.simulation_points;
         }
+        shapes.settings.quadrature = config.settings.quadrature;
+        shapes.settings.hessian_reuse = config.settings.hessian_reuse;
         if let Some(cells) = fem_cells {
             if cells == 0 {
                 bail!("--fem-cells must be at least 1");
