@@ -155,7 +155,6 @@ pub struct MethodScores {
     /// Wall time per step (ms).
     pub ms_per_step: f64,
     /// Points the elastic energy is integrated on (all simulation points, or a cubature's).
-    #[serde(default)]
     pub quadrature_points: usize,
     /// Steps whose Newton solve did not converge.
     pub unconverged_steps: usize,
