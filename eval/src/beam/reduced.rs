@@ -141,21 +141,27 @@ fn paper_quadrature() -> QuadratureRule {
     QuadratureRule::PAPER
 }
 
+/// A quadrature rule in words, for table preambles: "every simulation point (the paper's
+/// setting)", a random subset, or an optimized cubature.
+pub fn quadrature_rule_label(rule: QuadratureRule) -> String {
+    match rule {
+        QuadratureRule::Full => "every simulation point (the paper's setting)".to_string(),
+        QuadratureRule::RandomSubset { points, seed } => {
+            format!("{points} random simulation points (seed {seed}), volumes rescaled")
+        }
+        QuadratureRule::Cubature(p) => format!(
+            "optimized cubature (An et al. 2008) to relative force error {} on the basis's \
+             training poses, at most {} points",
+            p.tolerance, p.max_points
+        ),
+    }
+}
+
 impl ReducedSettings {
     /// The elastic quadrature in words, for table preambles: "every simulation point (the
     /// paper's setting)", a random subset, or an optimized cubature.
     pub fn quadrature_label(&self) -> String {
-        match self.quadrature {
-            QuadratureRule::Full => "every simulation point (the paper's setting)".to_string(),
-            QuadratureRule::RandomSubset { points, seed } => {
-                format!("{points} random simulation points (seed {seed}), volumes rescaled")
-            }
-            QuadratureRule::Cubature(p) => format!(
-                "optimized cubature (An et al. 2008) to relative force error {} on the basis's \
-                 training poses, at most {} points",
-                p.tolerance, p.max_points
-            ),
-        }
+        quadrature_rule_label(self.quadrature)
     }
 
     /// When the Newton Hessian is rebuilt, in words, for table preambles.

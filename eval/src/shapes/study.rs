@@ -81,6 +81,12 @@ pub struct ShapeStudyConfig {
     /// out.
     #[serde(default)]
     pub exact_pins: Option<f64>,
+    /// The quadrature Simplicits is simulated with; `None` (default): FreeForm's
+    /// (`settings.quadrature`). `Some(QuadratureRule::Full)` keeps the baseline on every point
+    /// while FreeForm runs on a cubature: Simplicits' own cubature is coarser (about 320 of
+    /// the 20 000 basis-grid points on the shared shapes) and costs it accuracy on stiff ones.
+    #[serde(default)]
+    pub simplicits_quadrature: Option<QuadratureRule>,
 }
 
 fn default_reference_volume_gate() -> f64 {
@@ -108,6 +114,7 @@ impl ShapeStudyConfig {
             exact_pins: Some(0.0),
             max_reference_volume_error: default_reference_volume_gate(),
             check_convergence: false,
+            simplicits_quadrature: None,
         }
     }
 
@@ -650,7 +657,11 @@ fn run_shape_into(
                     }
                 }
                 if let Some(net) = &simplicits {
-                    row.simplicits = Some(run.score(net, "Simplicits", PinHold::Penalty)?.0);
+                    let baseline = BoundaryRun {
+                        quadrature: config.simplicits_quadrature.unwrap_or(run.quadrature),
+                        ..run
+                    };
+                    row.simplicits = Some(baseline.score(net, "Simplicits", PinHold::Penalty)?.0);
                 }
                 Ok(())
             });

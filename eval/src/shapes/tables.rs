@@ -16,6 +16,7 @@ use std::fmt::Write as _;
 use serde::Serialize;
 use serde_json::{Value, json};
 
+use crate::beam::reduced::quadrature_rule_label;
 use crate::report::paper;
 use crate::report::table::{RenderedTable, not_run_or, sci};
 use crate::shapes::boundary::ShapeBoundary;
@@ -160,7 +161,7 @@ fn settings_lines(study: &ShapeStudy) -> String {
          kg/m³, E per shape (10⁵ Pa organic, 10⁸ Pa manufactured; `eval::shapes::catalog`, shown \
          per shape below). m = {}, K = {} kernels; our basis and Simplicits on the same ≈{} grid \
          points; simulation on ≈{} grid points; Newton tolerance {:e}; pin penalty {}. Elastic \
-         quadrature: {}; Hessians: {}.\n",
+         quadrature: {}{}; Hessians: {}.\n",
         SHAPE_POISSON_RATIO,
         SHAPE_DENSITY,
         s.modes,
@@ -170,6 +171,11 @@ fn settings_lines(study: &ShapeStudy) -> String {
         s.tolerance,
         s.pin_rule_label(),
         s.quadrature_label(),
+        match c.simplicits_quadrature {
+            Some(rule) if c.simplicits.is_some() =>
+                format!(" (Simplicits: {})", quadrature_rule_label(rule)),
+            _ => String::new(),
+        },
         s.hessian_reuse_label()
     );
     let _ = writeln!(out, "Boundary conditions: {}", c.boundary.describe());
