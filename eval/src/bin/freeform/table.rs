@@ -235,6 +235,19 @@ pub(crate) enum QuadratureChoice {
     Cubature,
 }
 
+impl QuadratureChoice {
+    /// The rule chosen; a cubature optimized to relative force error `cubature_tolerance`.
+    fn rule(self, cubature_tolerance: f64) -> QuadratureRule {
+        match self {
+            QuadratureChoice::Full => QuadratureRule::Full,
+            QuadratureChoice::Cubature => QuadratureRule::Cubature(CubatureParams {
+                tolerance: cubature_tolerance,
+                ..CubatureParams::DEFAULT
+            }),
+        }
+    }
+}
+
 pub(crate) fn run(
     numbers: &[u32],
     TableOptions {
@@ -369,14 +382,7 @@ pub(crate) fn run(
     if !(cubature_tolerance > 0.0 && cubature_tolerance.is_finite()) {
         bail!("--cubature-tolerance must be a positive number, got {cubature_tolerance}");
     }
-    let rule = |choice: QuadratureChoice| match choice {
-        QuadratureChoice::Full => QuadratureRule::Full,
-        QuadratureChoice::Cubature => QuadratureRule::Cubature(CubatureParams {
-            tolerance: cubature_tolerance,
-            ..CubatureParams::DEFAULT
-        }),
-    };
-    config.settings.quadrature = rule(quadrature);
+    config.settings.quadrature = quadrature.rule(cubature_tolerance);
     if hessian_reuse {
         config.settings.hessian_reuse = reduced_sim::SimulationParams::HESSIAN_REUSE;
     }
@@ -466,7 +472,8 @@ pub(crate) fn run(
             shapes.settings.simulation_points = config.settings.simulation_points;
         }
         shapes.settings.quadrature = config.settings.quadrature;
-        shapes.simplicits_quadrature = simplicits_quadrature.map(rule);
+        shapes.simplicits_quadrature =
+            simplicits_quadrature.map(|choice| choice.rule(cubature_tolerance));
         shapes.settings.hessian_reuse = config.settings.hessian_reuse;
         if let Some(cells) = fem_cells {
             if cells == 0 {
