@@ -468,8 +468,8 @@ pub(crate) fn run(
         shapes.jobs = jobs;
         shapes.settings.pin_factor = config.settings.pin_factor;
         shapes.settings.pin_modulus = config.settings.pin_modulus;
-        if simulation_points.is_some() {
-            shapes.settings.simulation_points = config.settings.simulation_points;
+        if let Some(points) = simulation_points {
+            shapes.settings.simulation_points = points;
         }
         shapes.settings.quadrature = config.settings.quadrature;
         shapes.simplicits_quadrature =
