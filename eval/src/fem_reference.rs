@@ -316,11 +316,10 @@ pub fn run_fem(
     .map_err(|e| EvalError::Fem(fem_ref::FemRunError::Cache(e)))?;
     let (mesh, trajectory, dofs, cached, split_steps) = match cached_trajectory {
         Some(trajectory) => {
-            let held = parts
+            let dofs = parts
                 .scene
-                .held_nodes(parts.model.mesh().nodes().len())
+                .free_dofs(parts.model.mesh().nodes().len())
                 .map_err(EvalError::FemSetup)?;
-            let dofs = 3 * held.iter().filter(|&&h| !h).count();
             (parts.model.mesh().clone(), trajectory, dofs, true, 0)
         }
         None => {

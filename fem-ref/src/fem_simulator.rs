@@ -309,7 +309,7 @@ impl<M: HyperelasticMaterial> FemSimulator<M> {
         self.split_steps
     }
 
-    /// Unknowns of the Newton system (free DOFs).
+    /// Unknowns of the Newton system: the free DOFs, [`FemScene::free_dofs`] of its scene.
     pub fn free_dofs(&self) -> usize {
         self.system.free_count
     }

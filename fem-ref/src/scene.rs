@@ -97,4 +97,15 @@ impl FemScene {
         }
         Ok(held)
     }
+
+    /// The free DOFs of a model of `nodes` nodes under this scene: three per node no Dirichlet
+    /// region holds (what [`crate::FemSimulator::free_dofs`] reports once built; known here
+    /// without building the system, e.g. for a trajectory loaded from the cache).
+    ///
+    /// # Errors
+    /// As [`Self::held_nodes`].
+    pub fn free_dofs(&self, nodes: usize) -> Result<usize, FemSetupError> {
+        let held = self.held_nodes(nodes)?;
+        Ok(3 * held.iter().filter(|&&h| !h).count())
+    }
 }

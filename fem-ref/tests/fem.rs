@@ -630,3 +630,32 @@ fn a_cached_run_is_found_from_the_simulators_inputs_exactly_where_run_cached_ser
         None
     );
 }
+
+#[test]
+fn the_scenes_free_dofs_are_the_simulators_unknowns_and_a_scene_holding_every_node_is_refused() {
+    use fem_ref::FemSetupError;
+    for order in [ElementOrder::Linear, ElementOrder::Quadratic] {
+        let model = model([3, 1, 1], Vector3::new(3.0, 1.0, 1.0), order);
+        let scene = cantilever_under_gravity(&model);
+        let nodes = model.mesh().nodes().len();
+        let held = scene.dirichlet[0].nodes.len();
+        assert!(held > 0 && held < nodes);
+        assert_eq!(scene.free_dofs(nodes).unwrap(), 3 * (nodes - held));
+        let sim = FemSimulator::new(model, scene.clone(), FemParams::default()).unwrap();
+        assert_eq!(scene.free_dofs(nodes).unwrap(), sim.free_dofs());
+    }
+    let model = model([1, 1, 1], Vector3::new(1.0, 1.0, 1.0), ElementOrder::Linear);
+    let nodes = model.mesh().nodes().len();
+    let everything = FemScene {
+        gravity: None,
+        dirichlet: vec![DirichletRegion {
+            nodes: (0..nodes).collect(),
+            target: NodeTarget::Rest,
+        }],
+        floor: None,
+    };
+    assert!(matches!(
+        everything.free_dofs(nodes),
+        Err(FemSetupError::NothingFree)
+    ));
+}
