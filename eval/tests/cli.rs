@@ -25,15 +25,21 @@ fn freeform(args: &[&str], dir: &Path) -> Output {
         .expect("the freeform binary runs")
 }
 
+/// Fails the test with the run's standard error unless it exited successfully.
+#[track_caller]
+fn assert_success(run: &Output) {
+    assert!(
+        run.status.success(),
+        "{}",
+        String::from_utf8_lossy(&run.stderr)
+    );
+}
+
 #[test]
 fn quick_demo_runs_end_to_end_tracks_the_fem_reuses_its_cache_and_is_bit_reproducible() {
     let dir = scratch("demo");
     let first = freeform(&["demo", "--quick", "--json"], &dir);
-    assert!(
-        first.status.success(),
-        "{}",
-        String::from_utf8_lossy(&first.stderr)
-    );
+    assert_success(&first);
     let summary: serde_json::Value = serde_json::from_slice(&first.stdout).unwrap();
     let mse = summary["normalized_mse"].as_f64().unwrap();
     // 20 steps of free bending: both sag ~0.26 m at the tip; FreeForm with m = 6 stays within
@@ -60,12 +66,12 @@ fn quick_demo_runs_end_to_end_tracks_the_fem_reuses_its_cache_and_is_bit_reprodu
     // run). Parallel float sums used to associate differently from run to run (1e-7 relative
     // drift in this MSE); energies are now summed in index order.
     let second = freeform(&["demo", "--quick", "--json"], &dir);
-    assert!(second.status.success());
+    assert_success(&second);
     let again: serde_json::Value = serde_json::from_slice(&second.stdout).unwrap();
     assert_eq!(again["fem_cached"], true);
     let fresh_dir = scratch("demo-fresh");
     let third = freeform(&["demo", "--quick", "--json"], &fresh_dir);
-    assert!(third.status.success());
+    assert_success(&third);
     let fresh: serde_json::Value = serde_json::from_slice(&third.stdout).unwrap();
     assert_eq!(fresh["fem_cached"], false);
     for other in [&again, &fresh] {
@@ -108,11 +114,7 @@ fn simulate_writes_ply_and_vtk_frames_of_the_deformed_surface() {
     let scene = dir.join("box.toml");
     std::fs::write(&scene, BOX_SCENE).unwrap();
     let run = freeform(&["simulate", scene.to_str().unwrap()], &dir);
-    assert!(
-        run.status.success(),
-        "{}",
-        String::from_utf8_lossy(&run.stderr)
-    );
+    assert_success(&run);
     let out = dir.join("out/box");
     for frame in ["frame_00000", "frame_00003", "frame_00006"] {
         let ply = std::fs::read_to_string(out.join(frame).with_extension("ply")).unwrap();
@@ -195,11 +197,7 @@ fn malformed_scene_files_fail_with_an_error_naming_the_field() {
 fn stress_quick_finishes_every_case_finite_and_reports_failures_by_name() {
     let dir = scratch("stress");
     let run = freeform(&["stress", "--quick", "--json"], &dir);
-    assert!(
-        run.status.success(),
-        "{}",
-        String::from_utf8_lossy(&run.stderr)
-    );
+    assert_success(&run);
     let outcomes: serde_json::Value = serde_json::from_slice(&run.stdout).unwrap();
     let outcomes = outcomes.as_array().unwrap();
     assert_eq!(outcomes.len(), 10);
@@ -296,11 +294,7 @@ fn a_quick_shape_run_fills_tables_2_and_7_reports_a_broken_mesh_and_reuses_its_c
         meshes.to_str().unwrap(),
     ];
     let first = freeform(&args, &dir);
-    assert!(
-        first.status.success(),
-        "{}",
-        String::from_utf8_lossy(&first.stderr)
-    );
+    assert_success(&first);
     let tables: serde_json::Value = serde_json::from_slice(&first.stdout).unwrap();
     let t2 = table(&tables, 2);
     let rows = t2["shapes"].as_array().unwrap();
@@ -360,7 +354,7 @@ fn a_quick_shape_run_fills_tables_2_and_7_reports_a_broken_mesh_and_reuses_its_c
 
     // Again: every FEM trajectory and the network come from the cache, the numbers are the same.
     let second = freeform(&args, &dir);
-    assert!(second.status.success());
+    assert_success(&second);
     let again: serde_json::Value = serde_json::from_slice(&second.stdout).unwrap();
     for (a, b) in rows
         .iter()
@@ -391,11 +385,7 @@ fn a_quick_shape_run_fills_tables_2_and_7_reports_a_broken_mesh_and_reuses_its_c
     ]
     .concat();
     let denser = freeform(&denser_args, &dir);
-    assert!(
-        denser.status.success(),
-        "{}",
-        String::from_utf8_lossy(&denser.stderr)
-    );
+    assert_success(&denser);
     let denser: serde_json::Value = serde_json::from_slice(&denser.stdout).unwrap();
     let denser = table(&denser, 2);
     assert_eq!(denser["settings"]["settings"]["simulation_points"], 2000);
@@ -484,11 +474,7 @@ fn basis_of_the_shared_3dgs_donut_is_built_from_its_splat_centres() {
         &dir,
     );
     let stdout = String::from_utf8_lossy(&run.stdout);
-    assert!(
-        run.status.success(),
-        "{}",
-        String::from_utf8_lossy(&run.stderr)
-    );
+    assert_success(&run);
     assert!(stdout.contains("N = 3000 points"), "{stdout}");
     let basis = skin_eigen::SkinningBasis::load(&save).unwrap();
     assert_eq!(basis.modes(), 6);
@@ -509,11 +495,7 @@ fn render_draws_the_shared_donut_to_a_png_of_the_asked_size() {
         ],
         &dir,
     );
-    assert!(
-        run.status.success(),
-        "{}",
-        String::from_utf8_lossy(&run.stderr)
-    );
+    assert_success(&run);
     let png = std::fs::read(dir.join("out/render/donut_mipsplatting_fused.png")).unwrap();
     // PNG signature, then the IHDR chunk: width and height, big-endian, at bytes 16..24.
     assert_eq!(&png[..8], b"\x89PNG\r\n\x1a\n");
@@ -541,11 +523,7 @@ fn a_scene_file_runs_the_shared_donut_as_a_plain_point_cloud_filled_inside() {
     )
     .unwrap();
     let run = freeform(&["simulate", scene.to_str().unwrap()], &dir);
-    assert!(
-        run.status.success(),
-        "{}",
-        String::from_utf8_lossy(&run.stderr)
-    );
+    assert_success(&run);
     // Every splat centre is written as a point per frame; free fall moves the cloud by
     // backward Euler's g h² n(n+1)/2 after n = 3 steps.
     let summary: serde_json::Value = serde_json::from_str(
