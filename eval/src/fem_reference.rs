@@ -3,6 +3,7 @@
 //! fem-ref convergence study chose (Bend tip within ≈ 0.3% of the Richardson limit at t = 1 s).
 
 use optimize::NewtonParams;
+use std::ops::ControlFlow;
 use std::path::Path;
 
 use fem_ref::{
@@ -314,25 +315,48 @@ pub fn run_fem(
         &cache,
     )
     .map_err(|e| EvalError::Fem(fem_ref::FemRunError::Cache(e)))?;
-    let (mesh, trajectory, dofs, cached, split_steps) = match cached_trajectory {
+    let (mesh, trajectory, dofs, cached, split_steps, resumed_steps) = match cached_trajectory {
         Some(trajectory) => {
             let dofs = parts
                 .scene
                 .free_dofs(parts.model.mesh().nodes().len())
                 .map_err(EvalError::FemSetup)?;
-            (parts.model.mesh().clone(), trajectory, dofs, true, 0)
+            (parts.model.mesh().clone(), trajectory, dofs, true, 0, 0)
         }
         None => {
             let mut sim = FemSimulator::new(parts.model, parts.scene, parts.params)
                 .map_err(EvalError::FemSetup)?;
             let dofs = sim.free_dofs();
             let bar = progress.bar(steps, format!("FEM {label} ({dofs} DOFs)"));
-            let (trajectory, cached) = sim
-                .run_cached(steps, &label_of_scene, &cache, |_| bar.inc(1))
+            let mut done = 0;
+            let run = sim
+                .run_cached(steps, &label_of_scene, &cache, |now| {
+                    if done == 0 && now > 1 {
+                        bar.resume_at(now as u64);
+                        progress.status(format!(
+                            "FEM {label}: resuming at step {now} of {steps} from its checkpoint"
+                        ));
+                    } else {
+                        bar.inc((now - done) as u64);
+                    }
+                    done = now;
+                    ControlFlow::Continue(())
+                })
                 .map_err(EvalError::Fem)?;
             bar.finish_and_clear();
+            if let Some(e) = &run.checkpoint_error {
+                progress.status(format!("FEM {label}: a checkpoint was not saved: {e}"));
+            }
             let mesh = sim.model().mesh().clone();
-            (mesh, trajectory, dofs, cached, sim.split_steps())
+            let resumed = run.resumed_steps;
+            (
+                mesh,
+                run.trajectory,
+                dofs,
+                run.from_cache,
+                sim.split_steps(),
+                resumed,
+            )
         }
     };
     let seconds_per_step = trajectory.seconds / steps.max(1) as f64;
@@ -346,10 +370,13 @@ pub fn run_fem(
     } else {
         // A line per computed reference, also where bars are hidden (parallel shapes, stderr
         // not a terminal): long tables show where their time goes.
-        let split = match split_steps {
+        let mut split = match split_steps {
             0 => String::new(),
             n => format!(", {n} split in halves"),
         };
+        if resumed_steps > 0 {
+            split += &format!(", the first {resumed_steps} from a checkpoint");
+        }
         progress.status(format!(
             "FEM {label}: {steps} steps on {dofs} DOFs in {:.0} s ({seconds_per_step:.2} s per \
              step, {iterations_per_step:.1} Newton iterations per step{split})",

@@ -2,6 +2,7 @@
 //! (stderr not a terminal, or work running in parallel), long work prints a line a minute
 //! instead, so a log shows how far an hour-long reference has come.
 
+use std::sync::atomic::{AtomicU64, Ordering};
 use std::sync::{Mutex, PoisonError};
 use std::time::{Duration, Instant};
 
@@ -53,6 +54,7 @@ impl Progress {
             interval,
             started: now,
             last_line: Mutex::new(now),
+            resumed: AtomicU64::new(0),
         }
     }
 
@@ -81,6 +83,8 @@ pub struct StepBar {
     interval: Duration,
     started: Instant,
     last_line: Mutex<Instant>,
+    /// Steps done before this bar's work began ([`Self::resume_at`]).
+    resumed: AtomicU64,
 }
 
 impl StepBar {
@@ -90,6 +94,14 @@ impl StepBar {
         if let Some(line) = self.due_line() {
             eprintln!("{line}");
         }
+    }
+
+    /// Starts the bar at `done` steps that an earlier run did (a resumed FEM reference): they
+    /// count as done but not in the time estimate of its lines.
+    pub fn resume_at(&self, done: u64) {
+        self.bar.set_position(done);
+        self.bar.reset_eta();
+        self.resumed.store(done, Ordering::Relaxed);
     }
 
     /// Relabels the bar (and its lines).
@@ -119,10 +131,11 @@ impl StepBar {
         let done = self.bar.position();
         let len = self.bar.length().unwrap_or(0);
         let elapsed = self.started.elapsed().as_secs_f64();
-        let left = if done > 0 {
+        let resumed = self.resumed.load(Ordering::Relaxed);
+        let left = if done > resumed {
             format!(
                 ", about {:.0} s left",
-                elapsed / done as f64 * len.saturating_sub(done) as f64
+                elapsed / (done - resumed) as f64 * len.saturating_sub(done) as f64
             )
         } else {
             String::new()
@@ -214,5 +227,22 @@ mod tests {
                 .due_line(),
             None
         );
+    }
+
+    #[test]
+    fn a_resumed_bar_counts_earlier_steps_as_done_but_estimates_from_its_own() {
+        let hidden = Progress {
+            quiet: false,
+            hide_bars: true,
+        };
+        let bar = hidden.bar_with_lines_every(40, "FEM skull", Duration::ZERO);
+        bar.resume_at(30);
+        let line = bar.due_line().expect("a line is due");
+        assert!(line.starts_with("FEM skull: 30/40 steps, "), "{line}");
+        assert!(!line.contains("left"), "no step of its own yet: {line}");
+        bar.inc(1);
+        let line = bar.due_line().expect("a line is due");
+        assert!(line.starts_with("FEM skull: 31/40 steps, "), "{line}");
+        assert!(line.contains("s left"), "{line}");
     }
 }

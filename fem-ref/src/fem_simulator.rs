@@ -1,8 +1,10 @@
 //! Backward Euler with Newton on the full FEM model, exact Dirichlet conditions, per-step
 //! reports (DESIGN 3.8).
 
+use std::ops::ControlFlow;
+use std::path::PathBuf;
 use std::sync::{Mutex, PoisonError};
-use std::time::Instant;
+use std::time::{Duration, Instant};
 
 use hyperelastic::{HessianTangent, HyperelasticMaterial, Tangent};
 use nalgebra::Vector3;
@@ -17,6 +19,7 @@ use thiserror::Error;
 use crate::factor_memory::FactorMemoryLimit;
 use crate::fem_model::FemModel;
 use crate::fill_reducing_ordering::FillReducingOrdering;
+use crate::run_checkpoint::RunCheckpoint;
 use crate::run_keys::KeyInputs;
 use crate::scene::{FemFloor, FemScene};
 use crate::sparse_system::{NumericFactor, SparseSystem, SystemSetupError};
@@ -61,6 +64,22 @@ pub struct FemParams {
     /// needed a split under its own key ([`FemSimulator::split_trajectory_key`]).
     #[serde(default)]
     pub failed_step_halvings: usize,
+    /// How often [`FemSimulator::run_cached`] saves the run so far
+    /// ([`crate::RunCheckpoint`]; default [`DEFAULT_CHECKPOINT_INTERVAL`], `None`: only when
+    /// the caller stops the run): after the first whole step at least this long after the
+    /// last save, and at least ten times as long as the last save took, so that saving the
+    /// frames of a large mesh never costs more than a tenth of the run. Not part of the
+    /// trajectory key.
+    #[serde(default = "default_checkpoint_interval")]
+    pub checkpoint_interval: Option<Duration>,
+}
+
+/// [`FemParams::checkpoint_interval`]'s default: a killed run loses at most about five
+/// minutes.
+pub const DEFAULT_CHECKPOINT_INTERVAL: Duration = Duration::from_secs(300);
+
+fn default_checkpoint_interval() -> Option<Duration> {
+    Some(DEFAULT_CHECKPOINT_INTERVAL)
 }
 
 impl Default for FemParams {
@@ -72,6 +91,7 @@ impl Default for FemParams {
             ordering: FillReducingOrdering::default(),
             factor_memory: FactorMemoryLimit::default(),
             failed_step_halvings: 0,
+            checkpoint_interval: default_checkpoint_interval(),
         }
     }
 }
@@ -134,9 +154,29 @@ pub enum FemRunError {
         #[source]
         source: NewtonError,
     },
-    /// The cache could not be read.
+    /// The cache could not be read, or a checkpoint asked for by a stop could not be written.
     #[error(transparent)]
     Cache(TrajectoryCacheError),
+    /// The caller's progress callback stopped the run; what was computed is saved and the
+    /// next [`FemSimulator::run_cached`] of the same run resumes from it.
+    #[error("FEM run stopped after step {step} of {steps}; saved to {}", .checkpoint.display())]
+    Stopped {
+        /// Steps done.
+        step: usize,
+        /// Steps asked for.
+        steps: usize,
+        /// The checkpoint file.
+        checkpoint: PathBuf,
+    },
+    /// A checkpoint under the run's key does not fit the run (a damaged or foreign file);
+    /// delete it to start over.
+    #[error("FEM checkpoint {} does not fit this run: {reason}", .path.display())]
+    CheckpointMismatch {
+        /// The file.
+        path: PathBuf,
+        /// Why.
+        reason: String,
+    },
     /// The trajectory was computed but could not be stored; it is returned here.
     #[error("the trajectory was computed but not cached: {error}")]
     CacheWrite {
@@ -163,6 +203,20 @@ pub fn reusing_reference_newton() -> NewtonParams {
 
 /// The most steps one factorization of the FEM is carried across with Hessian reuse.
 pub const FEM_FACTOR_MAX_AGE: usize = 50;
+
+/// What [`FemSimulator::run_cached`] returns.
+#[derive(Debug)]
+pub struct CachedRun {
+    /// The trajectory (frames 0..=steps).
+    pub trajectory: Trajectory,
+    /// Whether it was read from the cache whole (nothing computed).
+    pub from_cache: bool,
+    /// Steps taken from a checkpoint of an earlier, stopped run (0 when it started afresh).
+    pub resumed_steps: usize,
+    /// The first checkpoint that could not be written or removed: the run went on, and only
+    /// the work since the last good save was at risk.
+    pub checkpoint_error: Option<TrajectoryCacheError>,
+}
 
 /// Backward-Euler FEM simulation.
 pub struct FemSimulator<M: HyperelasticMaterial> {
@@ -378,9 +432,10 @@ impl<M: HyperelasticMaterial> FemSimulator<M> {
     }
 
     /// `steps` steps from the current state, recording all node positions per frame (frame 0 =
-    /// the current state) — or the cached trajectory when `cache` holds one. Returns the
-    /// trajectory and whether it came from the cache; a fresh run is stored.
-    /// `progress(step)` is called after each computed step.
+    /// the current state) — or the cached trajectory when `cache` holds one. A fresh run is
+    /// stored. `progress(done)` is called after each computed step with the steps done, and
+    /// once before the first when the run resumes from a checkpoint; returning
+    /// [`ControlFlow::Break`] stops the run after that step ([`FemRunError::Stopped`]).
     ///
     /// A run is stored under [`Self::trajectory_key`], or under
     /// [`Self::split_trajectory_key`] when it split a step
@@ -388,56 +443,165 @@ impl<M: HyperelasticMaterial> FemSimulator<M> {
     /// first key is taken only when every step converged (it is then what splitting computes
     /// too); one with unconverged steps was run without splitting and is run again.
     ///
+    /// While it runs, the run so far is saved every [`FemParams::checkpoint_interval`] and
+    /// when it is stopped ([`crate::RunCheckpoint`], under the key it may finish under); a
+    /// later call for the same run goes on from there and the checkpoint is deleted once the
+    /// trajectory is stored. Without Hessian reuse ([`HessianReuse::Never`], every shape and
+    /// beam reference) the resumed trajectory is bit for bit the uninterrupted one; with
+    /// reuse the carried factorization is not saved, so it differs within the Newton
+    /// tolerance.
+    ///
     /// Only meaningful from the rest state at t = 0 (what the key describes).
     ///
     /// # Errors
-    /// [`FemRunError`]: a step failed (nothing is stored), or the cache could not be read or
-    /// written (the computed trajectory is still returned inside the error).
+    /// [`FemRunError`]: a step failed (nothing is stored; the last checkpoint stays), the run
+    /// was stopped, a checkpoint under its key does not fit it, or the cache could not be
+    /// read or written (the computed trajectory is still returned inside the error).
     pub fn run_cached(
         &mut self,
         steps: usize,
         scene_label: &str,
         cache: &TrajectoryCache,
-        mut progress: impl FnMut(usize),
-    ) -> Result<(Trajectory, bool), FemRunError> {
+        mut progress: impl FnMut(usize) -> ControlFlow<()>,
+    ) -> Result<CachedRun, FemRunError> {
         let keys = self.key_inputs().keys(scene_label, steps);
-        if let Some(t) = keys.load(cache).map_err(FemRunError::Cache)? {
-            return Ok((t, true));
+        if let Some(trajectory) = keys.load(cache).map_err(FemRunError::Cache)? {
+            return Ok(CachedRun {
+                trajectory,
+                from_cache: true,
+                resumed_steps: 0,
+                checkpoint_error: None,
+            });
         }
+        // Saved under the key the run may finish under: the split key holds the depth.
+        let checkpoint_key = keys.split.unwrap_or(keys.whole);
         let split_before = self.split_steps;
+        let mut trajectory = match cache
+            .load_checkpoint(checkpoint_key)
+            .map_err(FemRunError::Cache)?
+        {
+            Some(checkpoint) => {
+                self.resume(checkpoint, steps, cache.checkpoint_path(checkpoint_key))?
+            }
+            None => Trajectory {
+                times: vec![self.time],
+                frames: vec![self.frame()],
+                iterations: Vec::with_capacity(steps),
+                converged: Vec::with_capacity(steps),
+                seconds: 0.0,
+            },
+        };
+        let resumed_steps = trajectory.frames.len() - 1;
+        if resumed_steps > 0 && resumed_steps < steps && progress(resumed_steps).is_break() {
+            return Err(FemRunError::Stopped {
+                step: resumed_steps,
+                steps,
+                checkpoint: cache.checkpoint_path(checkpoint_key),
+            });
+        }
+        let seconds_before = trajectory.seconds;
         let start = Instant::now();
-        let frame = |sim: &Self| -> Vec<[f64; 3]> {
-            sim.x.chunks_exact(3).map(|c| [c[0], c[1], c[2]]).collect()
-        };
-        let mut trajectory = Trajectory {
-            times: vec![self.time],
-            frames: vec![frame(self)],
-            iterations: Vec::with_capacity(steps),
-            converged: Vec::with_capacity(steps),
-            seconds: 0.0,
-        };
-        for step in 1..=steps {
+        let mut last_save = (Instant::now(), Duration::ZERO);
+        let mut checkpoint_error = None;
+        for step in resumed_steps + 1..=steps {
             let report = self
                 .step()
                 .map_err(|source| FemRunError::Step { step, source })?;
             trajectory.times.push(self.time);
-            trajectory.frames.push(frame(self));
+            trajectory.frames.push(self.frame());
             trajectory.iterations.push(report.iterations);
             trajectory.converged.push(report.converged());
-            progress(step);
+            let stopped = progress(step).is_break();
+            let due = self
+                .params
+                .checkpoint_interval
+                .is_some_and(|interval| last_save.0.elapsed() >= interval.max(10 * last_save.1));
+            if step < steps && (stopped || due) {
+                trajectory.seconds = seconds_before + start.elapsed().as_secs_f64();
+                let saving = Instant::now();
+                let saved = cache.store_checkpoint(
+                    checkpoint_key,
+                    &RunCheckpoint {
+                        trajectory: trajectory.clone(),
+                        velocities: self.v.clone(),
+                        split_steps: self.split_steps - split_before,
+                    },
+                );
+                last_save = (Instant::now(), saving.elapsed());
+                match saved {
+                    Ok(checkpoint) if stopped => {
+                        return Err(FemRunError::Stopped {
+                            step,
+                            steps,
+                            checkpoint,
+                        });
+                    }
+                    Ok(_) => {}
+                    Err(e) if stopped => return Err(FemRunError::Cache(e)),
+                    Err(e) => {
+                        checkpoint_error.get_or_insert(e);
+                    }
+                }
+            }
         }
-        trajectory.seconds = start.elapsed().as_secs_f64();
+        trajectory.seconds = seconds_before + start.elapsed().as_secs_f64();
         let key = match keys.split {
             Some(split_key) if self.split_steps > split_before => split_key,
             _ => keys.whole,
         };
-        match cache.store(key, &trajectory) {
-            Ok(_) => Ok((trajectory, false)),
-            Err(e) => Err(FemRunError::CacheWrite {
+        if let Err(e) = cache.store(key, &trajectory) {
+            return Err(FemRunError::CacheWrite {
                 error: e,
                 trajectory: Box::new(trajectory),
-            }),
+            });
         }
+        if let Err(e) = cache.remove_checkpoint(checkpoint_key) {
+            checkpoint_error.get_or_insert(e);
+        }
+        Ok(CachedRun {
+            trajectory,
+            from_cache: false,
+            resumed_steps,
+            checkpoint_error,
+        })
+    }
+
+    /// The current node positions as one trajectory frame.
+    fn frame(&self) -> Vec<[f64; 3]> {
+        self.x.chunks_exact(3).map(|c| [c[0], c[1], c[2]]).collect()
+    }
+
+    /// Sets the state to a checkpoint's last frame and returns its trajectory so far.
+    fn resume(
+        &mut self,
+        checkpoint: RunCheckpoint,
+        steps: usize,
+        path: PathBuf,
+    ) -> Result<Trajectory, FemRunError> {
+        let nodes = self.x.len() / 3;
+        let mismatch = checkpoint.mismatch(nodes, steps).or_else(|| {
+            (checkpoint.trajectory.frames[0] != self.frame()
+                || checkpoint.trajectory.times[0] != self.time)
+                .then(|| "its first frame is not this simulator's state".to_string())
+        });
+        if let Some(reason) = mismatch {
+            return Err(FemRunError::CheckpointMismatch { path, reason });
+        }
+        let RunCheckpoint {
+            trajectory,
+            velocities,
+            split_steps,
+        } = checkpoint;
+        let last = trajectory
+            .frames
+            .last()
+            .expect("a checkpoint holds frame 0");
+        self.x = last.iter().flatten().copied().collect();
+        self.v = velocities;
+        self.time = *trajectory.times.last().expect("as many times as frames");
+        self.split_steps += split_steps;
+        self.carried = None;
+        Ok(trajectory)
     }
 
     /// Sets Dirichlet nodes to their targets at `t`.

@@ -12,7 +12,8 @@
 //!   lattice).
 //! - [`TrajectoryCache`]: trajectories on disk keyed by a hash of every input
 //!   ([`FemSimulator::trajectory_key`], [`FemSimulator::run_cached`]; a stored run is found
-//!   from the simulator's inputs alone by [`FemSimulator::load_cached`]).
+//!   from the simulator's inputs alone by [`FemSimulator::load_cached`]); a run stopped or
+//!   killed part way resumes from its [`RunCheckpoint`].
 //!
 //! Units: SI (m, s, kg, Pa). Positions are flat `[x0, y0, z0, x1, …]` where noted.
 
@@ -24,6 +25,7 @@ pub mod fill_reducing_ordering;
 mod kuhn_bisection;
 pub mod lattice_mesher;
 pub mod point_interpolation;
+pub mod run_checkpoint;
 mod run_keys;
 pub mod scene;
 mod sparse_system;
@@ -34,8 +36,8 @@ pub use element::{ElementOrder, FemMesh};
 pub use factor_memory::FactorMemoryLimit;
 pub use fem_model::{FemModel, FemModelError, MassKind};
 pub use fem_simulator::{
-    FEM_FACTOR_MAX_AGE, FemParams, FemRunError, FemSetupError, FemSimulator,
-    reusing_reference_newton,
+    CachedRun, DEFAULT_CHECKPOINT_INTERVAL, FEM_FACTOR_MAX_AGE, FemParams, FemRunError,
+    FemSetupError, FemSimulator, reusing_reference_newton,
 };
 pub use fill_reducing_ordering::FillReducingOrdering;
 pub use lattice_mesher::{
@@ -43,6 +45,7 @@ pub use lattice_mesher::{
     tetrahedralize, tetrahedralize_to_volume,
 };
 pub use point_interpolation::{PointInterpolation, PointLocationError};
+pub use run_checkpoint::{CHECKPOINT_FORMAT_VERSION, RunCheckpoint};
 pub use scene::{DirichletRegion, FemFloor, FemScene, NodeTarget, NodeTargetFunction};
 pub use tet_mesh::{TetMesh, TetMeshError, TetQuality};
 pub use trajectory_cache::{

@@ -1,6 +1,7 @@
 //! Ground truth for the FEM reference: finite differences, the patch test, rigid motions and
 //! Euler-Bernoulli.
 
+use std::ops::ControlFlow;
 use std::sync::Arc;
 
 use fem_ref::{
@@ -242,15 +243,18 @@ fn cached_trajectory_is_reused_and_any_input_change_misses() {
         FemSimulator::new(model, scene, FemParams::default()).unwrap()
     };
     let mut steps_run = 0;
-    let (first, cached) = simulator(9.8)
-        .run_cached(3, "test", &cache, |_| steps_run += 1)
+    let first = simulator(9.8)
+        .run_cached(3, "test", &cache, |_| {
+            steps_run += 1;
+            ControlFlow::Continue(())
+        })
         .unwrap();
-    assert!(!cached && steps_run == 3 && first.frames.len() == 4);
-    let (second, cached) = simulator(9.8)
+    assert!(!first.from_cache && steps_run == 3 && first.trajectory.frames.len() == 4);
+    let second = simulator(9.8)
         .run_cached(3, "test", &cache, |_| panic!())
         .unwrap();
-    assert!(cached);
-    assert_eq!(first, second);
+    assert!(second.from_cache);
+    assert_eq!(first.trajectory, second.trajectory);
     // A different load, label or step count is a different trajectory.
     let a = simulator(9.8).trajectory_key("test", 3);
     assert_ne!(a, simulator(9.7).trajectory_key("test", 3));
@@ -569,12 +573,15 @@ fn split_trajectories_are_cached_apart_and_unconverged_ones_are_not_served_to_sp
     let cache = TrajectoryCache::new(&dir);
     let run = |h: f64, halvings: usize, expect_cached: bool| {
         let mut computed = 0;
-        let (trajectory, cached) = soft_falling_cantilever(h, 10, halvings)
-            .run_cached(2, "falling", &cache, |_| computed += 1)
+        let run = soft_falling_cantilever(h, 10, halvings)
+            .run_cached(2, "falling", &cache, |_| {
+                computed += 1;
+                ControlFlow::Continue(())
+            })
             .unwrap();
-        assert_eq!(cached, expect_cached, "h {h}, {halvings} halvings");
-        assert_eq!(computed, if cached { 0 } else { 2 });
-        trajectory
+        assert_eq!(run.from_cache, expect_cached, "h {h}, {halvings} halvings");
+        assert_eq!(computed, if run.from_cache { 0 } else { 2 });
+        run.trajectory
     };
     let unsplit = run(0.2, 0, false);
     assert!(!unsplit.converged[0]);
@@ -607,15 +614,17 @@ fn a_cached_run_is_found_from_the_simulators_inputs_exactly_where_run_cached_ser
         FemSimulator::load_cached(&model, &scene, &params, steps, label, &cache).unwrap()
     };
     assert_eq!(load(0.2, 0, 2, "falling"), None);
-    let (unsplit, _) = soft_falling_cantilever(0.2, 10, 0)
-        .run_cached(2, "falling", &cache, |_| ())
-        .unwrap();
+    let unsplit = soft_falling_cantilever(0.2, 10, 0)
+        .run_cached(2, "falling", &cache, |_| ControlFlow::Continue(()))
+        .unwrap()
+        .trajectory;
     assert!(!unsplit.converged[0]);
     assert_eq!(load(0.2, 0, 2, "falling"), Some(unsplit));
     assert_eq!(load(0.2, 1, 2, "falling"), None);
-    let (split, _) = soft_falling_cantilever(0.2, 10, 1)
-        .run_cached(2, "falling", &cache, |_| ())
-        .unwrap();
+    let split = soft_falling_cantilever(0.2, 10, 1)
+        .run_cached(2, "falling", &cache, |_| ControlFlow::Continue(()))
+        .unwrap()
+        .trajectory;
     assert_eq!(load(0.2, 1, 2, "falling"), Some(split));
     assert_eq!(load(0.2, 1, 3, "falling"), None);
     assert_eq!(load(0.2, 1, 2, "other"), None);
@@ -629,6 +638,171 @@ fn a_cached_run_is_found_from_the_simulators_inputs_exactly_where_run_cached_ser
         FemSimulator::load_cached(&model, &scene, &params, 2, "falling", &cache).unwrap(),
         None
     );
+}
+
+/// [`soft_falling_cantilever`] saving a checkpoint after every step.
+fn checkpointing_cantilever(
+    time_step: f64,
+    max_iterations: usize,
+    failed_step_halvings: usize,
+) -> FemSimulator<StableNeoHookean> {
+    let (model, scene, params) =
+        soft_falling_cantilever_inputs(time_step, max_iterations, failed_step_halvings);
+    let params = FemParams {
+        checkpoint_interval: Some(std::time::Duration::ZERO),
+        ..params
+    };
+    FemSimulator::new(model, scene, params).unwrap()
+}
+
+/// The parts of a trajectory a resumed run must reproduce exactly (all but the wall time).
+fn computed_parts(t: &fem_ref::Trajectory) -> impl PartialEq + std::fmt::Debug + '_ {
+    (&t.times, &t.frames, &t.iterations, &t.converged)
+}
+
+/// A run stopped by its caller saves what it computed and is not stored as finished; the
+/// next run of the same inputs goes on from there (the progress callback first hears the
+/// resumed step count) and ends bit for bit where the uninterrupted run does, after which
+/// the checkpoint is gone.
+#[test]
+fn a_stopped_run_resumes_from_its_checkpoint_to_the_uninterrupted_trajectory_bit_for_bit() {
+    use fem_ref::{FemRunError, TrajectoryCache};
+    let dir = test_support::fixtures::scratch_dir("fem-checkpoint-stop");
+    let whole = TrajectoryCache::new(dir.join("whole"));
+    let uninterrupted = soft_falling_cantilever(0.05, 60, 0)
+        .run_cached(4, "falling", &whole, |_| ControlFlow::Continue(()))
+        .unwrap();
+    assert!(uninterrupted.trajectory.iterations.iter().all(|&i| i > 1));
+    let cache = TrajectoryCache::new(dir.join("stopped"));
+    let key = soft_falling_cantilever(0.05, 60, 0).trajectory_key("falling", 4);
+    let stopped = soft_falling_cantilever(0.05, 60, 0).run_cached(4, "falling", &cache, |done| {
+        if done == 2 {
+            ControlFlow::Break(())
+        } else {
+            ControlFlow::Continue(())
+        }
+    });
+    match stopped {
+        Err(FemRunError::Stopped {
+            step: 2,
+            steps: 4,
+            checkpoint,
+        }) => assert_eq!(checkpoint, cache.checkpoint_path(key)),
+        other => panic!("expected a stop after step 2, got {other:?}"),
+    }
+    assert_eq!(
+        cache.load(key).unwrap(),
+        None,
+        "a stopped run is not finished"
+    );
+    assert_eq!(cache.load_checkpoint(key).unwrap().unwrap().steps_done(), 2);
+    // Stopped again at once: nothing computed, the checkpoint stays.
+    let again = soft_falling_cantilever(0.05, 60, 0)
+        .run_cached(4, "falling", &cache, |_| ControlFlow::Break(()));
+    assert!(matches!(again, Err(FemRunError::Stopped { step: 2, .. })));
+    let mut heard = Vec::new();
+    let resumed = soft_falling_cantilever(0.05, 60, 0)
+        .run_cached(4, "falling", &cache, |done| {
+            heard.push(done);
+            ControlFlow::Continue(())
+        })
+        .unwrap();
+    assert_eq!(heard, [2, 3, 4]);
+    assert!(!resumed.from_cache && resumed.checkpoint_error.is_none());
+    assert_eq!(resumed.resumed_steps, 2);
+    assert_eq!(
+        computed_parts(&resumed.trajectory),
+        computed_parts(&uninterrupted.trajectory)
+    );
+    assert_eq!(cache.load_checkpoint(key).unwrap(), None);
+    assert_eq!(cache.load(key).unwrap(), Some(resumed.trajectory));
+}
+
+/// A run killed part way (here: a panic in its progress callback) loses only what came after
+/// its last interval checkpoint; a run that split steps keeps its split count across the
+/// resume and is stored under the split key.
+#[test]
+fn a_killed_run_resumes_from_its_last_checkpoint_with_its_split_steps() {
+    use fem_ref::TrajectoryCache;
+    let dir = test_support::fixtures::scratch_dir("fem-checkpoint-kill");
+    let whole = TrajectoryCache::new(dir.join("whole"));
+    let mut reference = soft_falling_cantilever(0.2, 10, 1);
+    let uninterrupted = reference
+        .run_cached(3, "falling", &whole, |_| ControlFlow::Continue(()))
+        .unwrap();
+    assert!(
+        reference.split_steps() >= 1,
+        "h = 0.2 s splits its first step"
+    );
+    let cache = TrajectoryCache::new(dir.join("killed"));
+    let killed = std::panic::catch_unwind(std::panic::AssertUnwindSafe(|| {
+        checkpointing_cantilever(0.2, 10, 1).run_cached(3, "falling", &cache, |done| {
+            assert!(done < 2, "killed after step 2, before its checkpoint");
+            ControlFlow::Continue(())
+        })
+    }));
+    assert!(killed.is_err());
+    let split_key = reference.split_trajectory_key("falling", 3);
+    assert_eq!(
+        cache
+            .load_checkpoint(split_key)
+            .unwrap()
+            .unwrap()
+            .steps_done(),
+        1
+    );
+    let mut resumed_sim = checkpointing_cantilever(0.2, 10, 1);
+    let resumed = resumed_sim
+        .run_cached(3, "falling", &cache, |_| ControlFlow::Continue(()))
+        .unwrap();
+    assert_eq!(resumed.resumed_steps, 1);
+    assert_eq!(resumed_sim.split_steps(), reference.split_steps());
+    assert_eq!(
+        computed_parts(&resumed.trajectory),
+        computed_parts(&uninterrupted.trajectory)
+    );
+    assert!(cache.load(split_key).unwrap().is_some());
+    assert_eq!(cache.load_checkpoint(split_key).unwrap(), None);
+}
+
+/// A checkpoint that does not fit the run (another mesh's node count) or does not decode is
+/// reported with its path, never resumed from.
+#[test]
+fn a_checkpoint_that_does_not_fit_the_run_is_reported_not_resumed() {
+    use fem_ref::{FemRunError, RunCheckpoint, Trajectory, TrajectoryCache, TrajectoryCacheError};
+    let dir = test_support::fixtures::scratch_dir("fem-checkpoint-mismatch");
+    let cache = TrajectoryCache::new(&dir);
+    let key = soft_falling_cantilever(0.05, 60, 0).trajectory_key("falling", 4);
+    let foreign = RunCheckpoint {
+        trajectory: Trajectory {
+            times: vec![0.0, 0.05],
+            frames: vec![vec![[0.0; 3]; 3]; 2],
+            iterations: vec![3],
+            converged: vec![true],
+            seconds: 1.0,
+        },
+        velocities: vec![0.0; 9],
+        split_steps: 0,
+    };
+    cache.store_checkpoint(key, &foreign).unwrap();
+    let run = |cache: &TrajectoryCache| {
+        soft_falling_cantilever(0.05, 60, 0)
+            .run_cached(4, "falling", cache, |_| ControlFlow::Continue(()))
+    };
+    match run(&cache) {
+        Err(FemRunError::CheckpointMismatch { path, reason }) => {
+            assert_eq!(path, cache.checkpoint_path(key));
+            assert!(reason.contains("nodes"), "{reason}");
+        }
+        other => panic!("expected a mismatch, got {other:?}"),
+    }
+    std::fs::write(cache.checkpoint_path(key), b"FFPART\x01\x00\x00\x00garbage").unwrap();
+    assert!(matches!(
+        run(&cache),
+        Err(FemRunError::Cache(TrajectoryCacheError::Format { .. }))
+    ));
+    cache.remove_checkpoint(key).unwrap();
+    assert!(run(&cache).is_ok());
 }
 
 #[test]
