@@ -14,7 +14,8 @@
 //! amd|nested-dissection|smaller-factor` (the factorization's elimination order, default the
 //! smaller factor of the two),
 //! `--uniform` (the first tables' uniform lattices instead of the graded ones), `--max-iterations
-//! N` (default the mesher choice's: 60 graded, 20 uniform), `--young E` (Pa; default the
+//! N` (default the mesher choice's: 60 graded, 20 uniform), `--cells N` (the first lattice's
+//! cells across, default 16 graded, 10 uniform), `--young E` (Pa; default the
 //! catalogue's, 1e5 for an uncatalogued mesh), `--reuse TOL` (the factorization carried across
 //! iterations and steps while chord steps contract, at Newton tolerance TOL; 0 for
 //! `fem_ref::reusing_reference_newton`'s 1e-8).
@@ -83,6 +84,10 @@ struct Args {
     /// Young's modulus (Pa).
     #[arg(long)]
     young: Option<f64>,
+    /// Cells across the largest side of the first lattice tried (default the mesher
+    /// choice's: 16 graded, 10 uniform); a coarser one makes a quick study of a large shape.
+    #[arg(long)]
+    cells: Option<usize>,
     /// Carry the factorization across iterations and steps while chord steps contract
     /// (`fem_ref::reusing_reference_newton`), at this Newton tolerance (its 1e-8 if 0).
     #[arg(long)]
@@ -125,6 +130,9 @@ fn main() -> Result<()> {
             max_iterations: params.newton.max_iterations,
             ..reusing
         };
+    }
+    if let Some(cells) = args.cells {
+        params.first_cells_across = cells;
     }
     if let Some(n) = args.max_iterations {
         params.newton.max_iterations = n;
