@@ -640,16 +640,13 @@ fn a_cached_run_is_found_from_the_simulators_inputs_exactly_where_run_cached_ser
     );
 }
 
-/// [`soft_falling_cantilever`] saving a checkpoint after every step.
-fn checkpointing_cantilever(
-    time_step: f64,
-    max_iterations: usize,
-    failed_step_halvings: usize,
-) -> FemSimulator<StableNeoHookean> {
-    let (model, scene, params) =
-        soft_falling_cantilever_inputs(time_step, max_iterations, failed_step_halvings);
+/// [`soft_falling_cantilever`] at h = 0.2 s (its first step splits) saving a checkpoint
+/// after every step.
+fn checkpointing_split_cantilever() -> FemSimulator<StableNeoHookean> {
+    let (model, scene, params) = soft_falling_cantilever_inputs(0.2, 10, 1);
+    let every_step = Some(std::time::Duration::ZERO);
     let params = FemParams {
-        checkpoint_interval: Some(std::time::Duration::ZERO),
+        checkpoint_interval: every_step,
         ..params
     };
     FemSimulator::new(model, scene, params).unwrap()
@@ -736,7 +733,7 @@ fn a_killed_run_resumes_from_its_last_checkpoint_with_its_split_steps() {
     );
     let cache = TrajectoryCache::new(dir.join("killed"));
     let killed = std::panic::catch_unwind(std::panic::AssertUnwindSafe(|| {
-        checkpointing_cantilever(0.2, 10, 1).run_cached(3, "falling", &cache, |done| {
+        checkpointing_split_cantilever().run_cached(3, "falling", &cache, |done| {
             assert!(done < 2, "killed after step 2, before its checkpoint");
             ControlFlow::Continue(())
         })
@@ -751,7 +748,7 @@ fn a_killed_run_resumes_from_its_last_checkpoint_with_its_split_steps() {
             .steps_done(),
         1
     );
-    let mut resumed_sim = checkpointing_cantilever(0.2, 10, 1);
+    let mut resumed_sim = checkpointing_split_cantilever();
     let resumed = resumed_sim
         .run_cached(3, "falling", &cache, |_| ControlFlow::Continue(()))
         .unwrap();
