@@ -328,18 +328,19 @@ pub fn run_fem(
                 .map_err(EvalError::FemSetup)?;
             let dofs = sim.free_dofs();
             let bar = progress.bar(steps, format!("FEM {label} ({dofs} DOFs)"));
-            let mut done = 0;
+            let checkpoint = cache.checkpoint_path(sim.checkpoint_key(&label_of_scene, steps));
+            // The first call of a resumed run reports the steps it resumes with.
+            let mut resuming = checkpoint.exists();
             let run = sim
-                .run_cached(steps, &label_of_scene, &cache, |now| {
-                    if done == 0 && now > 1 {
-                        bar.resume_at(now as u64);
+                .run_cached(steps, &label_of_scene, &cache, |done| {
+                    if std::mem::take(&mut resuming) {
+                        bar.resume_at(done as u64);
                         progress.status(format!(
-                            "FEM {label}: resuming at step {now} of {steps} from its checkpoint"
+                            "FEM {label}: resuming at step {done} of {steps} from its checkpoint"
                         ));
                     } else {
-                        bar.inc((now - done) as u64);
+                        bar.inc(1);
                     }
-                    done = now;
                     ControlFlow::Continue(())
                 })
                 .map_err(EvalError::Fem)?;

@@ -394,6 +394,13 @@ impl<M: HyperelasticMaterial> FemSimulator<M> {
         self.key_inputs().split_key(scene_label, steps)
     }
 
+    /// The key the checkpoint of a run of `steps` steps is saved under
+    /// ([`TrajectoryCache::checkpoint_path`]): [`Self::split_trajectory_key`] where the run may
+    /// split steps, [`Self::trajectory_key`] otherwise.
+    pub fn checkpoint_key(&self, scene_label: &str, steps: usize) -> TrajectoryKey {
+        self.key_inputs().keys(scene_label, steps).checkpoint()
+    }
+
     fn key_inputs(&self) -> KeyInputs<'_, M> {
         KeyInputs {
             model: &self.model,
@@ -473,8 +480,7 @@ impl<M: HyperelasticMaterial> FemSimulator<M> {
                 checkpoint_error: None,
             });
         }
-        // Saved under the key the run may finish under: the split key holds the depth.
-        let checkpoint_key = keys.split.unwrap_or(keys.whole);
+        let checkpoint_key = keys.checkpoint();
         let split_before = self.split_steps;
         let mut trajectory = match cache
             .load_checkpoint(checkpoint_key)

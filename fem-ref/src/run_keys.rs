@@ -28,6 +28,12 @@ pub(crate) struct RunKeys {
 }
 
 impl RunKeys {
+    /// The key a run's checkpoint is saved under: the one it may finish under (the split key,
+    /// which holds the splitting depth, where the run may split steps).
+    pub(crate) fn checkpoint(&self) -> TrajectoryKey {
+        self.split.unwrap_or(self.whole)
+    }
+
     /// The cached trajectory for these keys: under `whole` only if every step converged when the
     /// run may split (an unconverged one was run without splitting), else under `split`.
     pub(crate) fn load(

@@ -672,6 +672,10 @@ fn a_stopped_run_resumes_from_its_checkpoint_to_the_uninterrupted_trajectory_bit
     assert!(uninterrupted.trajectory.iterations.iter().all(|&i| i > 1));
     let cache = TrajectoryCache::new(dir.join("stopped"));
     let key = soft_falling_cantilever(0.05, 60, 0).trajectory_key("falling", 4);
+    assert_eq!(
+        soft_falling_cantilever(0.05, 60, 0).checkpoint_key("falling", 4),
+        key
+    );
     let stopped = soft_falling_cantilever(0.05, 60, 0).run_cached(4, "falling", &cache, |done| {
         if done == 2 {
             ControlFlow::Break(())
@@ -740,6 +744,7 @@ fn a_killed_run_resumes_from_its_last_checkpoint_with_its_split_steps() {
     }));
     assert!(killed.is_err());
     let split_key = reference.split_trajectory_key("falling", 3);
+    assert_eq!(reference.checkpoint_key("falling", 3), split_key);
     assert_eq!(
         cache
             .load_checkpoint(split_key)
