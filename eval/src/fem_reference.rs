@@ -8,7 +8,7 @@ use std::path::Path;
 
 use fem_ref::{
     ElementOrder, FemMesh, FemModel, FemParams, FemScene, FemSimulator, FillReducingOrdering,
-    MassKind, PointInterpolation, TetMesh, TrajectoryCache,
+    MassKind, PointInterpolation, RunProgress, TetMesh, TrajectoryCache,
 };
 use hyperelastic::{HessianTangent, StableNeoHookean};
 use nalgebra::Vector3;
@@ -328,18 +328,17 @@ pub fn run_fem(
                 .map_err(EvalError::FemSetup)?;
             let dofs = sim.free_dofs();
             let bar = progress.bar(steps, format!("FEM {label} ({dofs} DOFs)"));
-            let checkpoint = cache.checkpoint_path(sim.checkpoint_key(&label_of_scene, steps));
-            // The first call of a resumed run reports the steps it resumes with.
-            let mut resuming = checkpoint.exists();
             let run = sim
-                .run_cached(steps, &label_of_scene, &cache, |done| {
-                    if std::mem::take(&mut resuming) {
-                        bar.resume_at(done as u64);
-                        progress.status(format!(
-                            "FEM {label}: resuming at step {done} of {steps} from its checkpoint"
-                        ));
-                    } else {
-                        bar.inc(1);
+                .run_cached(steps, &label_of_scene, &cache, |event| {
+                    match event {
+                        RunProgress::Resumed { steps_done } => {
+                            bar.resume_at(steps_done as u64);
+                            progress.status(format!(
+                                "FEM {label}: resuming at step {steps_done} of {steps} from its \
+                                 checkpoint"
+                            ));
+                        }
+                        RunProgress::Stepped { .. } => bar.inc(1),
                     }
                     ControlFlow::Continue(())
                 })

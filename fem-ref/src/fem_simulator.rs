@@ -204,6 +204,32 @@ pub fn reusing_reference_newton() -> NewtonParams {
 /// The most steps one factorization of the FEM is carried across with Hessian reuse.
 pub const FEM_FACTOR_MAX_AGE: usize = 50;
 
+/// What [`FemSimulator::run_cached`] tells its progress callback.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum RunProgress {
+    /// The run goes on from a checkpoint holding this many steps (reported once, before any
+    /// step is computed).
+    Resumed {
+        /// Steps the checkpoint holds.
+        steps_done: usize,
+    },
+    /// A step was computed.
+    Stepped {
+        /// The step (1-based): the steps done.
+        step: usize,
+    },
+}
+
+impl RunProgress {
+    /// The steps done so far.
+    pub fn steps_done(self) -> usize {
+        match self {
+            RunProgress::Resumed { steps_done } => steps_done,
+            RunProgress::Stepped { step } => step,
+        }
+    }
+}
+
 /// What [`FemSimulator::run_cached`] returns.
 #[derive(Debug)]
 pub struct CachedRun {
@@ -440,9 +466,9 @@ impl<M: HyperelasticMaterial> FemSimulator<M> {
 
     /// `steps` steps from the current state, recording all node positions per frame (frame 0 =
     /// the current state) — or the cached trajectory when `cache` holds one. A fresh run is
-    /// stored. `progress(done)` is called after each computed step with the steps done, and
-    /// once before the first when the run resumes from a checkpoint; returning
-    /// [`ControlFlow::Break`] stops the run after that step ([`FemRunError::Stopped`]).
+    /// stored. `progress` hears [`RunProgress::Stepped`] after each computed step, and
+    /// [`RunProgress::Resumed`] once before the first when the run resumes from a checkpoint;
+    /// returning [`ControlFlow::Break`] stops the run there ([`FemRunError::Stopped`]).
     ///
     /// A run is stored under [`Self::trajectory_key`], or under
     /// [`Self::split_trajectory_key`] when it split a step
@@ -469,7 +495,7 @@ impl<M: HyperelasticMaterial> FemSimulator<M> {
         steps: usize,
         scene_label: &str,
         cache: &TrajectoryCache,
-        mut progress: impl FnMut(usize) -> ControlFlow<()>,
+        mut progress: impl FnMut(RunProgress) -> ControlFlow<()>,
     ) -> Result<CachedRun, FemRunError> {
         let keys = self.key_inputs().keys(scene_label, steps);
         if let Some(trajectory) = keys.load(cache).map_err(FemRunError::Cache)? {
@@ -498,7 +524,13 @@ impl<M: HyperelasticMaterial> FemSimulator<M> {
             },
         };
         let resumed_steps = trajectory.frames.len() - 1;
-        if resumed_steps > 0 && resumed_steps < steps && progress(resumed_steps).is_break() {
+        if resumed_steps > 0
+            && resumed_steps < steps
+            && progress(RunProgress::Resumed {
+                steps_done: resumed_steps,
+            })
+            .is_break()
+        {
             return Err(FemRunError::Stopped {
                 step: resumed_steps,
                 steps,
@@ -517,37 +549,35 @@ impl<M: HyperelasticMaterial> FemSimulator<M> {
             trajectory.frames.push(self.frame());
             trajectory.iterations.push(report.iterations);
             trajectory.converged.push(report.converged());
-            let stopped = progress(step).is_break();
+            let stopped = progress(RunProgress::Stepped { step }).is_break();
             let due = self
                 .params
                 .checkpoint_interval
                 .is_some_and(|interval| last_save.0.elapsed() >= interval.max(10 * last_save.1));
-            if step < steps && (stopped || due) {
-                trajectory.seconds = seconds_before + start.elapsed().as_secs_f64();
-                let saving = Instant::now();
-                let saved = cache.store_checkpoint(
-                    checkpoint_key,
-                    &RunCheckpoint {
-                        trajectory: trajectory.clone(),
-                        velocities: self.v.clone(),
-                        split_steps: self.split_steps - split_before,
+            if step == steps || !(stopped || due) {
+                continue;
+            }
+            trajectory.seconds = seconds_before + start.elapsed().as_secs_f64();
+            let saving = Instant::now();
+            let checkpoint = RunCheckpoint {
+                trajectory: trajectory.clone(),
+                velocities: self.v.clone(),
+                split_steps: self.split_steps - split_before,
+            };
+            let saved = cache.store_checkpoint(checkpoint_key, &checkpoint);
+            last_save = (Instant::now(), saving.elapsed());
+            if stopped {
+                return Err(match saved {
+                    Ok(checkpoint) => FemRunError::Stopped {
+                        step,
+                        steps,
+                        checkpoint,
                     },
-                );
-                last_save = (Instant::now(), saving.elapsed());
-                match saved {
-                    Ok(checkpoint) if stopped => {
-                        return Err(FemRunError::Stopped {
-                            step,
-                            steps,
-                            checkpoint,
-                        });
-                    }
-                    Ok(_) => {}
-                    Err(e) if stopped => return Err(FemRunError::Cache(e)),
-                    Err(e) => {
-                        checkpoint_error.get_or_insert(e);
-                    }
-                }
+                    Err(e) => FemRunError::Cache(e),
+                });
+            }
+            if let Err(e) = saved {
+                checkpoint_error.get_or_insert(e);
             }
         }
         trajectory.seconds = seconds_before + start.elapsed().as_secs_f64();

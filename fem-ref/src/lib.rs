@@ -37,7 +37,7 @@ pub use factor_memory::FactorMemoryLimit;
 pub use fem_model::{FemModel, FemModelError, MassKind};
 pub use fem_simulator::{
     CachedRun, DEFAULT_CHECKPOINT_INTERVAL, FEM_FACTOR_MAX_AGE, FemParams, FemRunError,
-    FemSetupError, FemSimulator, reusing_reference_newton,
+    FemSetupError, FemSimulator, RunProgress, reusing_reference_newton,
 };
 pub use fill_reducing_ordering::FillReducingOrdering;
 pub use lattice_mesher::{

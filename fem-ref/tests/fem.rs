@@ -663,7 +663,7 @@ fn computed_parts(t: &fem_ref::Trajectory) -> impl PartialEq + std::fmt::Debug +
 /// the checkpoint is gone.
 #[test]
 fn a_stopped_run_resumes_from_its_checkpoint_to_the_uninterrupted_trajectory_bit_for_bit() {
-    use fem_ref::{FemRunError, TrajectoryCache};
+    use fem_ref::{FemRunError, RunProgress, TrajectoryCache};
     let dir = test_support::fixtures::scratch_dir("fem-checkpoint-stop");
     let whole = TrajectoryCache::new(dir.join("whole"));
     let uninterrupted = soft_falling_cantilever(0.05, 60, 0)
@@ -676,8 +676,8 @@ fn a_stopped_run_resumes_from_its_checkpoint_to_the_uninterrupted_trajectory_bit
         soft_falling_cantilever(0.05, 60, 0).checkpoint_key("falling", 4),
         key
     );
-    let stopped = soft_falling_cantilever(0.05, 60, 0).run_cached(4, "falling", &cache, |done| {
-        if done == 2 {
+    let stopped = soft_falling_cantilever(0.05, 60, 0).run_cached(4, "falling", &cache, |event| {
+        if event.steps_done() == 2 {
             ControlFlow::Break(())
         } else {
             ControlFlow::Continue(())
@@ -703,12 +703,19 @@ fn a_stopped_run_resumes_from_its_checkpoint_to_the_uninterrupted_trajectory_bit
     assert!(matches!(again, Err(FemRunError::Stopped { step: 2, .. })));
     let mut heard = Vec::new();
     let resumed = soft_falling_cantilever(0.05, 60, 0)
-        .run_cached(4, "falling", &cache, |done| {
-            heard.push(done);
+        .run_cached(4, "falling", &cache, |event| {
+            heard.push(event);
             ControlFlow::Continue(())
         })
         .unwrap();
-    assert_eq!(heard, [2, 3, 4]);
+    assert_eq!(
+        heard,
+        [
+            RunProgress::Resumed { steps_done: 2 },
+            RunProgress::Stepped { step: 3 },
+            RunProgress::Stepped { step: 4 }
+        ]
+    );
     assert!(!resumed.from_cache && resumed.checkpoint_error.is_none());
     assert_eq!(resumed.resumed_steps, 2);
     assert_eq!(
@@ -737,8 +744,11 @@ fn a_killed_run_resumes_from_its_last_checkpoint_with_its_split_steps() {
     );
     let cache = TrajectoryCache::new(dir.join("killed"));
     let killed = std::panic::catch_unwind(std::panic::AssertUnwindSafe(|| {
-        checkpointing_split_cantilever().run_cached(3, "falling", &cache, |done| {
-            assert!(done < 2, "killed after step 2, before its checkpoint");
+        checkpointing_split_cantilever().run_cached(3, "falling", &cache, |event| {
+            assert!(
+                event.steps_done() < 2,
+                "killed after step 2, before its checkpoint"
+            );
             ControlFlow::Continue(())
         })
     }));
