@@ -56,7 +56,7 @@ const GENERIC_DIRECTION: Vector3<f64> = Vector3::new(
 );
 
 /// Options of [`tetrahedralize`].
-#[derive(Clone, Copy, Debug, PartialEq, Serialize, Deserialize)]
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
 pub struct LatticeMesherParams {
     /// Lattice cells along the surface's largest bounding-box side (`h = L / cells_across`).
     /// Default 32.
@@ -85,6 +85,68 @@ pub struct LatticeMesherParams {
     /// plane too (both faces of a body pulled at both ends). Default none.
     #[serde(default)]
     pub cell_size: Option<f64>,
+    /// Graded lattices only: surfaces inside the solid that every lattice tetrahedron crossing
+    /// (or touching) them is bisected down to the deepest level at, e.g. the edges of the
+    /// regions a boundary condition moves, so that the nodes inside a region match it to a
+    /// quarter cell (two halvings) instead of a cell. Default none.
+    #[serde(default)]
+    pub refine_across: Vec<InteriorFeature>,
+}
+
+/// A surface inside the solid that a graded lattice resolves to its finest spacing
+/// ([`LatticeMesherParams::refine_across`]).
+#[derive(Clone, Copy, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(rename_all = "snake_case")]
+pub enum InteriorFeature {
+    /// The plane `x[axis] = value` (surface units).
+    Plane {
+        /// 0, 1 or 2 for x, y, z.
+        axis: usize,
+        /// The plane's coordinate.
+        value: f64,
+    },
+    /// The sphere `|x − center| = radius` (surface units).
+    Sphere {
+        /// Its centre.
+        center: Vector3<f64>,
+        /// Its radius, positive.
+        radius: f64,
+    },
+}
+
+impl InteriorFeature {
+    /// A level function of the feature: negative on one side, positive on the other, zero on
+    /// it (`x[axis] − value`, `|x − center| − radius`).
+    pub fn level(&self, x: &Vector3<f64>) -> f64 {
+        match *self {
+            InteriorFeature::Plane { axis, value } => x[axis] - value,
+            InteriorFeature::Sphere { center, radius } => (x - center).norm() - radius,
+        }
+    }
+
+    /// Whether the feature's numbers are finite (and a sphere's radius positive, a plane's axis
+    /// 0–2).
+    fn is_valid(&self) -> bool {
+        match *self {
+            InteriorFeature::Plane { axis, value } => axis < 3 && value.is_finite(),
+            InteriorFeature::Sphere { center, radius } => {
+                center.iter().all(|c| c.is_finite()) && radius.is_finite() && radius > 0.0
+            }
+        }
+    }
+
+    /// Whether the tetrahedron with corners `corners` and longest edge `longest` meets the
+    /// feature: its corners lie on both sides of it (or on it), or one lies within half the
+    /// longest edge of it (a sphere can clip an edge whose ends are both outside; the level
+    /// is the signed distance, so this catches every such clip of a sphere wider than the
+    /// edge).
+    fn meets(&self, corners: [&Vector3<f64>; 4], longest: f64) -> bool {
+        let levels = corners.map(|x| self.level(x));
+        let low = levels.iter().copied().fold(f64::INFINITY, f64::min);
+        let high = levels.iter().copied().fold(f64::NEG_INFINITY, f64::max);
+        let nearest = levels.iter().map(|l| l.abs()).fold(f64::INFINITY, f64::min);
+        (low <= 0.0 && high >= 0.0) || nearest < 0.5 * longest
+    }
 }
 
 impl Default for LatticeMesherParams {
@@ -96,6 +158,7 @@ impl Default for LatticeMesherParams {
             refinement: LatticeRefinement::Uniform,
             vertex_planes: [None; 3],
             cell_size: None,
+            refine_across: Vec::new(),
         }
     }
 }
@@ -257,7 +320,7 @@ pub fn tetrahedralize_to_volume(
             &queries,
             &LatticeMesherParams {
                 cells_across,
-                ..*params
+                ..params.clone()
             },
         );
         let relative_volume_error = match attempt {
@@ -333,6 +396,16 @@ fn tetrahedralize_with(
             "min_dihedral_guard_degrees {} is outside [0, 60)",
             params.min_dihedral_guard_degrees
         )));
+    }
+    if let Some(feature) = params.refine_across.iter().find(|f| !f.is_valid()) {
+        return Err(LatticeMesherError::InvalidParams(format!(
+            "interior feature {feature:?} is not a finite plane or sphere"
+        )));
+    }
+    if !params.refine_across.is_empty() && params.refinement == LatticeRefinement::Uniform {
+        return Err(LatticeMesherError::InvalidParams(
+            "refine_across needs a graded lattice (LatticeRefinement::Graded)".into(),
+        ));
     }
     let bbox = surface.bounding_box();
     let h = match params.cell_size {
@@ -421,6 +494,7 @@ fn tetrahedralize_with(
                 lattice_index,
                 3 * max_halvings,
                 linearity_tolerance,
+                &params.refine_across,
             );
             positions = graded.mesh.positions;
             let mut phi = graded.phi;
@@ -591,7 +665,8 @@ struct GradedLattice {
 /// bisected (with the conforming closure) while the interpolated `φ` puts one of their edges'
 /// midpoints on the wrong side of the surface by more than `linearity_tolerance` of the edge,
 /// at most `max_bisections` deep. Only tetrahedra with a vertex closer to the surface than
-/// their longest edge are tested.
+/// their longest edge are tested. Tetrahedra that meet one of `features` are bisected to the
+/// same depth without a test.
 fn refine_near_surface(
     queries: &SurfaceQueries,
     positions: Vec<Vector3<f64>>,
@@ -600,6 +675,7 @@ fn refine_near_surface(
     lattice_index: impl Fn(usize, usize, usize) -> usize,
     max_bisections: usize,
     linearity_tolerance: f64,
+    features: &[InteriorFeature],
 ) -> GradedLattice {
     // Distances are clamped well past the reach of the tests below (|φ| < longest edge ≤ √3 h
     // at a vertex, half an edge more at a midpoint).
@@ -621,14 +697,20 @@ fn refine_near_surface(
     for _ in 0..max_bisections {
         let positions = &mesh.positions;
         let length = |(a, b): (usize, usize)| (positions[b] - positions[a]).norm();
-        let candidates: Vec<usize> = (0..mesh.tets.len())
-            .filter(|&t| {
-                let tet = &mesh.tets[t];
-                let longest = tet.edges().map(length).into_iter().fold(0.0, f64::max);
-                usize::from(tet.generation) < max_bisections
-                    && tet.vertices.iter().any(|&v| phi[v].abs() < longest)
-            })
-            .collect();
+        let mut marked = vec![false; mesh.tets.len()];
+        let mut candidates = Vec::new();
+        for (t, tet) in mesh.tets.iter().enumerate() {
+            if usize::from(tet.generation) >= max_bisections {
+                continue;
+            }
+            let longest = tet.edges().map(length).into_iter().fold(0.0, f64::max);
+            let corners = tet.vertices.map(|v| &positions[v]);
+            if features.iter().any(|f| f.meets(corners, longest)) {
+                marked[t] = true;
+            } else if tet.vertices.iter().any(|&v| phi[v].abs() < longest) {
+                candidates.push(t);
+            }
+        }
         let mut unprobed: Vec<(usize, usize)> = candidates
             .iter()
             .flat_map(|&t| mesh.tets[t].edges())
@@ -641,7 +723,6 @@ fn refine_near_surface(
             .map(|&(a, b)| midpoint_distance(queries, positions, (a, b), clamp))
             .collect();
         probed.extend(unprobed.into_iter().zip(values));
-        let mut marked = vec![false; mesh.tets.len()];
         for t in candidates {
             marked[t] = mesh.tets[t].edges().into_iter().any(|e| {
                 let (a, b) = e;

@@ -41,8 +41,8 @@ pub use fem_simulator::{
 };
 pub use fill_reducing_ordering::FillReducingOrdering;
 pub use lattice_mesher::{
-    LatticeMesherError, LatticeMesherParams, LatticeMesherReport, LatticeRefinement, VolumeTarget,
-    tetrahedralize, tetrahedralize_to_volume,
+    InteriorFeature, LatticeMesherError, LatticeMesherParams, LatticeMesherReport,
+    LatticeRefinement, VolumeTarget, tetrahedralize, tetrahedralize_to_volume,
 };
 pub use point_interpolation::{PointInterpolation, PointLocationError};
 pub use run_checkpoint::{CHECKPOINT_FORMAT_VERSION, RunCheckpoint};

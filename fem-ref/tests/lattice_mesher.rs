@@ -4,8 +4,8 @@
 use std::collections::HashMap;
 
 use fem_ref::{
-    LatticeMesherError, LatticeMesherParams, LatticeMesherReport, LatticeRefinement, TetMesh,
-    VolumeTarget, tetrahedralize, tetrahedralize_to_volume,
+    InteriorFeature, LatticeMesherError, LatticeMesherParams, LatticeMesherReport,
+    LatticeRefinement, TetMesh, VolumeTarget, tetrahedralize, tetrahedralize_to_volume,
 };
 use nalgebra::Vector3;
 use rkpm_core::{InsideTest, SurfaceDistance, TriangleMesh, read_triangle_mesh};
@@ -490,5 +490,108 @@ fn graded_lattices_hold_every_shared_mesh_within_three_percent_under_a_tet_budge
             "{name}: {} tetrahedra, over the budget of {MAX_TETS}",
             report.tets
         );
+    }
+}
+
+/// The longest edge of `mesh` with one end strictly inside `feature`'s negative side and the
+/// other strictly outside (an edge that crosses it), 0 when none does.
+fn longest_crossing_edge(mesh: &TetMesh, feature: &InteriorFeature) -> f64 {
+    let level = |v: usize| feature.level(&mesh.vertices()[v]);
+    mesh.tets()
+        .iter()
+        .flat_map(|t| [(0, 1), (0, 2), (0, 3), (1, 2), (1, 3), (2, 3)].map(|(i, j)| (t[i], t[j])))
+        .filter(|&(a, b)| level(a) * level(b) < 0.0)
+        .map(|(a, b)| (mesh.vertices()[a] - mesh.vertices()[b]).norm())
+        .fold(0.0, f64::max)
+}
+
+#[test]
+fn a_graded_lattice_refines_every_edge_that_crosses_an_interior_sphere_to_its_finest_spacing() {
+    // A unit cube (tilted, so the surface is refined too) with a sphere of radius 0.3 about a
+    // point off the lattice; 8 cells across (h = 1/8 of the box's side), two halvings: every
+    // edge crossing the sphere is then at most a finest cell's body diagonal, √3 h / 4, where
+    // the lattice alone leaves edges of a whole cell (up to √3 h).
+    let cube = rotated(
+        &TriangleMesh::cuboid(Vector3::repeat(-0.5), Vector3::repeat(0.5)),
+        Vector3::new(0.2, -0.1, 0.15),
+    );
+    let sphere = InteriorFeature::Sphere {
+        center: Vector3::new(0.07, -0.03, 0.11),
+        radius: 0.3,
+    };
+    let plain = graded(8, 2);
+    let (mesh, report) = tetrahedralize(&cube, &plain).unwrap();
+    let h = report.cell_size;
+    let coarse = longest_crossing_edge(&mesh, &sphere);
+    assert!(
+        coarse > 0.9 * h,
+        "the lattice alone crosses with {coarse} (h = {h})"
+    );
+    let refined = LatticeMesherParams {
+        refine_across: vec![sphere],
+        ..plain
+    };
+    let meshed = tetrahedralize(&cube, &refined).unwrap();
+    let fine = longest_crossing_edge(&meshed.0, &sphere);
+    assert!(
+        fine <= 3f64.sqrt() * h / 4.0 + 1e-12,
+        "refined, an edge of {fine} crosses (finest body diagonal {})",
+        3f64.sqrt() * h / 4.0
+    );
+    // Still a conforming, watertight mesh of the same solid, and graded: under a third of the
+    // tetrahedra of the uniform lattice at the finest spacing (the sphere's shell and the
+    // tilted faces are a large part of this small cube).
+    let report = assert_holds_the_volume("cube with a refined sphere", &cube, meshed, 0.03);
+    let (finest, _) = tetrahedralize(
+        &cube,
+        &LatticeMesherParams {
+            cells_across: 32,
+            ..LatticeMesherParams::default()
+        },
+    )
+    .unwrap();
+    assert!(
+        3 * report.tets < finest.tets().len(),
+        "{} tets refined, {} on the finest uniform lattice (plain graded {})",
+        report.tets,
+        finest.tets().len(),
+        mesh.tets().len()
+    );
+}
+
+#[test]
+fn interior_features_need_a_graded_lattice_and_finite_numbers() {
+    let cube = TriangleMesh::cuboid(Vector3::zeros(), Vector3::repeat(1.0));
+    let sphere = InteriorFeature::Sphere {
+        center: Vector3::repeat(0.5),
+        radius: 0.2,
+    };
+    let uniform = LatticeMesherParams {
+        cells_across: 4,
+        refine_across: vec![sphere],
+        ..LatticeMesherParams::default()
+    };
+    let message = tetrahedralize(&cube, &uniform).unwrap_err().to_string();
+    assert!(message.contains("graded"), "{message}");
+    for bad in [
+        InteriorFeature::Sphere {
+            center: Vector3::new(f64::NAN, 0.0, 0.0),
+            radius: 0.2,
+        },
+        InteriorFeature::Sphere {
+            center: Vector3::zeros(),
+            radius: 0.0,
+        },
+        InteriorFeature::Plane {
+            axis: 3,
+            value: 0.5,
+        },
+    ] {
+        let params = LatticeMesherParams {
+            refine_across: vec![bad],
+            ..graded(4, 1)
+        };
+        let message = tetrahedralize(&cube, &params).unwrap_err().to_string();
+        assert!(message.contains("interior feature"), "{message}");
     }
 }
