@@ -147,8 +147,8 @@ fn held_nodes(
     boundary: ShapeBoundary,
 ) -> Vec<Vec<Vector3<f64>>> {
     let scene = box_scene(surface, boundary);
-    let faces = fem.slab_faces(boundary, &scene);
-    let (mesh, _) = tetrahedralize(surface, &fem.lattice_through(16, 2.0, faces)).unwrap();
+    let condition = fem.condition_lattice(boundary, &scene);
+    let (mesh, _) = tetrahedralize(surface, &fem.lattice_through(16, 2.0, &condition)).unwrap();
     let held = scene.select(mesh.vertices(), "mesh vertices").unwrap();
     held.iter()
         .map(|region| region.iter().map(|&i| mesh.vertices()[i]).collect())
@@ -224,4 +224,63 @@ fn pull_boundarys_reference_on_the_aligned_lattice_holds_nodes_up_to_both_slabs_
         (low - 0.1).abs() < 1e-12 && (high - 1.9).abs() < 1e-12,
         "the aligned lattice reaches both faces: {low}, {high}"
     );
+}
+
+#[test]
+fn pull_farthests_reference_on_the_refined_lattice_resolves_each_pulled_balls_edge_to_a_quarter_cell()
+ {
+    // The 1 × 2 × 0.5 box (L = 2) at 16 cells across (h = 0.125): the pulled balls (radius
+    // 0.2 about four corners) cut the lattice's cells, so the nodes the FEM pulls match each
+    // ball only to a cell; refined along the spheres, every edge that crosses one is a finest
+    // cell's (two halvings: at most √3 h / 4).
+    let (surface, _) = box_and_cell_centres();
+    let scene = box_scene(&surface, ShapeBoundary::PullFarthest);
+    let spheres: Vec<(Vector3<f64>, f64)> = scene
+        .constraints
+        .iter()
+        .map(|c| match c.region {
+            freeform::scene::Region::Ball { center, radius } => (center, radius),
+            ref other => panic!("a pulled patch is a ball, got {other:?}"),
+        })
+        .collect();
+    let longest_crossing = |fem: &ShapeFemParams| {
+        let condition = fem.condition_lattice(ShapeBoundary::PullFarthest, &scene);
+        let (mesh, report) =
+            tetrahedralize(&surface, &fem.lattice_through(16, 2.0, &condition)).unwrap();
+        let v = mesh.vertices();
+        let crossing = mesh
+            .tets()
+            .iter()
+            .flat_map(|t| {
+                [(0, 1), (0, 2), (0, 3), (1, 2), (1, 3), (2, 3)].map(|(i, j)| (t[i], t[j]))
+            })
+            .filter(|&(a, b)| {
+                spheres
+                    .iter()
+                    .any(|(c, r)| ((v[a] - c).norm() - r) * ((v[b] - c).norm() - r) < 0.0)
+            })
+            .map(|(a, b)| (v[a] - v[b]).norm())
+            .fold(0.0, f64::max);
+        (crossing, report.cell_size)
+    };
+    let mut fem = ShapeFemParams::graded();
+    let (plain, h) = longest_crossing(&fem);
+    assert!((h - 0.125).abs() < 1e-12);
+    assert!(
+        plain >= h,
+        "the shape's lattice crosses the spheres with edges of {plain}"
+    );
+    fem.refine_pulled_patch_edges = true;
+    let (refined, _) = longest_crossing(&fem);
+    assert!(
+        refined <= 3f64.sqrt() * h / 4.0 + 1e-12,
+        "refined, an edge of {refined} crosses a sphere"
+    );
+    // The other conditions are not refined.
+    for other in [ShapeBoundary::FixSide, ShapeBoundary::PullBoundary] {
+        assert!(
+            fem.refined_edges(other, &box_scene(&surface, other))
+                .is_empty()
+        );
+    }
 }

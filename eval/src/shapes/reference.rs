@@ -2,8 +2,8 @@
 //! within a tolerance, or the finest lattice allowed) and what the mesh kept.
 
 use fem_ref::{
-    ElementOrder, LatticeMesherError, LatticeMesherParams, LatticeMesherReport, LatticeRefinement,
-    TetMesh, VolumeTarget, tetrahedralize, tetrahedralize_to_volume,
+    ElementOrder, InteriorFeature, LatticeMesherError, LatticeMesherParams, LatticeMesherReport,
+    LatticeRefinement, TetMesh, VolumeTarget, tetrahedralize, tetrahedralize_to_volume,
 };
 use hyperelastic::HessianTangent;
 use optimize::NewtonParams;
@@ -60,6 +60,14 @@ pub struct ShapeFemParams {
     /// pulls each end only to its last node plane inside the slab, as with Fix side above.
     #[serde(default)]
     pub pull_slabs_on_lattice_planes: bool,
+    /// Mesh Pull farthest's reference (and its convergence check) on the graded lattice
+    /// refined to its finest level wherever a tetrahedron meets the sphere that bounds a
+    /// pulled patch ([`fem_ref::LatticeMesherParams::refine_across`]; default false, the
+    /// first tables' setting). The nodes the FEM pulls are those inside the patch, so on the
+    /// shape's lattice the pulled region matches the patch only to a cell, and moves with the
+    /// lattice: the finer reference pulls another node set.
+    #[serde(default)]
+    pub refine_pulled_patch_edges: bool,
     /// How deep a reference's step whose Newton solve does not converge within
     /// `newton.max_iterations` is split into backward-Euler half steps
     /// ([`fem_ref::FemParams::failed_step_halvings`]; default 0, the first tables' setting:
@@ -84,6 +92,24 @@ pub struct SlabFaces {
 /// The references' tangent before it could be chosen (for settings stored without one).
 fn projected_tangent() -> HessianTangent {
     HessianTangent::ProjectedPsd
+}
+
+/// How one condition's reference lattice departs from the shape's: slab faces on vertex planes
+/// and region edges refined to the finest level. Plain (the shape's one mesh) when neither.
+#[derive(Clone, Debug, Default, PartialEq)]
+pub struct ConditionLattice {
+    /// Held or pulled slabs' faces on vertex planes ([`ShapeFemParams::slab_faces`]).
+    pub faces: Option<SlabFaces>,
+    /// Surfaces inside the solid refined to the finest level
+    /// ([`ShapeFemParams::refined_edges`]).
+    pub refine_across: Vec<InteriorFeature>,
+}
+
+impl ConditionLattice {
+    /// Whether the condition runs on the shape's one mesh.
+    pub fn is_plain(&self) -> bool {
+        self.faces.is_none() && self.refine_across.is_empty()
+    }
 }
 
 impl ShapeFemParams {
@@ -123,6 +149,7 @@ impl ShapeFemParams {
             tangent: HessianTangent::ExactWhenDefinite,
             clamp_on_lattice_plane: true,
             pull_slabs_on_lattice_planes: true,
+            refine_pulled_patch_edges: false,
             failed_step_halvings: 2,
             ..ShapeFemParams::default()
         }
@@ -186,8 +213,44 @@ impl ShapeFemParams {
         }
     }
 
+    /// The region edges `boundary`'s reference refines across in `scene`: with
+    /// [`ShapeFemParams::refine_pulled_patch_edges`] and a graded lattice, the sphere of
+    /// every ball Pull farthest pulls; otherwise none.
+    pub fn refined_edges(
+        &self,
+        boundary: ShapeBoundary,
+        scene: &SceneSpec,
+    ) -> Vec<InteriorFeature> {
+        let graded = matches!(self.refinement, LatticeRefinement::Graded { .. });
+        if boundary != ShapeBoundary::PullFarthest || !self.refine_pulled_patch_edges || !graded {
+            return Vec::new();
+        }
+        scene
+            .constraints
+            .iter()
+            .filter_map(|c| match c.region {
+                Region::Ball { center, radius } => Some(InteriorFeature::Sphere { center, radius }),
+                _ => None,
+            })
+            .collect()
+    }
+
+    /// `boundary`'s own lattice in `scene`: [`ShapeFemParams::slab_faces`] and
+    /// [`ShapeFemParams::refined_edges`].
+    pub fn condition_lattice(
+        &self,
+        boundary: ShapeBoundary,
+        scene: &SceneSpec,
+    ) -> ConditionLattice {
+        ConditionLattice {
+            faces: self.slab_faces(boundary, scene),
+            refine_across: self.refined_edges(boundary, scene),
+        }
+    }
+
     /// [`ShapeFemParams::lattice`] at `cells_across` along `length` (the surface's largest
-    /// side, m), with `faces` on vertex planes: a plane through `first`, and with a `second`
+    /// side, m), refined across `condition.refine_across`, with `condition.faces` on vertex
+    /// planes: a plane through `first`, and with a `second`
     /// face the spacing `d / k`, `d` the faces' distance and `k ≥ 1` the whole number of
     /// cells nearest `d / (length / cells_across)` (the lattice then differs from the
     /// unaligned one's by under half a cell over `d`).
@@ -195,10 +258,11 @@ impl ShapeFemParams {
         &self,
         cells_across: usize,
         length: f64,
-        faces: Option<SlabFaces>,
+        condition: &ConditionLattice,
     ) -> LatticeMesherParams {
         let mut params = self.lattice(cells_across);
-        if let Some(faces) = faces {
+        params.refine_across.clone_from(&condition.refine_across);
+        if let Some(faces) = condition.faces {
             params.vertex_planes[faces.axis] = Some(faces.first);
             if let Some(second) = faces.second {
                 let distance = (second - faces.first).abs();
@@ -222,6 +286,7 @@ impl Default for ShapeFemParams {
             tangent: HessianTangent::ProjectedPsd,
             clamp_on_lattice_plane: false,
             pull_slabs_on_lattice_planes: false,
+            refine_pulled_patch_edges: false,
             failed_step_halvings: 0,
         }
     }
@@ -267,7 +332,7 @@ impl FemMeshSummary {
     }
 }
 
-/// The FEM mesh of `surface` (largest bounding-box side `length`) with `faces` on vertex planes
+/// The FEM mesh of `surface` (largest bounding-box side `length`) on `condition`'s lattice
 /// ([`ShapeFemParams::lattice_through`]): the largest piece of the lattice at `cells_across`
 /// and, while that piece's volume is off the surface's by more than
 /// [`ShapeFemParams::volume_tolerance`], of the lattice at 1.5× the cells, up to
@@ -283,12 +348,12 @@ pub fn mesh_through(
     params: &ShapeFemParams,
     cells_across: usize,
     length: f64,
-    faces: Option<SlabFaces>,
+    condition: &ConditionLattice,
 ) -> Result<(TetMesh, FemMeshSummary, usize), EvalError> {
     let target = params.volume_target(cells_across);
     let mut cells = cells_across;
     loop {
-        let lattice = params.lattice_through(cells, length, faces);
+        let lattice = params.lattice_through(cells, length, condition);
         let (mesh, report) = tetrahedralize(surface, &lattice).map_err(EvalError::FemMesh)?;
         let (piece, summary) = FemMeshSummary::largest_piece(&mesh, &report, length);
         match target.next_cells_across(cells) {
@@ -346,11 +411,14 @@ mod tests {
         // and stops at the largest lattice allowed (its error then reported, not hidden).
         let plate = tilted_plate(0.1);
         let bbox = plate.bounding_box();
-        let faces = Some(SlabFaces {
-            axis: 0,
-            first: bbox.min.x + 0.05 * bbox.largest_side(),
-            second: None,
-        });
+        let faces = ConditionLattice {
+            faces: Some(SlabFaces {
+                axis: 0,
+                first: bbox.min.x + 0.05 * bbox.largest_side(),
+                second: None,
+            }),
+            refine_across: Vec::new(),
+        };
         let params = ShapeFemParams {
             volume_tolerance: 0.03,
             max_cells_across: 36,
@@ -361,11 +429,11 @@ mod tests {
             max_cells_across: 6,
             ..params
         };
-        let (mesh, first, cells) = mesh_through(&plate, &capped, 6, length, faces).unwrap();
+        let (mesh, first, cells) = mesh_through(&plate, &capped, 6, length, &faces).unwrap();
         assert_eq!(cells, 6);
         assert_eq!(mesh.tets().len(), first.tets);
         assert!(first.relative_volume_error.abs() > 0.03, "{first:?}");
-        let (_, summary, cells) = mesh_through(&plate, &params, 6, length, faces).unwrap();
+        let (_, summary, cells) = mesh_through(&plate, &params, 6, length, &faces).unwrap();
         assert!(cells > 6 && cells <= 36, "{cells}");
         assert!(summary.relative_volume_error.abs() <= 0.03, "{summary:?}");
     }

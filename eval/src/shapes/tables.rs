@@ -473,7 +473,7 @@ pub fn table2(study: &ShapeStudy) -> RenderedTable {
         })
     };
     for shape in &study.shapes {
-        for boundary in ShapeBoundary::ALL {
+        for &boundary in &study.config.boundaries {
             let row = shape.rows.iter().find(|r| r.boundary == boundary);
             // The mesh this row's reference ran on (Fix side's and Pull boundary's may be their
             // own).
@@ -647,7 +647,7 @@ pub fn table7(study: &ShapeStudy) -> RenderedTable {
     let mut csv = String::from("name,bc,ours_fit,simplicits_fit\n");
     let mut rows = Vec::new();
     for shape in &study.shapes {
-        for boundary in ShapeBoundary::ALL {
+        for &boundary in &study.config.boundaries {
             let row = shape.rows.iter().find(|r| r.boundary == boundary);
             let ours = row.and_then(|r| r.ours).map(|s| s.fitting_residual);
             let theirs = row.and_then(|r| r.simplicits).map(|s| s.fitting_residual);
@@ -760,6 +760,34 @@ mod tests {
                 })
                 .collect(),
             error: None,
+        }
+    }
+
+    #[test]
+    fn a_study_of_one_condition_lists_only_its_rows_and_averages_no_shape_for_the_others() {
+        let mut config = ShapeStudyConfig::full(Vec::new(), PathBuf::from("unused"));
+        config.simplicits = None;
+        config.boundaries = vec![ShapeBoundary::PullFarthest];
+        let mut pulled = shape("pulled", 0.0, 0, 1e-3);
+        pulled
+            .rows
+            .retain(|r| r.boundary == ShapeBoundary::PullFarthest);
+        let study = ShapeStudy {
+            config,
+            shapes: vec![pulled],
+            seconds: 1.0,
+        };
+        for table in [table2(&study), table7(&study)] {
+            let rows = table.json["shapes"].as_array().unwrap();
+            assert_eq!(rows.len(), 1, "{rows:?}");
+            assert_eq!(rows[0]["bc"], "pull_farthest");
+            for average in table.json["averages"].as_array().unwrap() {
+                // (Table 2 names the condition "bc", Table 7 "boundary".)
+                let bc = average.get("bc").or_else(|| average.get("boundary"));
+                let n = average["shapes"].as_u64();
+                let expected = u64::from(bc.is_some_and(|bc| bc == "pull_farthest"));
+                assert_eq!(n, Some(expected), "{average}");
+            }
         }
     }
 

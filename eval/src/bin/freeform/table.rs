@@ -15,6 +15,7 @@ use eval::beam::study::{BeamStudyConfig, run_beam_study};
 use eval::beam::tables::{table1, table5, table6, twist_error_plot};
 use eval::progress::Progress;
 use eval::report::table::write_table;
+use eval::shapes::boundary::ShapeBoundary;
 use eval::shapes::reference::ShapeFemParams;
 use eval::shapes::study::{ShapeStudyConfig, mesh_files, run_shape_study};
 use eval::shapes::tables::{table2, table7};
@@ -111,6 +112,17 @@ pub(crate) struct TableOptions {
     /// ones.
     #[arg(long, value_enum)]
     fem_pull_slabs: Option<SlabFaceChoice>,
+    /// Tables 2 and 7, graded lattices only: where Pull farthest's FEM reference pulls its
+    /// patches: `refined` meshes it (and its convergence check) on the graded lattice refined
+    /// to its finest level along every pulled ball's sphere, so the pulled nodes match the
+    /// ball to a quarter cell; `lattice` keeps the shape's one mesh, whose pulled nodes match
+    /// it to a cell. Default: the graded setting's.
+    #[arg(long, value_enum)]
+    fem_pull_patches: Option<PatchEdgeChoice>,
+    /// Tables 2 and 7: the boundary conditions run on every shape, comma-separated (default
+    /// all three). The averages of a condition left out cover no shape.
+    #[arg(long, value_enum, value_delimiter = ',')]
+    boundaries: Option<Vec<BoundaryChoice>>,
     /// Tables 2 and 7: mesh the FEM references on uniform lattices (10 cells across ×1.5 up to
     /// 16 until the volume is within 5%, the first tables' setting) or on lattices graded near
     /// the surface (16 ×1.5 up to 36, two halvings near the surface, within 3%; issue 19;
@@ -208,6 +220,37 @@ pub(crate) enum SlabFaceChoice {
     Plane,
 }
 
+/// A boundary condition of Tables 2 and 7.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, clap::ValueEnum)]
+pub(crate) enum BoundaryChoice {
+    /// The min-x side held, gravity.
+    FixSide,
+    /// Four farthest-point-sampled patches pulled outward.
+    PullFarthest,
+    /// Both ends of the longest axis pulled apart.
+    PullBoundary,
+}
+
+impl BoundaryChoice {
+    fn boundary(self) -> ShapeBoundary {
+        match self {
+            BoundaryChoice::FixSide => ShapeBoundary::FixSide,
+            BoundaryChoice::PullFarthest => ShapeBoundary::PullFarthest,
+            BoundaryChoice::PullBoundary => ShapeBoundary::PullBoundary,
+        }
+    }
+}
+
+/// Where an FEM reference's pulled patches end.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, clap::ValueEnum)]
+pub(crate) enum PatchEdgeChoice {
+    /// On the shape's one lattice mesh: the nodes inside the ball.
+    Lattice,
+    /// On the graded lattice refined along the balls' spheres
+    /// (`ShapeFemParams::refine_pulled_patch_edges`).
+    Refined,
+}
+
 /// How the shapes' FEM references are meshed.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, clap::ValueEnum)]
 pub(crate) enum FemMesherChoice {
@@ -274,6 +317,8 @@ pub(crate) fn run(
         fem_reuse,
         fem_clamp,
         fem_pull_slabs,
+        fem_pull_patches,
+        boundaries,
         fem_mesher,
         fem_tangent,
         fem_step_halvings,
@@ -338,6 +383,9 @@ pub(crate) fn run(
     check_spacings("--sph-spacings", sph_spacings.as_deref())?;
     if sph_substeps == Some(0) {
         bail!("--sph-substeps must be at least 1");
+    }
+    if fem_pull_patches == Some(PatchEdgeChoice::Refined) && fem_mesher != FemMesherChoice::Graded {
+        bail!("--fem-pull-patches refined needs --fem-mesher graded (it refines a graded lattice)");
     }
     if let Some(alpha) = sph_alpha
         && !(alpha >= 0.0 && alpha.is_finite())
@@ -435,6 +483,7 @@ pub(crate) fn run(
                     tangent: graded.tangent,
                     clamp_on_lattice_plane: graded.clamp_on_lattice_plane,
                     pull_slabs_on_lattice_planes: graded.pull_slabs_on_lattice_planes,
+                    refine_pulled_patch_edges: graded.refine_pulled_patch_edges,
                     failed_step_halvings: graded.failed_step_halvings,
                     ..shapes.fem
                 }
@@ -450,6 +499,9 @@ pub(crate) fn run(
         }
         if let Some(choice) = fem_pull_slabs {
             shapes.fem.pull_slabs_on_lattice_planes = choice == SlabFaceChoice::Plane;
+        }
+        if let Some(choice) = fem_pull_patches {
+            shapes.fem.refine_pulled_patch_edges = choice == PatchEdgeChoice::Refined;
         }
         if let Some(halvings) = fem_step_halvings {
             shapes.fem.failed_step_halvings = halvings;
@@ -472,6 +524,13 @@ pub(crate) fn run(
             shapes.settings.simulation_points = points;
         }
         shapes.settings.quadrature = config.settings.quadrature;
+        if let Some(choices) = &boundaries {
+            // In the paper's column order, each once.
+            shapes.boundaries = ShapeBoundary::ALL
+                .into_iter()
+                .filter(|b| choices.iter().any(|c| c.boundary() == *b))
+                .collect();
+        }
         shapes.simplicits_quadrature =
             simplicits_quadrature.map(|choice| choice.rule(cubature_tolerance));
         shapes.settings.hessian_reuse = config.settings.hessian_reuse;
