@@ -3,7 +3,7 @@
 
 use eval::shapes::boundary::{ShapeBoundary, ShapeBoundaryParams};
 use eval::shapes::reference::ShapeFemParams;
-use fem_ref::tetrahedralize;
+use fem_ref::{InteriorFeature, tetrahedralize};
 use freeform::scene::{Motion, SceneSpec};
 use nalgebra::Vector3;
 use rkpm_core::TriangleMesh;

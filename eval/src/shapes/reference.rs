@@ -68,6 +68,12 @@ pub struct ShapeFemParams {
     /// lattice: the finer reference pulls another node set.
     #[serde(default)]
     pub refine_pulled_patch_edges: bool,
+    /// Mesh Pull boundary's reference (and its convergence check) on the graded lattice
+    /// refined to its finest level along both pulled slabs' faces (default false, the first
+    /// tables' setting): where a face meets the surface the held nodes end in an edge whose
+    /// stress is singular.
+    #[serde(default)]
+    pub refine_pulled_slab_faces: bool,
     /// How deep a reference's step whose Newton solve does not converge within
     /// `newton.max_iterations` is split into backward-Euler half steps
     /// ([`fem_ref::FemParams::failed_step_halvings`]; default 0, the first tables' setting:
@@ -150,6 +156,7 @@ impl ShapeFemParams {
             clamp_on_lattice_plane: true,
             pull_slabs_on_lattice_planes: true,
             refine_pulled_patch_edges: false,
+            refine_pulled_slab_faces: false,
             failed_step_halvings: 2,
             ..ShapeFemParams::default()
         }
@@ -213,24 +220,32 @@ impl ShapeFemParams {
         }
     }
 
-    /// The region edges `boundary`'s reference refines across in `scene`: with
-    /// [`ShapeFemParams::refine_pulled_patch_edges`] and a graded lattice, the sphere of
-    /// every ball Pull farthest pulls; otherwise none.
+    /// The region edges `boundary`'s reference refines across in `scene` on a graded
+    /// lattice: with [`ShapeFemParams::refine_pulled_patch_edges`], the sphere of every ball
+    /// Pull farthest pulls; with [`ShapeFemParams::refine_pulled_slab_faces`], the face of
+    /// both slabs Pull boundary pulls; otherwise none.
     pub fn refined_edges(
         &self,
         boundary: ShapeBoundary,
         scene: &SceneSpec,
     ) -> Vec<InteriorFeature> {
-        let graded = matches!(self.refinement, LatticeRefinement::Graded { .. });
-        if boundary != ShapeBoundary::PullFarthest || !self.refine_pulled_patch_edges || !graded {
+        let refined = matches!(self.refinement, LatticeRefinement::Graded { .. })
+            && match boundary {
+                ShapeBoundary::FixSide => false,
+                ShapeBoundary::PullFarthest => self.refine_pulled_patch_edges,
+                ShapeBoundary::PullBoundary => self.refine_pulled_slab_faces,
+            };
+        if !refined {
             return Vec::new();
         }
         scene
             .constraints
             .iter()
-            .filter_map(|c| match c.region {
-                Region::Ball { center, radius } => Some(InteriorFeature::Sphere { center, radius }),
-                _ => None,
+            .map(|c| match c.region {
+                Region::Ball { center, radius } => InteriorFeature::Sphere { center, radius },
+                Region::Below { axis, value } | Region::Above { axis, value } => {
+                    InteriorFeature::Plane { axis, value }
+                }
             })
             .collect()
     }
@@ -287,6 +302,7 @@ impl Default for ShapeFemParams {
             clamp_on_lattice_plane: false,
             pull_slabs_on_lattice_planes: false,
             refine_pulled_patch_edges: false,
+            refine_pulled_slab_faces: false,
             failed_step_halvings: 0,
         }
     }

@@ -118,7 +118,13 @@ pub(crate) struct TableOptions {
     /// ball to a quarter cell; `lattice` keeps the shape's one mesh, whose pulled nodes match
     /// it to a cell. Default: the graded setting's.
     #[arg(long, value_enum)]
-    fem_pull_patches: Option<PatchEdgeChoice>,
+    fem_pull_patches: Option<RegionEdgeChoice>,
+    /// Tables 2 and 7, graded lattices only: `refined` meshes Pull boundary's FEM reference
+    /// (and its convergence check) on the graded lattice refined to its finest level along
+    /// both pulled slabs' faces (where the held nodes end in an edge of singular stress);
+    /// `lattice` does not. Default: the graded setting's.
+    #[arg(long, value_enum)]
+    fem_pull_slab_faces: Option<RegionEdgeChoice>,
     /// Tables 2 and 7: the boundary conditions run on every shape, comma-separated (default
     /// all three). The averages of a condition left out cover no shape.
     #[arg(long, value_enum, value_delimiter = ',')]
@@ -241,13 +247,13 @@ impl BoundaryChoice {
     }
 }
 
-/// Where an FEM reference's pulled patches end.
+/// How finely an FEM reference's lattice resolves the edge of a pulled region.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, clap::ValueEnum)]
-pub(crate) enum PatchEdgeChoice {
-    /// On the shape's one lattice mesh: the nodes inside the ball.
+pub(crate) enum RegionEdgeChoice {
+    /// As the rest of the lattice: the region's nodes match it to a cell.
     Lattice,
-    /// On the graded lattice refined along the balls' spheres
-    /// (`ShapeFemParams::refine_pulled_patch_edges`).
+    /// Refined to the graded lattice's finest level along the edge
+    /// (`ShapeFemParams::{refine_pulled_patch_edges, refine_pulled_slab_faces}`).
     Refined,
 }
 
@@ -318,6 +324,7 @@ pub(crate) fn run(
         fem_clamp,
         fem_pull_slabs,
         fem_pull_patches,
+        fem_pull_slab_faces,
         boundaries,
         fem_mesher,
         fem_tangent,
@@ -384,8 +391,13 @@ pub(crate) fn run(
     if sph_substeps == Some(0) {
         bail!("--sph-substeps must be at least 1");
     }
-    if fem_pull_patches == Some(PatchEdgeChoice::Refined) && fem_mesher != FemMesherChoice::Graded {
-        bail!("--fem-pull-patches refined needs --fem-mesher graded (it refines a graded lattice)");
+    let refined =
+        [fem_pull_patches, fem_pull_slab_faces].contains(&Some(RegionEdgeChoice::Refined));
+    if refined && fem_mesher != FemMesherChoice::Graded {
+        bail!(
+            "--fem-pull-patches refined and --fem-pull-slab-faces refined need --fem-mesher graded \
+             (they refine a graded lattice)"
+        );
     }
     if let Some(alpha) = sph_alpha
         && !(alpha >= 0.0 && alpha.is_finite())
@@ -484,6 +496,7 @@ pub(crate) fn run(
                     clamp_on_lattice_plane: graded.clamp_on_lattice_plane,
                     pull_slabs_on_lattice_planes: graded.pull_slabs_on_lattice_planes,
                     refine_pulled_patch_edges: graded.refine_pulled_patch_edges,
+                    refine_pulled_slab_faces: graded.refine_pulled_slab_faces,
                     failed_step_halvings: graded.failed_step_halvings,
                     ..shapes.fem
                 }
@@ -501,7 +514,10 @@ pub(crate) fn run(
             shapes.fem.pull_slabs_on_lattice_planes = choice == SlabFaceChoice::Plane;
         }
         if let Some(choice) = fem_pull_patches {
-            shapes.fem.refine_pulled_patch_edges = choice == PatchEdgeChoice::Refined;
+            shapes.fem.refine_pulled_patch_edges = choice == RegionEdgeChoice::Refined;
+        }
+        if let Some(choice) = fem_pull_slab_faces {
+            shapes.fem.refine_pulled_slab_faces = choice == RegionEdgeChoice::Refined;
         }
         if let Some(halvings) = fem_step_halvings {
             shapes.fem.failed_step_halvings = halvings;
