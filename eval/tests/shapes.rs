@@ -276,11 +276,26 @@ fn pull_farthests_reference_on_the_refined_lattice_resolves_each_pulled_balls_ed
         refined <= 3f64.sqrt() * h / 4.0 + 1e-12,
         "refined, an edge of {refined} crosses a sphere"
     );
-    // The other conditions are not refined.
+    // The other conditions are not refined, Pull boundary's slab faces only when asked.
     for other in [ShapeBoundary::FixSide, ShapeBoundary::PullBoundary] {
         assert!(
             fem.refined_edges(other, &box_scene(&surface, other))
                 .is_empty()
         );
     }
+    fem.refine_pulled_slab_faces = true;
+    let pull_boundary = box_scene(&surface, ShapeBoundary::PullBoundary);
+    assert_eq!(
+        fem.refined_edges(ShapeBoundary::PullBoundary, &pull_boundary),
+        vec![
+            InteriorFeature::Plane {
+                axis: 1,
+                value: 0.1
+            },
+            InteriorFeature::Plane {
+                axis: 1,
+                value: 1.9
+            }
+        ]
+    );
 }

@@ -492,9 +492,11 @@ fn tetrahedralize_with(
                 h,
                 [nx, ny, nz],
                 lattice_index,
-                3 * max_halvings,
-                linearity_tolerance,
-                &params.refine_across,
+                &Grading {
+                    max_bisections: 3 * max_halvings,
+                    linearity_tolerance,
+                    features: &params.refine_across,
+                },
             );
             positions = graded.mesh.positions;
             let mut phi = graded.phi;
@@ -660,6 +662,16 @@ struct GradedLattice {
     phi: Vec<f64>,
 }
 
+/// Where and how deep [`refine_near_surface`] bisects.
+struct Grading<'a> {
+    /// Bisections allowed (3 per halving).
+    max_bisections: usize,
+    /// [`LatticeRefinement::Graded`]'s `linearity_tolerance`.
+    linearity_tolerance: f64,
+    /// Surfaces inside the solid bisected to `max_bisections` wherever a tetrahedron meets one.
+    features: &'a [InteriorFeature],
+}
+
 /// [`LatticeRefinement::Graded`]: the Kuhn tetrahedra of the cubes near or inside the surface
 /// (a corner within a cube diagonal outside, so thin parts between lattice vertices are kept),
 /// bisected (with the conforming closure) while the interpolated `φ` puts one of their edges'
@@ -673,10 +685,13 @@ fn refine_near_surface(
     h: f64,
     cells: [usize; 3],
     lattice_index: impl Fn(usize, usize, usize) -> usize,
-    max_bisections: usize,
-    linearity_tolerance: f64,
-    features: &[InteriorFeature],
+    grading: &Grading<'_>,
 ) -> GradedLattice {
+    let &Grading {
+        max_bisections,
+        linearity_tolerance,
+        features,
+    } = grading;
     // Distances are clamped well past the reach of the tests below (|φ| < longest edge ≤ √3 h
     // at a vertex, half an edge more at a midpoint).
     let clamp = 4.0 * h;
