@@ -265,9 +265,8 @@ impl ShapeFemParams {
 
     /// [`ShapeFemParams::lattice`] at `cells_across` along `length` (the surface's largest
     /// side, m), refined across `condition.refine_across`, with `condition.faces` on vertex
-    /// planes: a plane through `first`, and with a `second`
-    /// face the spacing `d / k`, `d` the faces' distance and `k ≥ 1` the whole number of
-    /// cells nearest `d / (length / cells_across)` (the lattice then differs from the
+    /// planes: a plane through `first`, and with a `second` face the spacing `d / k`, `d` the
+    /// faces' distance and `k ≥ 1` the whole number of cells nearest `d / (length / cells_across)` (the lattice then differs from the
     /// unaligned one's by under half a cell over `d`).
     pub fn lattice_through(
         &self,
@@ -427,7 +426,7 @@ mod tests {
         // and stops at the largest lattice allowed (its error then reported, not hidden).
         let plate = tilted_plate(0.1);
         let bbox = plate.bounding_box();
-        let faces = ConditionLattice {
+        let condition = ConditionLattice {
             faces: Some(SlabFaces {
                 axis: 0,
                 first: bbox.min.x + 0.05 * bbox.largest_side(),
@@ -445,11 +444,11 @@ mod tests {
             max_cells_across: 6,
             ..params
         };
-        let (mesh, first, cells) = mesh_through(&plate, &capped, 6, length, &faces).unwrap();
+        let (mesh, first, cells) = mesh_through(&plate, &capped, 6, length, &condition).unwrap();
         assert_eq!(cells, 6);
         assert_eq!(mesh.tets().len(), first.tets);
         assert!(first.relative_volume_error.abs() > 0.03, "{first:?}");
-        let (_, summary, cells) = mesh_through(&plate, &params, 6, length, &faces).unwrap();
+        let (_, summary, cells) = mesh_through(&plate, &params, 6, length, &condition).unwrap();
         assert!(cells > 6 && cells <= 36, "{cells}");
         assert!(summary.relative_volume_error.abs() <= 0.03, "{summary:?}");
     }

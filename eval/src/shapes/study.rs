@@ -227,7 +227,9 @@ pub struct ShapeRow {
     /// This row's own FEM mesh when it is not the shape's ([`ShapeResult::fem_mesh`]): on the
     /// lattice whose vertex planes are the held slabs' faces
     /// ([`ShapeFemParams::clamp_on_lattice_plane`],
-    /// [`ShapeFemParams::pull_slabs_on_lattice_planes`]). `None`: the shape's mesh.
+    /// [`ShapeFemParams::pull_slabs_on_lattice_planes`]) or refined along the pulled regions'
+    /// edges ([`ShapeFemParams::refine_pulled_patch_edges`],
+    /// [`ShapeFemParams::refine_pulled_slab_faces`]). `None`: the shape's mesh.
     #[serde(default)]
     pub fem_mesh: Option<FemMeshSummary>,
     /// Reduced integration points in each constrained region.

@@ -475,8 +475,7 @@ pub fn table2(study: &ShapeStudy) -> RenderedTable {
     for shape in &study.shapes {
         for &boundary in &study.config.boundaries {
             let row = shape.rows.iter().find(|r| r.boundary == boundary);
-            // The mesh this row's reference ran on (Fix side's and Pull boundary's may be their
-            // own).
+            // The mesh this row's reference ran on (any condition's may be its own lattice).
             let reference_mesh = row.and_then(|r| shape.reference_mesh(r)).or(shape.fem_mesh);
             let mesh = describe(reference_mesh);
             let ours = row.and_then(|r| r.ours);
