@@ -197,6 +197,9 @@ fn pull_boundarys_reference_on_the_aligned_lattice_holds_nodes_up_to_both_slabs_
     let (surface, _) = box_and_cell_centres();
     let mut fem = ShapeFemParams {
         pull_slabs_on_lattice_planes: false,
+        // (Refined along the faces, the unaligned lattice's nodes would come within a
+        // quarter cell of them; this test is about the alignment alone.)
+        refine_pulled_slab_faces: false,
         ..ShapeFemParams::graded()
     };
     // How deep each pulled region's nodes reach into the body: its innermost node's y.
@@ -263,7 +266,11 @@ fn pull_farthests_reference_on_the_refined_lattice_resolves_each_pulled_balls_ed
             .fold(0.0, f64::max);
         (crossing, report.cell_size)
     };
-    let mut fem = ShapeFemParams::graded();
+    let mut fem = ShapeFemParams {
+        refine_pulled_patch_edges: false,
+        refine_pulled_slab_faces: false,
+        ..ShapeFemParams::graded()
+    };
     let (plain, h) = longest_crossing(&fem);
     assert!((h - 0.125).abs() < 1e-12);
     assert!(
