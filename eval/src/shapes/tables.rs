@@ -21,7 +21,7 @@ use crate::report::paper;
 use crate::report::table::{RenderedTable, not_run_or, sci};
 use crate::shapes::boundary::ShapeBoundary;
 use crate::shapes::catalog::{SHAPE_DENSITY, SHAPE_POISSON_RATIO, ShapeCollection};
-use crate::shapes::reference::FemMeshSummary;
+use crate::shapes::reference::{FemMeshSummary, ShapeFemParams};
 use crate::shapes::study::{MethodScores, ShapeResult, ShapeRow, ShapeStudy};
 
 /// Which number of a method's scores a table reports.
@@ -184,7 +184,7 @@ fn settings_lines(study: &ShapeStudy) -> String {
         "FEM reference: {:?} tetrahedra on the lattice mesher's mesh{}, the first of {} cells \
          across (×1.5, up to {}) whose volume is within {:.0}% of the surface's, else the \
          finest; pieces the lattice cut off from the body dropped (they would fall freely); \
-         Dirichlet conditions on the nodes in each region; Newton to {:e} in at most {} \
+         Dirichlet conditions on the nodes in each region{}; Newton to {:e} in at most {} \
          iterations a step, {} element tangents.",
         c.fem.order,
         match c.fem.refinement {
@@ -200,6 +200,7 @@ fn settings_lines(study: &ShapeStudy) -> String {
         c.fem.first_cells_across,
         c.fem.max_cells_across,
         100.0 * c.fem.volume_tolerance,
+        condition_lattices(&c.fem),
         c.fem.newton.tolerance,
         c.fem.newton.max_iterations,
         match c.fem.tangent {
@@ -303,6 +304,38 @@ fn step_time(study: &ShapeStudy, scores: fn(&ShapeRow) -> Option<MethodScores>) 
             ms.len()
         ),
         None => "—".into(),
+    }
+}
+
+/// Where the conditions' references run on lattices of their own ("", or a clause naming
+/// each: slab faces on vertex planes, pulled regions' edges refined).
+fn condition_lattices(fem: &ShapeFemParams) -> String {
+    let graded = matches!(fem.refinement, LatticeRefinement::Graded { .. });
+    let clauses: Vec<&str> = [
+        (
+            fem.clamp_on_lattice_plane,
+            "Fix side's clamped face on a vertex plane",
+        ),
+        (
+            fem.pull_slabs_on_lattice_planes,
+            "Pull boundary's two slab faces on vertex planes",
+        ),
+        (
+            graded && fem.refine_pulled_patch_edges,
+            "the lattice refined to its finest level along Pull farthest's pulled balls' spheres",
+        ),
+        (
+            graded && fem.refine_pulled_slab_faces,
+            "the lattice refined to its finest level along Pull boundary's slab faces",
+        ),
+    ]
+    .into_iter()
+    .filter_map(|(on, clause)| on.then_some(clause))
+    .collect();
+    if clauses.is_empty() {
+        String::new()
+    } else {
+        format!(" ({})", clauses.join("; "))
     }
 }
 
@@ -767,6 +800,7 @@ mod tests {
         let mut config = ShapeStudyConfig::full(Vec::new(), PathBuf::from("unused"));
         config.simplicits = None;
         config.boundaries = vec![ShapeBoundary::PullFarthest];
+        config.fem = ShapeFemParams::graded();
         let mut pulled = shape("pulled", 0.0, 0, 1e-3);
         pulled
             .rows
@@ -777,6 +811,14 @@ mod tests {
             seconds: 1.0,
         };
         for table in [table2(&study), table7(&study)] {
+            // The settings name the references' own lattices.
+            assert!(
+                table
+                    .markdown
+                    .contains("along Pull farthest's pulled balls' spheres"),
+                "{}",
+                table.markdown
+            );
             let rows = table.json["shapes"].as_array().unwrap();
             assert_eq!(rows.len(), 1, "{rows:?}");
             assert_eq!(rows[0]["bc"], "pull_farthest");
