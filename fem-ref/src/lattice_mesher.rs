@@ -85,10 +85,11 @@ pub struct LatticeMesherParams {
     /// plane too (both faces of a body pulled at both ends). Default none.
     #[serde(default)]
     pub cell_size: Option<f64>,
-    /// Graded lattices only: surfaces inside the solid that every lattice tetrahedron crossing
-    /// (or touching) them is bisected down to the deepest level at, e.g. the edges of the
-    /// regions a boundary condition moves, so that the nodes inside a region match it to a
-    /// quarter cell (two halvings) instead of a cell. Default none.
+    /// Graded lattices only: surfaces inside the solid (e.g. the edges of the regions a
+    /// boundary condition moves) along which the lattice is bisected to its deepest level:
+    /// every tetrahedron that crosses or touches one, or has a corner within half its longest
+    /// edge of one, is refined, so the nodes inside a region match it to a quarter cell (two
+    /// halvings) instead of a cell. Default none.
     #[serde(default)]
     pub refine_across: Vec<InteriorFeature>,
 }
@@ -135,11 +136,11 @@ impl InteriorFeature {
         }
     }
 
-    /// Whether the tetrahedron with corners `corners` and longest edge `longest` meets the
-    /// feature: its corners lie on both sides of it (or on it), or one lies within half the
-    /// longest edge of it (a sphere can clip an edge whose ends are both outside; the level
-    /// is the signed distance, so this catches every such clip of a sphere wider than the
-    /// edge).
+    /// Whether the tetrahedron with corners `corners` and longest edge `ℓ = longest` meets the
+    /// feature: its corners lie on both sides of it (or on it), or one lies within `ℓ/2` of
+    /// it. (A sphere of radius `r` can clip a tetrahedron whose corners all lie outside it;
+    /// the level being the signed distance, such a clip leaves a corner within `ℓ²/(6r)` of
+    /// the sphere, under `ℓ/2` whenever `r > ℓ/3`.)
     fn meets(&self, corners: [&Vector3<f64>; 4], longest: f64) -> bool {
         let levels = corners.map(|x| self.level(x));
         let low = levels.iter().copied().fold(f64::INFINITY, f64::min);
