@@ -540,3 +540,47 @@ fn a_scene_file_runs_the_shared_donut_as_a_plain_point_cloud_filled_inside() {
     let header = String::from_utf8_lossy(&ply[..ply.len().min(400)]).to_string();
     assert!(header.contains("element vertex 45624"), "{header}");
 }
+
+#[test]
+fn a_quick_convergence_check_measures_each_run_conditions_finer_change_on_either_mesher() {
+    // Fix side and Pull farthest only: on uniform lattices both share the shape's finer mesh;
+    // on graded ones each has its own (the clamp on a vertex plane, the pulled balls' edges
+    // refined). Every row gets its finer reference's change, and Pull boundary is not run.
+    let dir = scratch("shape-convergence");
+    let meshes: PathBuf = dir.join("meshes");
+    std::fs::create_dir_all(&meshes).unwrap();
+    std::fs::copy(shared_mesh("bunny.obj"), meshes.join("bunny.obj")).unwrap();
+    for mesher in ["uniform", "graded"] {
+        let run = freeform(
+            &[
+                "table",
+                "2",
+                "7",
+                "--quick",
+                "--json",
+                "--skip-simplicits",
+                "--skip-exact",
+                "--check-convergence",
+                "--boundaries",
+                "fix-side,pull-farthest",
+                "--fem-mesher",
+                mesher,
+                "--meshes",
+                meshes.to_str().unwrap(),
+            ],
+            &dir,
+        );
+        assert_success(&run);
+        let tables: serde_json::Value = serde_json::from_slice(&run.stdout).unwrap();
+        let rows = table(&tables, 2)["shapes"].as_array().unwrap().clone();
+        let bcs: Vec<&str> = rows.iter().map(|r| r["bc"].as_str().unwrap()).collect();
+        assert_eq!(bcs, ["fix_side", "pull_farthest"], "{mesher}");
+        for row in &rows {
+            let change = row["reference_change"].as_f64().unwrap_or(f64::NAN);
+            assert!(
+                change > 0.0 && change < 0.1,
+                "{mesher}: the finer reference's change {change} in {row}"
+            );
+        }
+    }
+}

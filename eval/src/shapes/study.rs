@@ -563,11 +563,9 @@ fn run_shape_into(
         let (mesh, report) = tetrahedralize(&surface, &params).map_err(EvalError::FemMesh)?;
         Ok(FemMeshSummary::largest_piece(&mesh, &report, length).0)
     };
-    let finer = if config.check_convergence {
-        Some(lattice_mesh(finer_cells, &ConditionLattice::default())?)
-    } else {
-        None
-    };
+    // The shape's finer mesh, built when the first condition on the shape's mesh needs it (on
+    // graded lattices every condition has a lattice of its own).
+    let mut shape_finer: Option<TetMesh> = None;
 
     let mut fem_seconds = 0.0;
     for &boundary in &config.boundaries {
@@ -609,9 +607,19 @@ fn run_shape_into(
                 continue;
             }
         };
+        if aligned.is_none() && config.check_convergence && shape_finer.is_none() {
+            match lattice_mesh(finer_cells, &ConditionLattice::default()) {
+                Ok(mesh) => shape_finer = Some(mesh),
+                Err(e) => {
+                    row.error = Some(e.to_string());
+                    result.rows.push(row);
+                    continue;
+                }
+            }
+        }
         let (tets, finer) = match &aligned {
             Some((tets, finer)) => (tets, finer.as_ref()),
-            None => (&tets, finer.as_ref()),
+            None => (&tets, shape_finer.as_ref()),
         };
         let problem = |tets: &TetMesh| FemProblem {
             tets: tets.clone(),
