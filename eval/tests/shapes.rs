@@ -238,11 +238,13 @@ fn pull_farthests_reference_on_the_refined_lattice_resolves_each_pulled_balls_ed
     // cell's (two halvings: at most √3 h / 4).
     let (surface, _) = box_and_cell_centres();
     let scene = box_scene(&surface, ShapeBoundary::PullFarthest);
-    let spheres: Vec<(Vector3<f64>, f64)> = scene
+    let spheres: Vec<InteriorFeature> = scene
         .constraints
         .iter()
         .map(|c| match c.region {
-            freeform::scene::Region::Ball { center, radius } => (center, radius),
+            freeform::scene::Region::Ball { center, radius } => {
+                InteriorFeature::Sphere { center, radius }
+            }
             ref other => panic!("a pulled patch is a ball, got {other:?}"),
         })
         .collect();
@@ -252,17 +254,14 @@ fn pull_farthests_reference_on_the_refined_lattice_resolves_each_pulled_balls_ed
             tetrahedralize(&surface, &fem.lattice_through(16, 2.0, &condition)).unwrap();
         let v = mesh.vertices();
         let crossing = mesh
-            .tets()
-            .iter()
-            .flat_map(|t| {
-                [(0, 1), (0, 2), (0, 3), (1, 2), (1, 3), (2, 3)].map(|(i, j)| (t[i], t[j]))
-            })
-            .filter(|&(a, b)| {
+            .edges()
+            .into_iter()
+            .filter(|&[a, b]| {
                 spheres
                     .iter()
-                    .any(|(c, r)| ((v[a] - c).norm() - r) * ((v[b] - c).norm() - r) < 0.0)
+                    .any(|sphere| sphere.level(&v[a]) * sphere.level(&v[b]) < 0.0)
             })
-            .map(|(a, b)| (v[a] - v[b]).norm())
+            .map(|[a, b]| (v[a] - v[b]).norm())
             .fold(0.0, f64::max);
         (crossing, report.cell_size)
     };

@@ -6,7 +6,7 @@ use std::collections::HashMap;
 use nalgebra::{Matrix3, Vector3, Vector4};
 use serde::{Deserialize, Serialize};
 
-use crate::tet_mesh::TetMesh;
+use crate::tet_mesh::{TET_EDGES, TetMesh};
 
 /// Polynomial order of the elements.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Hash, Serialize, Deserialize)]
@@ -27,9 +27,6 @@ impl ElementOrder {
         }
     }
 }
-
-/// The six edges of a tetrahedron in VTK quadratic-tetra order.
-pub const TET_EDGES: [[usize; 2]; 6] = [[0, 1], [1, 2], [0, 2], [0, 3], [1, 3], [2, 3]];
 
 /// A finite-element mesh: nodes (m) and per-element node lists over a linear tet mesh.
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]

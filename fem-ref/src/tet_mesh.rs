@@ -5,6 +5,10 @@ use nalgebra::{Matrix3, Vector3};
 use serde::{Deserialize, Serialize};
 use thiserror::Error;
 
+/// The six edges of a tetrahedron as pairs of its corners, in VTK quadratic-tetra order (the
+/// order of a P2 element's edge nodes).
+pub const TET_EDGES: [[usize; 2]; 6] = [[0, 1], [1, 2], [0, 2], [0, 3], [1, 3], [2, 3]];
+
 /// A tetrahedral mesh is unusable.
 #[derive(Clone, Debug, Error, PartialEq)]
 pub enum TetMeshError {
@@ -114,6 +118,19 @@ impl TetMesh {
     /// Tetrahedra (vertex indices).
     pub fn tets(&self) -> &[[usize; 4]] {
         &self.tets
+    }
+
+    /// The mesh's edges, each once as `[a, b]` with vertex indices `a < b`, sorted: `E` pairs
+    /// (a P2 mesh has `V + E` nodes).
+    pub fn edges(&self) -> Vec<[usize; 2]> {
+        let mut edges: Vec<[usize; 2]> = self
+            .tets
+            .iter()
+            .flat_map(|t| TET_EDGES.map(|[i, j]| [t[i].min(t[j]), t[i].max(t[j])]))
+            .collect();
+        edges.sort_unstable();
+        edges.dedup();
+        edges
     }
 
     /// `[x1 - x0, x2 - x0, x3 - x0]` of tetrahedron `tet`.
@@ -410,6 +427,32 @@ mod tests {
             q.min_dihedral_degrees > 30.0 && q.max_dihedral_degrees < 130.0,
             "{q:?}"
         );
+    }
+
+    #[test]
+    fn a_cuboid_meshs_edges_satisfy_eulers_formula_for_a_ball() {
+        // A tetrahedralized ball: V − E + F − T = 1, with F the distinct triangles.
+        let mesh =
+            TetMesh::cuboid(Vector3::zeros(), Vector3::new(3.0, 2.0, 1.0), [3, 2, 2]).unwrap();
+        let edges = mesh.edges();
+        assert!(edges.windows(2).all(|w| w[0] < w[1]) && edges.iter().all(|[a, b]| a < b));
+        let mut faces: Vec<[usize; 3]> = mesh.tets().iter().flat_map(sorted_faces).collect();
+        faces.sort_unstable();
+        faces.dedup();
+        let (v, e, f, t) = (
+            mesh.vertices().len() as i64,
+            edges.len() as i64,
+            faces.len() as i64,
+            mesh.tets().len() as i64,
+        );
+        assert_eq!(v - e + f - t, 1, "V {v}, E {e}, F {f}, T {t}");
+        // Every tetrahedron's six edges are in the list.
+        for tet in mesh.tets() {
+            for [i, j] in TET_EDGES {
+                let edge = [tet[i].min(tet[j]), tet[i].max(tet[j])];
+                assert!(edges.binary_search(&edge).is_ok());
+            }
+        }
     }
 
     #[test]

@@ -497,11 +497,10 @@ fn graded_lattices_hold_every_shared_mesh_within_three_percent_under_a_tet_budge
 /// other strictly outside (an edge that crosses it), 0 when none does.
 fn longest_crossing_edge(mesh: &TetMesh, feature: &InteriorFeature) -> f64 {
     let level = |v: usize| feature.level(&mesh.vertices()[v]);
-    mesh.tets()
-        .iter()
-        .flat_map(|t| [(0, 1), (0, 2), (0, 3), (1, 2), (1, 3), (2, 3)].map(|(i, j)| (t[i], t[j])))
-        .filter(|&(a, b)| level(a) * level(b) < 0.0)
-        .map(|(a, b)| (mesh.vertices()[a] - mesh.vertices()[b]).norm())
+    mesh.edges()
+        .into_iter()
+        .filter(|&[a, b]| level(a) * level(b) < 0.0)
+        .map(|[a, b]| (mesh.vertices()[a] - mesh.vertices()[b]).norm())
         .fold(0.0, f64::max)
 }
 
