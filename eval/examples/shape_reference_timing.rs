@@ -13,7 +13,10 @@
 //! choice's: exact-when-definite graded, projected uniform), `--ordering
 //! amd|nested-dissection|smaller-factor` (the factorization's elimination order, default the
 //! smaller factor of the two),
-//! `--uniform` (the first tables' uniform lattices instead of the graded ones), `--max-iterations
+//! `--uniform` (the first tables' uniform lattices instead of the graded ones), `--shape-mesh`
+//! (the shape's one mesh instead of the condition's own lattice, which is what the tables run
+//! on graded lattices: Fix side's clamp face on a vertex plane, Pull farthest's balls' and Pull
+//! boundary's slab faces' edges refined, `ShapeFemParams::condition_lattice`), `--max-iterations
 //! N` (default the mesher choice's: 60 graded, 20 uniform), `--cells N` (the first lattice's
 //! cells across, default 16 graded, 10 uniform), `--young E` (Pa; default the
 //! catalogue's, 1e5 for an uncatalogued mesh), `--reuse TOL` (the factorization carried across
@@ -28,7 +31,7 @@ use clap::Parser;
 use eval::fem_reference::FemProblem;
 use eval::shapes::boundary::{ShapeBoundary, ShapeBoundaryParams};
 use eval::shapes::catalog::{SHAPE_DENSITY, SHAPE_POISSON_RATIO, catalog_entry};
-use eval::shapes::reference::{ShapeFemParams, mesh_for_fem};
+use eval::shapes::reference::{ConditionLattice, ShapeFemParams, mesh_for_fem, mesh_through};
 use fem_ref::FillReducingOrdering;
 use hyperelastic::{HessianTangent, MaterialSample};
 use optimize::NewtonParams;
@@ -78,6 +81,10 @@ struct Args {
     /// Uniform lattices (the first tables' references) instead of graded ones.
     #[arg(long)]
     uniform: bool,
+    /// Run on the shape's one mesh instead of the condition's own lattice (the same thing on
+    /// uniform lattices).
+    #[arg(long)]
+    shape_mesh: bool,
     /// Newton iterations allowed per step.
     #[arg(long)]
     max_iterations: Option<usize>,
@@ -154,6 +161,29 @@ fn main() -> Result<()> {
     };
     let boundary_params = ShapeBoundaryParams::default();
     let scene = boundary.scene(&surface, tets.vertices(), &boundary_params);
+    // The condition's own lattice, as Table 2 meshes it (`eval::shapes::study`).
+    let condition = if args.shape_mesh {
+        ConditionLattice::default()
+    } else {
+        params.condition_lattice(boundary, &scene)
+    };
+    let tets = if condition.is_plain() {
+        tets
+    } else {
+        let mesh_start = Instant::now();
+        let length = surface.bounding_box().largest_side();
+        let cells = (length / report.cell_size).round() as usize;
+        let (own, summary, cells) = mesh_through(&surface, &params, cells, length, &condition)?;
+        println!(
+            "{} on its own lattice: {} tets at {cells} cells across, volume {:+.2}%, meshed in \
+             {:.1} s",
+            boundary.title(),
+            summary.tets,
+            100.0 * summary.relative_volume_error,
+            mesh_start.elapsed().as_secs_f64()
+        );
+        own
+    };
     let tangent = match args.tangent {
         None => params.tangent,
         Some(TangentArg::Projected) => HessianTangent::ProjectedPsd,
