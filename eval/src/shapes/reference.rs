@@ -74,6 +74,11 @@ pub struct ShapeFemParams {
     /// the held nodes end in an edge whose stress is singular.
     #[serde(default)]
     pub refine_pulled_slab_faces: bool,
+    /// Which conditions' references carry the Cholesky factor across Newton iterations and
+    /// steps ([`ShapeFemParams::newton_for`]; default [`ReferenceFactorReuse::Never`], the
+    /// first tables' setting). Part of each cached trajectory's key.
+    #[serde(default)]
+    pub factor_reuse: ReferenceFactorReuse,
     /// How deep a reference's step whose Newton solve does not converge within
     /// `newton.max_iterations` is split into backward-Euler half steps
     /// ([`fem_ref::FemParams::failed_step_halvings`]; default 0, the first tables' setting:
@@ -81,6 +86,21 @@ pub struct ShapeFemParams {
     /// sets 2). Cached references that converged whole stay valid.
     #[serde(default)]
     pub failed_step_halvings: usize,
+}
+
+/// Which conditions' FEM references reuse the Cholesky factor
+/// ([`fem_ref::reusing_reference_newton`]'s chord steps while each is at most half the last,
+/// to its tolerance of 1e-8 instead of 1e-6).
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Serialize, Deserialize)]
+pub enum ReferenceFactorReuse {
+    /// A fresh factorization every Newton iteration (default, the first tables' setting).
+    #[default]
+    Never,
+    /// Pull farthest's and Pull boundary's references (and their convergence checks); Fix
+    /// side's, where the soft shapes sag far and Newton needs many iterations, fresh.
+    Pulls,
+    /// Every condition's.
+    Every,
 }
 
 /// The faces of a condition's held slabs that its reference's lattice puts on vertex planes.
@@ -145,7 +165,17 @@ impl ShapeFemParams {
     /// on the seven rows measured (2026-11-27; Pull farthest: 37620 2.5e-6 → 9.9e-8, 47076
     /// 3.2e-6 → 5.7e-8, 80084 2.5e-6 → 1.3e-7, cat 3.8e-7 → 1.1e-7; Pull boundary: 47076
     /// 5.3e-6 → 6.0e-7, 93070 3.1e-6 → 2.6e-7, cat 3.1e-7 → 5.6e-8) for 6–60% more DOFs, and
-    /// the five stiff rows among them, which failed the gate, pass it.
+    /// the five stiff rows among them, which failed the gate, pass it. The Pulls' references
+    /// carry the Cholesky factor across iterations and steps
+    /// ([`ReferenceFactorReuse::Pulls`]): they are nearly linear (2.05–2.08 Newton iterations
+    /// a step), and over 40 steps (`eval/examples/shape_reference_timing.rs`, 2026-11-27) 93070's
+    /// Pull boundary took 0.58 instead of 1.54 s a step, 47076's 3.8 instead of 8.0, the cat's
+    /// Pull farthest 0.77 instead of 0.87, their trajectories within 1e-16–5e-13 (MSE) of the
+    /// fresh ones, and Table 2's rows (finer change, both methods' MSE) the same to 4–5
+    /// digits. Fix side stays fresh: where a soft shape sags far the tighter tolerance costs
+    /// more factorizations than the reuse saves (the skull at 10 cells, steps 1–24: 275
+    /// instead of 209 s), though a stiff one gains as much (47076, 8 steps: 8.8 instead of
+    /// 16.4 s a step).
     pub fn graded() -> Self {
         ShapeFemParams {
             first_cells_across: 16,
@@ -164,6 +194,7 @@ impl ShapeFemParams {
             pull_slabs_on_lattice_planes: true,
             refine_pulled_patch_edges: true,
             refine_pulled_slab_faces: true,
+            factor_reuse: ReferenceFactorReuse::Pulls,
             failed_step_halvings: 2,
             ..ShapeFemParams::default()
         }
@@ -236,13 +267,7 @@ impl ShapeFemParams {
         boundary: ShapeBoundary,
         scene: &SceneSpec,
     ) -> Vec<InteriorFeature> {
-        let refined = matches!(self.refinement, LatticeRefinement::Graded { .. })
-            && match boundary {
-                ShapeBoundary::FixSide => false,
-                ShapeBoundary::PullFarthest => self.refine_pulled_patch_edges,
-                ShapeBoundary::PullBoundary => self.refine_pulled_slab_faces,
-            };
-        if !refined {
+        if !self.refines_region_edges(boundary) {
             return Vec::new();
         }
         scene
@@ -255,6 +280,40 @@ impl ShapeFemParams {
                 }
             })
             .collect()
+    }
+
+    /// The Newton options of `boundary`'s reference and its convergence check:
+    /// [`ShapeFemParams::newton`], with [`fem_ref::reusing_reference_newton`]'s factor reuse
+    /// and tolerance where [`ShapeFemParams::factor_reuse`] covers `boundary` (the iteration
+    /// cap and line search stay `newton`'s).
+    pub fn newton_for(&self, boundary: ShapeBoundary) -> NewtonParams {
+        let reuses = match self.factor_reuse {
+            ReferenceFactorReuse::Never => false,
+            ReferenceFactorReuse::Pulls => boundary != ShapeBoundary::FixSide,
+            ReferenceFactorReuse::Every => true,
+        };
+        if reuses {
+            let reusing = fem_ref::reusing_reference_newton();
+            NewtonParams {
+                tolerance: reusing.tolerance,
+                hessian_reuse: reusing.hessian_reuse,
+                ..self.newton
+            }
+        } else {
+            self.newton
+        }
+    }
+
+    /// Whether `boundary`'s reference lattice is refined along its regions' edges: on graded
+    /// lattices only, Pull farthest's with [`ShapeFemParams::refine_pulled_patch_edges`],
+    /// Pull boundary's with [`ShapeFemParams::refine_pulled_slab_faces`], never Fix side's.
+    pub fn refines_region_edges(&self, boundary: ShapeBoundary) -> bool {
+        matches!(self.refinement, LatticeRefinement::Graded { .. })
+            && match boundary {
+                ShapeBoundary::FixSide => false,
+                ShapeBoundary::PullFarthest => self.refine_pulled_patch_edges,
+                ShapeBoundary::PullBoundary => self.refine_pulled_slab_faces,
+            }
     }
 
     /// `boundary`'s own lattice in `scene`: [`ShapeFemParams::slab_faces`] and
@@ -309,6 +368,7 @@ impl Default for ShapeFemParams {
             pull_slabs_on_lattice_planes: false,
             refine_pulled_patch_edges: false,
             refine_pulled_slab_faces: false,
+            factor_reuse: ReferenceFactorReuse::Never,
             failed_step_halvings: 0,
         }
     }
@@ -424,6 +484,37 @@ mod tests {
             box_.triangles().to_vec(),
         )
         .unwrap()
+    }
+
+    #[test]
+    fn factor_reuse_changes_only_the_covered_conditions_tolerance_and_reuse_not_the_cap() {
+        use optimize::HessianReuse;
+        let reusing = fem_ref::reusing_reference_newton();
+        let mut params = ShapeFemParams::graded();
+        params.factor_reuse = ReferenceFactorReuse::Never;
+        for boundary in ShapeBoundary::ALL {
+            assert_eq!(params.newton_for(boundary), params.newton);
+        }
+        for (reuse, reused) in [
+            (
+                ReferenceFactorReuse::Pulls,
+                [false, true, true], // Fix side, Pull farthest, Pull boundary
+            ),
+            (ReferenceFactorReuse::Every, [true, true, true]),
+        ] {
+            params.factor_reuse = reuse;
+            for (boundary, reused) in ShapeBoundary::ALL.into_iter().zip(reused) {
+                let newton = params.newton_for(boundary);
+                assert_eq!(newton.max_iterations, 60, "{reuse:?} {boundary:?}");
+                if reused {
+                    assert_eq!(newton.tolerance, reusing.tolerance);
+                    assert_eq!(newton.hessian_reuse, reusing.hessian_reuse);
+                    assert_ne!(newton.hessian_reuse, HessianReuse::Never);
+                } else {
+                    assert_eq!(newton, params.newton, "{reuse:?} {boundary:?}");
+                }
+            }
+        }
     }
 
     #[test]

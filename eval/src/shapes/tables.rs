@@ -21,7 +21,7 @@ use crate::report::paper;
 use crate::report::table::{RenderedTable, not_run_or, sci};
 use crate::shapes::boundary::ShapeBoundary;
 use crate::shapes::catalog::{SHAPE_DENSITY, SHAPE_POISSON_RATIO, ShapeCollection};
-use crate::shapes::reference::{FemMeshSummary, ShapeFemParams};
+use crate::shapes::reference::{FemMeshSummary, ReferenceFactorReuse, ShapeFemParams};
 use crate::shapes::study::{MethodScores, ShapeResult, ShapeRow, ShapeStudy};
 
 /// Which number of a method's scores a table reports.
@@ -185,7 +185,7 @@ fn settings_lines(study: &ShapeStudy) -> String {
          across (×1.5, up to {}) whose volume is within {:.0}% of the surface's, else the \
          finest; pieces the lattice cut off from the body dropped (they would fall freely); \
          Dirichlet conditions on the nodes in each region{}; Newton to {:e} in at most {} \
-         iterations a step, {} element tangents.",
+         iterations a step{}, {} element tangents.",
         c.fem.order,
         match c.fem.refinement {
             LatticeRefinement::Uniform => String::new(),
@@ -203,6 +203,19 @@ fn settings_lines(study: &ShapeStudy) -> String {
         condition_lattices(&c.fem),
         c.fem.newton.tolerance,
         c.fem.newton.max_iterations,
+        match c.fem.factor_reuse {
+            ReferenceFactorReuse::Never => String::new(),
+            ReferenceFactorReuse::Pulls => format!(
+                " (the Pulls' references to {:e}, the Cholesky factor carried across \
+                 iterations and steps while chord steps halve)",
+                c.fem.newton_for(ShapeBoundary::PullFarthest).tolerance
+            ),
+            ReferenceFactorReuse::Every => format!(
+                " (to {:e} instead, the Cholesky factor carried across iterations and steps \
+                 while chord steps halve)",
+                c.fem.newton_for(ShapeBoundary::FixSide).tolerance
+            ),
+        },
         match c.fem.tangent {
             HessianTangent::ProjectedPsd => "PSD-projected",
             HessianTangent::Exact => "exact",
@@ -310,7 +323,6 @@ fn step_time(study: &ShapeStudy, scores: fn(&ShapeRow) -> Option<MethodScores>) 
 /// Where the conditions' references run on lattices of their own ("", or a clause naming
 /// each: slab faces on vertex planes, pulled regions' edges refined).
 fn condition_lattices(fem: &ShapeFemParams) -> String {
-    let graded = matches!(fem.refinement, LatticeRefinement::Graded { .. });
     let clauses: Vec<&str> = [
         (
             fem.clamp_on_lattice_plane,
@@ -321,11 +333,11 @@ fn condition_lattices(fem: &ShapeFemParams) -> String {
             "Pull boundary's two slab faces on vertex planes",
         ),
         (
-            graded && fem.refine_pulled_patch_edges,
+            fem.refines_region_edges(ShapeBoundary::PullFarthest),
             "the lattice refined to its finest level along Pull farthest's pulled balls' spheres",
         ),
         (
-            graded && fem.refine_pulled_slab_faces,
+            fem.refines_region_edges(ShapeBoundary::PullBoundary),
             "the lattice refined to its finest level along Pull boundary's slab faces",
         ),
     ]
@@ -811,14 +823,13 @@ mod tests {
             seconds: 1.0,
         };
         for table in [table2(&study), table7(&study)] {
-            // The settings name the references' own lattices.
-            assert!(
-                table
-                    .markdown
-                    .contains("along Pull farthest's pulled balls' spheres"),
-                "{}",
-                table.markdown
-            );
+            // The settings name the references' own lattices and the Pulls' factor reuse.
+            for said in [
+                "along Pull farthest's pulled balls' spheres",
+                "the Pulls' references to 1e-8, the Cholesky factor carried",
+            ] {
+                assert!(table.markdown.contains(said), "{said}: {}", table.markdown);
+            }
             let rows = table.json["shapes"].as_array().unwrap();
             assert_eq!(rows.len(), 1, "{rows:?}");
             assert_eq!(rows[0]["bc"], "pull_farthest");

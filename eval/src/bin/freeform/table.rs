@@ -16,7 +16,7 @@ use eval::beam::tables::{table1, table5, table6, twist_error_plot};
 use eval::progress::Progress;
 use eval::report::table::write_table;
 use eval::shapes::boundary::ShapeBoundary;
-use eval::shapes::reference::ShapeFemParams;
+use eval::shapes::reference::{ReferenceFactorReuse, ShapeFemParams};
 use eval::shapes::study::{ShapeStudyConfig, mesh_files, run_shape_study};
 use eval::shapes::tables::{table2, table7};
 use reduced_sim::{CubatureParams, HessianTangent, PinModulus, QuadratureRule};
@@ -92,11 +92,12 @@ pub(crate) struct TableOptions {
     /// smaller method error or more is not scored.
     #[arg(long)]
     check_convergence: bool,
-    /// Tables 2 and 7: solve the FEM references with the Cholesky factor carried across steps
-    /// at Newton tolerance 1e-8 (`fem_ref::reusing_reference_newton`, 2.4–4× faster on
-    /// 27k–62k DOFs); their trajectories are cached apart from the default ones.
-    #[arg(long)]
-    fem_reuse: bool,
+    /// Tables 2 and 7: which conditions' FEM references carry the Cholesky factor across
+    /// Newton iterations and steps at tolerance 1e-8 (`fem_ref::reusing_reference_newton`):
+    /// `never`, `pulls` (Pull farthest and Pull boundary) or `every` (the value of a bare
+    /// `--fem-reuse`); default the mesher choice's (`ShapeFemParams`). Cached apart.
+    #[arg(long, value_enum, num_args = 0..=1, default_missing_value = "every")]
+    fem_reuse: Option<FactorReuseChoice>,
     /// Tables 2 and 7: where Fix side's FEM reference is clamped: `plane` meshes it (and its
     /// convergence check) on the lattice shifted so that a vertex plane is the clamped slab's
     /// face, so the held nodes fill the slab; `lattice` keeps the shape's one mesh, whose held
@@ -255,6 +256,17 @@ pub(crate) enum RegionEdgeChoice {
     /// Refined to the graded lattice's finest level along the edge
     /// (`ShapeFemParams::{refine_pulled_patch_edges, refine_pulled_slab_faces}`).
     Refined,
+}
+
+/// Which conditions' FEM references reuse the Cholesky factor.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, clap::ValueEnum)]
+pub(crate) enum FactorReuseChoice {
+    /// A fresh factorization every Newton iteration.
+    Never,
+    /// Pull farthest's and Pull boundary's.
+    Pulls,
+    /// Every condition's.
+    Every,
 }
 
 /// How the shapes' FEM references are meshed.
@@ -497,6 +509,7 @@ pub(crate) fn run(
                     pull_slabs_on_lattice_planes: graded.pull_slabs_on_lattice_planes,
                     refine_pulled_patch_edges: graded.refine_pulled_patch_edges,
                     refine_pulled_slab_faces: graded.refine_pulled_slab_faces,
+                    factor_reuse: graded.factor_reuse,
                     failed_step_halvings: graded.failed_step_halvings,
                     ..shapes.fem
                 }
@@ -504,8 +517,12 @@ pub(crate) fn run(
                 graded
             };
         }
-        if fem_reuse {
-            shapes.fem.newton = fem_ref::reusing_reference_newton();
+        if let Some(choice) = fem_reuse {
+            shapes.fem.factor_reuse = match choice {
+                FactorReuseChoice::Never => ReferenceFactorReuse::Never,
+                FactorReuseChoice::Pulls => ReferenceFactorReuse::Pulls,
+                FactorReuseChoice::Every => ReferenceFactorReuse::Every,
+            };
         }
         if let Some(choice) = fem_clamp {
             shapes.fem.clamp_on_lattice_plane = choice == SlabFaceChoice::Plane;
