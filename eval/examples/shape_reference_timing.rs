@@ -19,9 +19,11 @@
 //! boundary's slab faces' edges refined, `ShapeFemParams::condition_lattice`), `--max-iterations
 //! N` (default the mesher choice's: 60 graded, 20 uniform), `--cells N` (the first lattice's
 //! cells across, default 16 graded, 10 uniform), `--young E` (Pa; default the
-//! catalogue's, 1e5 for an uncatalogued mesh), `--reuse TOL` (the factorization carried across
-//! iterations and steps while chord steps contract, at Newton tolerance TOL; 0 for
-//! `fem_ref::reusing_reference_newton`'s 1e-8).
+//! catalogue's, 1e5 for an uncatalogued mesh); Newton as Table 2 runs the condition
+//! (`ShapeFemParams::newton_for`: on graded lattices the Pulls carry the factorization across
+//! steps, Fix side factors afresh), or `--fresh` (a fresh factorization every iteration) or
+//! `--reuse TOL` (the factorization carried across iterations and steps while chord steps
+//! contract, at Newton tolerance TOL; 0 for `fem_ref::reusing_reference_newton`'s 1e-8).
 
 use std::path::PathBuf;
 use std::time::Instant;
@@ -97,8 +99,11 @@ struct Args {
     cells: Option<usize>,
     /// Carry the factorization across iterations and steps while chord steps contract
     /// (`fem_ref::reusing_reference_newton`), at this Newton tolerance (its 1e-8 if 0).
-    #[arg(long)]
+    #[arg(long, conflicts_with = "fresh")]
     reuse: Option<f64>,
+    /// A fresh factorization every Newton iteration, whatever Table 2 does for the condition.
+    #[arg(long)]
+    fresh: bool,
     /// Write every frame's node positions here (raw little-endian f64, frame after frame).
     #[arg(long)]
     save: Option<PathBuf>,
@@ -126,18 +131,6 @@ fn main() -> Result<()> {
     } else {
         ShapeFemParams::graded()
     };
-    if let Some(tolerance) = args.reuse {
-        let reusing = fem_ref::reusing_reference_newton();
-        params.newton = NewtonParams {
-            tolerance: if tolerance > 0.0 {
-                tolerance
-            } else {
-                reusing.tolerance
-            },
-            max_iterations: params.newton.max_iterations,
-            ..reusing
-        };
-    }
     if let Some(cells) = args.cells {
         params.first_cells_across = cells;
     }
@@ -184,6 +177,22 @@ fn main() -> Result<()> {
         );
         own
     };
+    let newton = match args.reuse {
+        None if args.fresh => params.newton,
+        None => params.newton_for(boundary),
+        Some(tolerance) => {
+            let reusing = fem_ref::reusing_reference_newton();
+            NewtonParams {
+                tolerance: if tolerance > 0.0 {
+                    tolerance
+                } else {
+                    reusing.tolerance
+                },
+                max_iterations: params.newton.max_iterations,
+                ..reusing
+            }
+        }
+    };
     let tangent = match args.tangent {
         None => params.tangent,
         Some(TangentArg::Projected) => HessianTangent::ProjectedPsd,
@@ -199,7 +208,7 @@ fn main() -> Result<()> {
         },
         scene: &scene,
         time_step: boundary_params.time_step,
-        newton: params.newton,
+        newton,
         tangent,
         ordering: match args.ordering {
             OrderingArg::Amd => FillReducingOrdering::ApproximateMinimumDegree,
@@ -216,7 +225,7 @@ fn main() -> Result<()> {
         boundary.title(),
         if args.uniform { "uniform" } else { "graded" },
         tangent,
-        params.newton,
+        newton,
         sim.free_dofs(),
         sim.matrix_nonzeros(),
         sim.factor_nonzeros(),

@@ -167,7 +167,7 @@ impl ShapeFemParams {
     /// 5.3e-6 → 6.0e-7, 93070 3.1e-6 → 2.6e-7, cat 3.1e-7 → 5.6e-8) for 6–60% more DOFs, and
     /// the five stiff rows among them, which failed the gate, pass it. The Pulls' references
     /// carry the Cholesky factor across iterations and steps
-    /// ([`ReferenceFactorReuse::Pulls`]): they are nearly linear (2.05–2.08 Newton iterations
+    /// ([`ReferenceFactorReuse::Pulls`]): they are nearly linear (2.05–2.12 Newton iterations
     /// a step), and over 40 steps (`eval/examples/shape_reference_timing.rs`, 2026-11-27) 93070's
     /// Pull boundary took 0.58 instead of 1.54 s a step, 47076's 3.8 instead of 8.0, the cat's
     /// Pull farthest 0.77 instead of 0.87, their trajectories within 1e-16–5e-13 (MSE) of the
