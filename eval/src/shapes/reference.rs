@@ -29,10 +29,10 @@ pub struct ShapeFemParams {
     pub max_cells_across: usize,
     /// Accepted |relative volume error| of the tetrahedral mesh (default 0.05).
     pub volume_tolerance: f64,
-    /// The reference's Newton options (default [`NewtonParams::default`]: a fresh
-    /// factorization every iteration, tolerance 1e-6; [`fem_ref::reusing_reference_newton`]
-    /// carries the factor across steps, about 4× faster on 27k–62k DOFs and closer to the
-    /// converged state). Part of each cached trajectory's key.
+    /// The references' Newton options (default [`NewtonParams::default`]: a fresh
+    /// factorization every iteration, tolerance 1e-6), as [`ShapeFemParams::factor_reuse`]
+    /// leaves them for a condition ([`ShapeFemParams::newton_for`]). Part of each cached
+    /// trajectory's key.
     #[serde(default)]
     pub newton: NewtonParams,
     /// Uniform lattices (default) or lattices graded near the surface
