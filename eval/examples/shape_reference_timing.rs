@@ -33,7 +33,9 @@ use clap::Parser;
 use eval::fem_reference::FemProblem;
 use eval::shapes::boundary::{ShapeBoundary, ShapeBoundaryParams};
 use eval::shapes::catalog::{SHAPE_DENSITY, SHAPE_POISSON_RATIO, catalog_entry};
-use eval::shapes::reference::{ConditionLattice, ShapeFemParams, mesh_for_fem, mesh_through};
+use eval::shapes::reference::{
+    ConditionLattice, ReferenceFactorReuse, ShapeFemParams, mesh_for_fem, mesh_through,
+};
 use fem_ref::FillReducingOrdering;
 use hyperelastic::{HessianTangent, MaterialSample};
 use optimize::NewtonParams;
@@ -181,14 +183,18 @@ fn main() -> Result<()> {
         None if args.fresh => params.newton,
         None => params.newton_for(boundary),
         Some(tolerance) => {
-            let reusing = fem_ref::reusing_reference_newton();
+            // Table 2's reusing Newton for the condition, at the tolerance asked.
+            let reusing = ShapeFemParams {
+                factor_reuse: ReferenceFactorReuse::Every,
+                ..params
+            }
+            .newton_for(boundary);
             NewtonParams {
                 tolerance: if tolerance > 0.0 {
                     tolerance
                 } else {
                     reusing.tolerance
                 },
-                max_iterations: params.newton.max_iterations,
                 ..reusing
             }
         }
