@@ -7,8 +7,8 @@ use std::ops::ControlFlow;
 use std::path::Path;
 
 use fem_ref::{
-    ElementOrder, FemMesh, FemModel, FemParams, FemScene, FemSimulator, FillReducingOrdering,
-    MassKind, PointInterpolation, RunProgress, TetMesh, TrajectoryCache,
+    CachedRun, ElementOrder, FemMesh, FemModel, FemParams, FemScene, FemSimulator,
+    FillReducingOrdering, MassKind, PointInterpolation, RunProgress, TetMesh, TrajectoryCache,
 };
 use hyperelastic::{HessianTangent, StableNeoHookean};
 use nalgebra::Vector3;
@@ -315,50 +315,30 @@ pub fn run_fem(
         &cache,
     )
     .map_err(|e| EvalError::Fem(fem_ref::FemRunError::Cache(e)))?;
-    let (mesh, trajectory, dofs, cached, split_steps, resumed_steps) = match cached_trajectory {
-        Some(trajectory) => {
-            let dofs = parts
+    let solved = match cached_trajectory {
+        Some(trajectory) => Solved {
+            dofs: parts
                 .scene
                 .free_dofs(parts.model.mesh().nodes().len())
-                .map_err(EvalError::FemSetup)?;
-            (parts.model.mesh().clone(), trajectory, dofs, true, 0, 0)
-        }
-        None => {
-            let mut sim = FemSimulator::new(parts.model, parts.scene, parts.params)
-                .map_err(EvalError::FemSetup)?;
-            let dofs = sim.free_dofs();
-            let bar = progress.bar(steps, format!("FEM {label} ({dofs} DOFs)"));
-            let run = sim
-                .run_cached(steps, &label_of_scene, &cache, |event| {
-                    match event {
-                        RunProgress::Resumed { steps_done } => {
-                            bar.resume_at(steps_done as u64);
-                            progress.status(format!(
-                                "FEM {label}: resuming at step {steps_done} of {steps} from its \
-                                 checkpoint"
-                            ));
-                        }
-                        RunProgress::Stepped { .. } => bar.inc(1),
-                    }
-                    ControlFlow::Continue(())
-                })
-                .map_err(EvalError::Fem)?;
-            bar.finish_and_clear();
-            if let Some(e) = &run.checkpoint_error {
-                progress.status(format!("FEM {label}: a checkpoint was not saved: {e}"));
-            }
-            let mesh = sim.model().mesh().clone();
-            let resumed = run.resumed_steps;
-            (
-                mesh,
-                run.trajectory,
-                dofs,
-                run.from_cache,
-                sim.split_steps(),
-                resumed,
-            )
-        }
+                .map_err(EvalError::FemSetup)?,
+            mesh: parts.model.mesh().clone(),
+            run: CachedRun {
+                trajectory,
+                from_cache: true,
+                resumed_steps: 0,
+                checkpoint_error: None,
+            },
+            split_steps: 0,
+        },
+        None => step_through(parts, steps, &label_of_scene, &cache, label, progress)?,
     };
+    let Solved {
+        mesh,
+        run,
+        dofs,
+        split_steps,
+    } = solved;
+    let (trajectory, cached) = (run.trajectory, run.from_cache);
     let seconds_per_step = trajectory.seconds / steps.max(1) as f64;
     let iterations_per_step =
         trajectory.iterations.iter().sum::<usize>() as f64 / steps.max(1) as f64;
@@ -374,8 +354,8 @@ pub fn run_fem(
             0 => String::new(),
             n => format!(", {n} split in halves"),
         };
-        if resumed_steps > 0 {
-            split += &format!(", the first {resumed_steps} from a checkpoint");
+        if run.resumed_steps > 0 {
+            split += &format!(", the first {} from a checkpoint", run.resumed_steps);
         }
         progress.status(format!(
             "FEM {label}: {steps} steps on {dofs} DOFs in {:.0} s ({seconds_per_step:.2} s per \
@@ -400,6 +380,56 @@ pub fn run_fem(
         cached,
         region_nodes,
         failed_step_halvings: problem.failed_step_halvings,
+    })
+}
+
+/// A reference's trajectory with the mesh it lives on and how it was had.
+struct Solved {
+    mesh: FemMesh,
+    run: CachedRun,
+    /// Free DOFs of the system.
+    dofs: usize,
+    /// Steps split into backward-Euler halves to converge.
+    split_steps: usize,
+}
+
+/// Builds the simulator from `parts` and runs it `steps` steps through `cache` (resuming from a
+/// checkpoint), showing a bar labelled `FEM <label>`.
+fn step_through(
+    parts: SimulatorParts,
+    steps: usize,
+    label_of_scene: &str,
+    cache: &TrajectoryCache,
+    label: &str,
+    progress: &Progress,
+) -> Result<Solved, EvalError> {
+    let mut sim =
+        FemSimulator::new(parts.model, parts.scene, parts.params).map_err(EvalError::FemSetup)?;
+    let dofs = sim.free_dofs();
+    let bar = progress.bar(steps, format!("FEM {label} ({dofs} DOFs)"));
+    let run = sim
+        .run_cached(steps, label_of_scene, cache, |event| {
+            match event {
+                RunProgress::Resumed { steps_done } => {
+                    bar.resume_at(steps_done as u64);
+                    progress.status(format!(
+                        "FEM {label}: resuming at step {steps_done} of {steps} from its checkpoint"
+                    ));
+                }
+                RunProgress::Stepped { .. } => bar.inc(1),
+            }
+            ControlFlow::Continue(())
+        })
+        .map_err(EvalError::Fem)?;
+    bar.finish_and_clear();
+    if let Some(e) = &run.checkpoint_error {
+        progress.status(format!("FEM {label}: a checkpoint was not saved: {e}"));
+    }
+    Ok(Solved {
+        mesh: sim.model().mesh().clone(),
+        run,
+        dofs,
+        split_steps: sim.split_steps(),
     })
 }
 
