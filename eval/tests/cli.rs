@@ -25,6 +25,14 @@ fn freeform(args: &[&str], dir: &Path) -> Output {
         .expect("the freeform binary runs")
 }
 
+/// A `meshes/` folder in `dir` holding a copy of the shared bunny.
+fn bunny_folder(dir: &Path) -> PathBuf {
+    let meshes = dir.join("meshes");
+    std::fs::create_dir_all(&meshes).unwrap();
+    std::fs::copy(shared_mesh("bunny.obj"), meshes.join("bunny.obj")).unwrap();
+    meshes
+}
+
 /// Fails the test with the run's standard error unless it exited successfully.
 #[track_caller]
 fn assert_success(run: &Output) {
@@ -275,9 +283,7 @@ fn table(tables: &serde_json::Value, number: u64) -> &serde_json::Value {
 #[test]
 fn a_quick_shape_run_fills_tables_2_and_7_reports_a_broken_mesh_and_reuses_its_caches() {
     let dir = scratch("shape-quick");
-    let meshes: PathBuf = dir.join("meshes");
-    std::fs::create_dir_all(&meshes).unwrap();
-    std::fs::copy(shared_mesh("bunny.obj"), meshes.join("bunny.obj")).unwrap();
+    let meshes = bunny_folder(&dir);
     // An open surface: one triangle.
     std::fs::write(
         meshes.join("open.obj"),
@@ -547,9 +553,7 @@ fn a_quick_convergence_check_measures_each_run_conditions_finer_change_on_either
     // on graded ones each has its own (the clamp on a vertex plane, the pulled balls' edges
     // refined). Every row gets its finer reference's change, and Pull boundary is not run.
     let dir = scratch("shape-convergence");
-    let meshes: PathBuf = dir.join("meshes");
-    std::fs::create_dir_all(&meshes).unwrap();
-    std::fs::copy(shared_mesh("bunny.obj"), meshes.join("bunny.obj")).unwrap();
+    let meshes = bunny_folder(&dir);
     for mesher in ["uniform", "graded"] {
         let run = freeform(
             &[
