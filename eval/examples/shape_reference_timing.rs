@@ -20,8 +20,8 @@
 //! N` (default the mesher choice's: 60 graded, 20 uniform), `--cells N` (the first lattice's
 //! cells across, default 16 graded, 10 uniform), `--young E` (Pa; default the
 //! catalogue's, 1e5 for an uncatalogued mesh); Newton as Table 2 runs the condition
-//! (`ShapeFemParams::newton_for`: on graded lattices the Pulls carry the factorization across
-//! steps, Fix side factors afresh), or `--fresh` (a fresh factorization every iteration) or
+//! (`ShapeFemParams::newton_for`: on graded lattices the Pulls, and Fix side on a stiff shape,
+//! carry the factorization across steps; Fix side on a soft one factors afresh), or `--fresh` (a fresh factorization every iteration) or
 //! `--reuse TOL` (the factorization carried across iterations and steps while chord steps
 //! contract, at Newton tolerance TOL; 0 for `fem_ref::reusing_reference_newton`'s 1e-8).
 
@@ -181,14 +181,14 @@ fn main() -> Result<()> {
     };
     let newton = match args.reuse {
         None if args.fresh => params.newton,
-        None => params.newton_for(boundary),
+        None => params.newton_for(boundary, youngs_modulus),
         Some(tolerance) => {
             // Table 2's reusing Newton for the condition, at the tolerance asked.
             let reusing = ShapeFemParams {
                 factor_reuse: ReferenceFactorReuse::Every,
                 ..params
             }
-            .newton_for(boundary);
+            .newton_for(boundary, youngs_modulus);
             NewtonParams {
                 tolerance: if tolerance > 0.0 {
                     tolerance

@@ -99,8 +99,33 @@ pub enum ReferenceFactorReuse {
     /// Pull farthest's and Pull boundary's references (and their convergence checks); Fix
     /// side's, where the soft shapes sag far and Newton needs many iterations, fresh.
     Pulls,
+    /// The Pulls' references, and Fix side's of a stiff shape: Young's modulus at least
+    /// [`STIFF_YOUNGS_MODULUS`] (the manufactured class, 10⁸ Pa), where the shape's own weight
+    /// strains it by about ρ g L / E ≈ 10⁻⁴ (ρ = 1000 kg/m³, L = 1 m after normalization) and
+    /// each step is nearly linear. A soft shape's Fix side (10⁵ Pa, strain ≈ 0.1) stays fresh.
+    PullsAndStiffFixSide,
     /// Every condition's.
     Every,
+}
+
+/// The least Young's modulus (Pa) whose Fix side reference
+/// [`ReferenceFactorReuse::PullsAndStiffFixSide`] reuses the factor for: between the
+/// catalogue's organic (10⁵ Pa) and manufactured (10⁸ Pa) classes.
+pub const STIFF_YOUNGS_MODULUS: f64 = 1e7;
+
+impl ReferenceFactorReuse {
+    /// Whether `boundary`'s reference (and its convergence check) on a shape of Young's
+    /// modulus `youngs_modulus` (Pa) reuses the factor.
+    pub fn covers(self, boundary: ShapeBoundary, youngs_modulus: f64) -> bool {
+        match self {
+            ReferenceFactorReuse::Never => false,
+            ReferenceFactorReuse::Pulls => boundary != ShapeBoundary::FixSide,
+            ReferenceFactorReuse::PullsAndStiffFixSide => {
+                boundary != ShapeBoundary::FixSide || youngs_modulus >= STIFF_YOUNGS_MODULUS
+            }
+            ReferenceFactorReuse::Every => true,
+        }
+    }
 }
 
 /// The faces of a condition's held slabs that its reference's lattice puts on vertex planes.
@@ -173,10 +198,14 @@ impl ShapeFemParams {
     /// Pull farthest 0.77 instead of 0.87, their trajectories within 1e-16–5e-13 (MSE) of the
     /// fresh ones, and Table 2's rows (finer change, both methods' MSE) the same to 4–5
     /// digits; against the cat's Pull farthest solved to 1e-10 the reused reference is off by
-    /// 2.9e-16 (MSE), the fresh one by 5.2e-13. Fix side stays fresh: where a soft shape sags far the tighter tolerance costs
-    /// more factorizations than the reuse saves (the skull at 10 cells, steps 1–24: 275
-    /// instead of 209 s), though a stiff one gains as much (47076, 8 steps: 8.8 instead of
-    /// 16.4 s a step).
+    /// 2.9e-16 (MSE), the fresh one by 5.2e-13. So do the stiff shapes' Fix side references
+    /// ([`ReferenceFactorReuse::PullsAndStiffFixSide`], 2026-11-27): under their own weight
+    /// they are as nearly linear, and 93070's took 0.10 instead of 1.31 s a step (its finer
+    /// check 0.29 instead of 3.95), 94492's 0.44 instead of 1.50 (finer 0.85 instead of 3.62),
+    /// Table 2's rows the same to 4–5 digits; against 1e-10 solutions the reused trajectories
+    /// are off by 3.6e-19 (93070) and 2.7e-18 (94492, fresh 4.5e-15). A soft shape's Fix side
+    /// stays fresh: where it sags far the tighter tolerance costs more factorizations than the
+    /// reuse saves (the skull at 10 cells, steps 1–24: 275 instead of 209 s).
     pub fn graded() -> Self {
         ShapeFemParams {
             first_cells_across: 16,
@@ -195,7 +224,7 @@ impl ShapeFemParams {
             pull_slabs_on_lattice_planes: true,
             refine_pulled_patch_edges: true,
             refine_pulled_slab_faces: true,
-            factor_reuse: ReferenceFactorReuse::Pulls,
+            factor_reuse: ReferenceFactorReuse::PullsAndStiffFixSide,
             failed_step_halvings: 2,
             ..ShapeFemParams::default()
         }
@@ -283,17 +312,13 @@ impl ShapeFemParams {
             .collect()
     }
 
-    /// The Newton options of `boundary`'s reference and its convergence check:
-    /// [`ShapeFemParams::newton`], with [`fem_ref::reusing_reference_newton`]'s factor reuse
-    /// and tolerance where [`ShapeFemParams::factor_reuse`] covers `boundary` (the iteration
-    /// cap and line search stay `newton`'s).
-    pub fn newton_for(&self, boundary: ShapeBoundary) -> NewtonParams {
-        let reuses = match self.factor_reuse {
-            ReferenceFactorReuse::Never => false,
-            ReferenceFactorReuse::Pulls => boundary != ShapeBoundary::FixSide,
-            ReferenceFactorReuse::Every => true,
-        };
-        if reuses {
+    /// The Newton options of `boundary`'s reference and its convergence check on a shape of
+    /// Young's modulus `youngs_modulus` (Pa): [`ShapeFemParams::newton`], with
+    /// [`fem_ref::reusing_reference_newton`]'s factor reuse and tolerance where
+    /// [`ShapeFemParams::factor_reuse`] covers them ([`ReferenceFactorReuse::covers`]; the
+    /// iteration cap and line search stay `newton`'s).
+    pub fn newton_for(&self, boundary: ShapeBoundary, youngs_modulus: f64) -> NewtonParams {
+        if self.factor_reuse.covers(boundary, youngs_modulus) {
             let reusing = fem_ref::reusing_reference_newton();
             NewtonParams {
                 tolerance: reusing.tolerance,
@@ -492,27 +517,44 @@ mod tests {
         use optimize::HessianReuse;
         let reusing = fem_ref::reusing_reference_newton();
         let mut params = ShapeFemParams::graded();
-        params.factor_reuse = ReferenceFactorReuse::Never;
-        for boundary in ShapeBoundary::ALL {
-            assert_eq!(params.newton_for(boundary), params.newton);
-        }
-        for (reuse, reused) in [
+        // Which of Fix side, Pull farthest and Pull boundary reuse, on an organic (10⁵ Pa) and
+        // a manufactured (10⁸ Pa) shape.
+        for (reuse, soft, stiff) in [
+            (
+                ReferenceFactorReuse::Never,
+                [false, false, false],
+                [false, false, false],
+            ),
             (
                 ReferenceFactorReuse::Pulls,
-                [false, true, true], // Fix side, Pull farthest, Pull boundary
+                [false, true, true],
+                [false, true, true],
             ),
-            (ReferenceFactorReuse::Every, [true, true, true]),
+            (
+                ReferenceFactorReuse::PullsAndStiffFixSide,
+                [false, true, true],
+                [true, true, true],
+            ),
+            (
+                ReferenceFactorReuse::Every,
+                [true, true, true],
+                [true, true, true],
+            ),
         ] {
             params.factor_reuse = reuse;
-            for (boundary, reused) in ShapeBoundary::ALL.into_iter().zip(reused) {
-                let newton = params.newton_for(boundary);
-                assert_eq!(newton.max_iterations, 60, "{reuse:?} {boundary:?}");
-                if reused {
-                    assert_eq!(newton.tolerance, reusing.tolerance);
-                    assert_eq!(newton.hessian_reuse, reusing.hessian_reuse);
-                    assert_ne!(newton.hessian_reuse, HessianReuse::Never);
-                } else {
-                    assert_eq!(newton, params.newton, "{reuse:?} {boundary:?}");
+            for (youngs_modulus, reused) in [(1e5, soft), (1e8, stiff)] {
+                for (boundary, reused) in ShapeBoundary::ALL.into_iter().zip(reused) {
+                    let newton = params.newton_for(boundary, youngs_modulus);
+                    let case = format!("{reuse:?} {boundary:?} E = {youngs_modulus:e}");
+                    assert_eq!(reuse.covers(boundary, youngs_modulus), reused, "{case}");
+                    assert_eq!(newton.max_iterations, 60, "{case}");
+                    if reused {
+                        assert_eq!(newton.tolerance, reusing.tolerance, "{case}");
+                        assert_eq!(newton.hessian_reuse, reusing.hessian_reuse, "{case}");
+                        assert_ne!(newton.hessian_reuse, HessianReuse::Never, "{case}");
+                    } else {
+                        assert_eq!(newton, params.newton, "{case}");
+                    }
                 }
             }
         }

@@ -627,7 +627,7 @@ fn run_shape_into(
             material,
             scene: &scene,
             time_step: config.boundary.time_step,
-            newton: config.fem.newton_for(boundary),
+            newton: config.fem.newton_for(boundary, result.youngs_modulus),
             tangent: config.fem.tangent,
             ordering: FillReducingOrdering::default(),
             failed_step_halvings: config.fem.failed_step_halvings,

@@ -21,7 +21,9 @@ use crate::report::paper;
 use crate::report::table::{RenderedTable, not_run_or, sci};
 use crate::shapes::boundary::ShapeBoundary;
 use crate::shapes::catalog::{SHAPE_DENSITY, SHAPE_POISSON_RATIO, ShapeCollection};
-use crate::shapes::reference::{FemMeshSummary, ReferenceFactorReuse, ShapeFemParams};
+use crate::shapes::reference::{
+    FemMeshSummary, ReferenceFactorReuse, STIFF_YOUNGS_MODULUS, ShapeFemParams,
+};
 use crate::shapes::study::{MethodScores, ShapeResult, ShapeRow, ShapeStudy};
 
 /// Which number of a method's scores a table reports.
@@ -205,15 +207,19 @@ fn settings_lines(study: &ShapeStudy) -> String {
         c.fem.newton.max_iterations,
         match c.fem.factor_reuse {
             ReferenceFactorReuse::Never => String::new(),
-            ReferenceFactorReuse::Pulls => format!(
-                " (the Pulls' references to {:e}, the Cholesky factor carried across \
-                 iterations and steps while chord steps halve)",
-                c.fem.newton_for(ShapeBoundary::PullFarthest).tolerance
-            ),
-            ReferenceFactorReuse::Every => format!(
-                " (to {:e} instead, the Cholesky factor carried across iterations and steps \
-                 while chord steps halve)",
-                c.fem.newton_for(ShapeBoundary::FixSide).tolerance
+            reuse => format!(
+                " ({} to {:e}, the Cholesky factor carried across iterations and steps while \
+                 chord steps halve)",
+                match reuse {
+                    ReferenceFactorReuse::Pulls => "the Pulls' references".to_string(),
+                    ReferenceFactorReuse::PullsAndStiffFixSide => format!(
+                        "the Pulls' references and Fix side's where E ≥ {STIFF_YOUNGS_MODULUS:e} \
+                         Pa"
+                    ),
+                    _ => "every reference".to_string(),
+                },
+                // Every choice that reuses covers Pull farthest, whatever the stiffness.
+                c.fem.newton_for(ShapeBoundary::PullFarthest, 0.0).tolerance
             ),
         },
         match c.fem.tangent {
@@ -826,7 +832,8 @@ mod tests {
             // The settings name the references' own lattices and the Pulls' factor reuse.
             for said in [
                 "along Pull farthest's pulled balls' spheres",
-                "the Pulls' references to 1e-8, the Cholesky factor carried",
+                "the Pulls' references and Fix side's where E ≥ 1e7 Pa to 1e-8, the Cholesky \
+                 factor carried",
             ] {
                 assert!(table.markdown.contains(said), "{said}: {}", table.markdown);
             }

@@ -94,8 +94,9 @@ pub(crate) struct TableOptions {
     check_convergence: bool,
     /// Tables 2 and 7: which conditions' FEM references carry the Cholesky factor across
     /// Newton iterations and steps at tolerance 1e-8 (`fem_ref::reusing_reference_newton`):
-    /// `never`, `pulls` (Pull farthest and Pull boundary) or `every` (the value of a bare
-    /// `--fem-reuse`); default the mesher choice's (`ShapeFemParams`). Cached apart.
+    /// `never`, `pulls` (Pull farthest and Pull boundary), `pulls-and-stiff-fix-side` (and Fix
+    /// side on the stiff, 10⁸ Pa, shapes) or `every` (the value of a bare `--fem-reuse`);
+    /// default the mesher choice's (`ShapeFemParams`). Cached apart.
     #[arg(long, value_enum, num_args = 0..=1, default_missing_value = "every")]
     fem_reuse: Option<FactorReuseChoice>,
     /// Tables 2 and 7: where Fix side's FEM reference is clamped: `plane` meshes it (and its
@@ -265,6 +266,8 @@ pub(crate) enum FactorReuseChoice {
     Never,
     /// Pull farthest's and Pull boundary's.
     Pulls,
+    /// The Pulls', and Fix side's of the stiff (manufactured, 10⁸ Pa) shapes.
+    PullsAndStiffFixSide,
     /// Every condition's.
     Every,
 }
@@ -521,6 +524,9 @@ pub(crate) fn run(
             shapes.fem.factor_reuse = match choice {
                 FactorReuseChoice::Never => ReferenceFactorReuse::Never,
                 FactorReuseChoice::Pulls => ReferenceFactorReuse::Pulls,
+                FactorReuseChoice::PullsAndStiffFixSide => {
+                    ReferenceFactorReuse::PullsAndStiffFixSide
+                }
                 FactorReuseChoice::Every => ReferenceFactorReuse::Every,
             };
         }
