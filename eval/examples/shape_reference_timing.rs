@@ -21,9 +21,10 @@
 //! cells across, default 16 graded, 10 uniform), `--young E` (Pa; default the
 //! catalogue's, 1e5 for an uncatalogued mesh); Newton as Table 2 runs the condition
 //! (`ShapeFemParams::newton_for`: on graded lattices the Pulls, and Fix side on a stiff shape,
-//! carry the factorization across steps; Fix side on a soft one factors afresh), or `--fresh` (a fresh factorization every iteration) or
-//! `--reuse TOL` (the factorization carried across iterations and steps while chord steps
-//! contract, at Newton tolerance TOL; 0 for `fem_ref::reusing_reference_newton`'s 1e-8).
+//! carry the factorization across steps; Fix side on a soft one factors afresh), or `--fresh`
+//! (a fresh factorization every iteration) or `--reuse TOL` (the factorization carried across
+//! iterations and steps while chord steps contract, at Newton tolerance TOL; 0 for
+//! `fem_ref::reusing_reference_newton`'s 1e-8).
 
 use std::path::PathBuf;
 use std::time::Instant;
