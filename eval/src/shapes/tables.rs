@@ -218,8 +218,7 @@ fn settings_lines(study: &ShapeStudy) -> String {
                     ),
                     _ => "every reference".to_string(),
                 },
-                // Every choice that reuses covers Pull farthest, whatever the stiffness.
-                c.fem.newton_for(ShapeBoundary::PullFarthest, 0.0).tolerance
+                fem_ref::reusing_reference_newton().tolerance
             ),
         },
         match c.fem.tangent {
