@@ -1,12 +1,15 @@
 //! The shapes experiment (Tables 2 and 7): the three boundary conditions select the intended
 //! regions (the end-to-end `freeform table 2 7 --quick` run is in `cli.rs`).
 
+use eval::progress::Progress;
 use eval::shapes::boundary::{ShapeBoundary, ShapeBoundaryParams};
 use eval::shapes::reference::ShapeFemParams;
+use eval::shapes::study::{ShapeStudyConfig, run_shape_study};
 use fem_ref::{InteriorFeature, tetrahedralize};
 use freeform::scene::{Motion, SceneSpec};
 use nalgebra::Vector3;
 use rkpm_core::TriangleMesh;
+use std::sync::Mutex;
 
 /// Cell size of the test grid: 1/16, so no cell centre lies on a slab plane (0.1, 1.9).
 const H: f64 = 0.0625;
@@ -304,4 +307,48 @@ fn pull_farthests_reference_on_the_refined_lattice_resolves_each_pulled_balls_ed
             }
         ]
     );
+}
+
+#[test]
+fn the_study_hands_each_finished_shape_the_study_so_far_in_table_order_one_call_at_a_time() {
+    // Unreadable files: each shape ends at once, with its error.
+    let dir = test_support::fixtures::scratch_dir("shape-study-so-far");
+    let names = ["a.obj", "b.stl", "c.ply"];
+    for name in names {
+        std::fs::write(dir.join(name), "not a mesh").unwrap();
+    }
+    let mut config = ShapeStudyConfig::quick(
+        names.iter().map(|n| dir.join(n)).collect(),
+        dir.join("cache"),
+    );
+    config.jobs = 2;
+    let calls = Mutex::new(Vec::new());
+    let quiet = Progress {
+        quiet: true,
+        hide_bars: true,
+    };
+    let study = run_shape_study(&config, &quiet, |shape, so_far| {
+        let finished: Vec<String> = so_far.shapes.iter().map(|s| s.name.clone()).collect();
+        assert!(finished.contains(&shape.name), "{finished:?}");
+        assert!(shape.error.is_some());
+        calls.lock().unwrap().push((finished, so_far.unfinished()));
+    })
+    .unwrap();
+    let calls = calls.into_inner().unwrap();
+    assert_eq!(calls.len(), 3);
+    for (k, (finished, unfinished)) in calls.iter().enumerate() {
+        // The k-th call sees k + 1 shapes, in the folder's order, and the rest as unfinished.
+        assert_eq!(finished.len(), k + 1, "{calls:?}");
+        let mut all: Vec<&String> = finished.iter().chain(unfinished).collect();
+        all.sort();
+        assert_eq!(all, names, "{calls:?}");
+        let order: Vec<usize> = finished
+            .iter()
+            .map(|f| names.iter().position(|n| n == f).unwrap())
+            .collect();
+        assert!(order.windows(2).all(|w| w[0] < w[1]), "{calls:?}");
+    }
+    assert!(study.unfinished().is_empty());
+    let returned: Vec<&str> = study.shapes.iter().map(|s| s.name.as_str()).collect();
+    assert_eq!(returned, names);
 }

@@ -13,8 +13,8 @@ use fem_ref::{FillReducingOrdering, TetMesh, tetrahedralize};
 use hyperelastic::{LameParameters, MaterialField, MaterialSample, StableNeoHookean};
 use nalgebra::Vector3;
 use std::path::{Path, PathBuf};
-use std::sync::Mutex;
 use std::sync::atomic::{AtomicUsize, Ordering};
+use std::sync::{Mutex, PoisonError};
 use std::time::Instant;
 
 use baselines::{SIMPLICITS_FORMAT_VERSION, SimplicitsParams};
@@ -329,6 +329,35 @@ pub struct ShapeStudy {
     pub seconds: f64,
 }
 
+impl ShapeStudy {
+    /// The file names of `config.meshes` that have no result in `shapes`, in table order: none
+    /// for the study [`run_shape_study`] returns, the shapes still to come in the one it hands
+    /// to `on_shape`.
+    pub fn unfinished(&self) -> Vec<String> {
+        let mut finished: Vec<&str> = self.shapes.iter().map(|s| s.name.as_str()).collect();
+        self.config
+            .meshes
+            .iter()
+            .map(|path| mesh_name(path))
+            .filter(|name| match finished.iter().position(|f| f == name) {
+                Some(i) => {
+                    finished.swap_remove(i);
+                    false
+                }
+                None => true,
+            })
+            .collect()
+    }
+}
+
+/// The name a shape goes by in the tables: its file name.
+fn mesh_name(path: &Path) -> String {
+    path.file_name().map_or_else(
+        || path.display().to_string(),
+        |n| n.to_string_lossy().into(),
+    )
+}
+
 /// The closed meshes (`.obj`, `.stl`, `.ply`) directly in `dir`, sorted by name; with `only`,
 /// just the one whose file name or stem is `only`.
 ///
@@ -377,7 +406,9 @@ pub fn mesh_files(dir: &Path, only: Option<&str>) -> Result<Vec<PathBuf>, EvalEr
     Ok(matching)
 }
 
-/// Runs the study, `config.jobs` shapes at a time; `on_shape` sees each shape as it finishes.
+/// Runs the study, `config.jobs` shapes at a time. As each shape finishes, `on_shape` sees it
+/// and the study so far (every finished shape, in table order; [`ShapeStudy::unfinished`] names
+/// the rest), one call at a time, so it may write the tables of a long run as it goes.
 ///
 /// # Errors
 /// None from a shape (those are reported in its [`ShapeResult`]); [`EvalError::InvalidInput`] for
@@ -385,7 +416,7 @@ pub fn mesh_files(dir: &Path, only: Option<&str>) -> Result<Vec<PathBuf>, EvalEr
 pub fn run_shape_study(
     config: &ShapeStudyConfig,
     progress: &Progress,
-    on_shape: impl Fn(&ShapeResult) + Sync,
+    on_shape: impl Fn(&ShapeResult, &ShapeStudy) + Sync,
 ) -> Result<ShapeStudy, EvalError> {
     if config.jobs == 0 || config.meshes.is_empty() {
         return Err(EvalError::InvalidInput(format!(
@@ -403,8 +434,7 @@ pub fn run_shape_study(
     };
     let progress = &progress;
     let next = AtomicUsize::new(0);
-    let results: Vec<Mutex<Option<ShapeResult>>> =
-        config.meshes.iter().map(|_| Mutex::new(None)).collect();
+    let results: Mutex<Vec<Option<ShapeResult>>> = Mutex::new(vec![None; config.meshes.len()]);
     std::thread::scope(|scope| {
         for _ in 0..config.jobs.min(config.meshes.len()) {
             scope.spawn(|| {
@@ -414,19 +444,33 @@ pub fn run_shape_study(
                         break;
                     };
                     let result = run_shape(path, config, progress);
-                    on_shape(&result);
-                    if let Ok(mut slot) = results[i].lock() {
-                        *slot = Some(result);
-                    }
+                    // Held through `on_shape`: one call at a time, each seeing its own shape.
+                    let mut slots = results.lock().unwrap_or_else(PoisonError::into_inner);
+                    let so_far = ShapeStudy {
+                        config: config.clone(),
+                        shapes: slots
+                            .iter()
+                            .enumerate()
+                            .filter_map(
+                                |(j, slot)| if j == i { Some(&result) } else { slot.as_ref() },
+                            )
+                            .cloned()
+                            .collect(),
+                        seconds: start.elapsed().as_secs_f64(),
+                    };
+                    on_shape(&result, &so_far);
+                    slots[i] = Some(result);
                 }
             });
         }
     });
     let shapes = results
+        .into_inner()
+        .unwrap_or_else(PoisonError::into_inner)
         .into_iter()
         .zip(&config.meshes)
         .map(|(slot, path)| {
-            slot.into_inner().ok().flatten().unwrap_or_else(|| {
+            slot.unwrap_or_else(|| {
                 let mut r = ShapeResult::new(path, config);
                 r.error = Some("the worker running this shape stopped (a bug)".into());
                 r
@@ -443,10 +487,7 @@ pub fn run_shape_study(
 impl ShapeResult {
     /// An empty result for `path`: name, collection and material from the catalog.
     fn new(path: &Path, config: &ShapeStudyConfig) -> Self {
-        let name = path.file_name().map_or_else(
-            || path.display().to_string(),
-            |n| n.to_string_lossy().into(),
-        );
+        let name = mesh_name(path);
         let entry = catalog_entry(&name);
         ShapeResult {
             title: entry.map_or_else(

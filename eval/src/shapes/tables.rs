@@ -158,7 +158,19 @@ fn exact_average(shapes: &[&ShapeResult], boundary: ShapeBoundary, gate: f64) ->
 fn settings_lines(study: &ShapeStudy) -> String {
     let c = &study.config;
     let s = &c.settings;
-    let mut out = format!(
+    let unfinished = study.unfinished();
+    let mut out = if unfinished.is_empty() {
+        String::new()
+    } else {
+        format!(
+            "**Partial:** {} of {} shapes finished when this was written (the run went on or was \
+             stopped); not yet: {}. Rows, averages and counts cover the finished shapes only.\n\n",
+            c.meshes.len() - unfinished.len(),
+            c.meshes.len(),
+            unfinished.join(", ")
+        )
+    };
+    out += &format!(
         "Settings: every mesh scaled so its largest bounding-box side is L = 1 m; ν = {}, ρ = {} \
          kg/m³, E per shape (10⁵ Pa organic, 10⁸ Pa manufactured; `eval::shapes::catalog`, shown \
          per shape below). m = {}, K = {} kernels; our basis and Simplicits on the same ≈{} grid \
@@ -645,6 +657,7 @@ pub fn table2(study: &ShapeStudy) -> RenderedTable {
         markdown: md,
         json: json!({
             "table": 2,
+            "unfinished": study.unfinished(),
             "shapes": rows,
             "averages": averages,
             "training_seconds": {
@@ -735,6 +748,7 @@ pub fn table7(study: &ShapeStudy) -> RenderedTable {
         markdown: md,
         json: json!({
             "table": 7,
+            "unfinished": study.unfinished(),
             "shapes": rows,
             "averages": averages,
             "wall_seconds": study.seconds,
@@ -809,6 +823,43 @@ mod tests {
                 })
                 .collect(),
             error: None,
+        }
+    }
+
+    #[test]
+    fn a_partial_study_says_which_shapes_are_not_finished_and_a_complete_one_says_nothing() {
+        let mut config = ShapeStudyConfig::full(
+            vec![
+                PathBuf::from("meshes/done.obj"),
+                PathBuf::from("meshes/later.stl"),
+            ],
+            PathBuf::from("unused"),
+        );
+        config.simplicits = None;
+        let partial = ShapeStudy {
+            config,
+            shapes: vec![shape("done.obj", 0.0, 0, 1e-3)],
+            seconds: 1.0,
+        };
+        let complete = ShapeStudy {
+            shapes: vec![
+                shape("done.obj", 0.0, 0, 1e-3),
+                shape("later.stl", 0.0, 0, 2e-3),
+            ],
+            ..partial.clone()
+        };
+        for (table, complete_table) in [
+            (table2(&partial), table2(&complete)),
+            (table7(&partial), table7(&complete)),
+        ] {
+            let said = "**Partial:** 1 of 2 shapes finished";
+            assert!(table.markdown.contains(said), "{}", table.markdown);
+            assert!(table.markdown.contains("not yet: later.stl."));
+            assert_eq!(table.json["unfinished"], json!(["later.stl"]));
+            assert_eq!(table.json["shapes"].as_array().unwrap().len(), 3);
+            assert!(!complete_table.markdown.contains("Partial"));
+            assert_eq!(complete_table.json["unfinished"], json!([]));
+            assert_eq!(complete_table.json["shapes"].as_array().unwrap().len(), 6);
         }
     }
 

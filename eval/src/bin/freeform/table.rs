@@ -14,10 +14,10 @@ use eval::beam::sph::SphStudyConfig;
 use eval::beam::study::{BeamStudyConfig, run_beam_study};
 use eval::beam::tables::{table1, table5, table6, twist_error_plot};
 use eval::progress::Progress;
-use eval::report::table::write_table;
+use eval::report::table::{RenderedTable, write_table};
 use eval::shapes::boundary::ShapeBoundary;
 use eval::shapes::reference::{ReferenceFactorReuse, ShapeFemParams};
-use eval::shapes::study::{ShapeStudyConfig, mesh_files, run_shape_study};
+use eval::shapes::study::{ShapeStudy, ShapeStudyConfig, mesh_files, run_shape_study};
 use eval::shapes::tables::{table2, table7};
 use reduced_sim::{CubatureParams, HessianTangent, PinModulus, QuadratureRule};
 
@@ -592,22 +592,30 @@ pub(crate) fn run(
             _ => {}
         }
         let total = shapes.meshes.len();
-        let finished = std::sync::atomic::AtomicUsize::new(0);
-        let study = run_shape_study(&shapes, progress, |shape| {
-            let k = finished.fetch_add(1, std::sync::atomic::Ordering::Relaxed) + 1;
-            progress.status(format!("[{k}/{total} shapes] {} finished", shape.name));
+        let study = run_shape_study(&shapes, progress, |shape, so_far| {
+            let mut line = format!(
+                "[{}/{total} shapes] {} finished",
+                so_far.shapes.len(),
+                shape.name
+            );
+            // A long run leaves the tables of the shapes it finished, should it be stopped.
+            if !so_far.unfinished().is_empty() {
+                let written = shape_tables(numbers, so_far)
+                    .iter()
+                    .map(|table| write_table(table, out))
+                    .collect::<Result<Vec<_>, _>>();
+                line += &match written {
+                    Ok(_) => format!("; the tables so far are in {}", out.display()),
+                    Err(e) => format!("; the tables so far could not be written: {e}"),
+                };
+            }
+            progress.status(line);
         })?;
         progress.status(format!(
             "shape study: {total} shape(s) in {:.0} s",
             study.seconds
         ));
-        for &number in numbers.iter().filter(|n| matches!(n, 2 | 7)) {
-            rendered.push(if number == 2 {
-                table2(&study)
-            } else {
-                table7(&study)
-            });
-        }
+        rendered.extend(shape_tables(numbers, &study));
     }
     if wants(&[3, 4]) {
         if skip_simplicits {
@@ -677,6 +685,18 @@ pub(crate) fn run(
         println!("{}", serde_json::to_string_pretty(&value)?);
     }
     Ok(())
+}
+
+/// Tables 2 and 7 of `study`, those of them `numbers` asks for, in its order.
+fn shape_tables(numbers: &[u32], study: &ShapeStudy) -> Vec<RenderedTable> {
+    numbers
+        .iter()
+        .filter_map(|n| match n {
+            2 => Some(table2(study)),
+            7 => Some(table7(study)),
+            _ => None,
+        })
+        .collect()
 }
 
 /// Every spacing of a `--…-spacings` flag must be a positive, finite number of metres.
