@@ -302,36 +302,90 @@ pub fn run_fem(
     let parts = problem.parts()?;
     let region_nodes = parts.region_nodes();
     let cache = TrajectoryCache::new(cache_dir.join("fem"));
-    let steps = problem.steps;
-    let label_of_scene = problem.scene.label();
-    // A cached reference is found before the simulator is built: its symbolic factorization
-    // would be a fifth of a warm-cache Table 2.
+    let solved = match load_solved(&parts, problem, &cache)? {
+        Some(solved) => solved,
+        None => step_through(
+            parts,
+            problem.steps,
+            &problem.scene.label(),
+            &cache,
+            label,
+            progress,
+        )?,
+    };
+    Ok(fem_run(
+        solved,
+        region_nodes,
+        problem,
+        label,
+        &cache,
+        progress,
+    ))
+}
+
+/// [`run_fem`]'s trajectory when `<cache_dir>/fem/` holds it, else `None`: nothing is computed
+/// (a checkpoint of an unfinished run is not a trajectory).
+///
+/// # Errors
+/// As [`run_fem`], but for a failed step (no step is taken).
+pub fn cached_fem(
+    problem: &FemProblem<'_>,
+    label: &str,
+    cache_dir: &Path,
+    progress: &Progress,
+) -> Result<Option<FemRun>, EvalError> {
+    let parts = problem.parts()?;
+    let region_nodes = parts.region_nodes();
+    let cache = TrajectoryCache::new(cache_dir.join("fem"));
+    Ok(load_solved(&parts, problem, &cache)?
+        .map(|solved| fem_run(solved, region_nodes, problem, label, &cache, progress)))
+}
+
+/// `problem`'s trajectory from `cache`, if it is there. Found before the simulator is built:
+/// its symbolic factorization would be a fifth of a warm-cache Table 2.
+fn load_solved(
+    parts: &SimulatorParts,
+    problem: &FemProblem<'_>,
+    cache: &TrajectoryCache,
+) -> Result<Option<Solved>, EvalError> {
     let cached_trajectory = FemSimulator::load_cached(
         &parts.model,
         &parts.scene,
         &parts.params,
-        steps,
-        &label_of_scene,
-        &cache,
+        problem.steps,
+        &problem.scene.label(),
+        cache,
     )
     .map_err(|e| EvalError::Fem(fem_ref::FemRunError::Cache(e)))?;
-    let solved = match cached_trajectory {
-        Some(trajectory) => Solved {
-            dofs: parts
-                .scene
-                .free_dofs(parts.model.mesh().nodes().len())
-                .map_err(EvalError::FemSetup)?,
-            mesh: parts.model.mesh().clone(),
-            run: CachedRun {
-                trajectory,
-                from_cache: true,
-                resumed_steps: 0,
-                checkpoint_error: None,
-            },
-            split_steps: 0,
-        },
-        None => step_through(parts, steps, &label_of_scene, &cache, label, progress)?,
+    let Some(trajectory) = cached_trajectory else {
+        return Ok(None);
     };
+    Ok(Some(Solved {
+        dofs: parts
+            .scene
+            .free_dofs(parts.model.mesh().nodes().len())
+            .map_err(EvalError::FemSetup)?,
+        mesh: parts.model.mesh().clone(),
+        run: CachedRun {
+            trajectory,
+            from_cache: true,
+            resumed_steps: 0,
+            checkpoint_error: None,
+        },
+        split_steps: 0,
+    }))
+}
+
+/// The [`FemRun`] of a `solved` `problem`, with a status line saying how it was had.
+fn fem_run(
+    solved: Solved,
+    region_nodes: Vec<usize>,
+    problem: &FemProblem<'_>,
+    label: &str,
+    cache: &TrajectoryCache,
+    progress: &Progress,
+) -> FemRun {
+    let steps = problem.steps;
     let Solved {
         mesh,
         run,
@@ -368,7 +422,7 @@ pub fn run_fem(
         .iter()
         .map(|f| f.iter().map(|p| Vector3::from(*p)).collect())
         .collect();
-    Ok(FemRun {
+    FemRun {
         mesh,
         frames,
         seconds_per_step,
@@ -380,7 +434,7 @@ pub fn run_fem(
         cached,
         region_nodes,
         failed_step_halvings: problem.failed_step_halvings,
-    })
+    }
 }
 
 /// A reference's trajectory with the mesh it lives on and how it was had.

@@ -123,6 +123,13 @@ pub enum EvalError {
         /// Why.
         source: std::io::Error,
     },
+    /// A cached-only run ([`shapes::study::ShapeStudyConfig::cached_only`]) needed something
+    /// the cache does not hold; nothing was computed for it.
+    #[error("{what} is not in the cache (a cached-only run computes nothing)")]
+    NotCached {
+        /// What was missing ("FEM bunny.obj Fix side finer", "Simplicits m = 32").
+        what: String,
+    },
     /// A FEM reference stopped unconverged at some step, so nothing is scored against it.
     #[error(transparent)]
     UnconvergedReference(#[from] fem_reference::UnconvergedReference),

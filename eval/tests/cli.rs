@@ -374,6 +374,25 @@ fn a_quick_shape_run_fills_tables_2_and_7_reports_a_broken_mesh_and_reuses_its_c
         }
     }
 
+    // `--cached-only` computes nothing and scores the same rows from the cache.
+    let cached_only = freeform(&[&args[..], &["--cached-only"]].concat(), &dir);
+    assert_success(&cached_only);
+    let cached_only: serde_json::Value = serde_json::from_slice(&cached_only.stdout).unwrap();
+    for (a, b) in rows
+        .iter()
+        .zip(table(&cached_only, 2)["shapes"].as_array().unwrap())
+    {
+        for key in [
+            "ours_mse",
+            "simplicits_mse",
+            "exact_mse",
+            "trusted",
+            "error",
+        ] {
+            assert_eq!(a[key], b[key], "{key}");
+        }
+    }
+
     // `--simulation-points` and the fast step reach the shapes: about twice the points, more of
     // them in every held region, FreeForm on a cubature of fewer, Simplicits on every one of
     // them, the same cached references.
@@ -427,6 +446,56 @@ fn a_quick_shape_run_fills_tables_2_and_7_reports_a_broken_mesh_and_reuses_its_c
             }
             assert!(b[format!("{method}_ms_per_step")].as_f64().unwrap() > 0.0);
         }
+    }
+}
+
+#[test]
+fn a_cached_only_shape_run_on_an_empty_cache_computes_nothing_and_scores_no_row() {
+    let dir = scratch("shape-cached-only");
+    let meshes = bunny_folder(&dir);
+    let args = [
+        "table",
+        "2",
+        "--quick",
+        "--json",
+        "--cached-only",
+        "--meshes",
+        meshes.to_str().unwrap(),
+    ];
+    let run = freeform(&[&args[..], &["--skip-simplicits"]].concat(), &dir);
+    assert_success(&run);
+    let t2: serde_json::Value = serde_json::from_slice(&run.stdout).unwrap();
+    let rows = t2["shapes"].as_array().unwrap();
+    assert_eq!(rows.len(), 3);
+    for row in rows {
+        let error = row["error"].as_str().unwrap_or_default();
+        assert!(
+            error.starts_with("FEM bunny.obj") && error.contains("is not in the cache"),
+            "{row}"
+        );
+        assert_eq!(row["trusted"], false);
+        assert!(row["ours_mse"].is_null());
+    }
+    for average in t2["averages"].as_array().unwrap() {
+        assert_eq!(average["shapes"], 0, "{average}");
+    }
+    let markdown = std::fs::read_to_string(dir.join("out").join("table2.md")).unwrap();
+    assert!(markdown.contains("**Cached only:**"), "{markdown}");
+    // Nor is a network trained: the shape says which one it lacks.
+    let run = freeform(&args, &dir);
+    assert_success(&run);
+    let t2: serde_json::Value = serde_json::from_slice(&run.stdout).unwrap();
+    for row in t2["shapes"].as_array().unwrap() {
+        let error = row["error"].as_str().unwrap_or_default();
+        assert!(
+            error.contains("Simplicits m = 6 is not in the cache"),
+            "{row}"
+        );
+    }
+    for computed in ["fem", "simplicits"] {
+        let folder = dir.join("cache").join(computed);
+        let entries = std::fs::read_dir(&folder).map_or(0, |d| d.count());
+        assert_eq!(entries, 0, "{} holds {entries} entries", folder.display());
     }
 }
 

@@ -28,7 +28,7 @@ use skin_eigen::{SkinningBasis, build_basis};
 use crate::EvalError;
 use crate::beam::reduced::{ReducedSettings, median_kernel_radius};
 use crate::beam::simplicits::train_cached_simplicits;
-use crate::fem_reference::{FemProblem, FemRun, run_fem};
+use crate::fem_reference::{FemProblem, FemRun, cached_fem, run_fem};
 use crate::metrics::trajectory_errors;
 use crate::model_cache::model_path;
 use crate::progress::Progress;
@@ -91,6 +91,12 @@ pub struct ShapeStudyConfig {
     /// order). Table 2's and 7's averages of a condition left out cover no shape.
     #[serde(default = "all_boundaries")]
     pub boundaries: Vec<ShapeBoundary>,
+    /// Score only what the cache holds (default false): a FEM reference or convergence check
+    /// that is not cached is not computed, and its row says so ([`EvalError::NotCached`]); a
+    /// shape whose Simplicits network is not cached is not trained, and reported. For reading
+    /// the tables of work spread over several runs while they go on.
+    #[serde(default)]
+    pub cached_only: bool,
 }
 
 fn default_reference_volume_gate() -> f64 {
@@ -124,6 +130,7 @@ impl ShapeStudyConfig {
             check_convergence: false,
             simplicits_quadrature: None,
             boundaries: all_boundaries(),
+            cached_only: false,
         }
     }
 
@@ -301,7 +308,7 @@ impl ShapeResult {
             Some(_) => {}
         }
         if let Some(why) = &row.reference_check_error {
-            return Some(format!("the convergence check failed: {why}"));
+            return Some(format!("the convergence check did not finish: {why}"));
         }
         let smallest = [row.ours, row.simplicits]
             .iter()
@@ -584,6 +591,11 @@ fn run_shape_into(
                 &basis_points,
                 &material,
             );
+            if config.cached_only && !model.is_file() {
+                return Err(EvalError::NotCached {
+                    what: format!("Simplicits m = {}", params.modes),
+                });
+            }
             let net = train_cached_simplicits(&basis_points, &lames, &params, &model, progress)?;
             result.training_seconds = Some(net.trained.report.seconds);
             Some(net.trained.field)
@@ -674,57 +686,55 @@ fn run_shape_into(
             failed_step_halvings: config.fem.failed_step_halvings,
             steps: config.boundary.steps,
         };
-        let outcome =
-            run_fem(&problem(tets), &label, &config.cache_dir, progress).and_then(|fem| {
-                fem_seconds += fem.seconds_per_step * config.boundary.steps as f64;
-                row.fem = Some(FemRunSummary {
-                    region_nodes: fem.region_nodes.clone(),
-                    max_displacement: fem.max_vertex_displacement() / length,
-                    dofs: fem.dofs,
-                    seconds_per_step: fem.seconds_per_step,
-                    iterations_per_step: fem.iterations_per_step,
-                    unconverged_steps: fem.unconverged_steps,
-                    cached: fem.cached,
-                });
-                fem.check_converged(config.fem.newton.max_iterations)?;
-                if let Some(finer) = finer {
-                    match reference_change(&fem, &problem(finer), length, &label, config, progress)
-                    {
-                        Ok(change) => row.reference_change = Some(change),
-                        Err(e) => row.reference_check_error = Some(e.to_string()),
-                    }
-                }
-                let run = BoundaryRun {
-                    points: &points,
-                    material,
-                    scene: &scene,
-                    params: settings.simulation_params(config.boundary.time_step),
-                    quadrature: settings.quadrature,
-                    cache_dir: &config.cache_dir,
-                    fem: &fem,
-                    steps: config.boundary.steps,
-                    length,
-                    label: &label,
-                    progress,
-                };
-                let (scores, region_points) = run.score(&ours, "FreeForm", PinHold::Penalty)?;
-                row.ours = Some(scores);
-                row.region_points = region_points;
-                if let Some(radii) = config.exact_pins {
-                    match run_exact(&run, &ours, &basis_points, &lames, settings, radii) {
-                        Ok(scores) => row.exact = Some(scores),
-                        Err(e) => row.exact_error = Some(e.to_string()),
-                    }
-                }
-                if let Some(net) = &simplicits {
-                    let baseline = BoundaryRun {
-                        quadrature: config.simplicits_quadrature.unwrap_or(run.quadrature),
-                        ..run
-                    };
-                    row.simplicits = Some(baseline.score(net, "Simplicits", PinHold::Penalty)?.0);
-                }
-                Ok(())
+        let outcome = reference_run(&problem(tets), &label, config, progress).and_then(|fem| {
+            fem_seconds += fem.seconds_per_step * config.boundary.steps as f64;
+            row.fem = Some(FemRunSummary {
+                region_nodes: fem.region_nodes.clone(),
+                max_displacement: fem.max_vertex_displacement() / length,
+                dofs: fem.dofs,
+                seconds_per_step: fem.seconds_per_step,
+                iterations_per_step: fem.iterations_per_step,
+                unconverged_steps: fem.unconverged_steps,
+                cached: fem.cached,
             });
+            fem.check_converged(config.fem.newton.max_iterations)?;
+            if let Some(finer) = finer {
+                match reference_change(&fem, &problem(finer), length, &label, config, progress) {
+                    Ok(change) => row.reference_change = Some(change),
+                    Err(e) => row.reference_check_error = Some(e.to_string()),
+                }
+            }
+            let run = BoundaryRun {
+                points: &points,
+                material,
+                scene: &scene,
+                params: settings.simulation_params(config.boundary.time_step),
+                quadrature: settings.quadrature,
+                cache_dir: &config.cache_dir,
+                fem: &fem,
+                steps: config.boundary.steps,
+                length,
+                label: &label,
+                progress,
+            };
+            let (scores, region_points) = run.score(&ours, "FreeForm", PinHold::Penalty)?;
+            row.ours = Some(scores);
+            row.region_points = region_points;
+            if let Some(radii) = config.exact_pins {
+                match run_exact(&run, &ours, &basis_points, &lames, settings, radii) {
+                    Ok(scores) => row.exact = Some(scores),
+                    Err(e) => row.exact_error = Some(e.to_string()),
+                }
+            }
+            if let Some(net) = &simplicits {
+                let baseline = BoundaryRun {
+                    quadrature: config.simplicits_quadrature.unwrap_or(run.quadrature),
+                    ..run
+                };
+                row.simplicits = Some(baseline.score(net, "Simplicits", PinHold::Penalty)?.0);
+            }
+            Ok(())
+        });
         if let Err(e) = outcome {
             row.error = Some(e.to_string());
         }
@@ -732,6 +742,24 @@ fn run_shape_into(
     }
     result.fem_seconds = Some(fem_seconds);
     Ok(())
+}
+
+/// `problem`'s FEM run ([`run_fem`]), or with [`ShapeStudyConfig::cached_only`] its cached one.
+///
+/// # Errors
+/// As [`run_fem`]; [`EvalError::NotCached`] for a cached-only run the cache does not hold.
+fn reference_run(
+    problem: &FemProblem<'_>,
+    label: &str,
+    config: &ShapeStudyConfig,
+    progress: &Progress,
+) -> Result<FemRun, EvalError> {
+    if !config.cached_only {
+        return run_fem(problem, label, &config.cache_dir, progress);
+    }
+    cached_fem(problem, label, &config.cache_dir, progress)?.ok_or_else(|| EvalError::NotCached {
+        what: format!("FEM {label}"),
+    })
 }
 
 /// The normalized MSE between `coarse` and the run of `finer` (the same problem on a finer
@@ -748,12 +776,7 @@ fn reference_change(
     config: &ShapeStudyConfig,
     progress: &Progress,
 ) -> Result<f64, EvalError> {
-    let fine = run_fem(
-        finer,
-        &format!("{label} finer"),
-        &config.cache_dir,
-        progress,
-    )?;
+    let fine = reference_run(finer, &format!("{label} finer"), config, progress)?;
     fine.check_converged(config.fem.newton.max_iterations)?;
     let (inside, fine_frames) = fine.frames_inside(coarse.vertices());
     if inside.is_empty() {

@@ -170,6 +170,10 @@ fn settings_lines(study: &ShapeStudy) -> String {
             unfinished.join(", ")
         )
     };
+    if c.cached_only {
+        out += "**Cached only:** nothing was computed for this table; a row whose FEM reference or \
+                convergence check the cache does not hold says so and is not scored.\n\n";
+    }
     out += &format!(
         "Settings: every mesh scaled so its largest bounding-box side is L = 1 m; ν = {}, ρ = {} \
          kg/m³, E per shape (10⁵ Pa organic, 10⁸ Pa manufactured; `eval::shapes::catalog`, shown \

@@ -92,6 +92,11 @@ pub(crate) struct TableOptions {
     /// smaller method error or more is not scored.
     #[arg(long)]
     check_convergence: bool,
+    /// Tables 2 and 7: compute nothing, score what the cache holds; a row whose FEM reference
+    /// or convergence check is not cached says so and is not scored, a shape whose Simplicits
+    /// network is not cached is reported. For the tables of work spread over several runs.
+    #[arg(long)]
+    cached_only: bool,
     /// Tables 2 and 7: which conditions' FEM references carry the Cholesky factor across
     /// Newton iterations and steps at tolerance 1e-8 (`fem_ref::reusing_reference_newton`):
     /// `never`, `pulls` (Pull farthest and Pull boundary), `pulls-and-stiff-fix-side` (and Fix
@@ -335,6 +340,7 @@ pub(crate) fn run(
         skip_exact,
         exact_inset_radii,
         check_convergence,
+        cached_only,
         fem_reuse,
         fem_clamp,
         fem_pull_slabs,
@@ -500,6 +506,7 @@ pub(crate) fn run(
         };
         shapes.default_youngs_modulus = young;
         shapes.check_convergence = check_convergence;
+        shapes.cached_only = cached_only;
         if fem_mesher == FemMesherChoice::Graded {
             let graded = ShapeFemParams::graded();
             // A quick run keeps its coarse base lattice and grades it.
