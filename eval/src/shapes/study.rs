@@ -7,7 +7,8 @@
 //! A shape that cannot be read, sampled, meshed or given a basis is reported with the reason,
 //! as is a boundary condition that fails on a shape (e.g. a region that selects no FEM node);
 //! the study goes on. FEM trajectories and trained networks are cached, so a rerun (or a run
-//! after an interruption) only computes what is missing.
+//! after an interruption) only computes what is missing; a cached-only study
+//! ([`ShapeStudyConfig::cached_only`]) computes none of it and scores what the cache holds.
 
 use fem_ref::{FillReducingOrdering, TetMesh, tetrahedralize};
 use hyperelastic::{LameParameters, MaterialField, MaterialSample, StableNeoHookean};
