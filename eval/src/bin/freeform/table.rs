@@ -605,17 +605,16 @@ pub(crate) fn run(
                 so_far.shapes.len(),
                 shape.name
             );
-            // A long run leaves the tables of the shapes it finished, should it be stopped.
-            if !so_far.unfinished().is_empty() {
-                let written = shape_tables(numbers, so_far)
-                    .iter()
-                    .map(|table| write_table(table, out))
-                    .collect::<Result<Vec<_>, _>>();
-                line += &match written {
-                    Ok(_) => format!("; the tables so far are in {}", out.display()),
-                    Err(e) => format!("; the tables so far could not be written: {e}"),
-                };
-            }
+            // A long run leaves the tables of the shapes it finished, should it be stopped (or
+            // should a later table fail).
+            let written = shape_tables(numbers, so_far)
+                .iter()
+                .map(|table| write_table(table, out))
+                .collect::<Result<Vec<_>, _>>();
+            line += &match written {
+                Ok(_) => format!("; the tables so far are in {}", out.display()),
+                Err(e) => format!("; the tables so far could not be written: {e}"),
+            };
             progress.status(line);
         })?;
         progress.status(format!(
