@@ -758,8 +758,13 @@ fn reference_run(
     if !config.cached_only {
         return run_fem(problem, label, &config.cache_dir, progress);
     }
-    cached_fem(problem, label, &config.cache_dir, progress)?.ok_or_else(|| EvalError::NotCached {
-        what: format!("FEM {label}"),
+    cached_fem(problem, label, &config.cache_dir, progress)?.ok_or_else(|| {
+        progress.status(format!(
+            "FEM {label}: not in the cache, not computed (cached only)"
+        ));
+        EvalError::NotCached {
+            what: format!("FEM {label}"),
+        }
     })
 }
 
