@@ -18,7 +18,7 @@ use std::sync::atomic::{AtomicUsize, Ordering};
 use std::sync::{Mutex, PoisonError};
 use std::time::Instant;
 
-use baselines::{SIMPLICITS_FORMAT_VERSION, SimplicitsParams};
+use baselines::{SIMPLICITS_FORMAT_VERSION, SimplicitsParams, TrainedSimplicits};
 use reduced_sim::{QuadratureRule, SimulationParams, SkinningField};
 use rkpm_core::{
     GridSamplingParams, IntegrationPoints, TriangleMesh, read_triangle_mesh, sample_grid,
@@ -94,8 +94,8 @@ pub struct ShapeStudyConfig {
     pub boundaries: Vec<ShapeBoundary>,
     /// Score only what the cache holds (default false): a FEM reference or convergence check
     /// that is not cached is not computed, and its row says so ([`EvalError::NotCached`]); a
-    /// shape whose Simplicits network is not cached is not trained, and reported. For reading
-    /// the tables of work spread over several runs while they go on.
+    /// shape whose Simplicits network is not cached (or not readable) is not trained, and
+    /// reported. For reading the tables of work spread over several runs while they go on.
     #[serde(default)]
     pub cached_only: bool,
 }
@@ -592,14 +592,23 @@ fn run_shape_into(
                 &basis_points,
                 &material,
             );
-            if config.cached_only && !model.is_file() {
-                return Err(EvalError::NotCached {
-                    what: format!("Simplicits m = {}", params.modes),
-                });
-            }
-            let net = train_cached_simplicits(&basis_points, &lames, &params, &model, progress)?;
-            result.training_seconds = Some(net.trained.report.seconds);
-            Some(net.trained.field)
+            let trained = if config.cached_only {
+                // Nothing is trained: a network the cache lacks, or holds damaged, is reported.
+                let trained =
+                    TrainedSimplicits::load(&model).map_err(|_| EvalError::NotCached {
+                        what: format!("Simplicits m = {} (a readable network)", params.modes),
+                    })?;
+                progress.status(format!(
+                    "Simplicits m = {}: loaded from the cache ({})",
+                    params.modes,
+                    model.display()
+                ));
+                trained
+            } else {
+                train_cached_simplicits(&basis_points, &lames, &params, &model, progress)?.trained
+            };
+            result.training_seconds = Some(trained.report.seconds);
+            Some(trained.field)
         }
         None => None,
     };
