@@ -497,6 +497,33 @@ fn a_cached_only_shape_run_on_an_empty_cache_computes_nothing_and_scores_no_row(
         let entries = std::fs::read_dir(&folder).map_or(0, |d| d.count());
         assert_eq!(entries, 0, "{} holds {entries} entries", folder.display());
     }
+    // A damaged network is reported too, and left as it is rather than trained again.
+    let fix_side = [
+        "table",
+        "2",
+        "--quick",
+        "--json",
+        "--boundaries",
+        "fix-side",
+        "--meshes",
+        meshes.to_str().unwrap(),
+    ];
+    assert_success(&freeform(&fix_side, &dir));
+    let networks: Vec<PathBuf> = std::fs::read_dir(dir.join("cache").join("simplicits"))
+        .unwrap()
+        .map(|e| e.unwrap().path())
+        .collect();
+    assert_eq!(networks.len(), 1, "{networks:?}");
+    std::fs::write(&networks[0], "damaged").unwrap();
+    let run = freeform(&[&fix_side[..], &["--cached-only"]].concat(), &dir);
+    assert_success(&run);
+    let t2: serde_json::Value = serde_json::from_slice(&run.stdout).unwrap();
+    let error = t2["shapes"][0]["error"].as_str().unwrap_or_default();
+    assert!(
+        error.contains("Simplicits m = 6 (a readable network)"),
+        "{error}"
+    );
+    assert_eq!(std::fs::read(&networks[0]).unwrap(), b"damaged");
 }
 
 #[test]
