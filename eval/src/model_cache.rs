@@ -68,9 +68,36 @@ pub fn model_path(
         .join(format!("{folder}-{}.model", key.finish().hex()))
 }
 
-/// Loads `path` if it holds a valid model, else trains one and saves it there (a save that
-/// fails is a warning: the model is still returned). Returns the model and whether it came
-/// from the cache.
+/// Loads `path` if it holds a valid model, with a status line saying so. Returns `None` when
+/// there is no file, or when the file does not load (reported as a damaged cache entry, and
+/// left where it is).
+pub fn load_cached<T>(
+    path: &Path,
+    label: &str,
+    progress: &Progress,
+    load: impl FnOnce(&Path) -> Result<T, ModelFileError>,
+) -> Option<T> {
+    if !path.is_file() {
+        return None;
+    }
+    match load(path) {
+        Ok(model) => {
+            progress.status(format!(
+                "{label}: loaded from the cache ({})",
+                path.display()
+            ));
+            Some(model)
+        }
+        Err(e) => {
+            progress.status(format!("ignoring a damaged cache entry: {e}"));
+            None
+        }
+    }
+}
+
+/// Loads `path` if it holds a valid model ([`load_cached`]), else trains one and saves it
+/// there (a save that fails is a warning: the model is still returned). Returns the model and
+/// whether it came from the cache.
 ///
 /// # Errors
 /// Whatever `train` returns.
@@ -82,17 +109,8 @@ pub fn load_or_train<T>(
     train: impl FnOnce() -> Result<T, EvalError>,
     save: impl FnOnce(&T, &Path) -> Result<(), ModelFileError>,
 ) -> Result<(T, bool), EvalError> {
-    if path.is_file() {
-        match load(path) {
-            Ok(model) => {
-                progress.status(format!(
-                    "{label}: loaded from the cache ({})",
-                    path.display()
-                ));
-                return Ok((model, true));
-            }
-            Err(e) => progress.status(format!("ignoring a damaged cache entry: {e}")),
-        }
+    if let Some(model) = load_cached(path, label, progress, load) {
+        return Ok((model, true));
     }
     let model = train()?;
     if let Err(e) = save(&model, path) {

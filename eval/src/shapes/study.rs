@@ -31,7 +31,7 @@ use crate::beam::reduced::{ReducedSettings, median_kernel_radius};
 use crate::beam::simplicits::train_cached_simplicits;
 use crate::fem_reference::{FemProblem, FemRun, cached_fem, run_fem};
 use crate::metrics::trajectory_errors;
-use crate::model_cache::model_path;
+use crate::model_cache::{load_cached, model_path};
 use crate::progress::Progress;
 use crate::reduced_run::{ReducedProblem, run_reduced};
 use crate::shapes::boundary::{ShapeBoundary, ShapeBoundaryParams};
@@ -594,16 +594,13 @@ fn run_shape_into(
             );
             let trained = if config.cached_only {
                 // Nothing is trained: a network the cache lacks, or holds damaged, is reported.
-                let trained =
-                    TrainedSimplicits::load(&model).map_err(|_| EvalError::NotCached {
-                        what: format!("Simplicits m = {} (a readable network)", params.modes),
-                    })?;
-                progress.status(format!(
-                    "Simplicits m = {}: loaded from the cache ({})",
-                    params.modes,
-                    model.display()
-                ));
-                trained
+                let label = format!("Simplicits m = {}", params.modes);
+                load_cached(&model, &label, progress, |path| {
+                    TrainedSimplicits::load(path)
+                })
+                .ok_or_else(|| EvalError::NotCached {
+                    what: format!("{label} (a readable network)"),
+                })?
             } else {
                 train_cached_simplicits(&basis_points, &lames, &params, &model, progress)?.trained
             };
