@@ -118,3 +118,63 @@ pub fn load_or_train<T>(
     }
     Ok((model, false))
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use test_support::fixtures::scratch_dir;
+
+    const QUIET: Progress = Progress {
+        quiet: true,
+        hide_bars: true,
+    };
+
+    /// A "model" that is a number written as text.
+    fn read_number(path: &Path) -> Result<u32, ModelFileError> {
+        let text = std::fs::read_to_string(path).map_err(|source| ModelFileError::Io {
+            path: path.display().to_string(),
+            source,
+        })?;
+        text.trim()
+            .parse()
+            .map_err(|e: std::num::ParseIntError| ModelFileError::Format {
+                path: path.display().to_string(),
+                what: "number",
+                version: 1,
+                reason: e.to_string(),
+            })
+    }
+
+    fn write_number(n: &u32, path: &Path) -> Result<(), ModelFileError> {
+        std::fs::write(path, n.to_string()).map_err(|source| ModelFileError::Io {
+            path: path.display().to_string(),
+            source,
+        })
+    }
+
+    #[test]
+    fn load_cached_reads_a_valid_model_and_gives_none_for_a_missing_or_damaged_one_left_as_it_is() {
+        let path = scratch_dir("model-cache-load-cached").join("n.model");
+        assert_eq!(load_cached(&path, "n", &QUIET, read_number), None);
+        std::fs::write(&path, "damaged").unwrap();
+        assert_eq!(load_cached(&path, "n", &QUIET, read_number), None);
+        assert_eq!(std::fs::read_to_string(&path).unwrap(), "damaged");
+        std::fs::write(&path, "42").unwrap();
+        assert_eq!(load_cached(&path, "n", &QUIET, read_number), Some(42));
+    }
+
+    #[test]
+    fn load_or_train_trains_only_what_the_cache_lacks_and_replaces_a_damaged_entry() {
+        let path = scratch_dir("model-cache-load-or-train").join("n.model");
+        let train = |n: u32| move || Ok(n);
+        let first = load_or_train(&path, "n", &QUIET, read_number, train(7), write_number);
+        assert_eq!(first.unwrap(), (7, false));
+        // Cached now: the trainer is not called (it would give another number).
+        let second = load_or_train(&path, "n", &QUIET, read_number, train(8), write_number);
+        assert_eq!(second.unwrap(), (7, true));
+        std::fs::write(&path, "damaged").unwrap();
+        let retrained = load_or_train(&path, "n", &QUIET, read_number, train(9), write_number);
+        assert_eq!(retrained.unwrap(), (9, false));
+        assert_eq!(std::fs::read_to_string(&path).unwrap(), "9");
+    }
+}
