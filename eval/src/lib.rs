@@ -166,9 +166,53 @@ impl EvalError {
     }
 }
 
+/// An error and its sources on one line ("building the basis failed: …: …"): what a table row
+/// or a log line records, where `to_string` alone would drop the cause. A cause whose text the
+/// line already ends with (an error that prints its source itself) is not repeated.
+pub fn failure_chain(error: &dyn std::error::Error) -> String {
+    let mut line = error.to_string();
+    let mut source = error.source();
+    while let Some(cause) = source {
+        let text = cause.to_string();
+        if !line.ends_with(&text) {
+            line += ": ";
+            line += &text;
+        }
+        source = cause.source();
+    }
+    line
+}
+
 /// The cache folder: `$FREEFORM_CACHE` if set, else `freeform-cache` in the working directory.
 pub fn default_cache_dir() -> std::path::PathBuf {
     std::env::var_os("FREEFORM_CACHE")
         .map(Into::into)
         .unwrap_or_else(|| "freeform-cache".into())
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[derive(Debug, Error)]
+    #[error("building the thing failed")]
+    struct Outer(#[source] Inner);
+
+    #[derive(Debug, Error)]
+    #[error("the inner cause")]
+    struct Inner;
+
+    #[test]
+    fn failure_chain_names_every_cause_after_the_error_once() {
+        assert_eq!(
+            failure_chain(&Outer(Inner)),
+            "building the thing failed: the inner cause"
+        );
+        // `Io` prints its source itself: the chain does not repeat it.
+        let error = EvalError::io(
+            Path::new("mesh.obj"),
+            std::io::Error::new(std::io::ErrorKind::NotFound, "no such file"),
+        );
+        assert_eq!(failure_chain(&error), "mesh.obj: no such file");
+    }
 }

@@ -12,7 +12,6 @@ use reduced_sim::{PinModulus, SimulationParams};
 use serde::{Deserialize, Serialize};
 use skin_eigen::SkinningBasis;
 
-use crate::EvalError;
 use crate::beam::reduced::{
     EXACT_INSET_KERNEL_RADII, ReducedSettings, build_beam_basis, build_beam_basis_for,
     exact_pin_hold, run_reduced_beam_with,
@@ -23,6 +22,7 @@ use crate::fem_reference::{FemResolution, run_fem_beam_with};
 use crate::metrics::{TrajectoryErrors, trajectory_errors};
 use crate::progress::Progress;
 use crate::reduced_run::ReducedRun;
+use crate::{EvalError, failure_chain};
 
 /// What the sweep runs.
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
@@ -480,17 +480,6 @@ fn modulus_name(modulus: PinModulus) -> &'static str {
         PinModulus::PWave => "λ+2μ",
         PinModulus::Young => "E",
     }
-}
-
-/// An error and its sources on one line ("a: b: c").
-fn failure_chain(error: &dyn std::error::Error) -> String {
-    let mut line = error.to_string();
-    let mut source = error.source();
-    while let Some(cause) = source {
-        line += &format!(": {cause}");
-        source = cause.source();
-    }
-    line
 }
 
 #[cfg(test)]

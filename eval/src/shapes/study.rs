@@ -26,7 +26,6 @@ use rkpm_core::{
 use serde::{Deserialize, Serialize};
 use skin_eigen::{SkinningBasis, build_basis};
 
-use crate::EvalError;
 use crate::beam::reduced::{ReducedSettings, median_kernel_radius};
 use crate::beam::simplicits::train_cached_simplicits;
 use crate::fem_reference::{FemProblem, FemRun, cached_fem, run_fem};
@@ -42,6 +41,7 @@ use crate::shapes::catalog::{
 use crate::shapes::reference::{
     ConditionLattice, FemMeshSummary, ShapeFemParams, mesh_for_fem, mesh_through,
 };
+use crate::{EvalError, failure_chain};
 use freeform::scene::SceneSpec;
 use freeform::{PinHold, Simulation};
 
@@ -541,7 +541,7 @@ fn run_shape(path: &Path, config: &ShapeStudyConfig, progress: &Progress) -> Sha
         result.class.map_or("not catalogued", MaterialClass::name)
     ));
     if let Err(e) = run_shape_into(path, config, progress, &mut result) {
-        result.error = Some(e.to_string());
+        result.error = Some(failure_chain(&e));
     }
     progress.status(format!(
         "{}: done in {:.1} s{}",
@@ -662,7 +662,7 @@ fn run_shape_into(
         let aligned = match aligned.transpose() {
             Ok(aligned) => aligned,
             Err(e) => {
-                row.error = Some(e.to_string());
+                row.error = Some(failure_chain(&e));
                 result.rows.push(row);
                 continue;
             }
@@ -671,7 +671,7 @@ fn run_shape_into(
             match lattice_mesh(finer_cells, &ConditionLattice::default()) {
                 Ok(mesh) => shape_finer = Some(mesh),
                 Err(e) => {
-                    row.error = Some(e.to_string());
+                    row.error = Some(failure_chain(&e));
                     result.rows.push(row);
                     continue;
                 }
@@ -708,7 +708,7 @@ fn run_shape_into(
             if let Some(finer) = finer {
                 match reference_change(&fem, &problem(finer), length, &label, config, progress) {
                     Ok(change) => row.reference_change = Some(change),
-                    Err(e) => row.reference_check_error = Some(e.to_string()),
+                    Err(e) => row.reference_check_error = Some(failure_chain(&e)),
                 }
             }
             let run = BoundaryRun {
@@ -730,7 +730,7 @@ fn run_shape_into(
             if let Some(radii) = config.exact_pins {
                 match run_exact(&run, &ours, &basis_points, &lames, settings, radii) {
                     Ok(scores) => row.exact = Some(scores),
-                    Err(e) => row.exact_error = Some(e.to_string()),
+                    Err(e) => row.exact_error = Some(failure_chain(&e)),
                 }
             }
             if let Some(net) = &simplicits {
@@ -743,7 +743,7 @@ fn run_shape_into(
             Ok(())
         });
         if let Err(e) = outcome {
-            row.error = Some(e.to_string());
+            row.error = Some(failure_chain(&e));
         }
         result.rows.push(row);
     }
