@@ -166,15 +166,16 @@ impl EvalError {
     }
 }
 
-/// An error and its sources on one line ("building the basis failed: …: …"): what a table row
-/// or a log line records, where `to_string` alone would drop the cause. A cause whose text the
-/// line already ends with (an error that prints its source itself) is not repeated.
+/// An error and its sources on one line ("building the basis failed: …: …"): what a table row,
+/// a log line or the CLI's last line records, where `to_string` alone would drop the cause. A
+/// cause whose text the line already shows (our error enums print their source inside their
+/// own message) is not repeated.
 pub fn failure_chain(error: &dyn std::error::Error) -> String {
     let mut line = error.to_string();
     let mut source = error.source();
     while let Some(cause) = source {
         let text = cause.to_string();
-        if !line.ends_with(&text) {
+        if !line.contains(&text) {
             line += ": ";
             line += &text;
         }

@@ -166,25 +166,9 @@ enum Command {
 fn main() {
     let cli = Cli::parse();
     if let Err(e) = run(cli) {
-        eprintln!("error: {}", error_chain(&e));
+        eprintln!("error: {}", eval::failure_chain(e.as_ref()));
         std::process::exit(1);
     }
-}
-
-/// The error and its causes on one line, skipping a cause whose text its parent already shows
-/// (our error enums print their source inside their own message).
-fn error_chain(e: &anyhow::Error) -> String {
-    let mut line = String::new();
-    for cause in e.chain() {
-        let text = cause.to_string();
-        if !line.contains(&text) {
-            if !line.is_empty() {
-                line += ": ";
-            }
-            line += &text;
-        }
-    }
-    line
 }
 
 fn run(cli: Cli) -> Result<()> {
