@@ -488,7 +488,7 @@ fn a_cached_only_shape_run_on_an_empty_cache_computes_nothing_and_scores_no_row(
     for row in t2["shapes"].as_array().unwrap() {
         let error = row["error"].as_str().unwrap_or_default();
         assert!(
-            error.contains("Simplicits m = 6") && error.contains("is not in the cache"),
+            error.contains("Simplicits m = 6 (a readable network) is not in the cache"),
             "{row}"
         );
     }
