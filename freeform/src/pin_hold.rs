@@ -179,7 +179,11 @@ impl PinHold {
     /// this hold: [`skin_eigen::build_basis`] for the penalty; for exact holding,
     /// [`skin_eigen::build_basis_with_regions`] on the hold's compact kernels
     /// ([`PinHold::basis_params`]) for `scene`'s regions shrunk by the inset, held at the basis
-    /// points and at `simulation_points` (the integration points the simulator will check).
+    /// points and at `simulation_points` (the integration points the simulator will check), with
+    /// the kernels widened where the compact ones leave no shape functions at a basis, simulation
+    /// or `output_points` point (the vertices frames are written at; a thin part,
+    /// [`skin_eigen::BasisParams::coverage`]). The penalty's Gaussian kernels reach 4 r_k and are
+    /// widened only where they leave a basis point uncovered.
     ///
     /// # Errors
     /// [`HeldBasisError::Scene`] as [`PinHold::basis_regions`]; [`HeldBasisError::Basis`] from
@@ -190,6 +194,7 @@ impl PinHold {
         basis_points: &IntegrationPoints,
         materials: &[LameParameters],
         simulation_points: &[Vector3<f64>],
+        output_points: &[Vector3<f64>],
         params: BasisParams,
     ) -> Result<(SkinningBasis, BasisReport), HeldBasisError> {
         let params = self.basis_params(params);
@@ -204,6 +209,7 @@ impl PinHold {
                     &params,
                     &regions,
                     &RegionConstraintParams::default(),
+                    &[simulation_points, output_points],
                 )?
             }
         };

@@ -192,12 +192,14 @@ pub fn simulate_scene_file(
     let basis_points = geometry.integration_points_filling(file.basis.points, fill)?;
     let points = geometry.integration_points_filling(file.simulation.points, fill)?;
     let hold = file.simulation.pins;
+    let writer = FrameWriter::new(out_dir, &geometry);
     let (basis, _) = hold
         .build_basis(
             &file.scene,
             &basis_points,
             &lame_at(basis_points.positions())?,
             points.positions(),
+            writer.rest_positions(),
             BasisParams::default()
                 .with_modes(file.basis.modes)
                 .with_kernels(file.basis.kernels),
@@ -208,7 +210,6 @@ pub fn simulate_scene_file(
         })?;
     let basis_seconds = start.elapsed().as_secs_f64();
 
-    let writer = FrameWriter::new(out_dir, &geometry);
     let collider_frames = crate::ColliderFrames::new(out_dir, &file.scene.colliders);
     let output =
         DeformationMap::new(&basis, writer.rest_positions()).map_err(SimulateError::OutputMap)?;

@@ -176,6 +176,7 @@ fn run() -> Result<(), String> {
             &params,
             &[region],
             &RegionConstraintParams::default(),
+            &[],
         )
     } else {
         build_basis(&basis_grid, &materials, &params)

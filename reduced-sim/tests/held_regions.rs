@@ -48,6 +48,7 @@ fn held_basis(points: &IntegrationPoints, regions: &[Vec<usize>]) -> SkinningBas
         &params,
         &at,
         &RegionConstraintParams::default(),
+        &[],
     )
     .unwrap();
     basis

@@ -26,6 +26,7 @@ pub mod geometry_io;
 pub mod grid_bins;
 pub mod inside_test;
 pub mod integration_points;
+pub mod kernel_coverage;
 pub mod kernels;
 pub mod point_cloud;
 pub mod shape_functions;
@@ -45,13 +46,14 @@ pub use integration_points::{
     RandomSamplingParams, SamplingError, sample_box_grid, sample_grid, sample_point_cloud,
     sample_random,
 };
+pub use kernel_coverage::{CoverageParams, CoverageReport, cover_queries};
 pub use kernels::{
     KernelError, KernelParams, KernelWindow, Kernels, farthest_point_sampling, place_kernels,
 };
 pub use point_cloud::{GaussianSplatAttributes, PointCloud};
 pub use shape_functions::{
     ReproducingErrors, ShapeFunctionError, ShapeFunctionParams, ShapeFunctions,
-    evaluate_shape_functions, shape_function_values_unshifted,
+    evaluate_shape_functions, shape_function_values_unshifted, singular_queries,
 };
 pub use spatial_index::SpatialIndex;
 pub use surface_distance::{ClosestPoint, SurfaceDistance};

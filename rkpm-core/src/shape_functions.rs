@@ -259,6 +259,62 @@ pub fn evaluate_shape_functions(
     queries: &[Vector3<f64>],
     params: &ShapeFunctionParams,
 ) -> Result<ShapeFunctions, ShapeFunctionError> {
+    let per_point: Vec<PointShapeFunctions> = evaluate_each(kernels, queries, params)?
+        .into_iter()
+        .collect::<Result<_, _>>()?;
+    let mut offsets = Vec::with_capacity(queries.len() + 1);
+    offsets.push(0);
+    let nnz: usize = per_point.iter().map(|p| p.kernels.len()).sum();
+    let (mut kernel_indices, mut values, mut gradients) = (
+        Vec::with_capacity(nnz),
+        Vec::with_capacity(nnz),
+        Vec::with_capacity(nnz),
+    );
+    for p in per_point {
+        kernel_indices.extend(p.kernels);
+        values.extend(p.values);
+        gradients.extend(p.gradients);
+        offsets.push(values.len());
+    }
+    Ok(ShapeFunctions {
+        offsets,
+        kernel_indices,
+        values,
+        gradients,
+        kernel_count: kernels.len(),
+    })
+}
+
+/// Every query point at which the moment matrix M(X) is singular or too ill-conditioned (the
+/// points [`evaluate_shape_functions`] rejects), each as its
+/// [`ShapeFunctionError::SingularMomentMatrix`], in increasing point order; empty when the
+/// shape functions exist everywhere.
+///
+/// # Errors
+/// [`ShapeFunctionError::NonFiniteQuery`]; [`ShapeFunctionError::InvalidParameter`].
+pub fn singular_queries(
+    kernels: &Kernels,
+    queries: &[Vector3<f64>],
+    params: &ShapeFunctionParams,
+) -> Result<Vec<ShapeFunctionError>, ShapeFunctionError> {
+    let mut singular = Vec::new();
+    for point in evaluate_each(kernels, queries, params)? {
+        match point {
+            Ok(_) => {}
+            Err(e @ ShapeFunctionError::SingularMomentMatrix { .. }) => singular.push(e),
+            Err(e) => return Err(e),
+        }
+    }
+    Ok(singular)
+}
+
+/// The shape functions at each query point (parallel over points), or why they do not exist
+/// there; the outer error is a parameter out of range.
+fn evaluate_each(
+    kernels: &Kernels,
+    queries: &[Vector3<f64>],
+    params: &ShapeFunctionParams,
+) -> Result<Vec<Result<PointShapeFunctions, ShapeFunctionError>>, ShapeFunctionError> {
     for (name, value) in [
         ("cutoff", params.cutoff),
         ("min_reciprocal_condition", params.min_reciprocal_condition),
@@ -270,7 +326,7 @@ pub fn evaluate_shape_functions(
     let index = SpatialIndex::new(kernels.centers());
     let cutoff = params.cutoff.min(params.window.support());
     let search_radius = cutoff * kernels.radii().iter().copied().fold(0.0, f64::max);
-    let per_point: Vec<PointShapeFunctions> = queries
+    Ok(queries
         .par_iter()
         .enumerate()
         .map(|(i, x)| {
@@ -300,30 +356,7 @@ pub fn evaluate_shape_functions(
                 }
             })
         })
-        .collect::<Vec<_>>()
-        .into_iter()
-        .collect::<Result<_, _>>()?;
-    let mut offsets = Vec::with_capacity(queries.len() + 1);
-    offsets.push(0);
-    let nnz: usize = per_point.iter().map(|p| p.kernels.len()).sum();
-    let (mut kernel_indices, mut values, mut gradients) = (
-        Vec::with_capacity(nnz),
-        Vec::with_capacity(nnz),
-        Vec::with_capacity(nnz),
-    );
-    for p in per_point {
-        kernel_indices.extend(p.kernels);
-        values.extend(p.values);
-        gradients.extend(p.gradients);
-        offsets.push(values.len());
-    }
-    Ok(ShapeFunctions {
-        offsets,
-        kernel_indices,
-        values,
-        gradients,
-        kernel_count: kernels.len(),
-    })
+        .collect())
 }
 
 /// The shifted-and-scaled evaluation at one point; `Err((kernels in reach, rcond))` when the

@@ -67,6 +67,7 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
             &params,
             std::slice::from_ref(&region),
             &RegionConstraintParams::default(),
+            &[],
         )?;
         let mut radii = basis.kernels().radii().to_vec();
         radii.sort_by(f64::total_cmp);

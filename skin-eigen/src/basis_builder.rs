@@ -6,8 +6,9 @@ use std::time::Instant;
 use hyperelastic::LameParameters;
 use nalgebra::{DMatrix, Vector3};
 use rkpm_core::{
-    IntegrationPoints, KernelError, KernelParams, ShapeFunctionError, ShapeFunctionParams,
-    evaluate_shape_functions, place_kernels,
+    CoverageParams, CoverageReport, IntegrationPoints, KernelError, KernelParams,
+    ShapeFunctionError, ShapeFunctionParams, cover_queries, evaluate_shape_functions,
+    place_kernels,
 };
 use serde::{Deserialize, Serialize};
 
@@ -61,6 +62,11 @@ pub struct BasisParams {
     pub eigen: EigenParams,
     /// Dense or iterative eigen solve.
     pub solver: EigenSolverChoice,
+    /// Widening of the kernels nearest an integration point where the shape functions do not
+    /// exist ([`cover_queries`]; default 8 rounds of ×1.25, `max_rounds: 0` for the paper's
+    /// kernels as placed). A basis buildable without it is not changed by it.
+    #[serde(default)]
+    pub coverage: CoverageParams,
 }
 
 impl BasisParams {
@@ -80,7 +86,7 @@ impl BasisParams {
 /// Seconds spent in each phase of basis construction.
 #[derive(Clone, Copy, Debug, Default, PartialEq, Serialize, Deserialize)]
 pub struct PhaseTimings {
-    /// Farthest point sampling and radii.
+    /// Farthest point sampling and radii (with any widening, [`BasisParams::coverage`]).
     pub kernel_placement: f64,
     /// Shape functions and gradients at the integration points.
     pub shape_functions: f64,
@@ -108,6 +114,9 @@ pub struct BasisReport {
     pub integration_points: usize,
     /// Mean kernels reaching an integration point.
     pub mean_kernels_per_point: f64,
+    /// Kernels widened where the shape functions did not exist ([`BasisParams::coverage`]).
+    #[serde(default)]
+    pub coverage: CoverageReport,
     /// `λ_max(𝓜)/λ_min(𝓜)` (NaN for the iterative solver, which does not compute it).
     pub mass_condition_number: f64,
     /// Near-null mass directions discarded (dense solver).
@@ -177,7 +186,7 @@ pub fn build_basis(
     materials: &[LameParameters],
     params: &BasisParams,
 ) -> Result<(SkinningBasis, BasisReport, AssembledMatrices), BasisError> {
-    build(points, materials, params, None)
+    build(points, materials, params, None, &[])
 }
 
 /// [`build_basis`] for an object with R exactly held regions (issue 25): the basis carries one
@@ -186,10 +195,16 @@ pub fn build_basis(
 /// every region ([`crate::solve_constrained_modes`]), so each region moves by the affine
 /// transform of its handles alone. `regions` holds, per region, the rest points (m) it must be
 /// held at: at least the simulation's integration points in the region (those the simulator
-/// checks), ideally also this assembly's points there.
+/// checks), ideally also this assembly's points there. `evaluated_at` lists the other point
+/// sets the basis will be evaluated at (simulation points, output vertices): the kernels are
+/// widened ([`BasisParams::coverage`]) so that the shape functions exist at them and at
+/// `points` alike (region points drawn from these sets are then covered too; one outside the
+/// kernels' reach is [`RegionError::ShapeFunctions`]).
 ///
 /// # Errors
-/// [`BasisError`] as for [`build_basis`]; [`BasisError::Regions`] for empty regions, region
+/// [`BasisError`] as for [`build_basis`] (a point where the shape functions do not exist even
+/// after widening is numbered through `points` and then `evaluated_at`, and named by its
+/// position); [`BasisError::Regions`] for empty regions, region
 /// points out of the kernels' reach and regions the kernels cannot separate;
 /// [`BasisError::RegionsNeedDenseSolver`] when the options select the iterative solver.
 pub fn build_basis_with_regions(
@@ -198,8 +213,15 @@ pub fn build_basis_with_regions(
     params: &BasisParams,
     regions: &[Vec<Vector3<f64>>],
     region_params: &RegionConstraintParams,
+    evaluated_at: &[&[Vector3<f64>]],
 ) -> Result<(SkinningBasis, BasisReport, AssembledMatrices), BasisError> {
-    build(points, materials, params, Some((regions, region_params)))
+    build(
+        points,
+        materials,
+        params,
+        Some((regions, region_params)),
+        evaluated_at,
+    )
 }
 
 fn build(
@@ -207,10 +229,18 @@ fn build(
     materials: &[LameParameters],
     params: &BasisParams,
     regions: Option<(&[Vec<Vector3<f64>>], &RegionConstraintParams)>,
+    evaluated_at: &[&[Vector3<f64>]],
 ) -> Result<(SkinningBasis, BasisReport, AssembledMatrices), BasisError> {
     let mut timings = PhaseTimings::default();
     let t = Instant::now();
-    let kernels = place_kernels(points.positions(), &params.kernels)?;
+    let placed = place_kernels(points.positions(), &params.kernels)?;
+    let covered: Vec<Vector3<f64>> = std::iter::once(points.positions())
+        .chain(evaluated_at.iter().copied())
+        .flatten()
+        .copied()
+        .collect();
+    let (kernels, coverage) =
+        cover_queries(&placed, &covered, &params.shape_functions, &params.coverage)?;
     timings.kernel_placement = t.elapsed().as_secs_f64();
 
     let t = Instant::now();
@@ -295,6 +325,7 @@ fn build(
         kernels: kernels.len(),
         integration_points: points.len(),
         mean_kernels_per_point: shape.mean_kernels_per_point(),
+        coverage,
         mass_condition_number: solution.mass_condition_number,
         discarded_mass_directions: solution.discarded_mass_directions,
         eigen_relative_residual: solution.max_relative_residual,

@@ -317,3 +317,48 @@ fn weight_space_assembly_is_bit_identical_on_one_and_three_threads() {
     // Dense and sparse agree (same sums, different storage).
     assert!(one.0.mass == one.1 && one.0.hessian == one.2);
 }
+
+#[test]
+fn a_thin_plate_with_compact_kernels_gets_a_basis_by_widening_them_and_names_the_point_without() {
+    use rkpm_core::{CoverageParams, KernelWindow, ShapeFunctionError};
+    use skin_eigen::BasisError;
+    // Two layers of points (spacing 0.05 m in a plate 0.1 m thick) and cubic B-spline kernels
+    // (support 2 r): some points see only kernels in one plane.
+    let points = sample_box_grid(Vector3::zeros(), Vector3::new(2.0, 2.0, 0.1), 0.05).unwrap();
+    let materials = vec![lame(); points.len()];
+    let mut compact = params(200, 6);
+    compact.shape_functions.window = KernelWindow::CubicBSpline;
+    compact.kernels.radius_scale = 0.6;
+    compact.kernels.min_radius_factor = 1.0;
+    let as_placed = BasisParams {
+        coverage: CoverageParams {
+            max_rounds: 0,
+            ..CoverageParams::default()
+        },
+        ..compact
+    };
+    let Err(error) = build_basis(&points, &materials, &as_placed) else {
+        panic!("the plate must have points the compact kernels as placed leave singular")
+    };
+    assert!(
+        matches!(
+            error,
+            BasisError::ShapeFunctions(ShapeFunctionError::SingularMomentMatrix { .. })
+        ),
+        "{error}"
+    );
+
+    let (basis, report, _) = build_basis(&points, &materials, &compact).unwrap();
+    assert!(
+        report.coverage.singular_points > 0 && report.coverage.widened_kernels > 0,
+        "{:?}",
+        report.coverage
+    );
+    assert!(report.orthonormality_error < 1e-8, "{report:?}");
+    assert_eq!(basis.modes(), 6);
+
+    // The beam's Gaussian kernels cover every point: nothing is widened.
+    let beam = beam_points(0.25);
+    let (_, report, _) = build_basis(&beam, &vec![lame(); beam.len()], &params(100, 6)).unwrap();
+    assert_eq!(report.coverage, rkpm_core::CoverageReport::default());
+}

@@ -120,6 +120,7 @@ fn a_basis_with_held_regions_evaluates_constant_region_weights_then_vanishing_mo
         &params(),
         &at(&points, &regions),
         &RegionConstraintParams::default(),
+        &[],
     )
     .unwrap();
     assert!(matches!(matrices, AssembledMatrices::Dense(_)));
@@ -158,6 +159,7 @@ fn bad_regions_are_named() {
             &params(),
             &at(&points, regions),
             &RegionConstraintParams::default(),
+            &[],
         )
         .err()
     };
@@ -175,6 +177,7 @@ fn bad_regions_are_named() {
         &params(),
         &[vec![Vector3::new(50.0, 0.0, 0.0)]],
         &RegionConstraintParams::default(),
+        &[],
     );
     assert!(matches!(
         far,

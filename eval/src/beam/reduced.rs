@@ -323,7 +323,8 @@ pub fn exact_pin_hold(settings: &ReducedSettings, inset_radii: f64) -> Result<Pi
 
 /// The beam's basis for `test` under `settings`: [`build_beam_basis`] for the penalty; for
 /// exact holding, built for the test's held regions at the basis grid's and the simulation's
-/// points ([`PinHold::build_basis`]).
+/// points ([`PinHold::build_basis`]; no output points are passed: the box's kernels as placed
+/// reach its FEM vertices, and a vertex they did not reach would fail the run by name).
 ///
 /// # Errors
 /// [`EvalError::Basis`] from the builder, [`EvalError::Scene`] for a held region that holds no
@@ -345,6 +346,7 @@ pub fn build_beam_basis_for(
         &grid,
         &lame,
         points.positions(),
+        &[],
         settings.basis_params(),
     )?;
     Ok(BeamBasis {

@@ -21,7 +21,8 @@ use std::time::Instant;
 use baselines::{SIMPLICITS_FORMAT_VERSION, SimplicitsParams, TrainedSimplicits};
 use reduced_sim::{QuadratureRule, SimulationParams, SkinningField};
 use rkpm_core::{
-    GridSamplingParams, IntegrationPoints, TriangleMesh, read_triangle_mesh, sample_grid,
+    CoverageReport, GridSamplingParams, IntegrationPoints, TriangleMesh, read_triangle_mesh,
+    sample_grid,
 };
 use serde::{Deserialize, Serialize};
 use skin_eigen::{SkinningBasis, build_basis};
@@ -224,6 +225,10 @@ pub struct ShapeRow {
     /// without points).
     #[serde(default)]
     pub exact_error: Option<String>,
+    /// How the exact basis's compact kernels were widened to reach every point in a thin part
+    /// (`BasisReport::coverage`), when the exact basis was built.
+    #[serde(default)]
+    pub exact_kernel_coverage: Option<CoverageReport>,
     /// With [`ShapeStudyConfig::check_convergence`]: the normalized MSE (the table's metric)
     /// between this reference and the one on the 1.5× finer lattice, at this reference's
     /// vertices inside the finer mesh.
@@ -636,6 +641,7 @@ fn run_shape_into(
             simplicits: None,
             exact: None,
             exact_error: None,
+            exact_kernel_coverage: None,
             reference_change: None,
             reference_check_error: None,
             fem_mesh: None,
@@ -729,7 +735,10 @@ fn run_shape_into(
             row.region_points = region_points;
             if let Some(radii) = config.exact_pins {
                 match run_exact(&run, &ours, &basis_points, &lames, settings, radii) {
-                    Ok(scores) => row.exact = Some(scores),
+                    Ok((scores, coverage)) => {
+                        row.exact = Some(scores);
+                        row.exact_kernel_coverage = Some(coverage);
+                    }
                     Err(e) => row.exact_error = Some(failure_chain(&e)),
                 }
             }
@@ -805,7 +814,8 @@ fn reference_change(
 }
 
 /// `run` with its regions held exactly: the inset from `radii` times the median radius of
-/// `ours`' kernels, a basis built for the inset regions on `basis_points`, scored like ours.
+/// `ours`' kernels, a basis built for the inset regions on `basis_points`, scored like ours;
+/// with how that basis's kernels were widened.
 fn run_exact(
     run: &BoundaryRun<'_>,
     ours: &SkinningBasis,
@@ -813,18 +823,22 @@ fn run_exact(
     lames: &[LameParameters],
     settings: &ReducedSettings,
     radii: f64,
-) -> Result<MethodScores, EvalError> {
+) -> Result<(MethodScores, CoverageReport), EvalError> {
     let hold = PinHold::Exact {
         inset: radii * median_kernel_radius(ours.kernels()),
     };
-    let (basis, _) = hold.build_basis(
+    let (basis, report) = hold.build_basis(
         run.scene,
         basis_points,
         lames,
         run.points.positions(),
+        run.fem.vertices(),
         settings.basis_params(),
     )?;
-    Ok(run.score(&basis, "FreeForm exact", hold)?.0)
+    Ok((
+        run.score(&basis, "FreeForm exact", hold)?.0,
+        report.coverage,
+    ))
 }
 
 /// A grid of about `target` points inside `surface`.

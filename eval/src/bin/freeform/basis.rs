@@ -47,6 +47,17 @@ pub(crate) fn run(
     }
     basis.save(&save)?;
     let t = &report.timings;
+    let coverage = &report.coverage;
+    if coverage.widened_kernels > 0 {
+        println!(
+            "{} points had too few kernels around them (a thin part?): {} kernels widened, \
+             radii up to {:.2}× as placed, in {} rounds",
+            coverage.singular_points,
+            coverage.widened_kernels,
+            coverage.max_radius_growth,
+            coverage.rounds
+        );
+    }
     println!(
         "basis: m = {}, K = {}, N = {} points, {:.1} kernels/point\n\
          time: kernels {:.2} s, shape functions {:.2} s, assembly {:.2} s, eigen solve {:.2} s, total {:.2} s\n\
