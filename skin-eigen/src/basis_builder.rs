@@ -6,9 +6,9 @@ use std::time::Instant;
 use hyperelastic::LameParameters;
 use nalgebra::{DMatrix, Vector3};
 use rkpm_core::{
-    CoverageParams, CoverageReport, IntegrationPoints, KernelError, KernelParams,
-    ShapeFunctionError, ShapeFunctionParams, cover_queries, evaluate_shape_functions,
-    place_kernels,
+    CoverageParams, CoverageReport, IntegrationPoints, KernelError, KernelParams, Kernels,
+    ShapeFunctionError, ShapeFunctionParams, ShapeFunctions, cover_queries,
+    evaluate_shape_functions, place_kernels,
 };
 use serde::{Deserialize, Serialize};
 
@@ -86,9 +86,10 @@ impl BasisParams {
 /// Seconds spent in each phase of basis construction.
 #[derive(Clone, Copy, Debug, Default, PartialEq, Serialize, Deserialize)]
 pub struct PhaseTimings {
-    /// Farthest point sampling and radii (with any widening, [`BasisParams::coverage`]).
+    /// Farthest point sampling and radii.
     pub kernel_placement: f64,
-    /// Shape functions and gradients at the integration points.
+    /// Shape functions and gradients at the integration points (with any widening of the
+    /// kernels, [`BasisParams::coverage`]).
     pub shape_functions: f64,
     /// 𝓜 and H_w.
     pub assembly: f64,
@@ -234,17 +235,11 @@ fn build(
     let mut timings = PhaseTimings::default();
     let t = Instant::now();
     let placed = place_kernels(points.positions(), &params.kernels)?;
-    let covered: Vec<Vector3<f64>> = std::iter::once(points.positions())
-        .chain(evaluated_at.iter().copied())
-        .flatten()
-        .copied()
-        .collect();
-    let (kernels, coverage) =
-        cover_queries(&placed, &covered, &params.shape_functions, &params.coverage)?;
     timings.kernel_placement = t.elapsed().as_secs_f64();
 
     let t = Instant::now();
-    let shape = evaluate_shape_functions(&kernels, points.positions(), &params.shape_functions)?;
+    let (kernels, coverage, shape) =
+        shape_functions_covering(points, evaluated_at, placed, params)?;
     timings.shape_functions = t.elapsed().as_secs_f64();
 
     let iterative = match params.solver {
@@ -343,4 +338,31 @@ fn build(
         basis = basis.with_held_regions(region_coefficients);
     }
     Ok((basis, report, matrices))
+}
+
+/// The kernels (`placed`, widened where needed, [`cover_queries`]), what widening did, and the
+/// shape functions at `points`. Kernels as placed that reach every point of `points` with
+/// nothing else to cover take one evaluation, as before widening existed.
+fn shape_functions_covering(
+    points: &IntegrationPoints,
+    evaluated_at: &[&[Vector3<f64>]],
+    placed: Kernels,
+    params: &BasisParams,
+) -> Result<(Kernels, CoverageReport, ShapeFunctions), BasisError> {
+    let shape_params = &params.shape_functions;
+    if evaluated_at.is_empty() {
+        match evaluate_shape_functions(&placed, points.positions(), shape_params) {
+            Ok(shape) => return Ok((placed, CoverageReport::default(), shape)),
+            Err(ShapeFunctionError::SingularMomentMatrix { .. }) => {}
+            Err(e) => return Err(e.into()),
+        }
+    }
+    let covered: Vec<Vector3<f64>> = std::iter::once(points.positions())
+        .chain(evaluated_at.iter().copied())
+        .flatten()
+        .copied()
+        .collect();
+    let (kernels, coverage) = cover_queries(&placed, &covered, shape_params, &params.coverage)?;
+    let shape = evaluate_shape_functions(&kernels, points.positions(), shape_params)?;
+    Ok((kernels, coverage, shape))
 }
