@@ -8,7 +8,7 @@ use nalgebra::{DMatrix, Vector3};
 use rkpm_core::{
     CoverageParams, CoverageReport, IntegrationPoints, KernelError, KernelParams, Kernels,
     ShapeFunctionError, ShapeFunctionParams, ShapeFunctions, cover_queries,
-    evaluate_shape_functions, place_kernels,
+    evaluate_shape_functions, place_kernels, singular_queries,
 };
 use serde::{Deserialize, Serialize};
 
@@ -341,8 +341,8 @@ fn build(
 }
 
 /// The kernels (`placed`, widened where needed, [`cover_queries`]), what widening did, and the
-/// shape functions at `points`. Kernels as placed that reach every point of `points` with
-/// nothing else to cover take one evaluation, as before widening existed.
+/// shape functions at `points`. Kernels as placed that reach every point of `points` and of
+/// `evaluated_at` are kept after one evaluation at `points` and a check of the other sets.
 fn shape_functions_covering(
     points: &IntegrationPoints,
     evaluated_at: &[&[Vector3<f64>]],
@@ -350,12 +350,12 @@ fn shape_functions_covering(
     params: &BasisParams,
 ) -> Result<(Kernels, CoverageReport, ShapeFunctions), BasisError> {
     let shape_params = &params.shape_functions;
-    if evaluated_at.is_empty() {
-        match evaluate_shape_functions(&placed, points.positions(), shape_params) {
-            Ok(shape) => return Ok((placed, CoverageReport::default(), shape)),
-            Err(ShapeFunctionError::SingularMomentMatrix { .. }) => {}
-            Err(e) => return Err(e.into()),
+    match evaluate_shape_functions(&placed, points.positions(), shape_params) {
+        Ok(shape) if reaches_every_point(&placed, evaluated_at, shape_params) => {
+            return Ok((placed, CoverageReport::default(), shape));
         }
+        Ok(_) | Err(ShapeFunctionError::SingularMomentMatrix { .. }) => {}
+        Err(e) => return Err(e.into()),
     }
     let covered: Vec<Vector3<f64>> = std::iter::once(points.positions())
         .chain(evaluated_at.iter().copied())
@@ -365,4 +365,15 @@ fn shape_functions_covering(
     let (kernels, coverage) = cover_queries(&placed, &covered, shape_params, &params.coverage)?;
     let shape = evaluate_shape_functions(&kernels, points.positions(), shape_params)?;
     Ok((kernels, coverage, shape))
+}
+
+/// Whether the shape functions of `kernels` exist at every point of `sets` (any failure, a
+/// non-finite point included, is left to [`cover_queries`] to report).
+fn reaches_every_point(
+    kernels: &Kernels,
+    sets: &[&[Vector3<f64>]],
+    params: &ShapeFunctionParams,
+) -> bool {
+    sets.iter()
+        .all(|set| singular_queries(kernels, set, params).is_ok_and(|singular| singular.is_empty()))
 }
