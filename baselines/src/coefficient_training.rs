@@ -172,8 +172,9 @@ pub struct CoefficientTrainingReport {
     pub last: StepLosses,
 }
 
-/// Version written into saved coefficient models.
-pub const COEFFICIENTS_FORMAT_VERSION: u32 = 1;
+/// Version written into saved coefficient models (2: the shape-function options carry the
+/// reproduction tolerance).
+pub const COEFFICIENTS_FORMAT_VERSION: u32 = 2;
 const MAGIC: &[u8; 8] = b"FFCOEFF\0";
 
 /// A trained basis with what produced it, as saved and cached.

@@ -8,7 +8,10 @@
 //! kernels reach each point. [`cover_queries`] widens the kernels nearest each such point until
 //! every point is covered (a wider kernel only adds positive terms to `M(X)`; every point is
 //! checked again after each round all the same). Linear fields are still reproduced exactly at
-//! every point, since the correction of Eq. 9 is computed with whatever kernels reach it.
+//! every point, since the correction of Eq. 9 is computed with whatever kernels reach it. A
+//! point whose `M(X)` passes the condition estimate but whose functions reproduce linear fields
+//! only approximately (nearly singular, [`ShapeFunctionError::InaccurateReproduction`]) counts
+//! as uncovered and is widened around too.
 //! Where nothing is singular the kernels are returned as placed, so a basis that could be built
 //! before does not change.
 //!
@@ -46,7 +49,8 @@ impl Default for CoverageParams {
 /// What [`cover_queries`] did.
 #[derive(Clone, Copy, Debug, PartialEq, Serialize, Deserialize)]
 pub struct CoverageReport {
-    /// Query points whose moment matrix was singular with the kernels as placed.
+    /// Query points whose moment matrix was singular (or whose functions were inaccurate) with
+    /// the kernels as placed.
     pub singular_points: usize,
     /// Rounds of widening run (0 when every point was covered).
     pub rounds: usize,
@@ -69,13 +73,15 @@ impl Default for CoverageReport {
 
 /// `kernels` with radii enlarged until the shape functions exist at every query point.
 ///
-/// Each round finds the points where `M(X)` is singular ([`singular_queries`]) and multiplies by
+/// Each round finds the points where `M(X)` is singular or the functions inaccurate
+/// ([`singular_queries`]) and multiplies by
 /// `growth` the radius of the `nearest_kernels` kernels nearest each one; centres and K do not
 /// change. Postcondition: [`crate::evaluate_shape_functions`] succeeds on `queries` with the
 /// returned kernels and `shape`.
 ///
 /// # Errors
-/// [`ShapeFunctionError::SingularMomentMatrix`] for the first point still singular after
+/// [`ShapeFunctionError::SingularMomentMatrix`] (or
+/// [`ShapeFunctionError::InaccurateReproduction`]) for the first point still uncovered after
 /// `max_rounds` rounds (e.g. a flat cloud, whose kernels all lie in one plane whatever their
 /// radius); [`ShapeFunctionError::InvalidParameter`] for `growth` ≤ 1 or not finite, or
 /// `nearest_kernels` = 0 while `max_rounds` > 0; [`ShapeFunctionError::NonFiniteQuery`].
@@ -112,11 +118,12 @@ pub fn cover_queries(
             return Err(first.clone());
         }
         let mut grow = vec![false; radii.len()];
-        for error in &singular {
-            if let ShapeFunctionError::SingularMomentMatrix { point, .. } = error {
-                for (k, _) in index.nearest(&queries[*point], params.nearest_kernels) {
-                    grow[k] = true;
-                }
+        for point in singular
+            .iter()
+            .filter_map(ShapeFunctionError::uncovered_point)
+        {
+            for (k, _) in index.nearest(&queries[point], params.nearest_kernels) {
+                grow[k] = true;
             }
         }
         for (r, _) in radii.iter_mut().zip(&grow).filter(|(_, g)| **g) {

@@ -3,10 +3,14 @@
 
 use nalgebra::Vector3;
 use proptest::prelude::*;
+use proptest::test_runner::RngSeed;
+use rand::{Rng, SeedableRng};
+use rand_chacha::ChaCha8Rng;
 use rkpm_core::{
-    GridSamplingParams, IntegrationPoints, KernelParams, KernelWindow, Kernels, ShapeFunctionError,
-    ShapeFunctionParams, ShapeFunctions, evaluate_shape_functions, place_kernels,
-    read_triangle_mesh, sample_box_grid, sample_grid, shape_function_values_unshifted,
+    CoverageParams, GridSamplingParams, IntegrationPoints, KernelParams, KernelWindow, Kernels,
+    ShapeFunctionError, ShapeFunctionParams, ShapeFunctions, cover_queries,
+    evaluate_shape_functions, place_kernels, read_triangle_mesh, sample_box_grid, sample_grid,
+    shape_function_values_unshifted,
 };
 use test_support::fixtures::shared_mesh;
 
@@ -67,6 +71,9 @@ proptest! {
             // must be reported, and the report must be true.
             Err(ShapeFunctionError::SingularMomentMatrix { kernels_in_reach, reciprocal_condition, .. }) => {
                 prop_assert!(kernels_in_reach < 4 || reciprocal_condition < 1e-12);
+            }
+            Err(ShapeFunctionError::InaccurateReproduction { reproducing_error, .. }) => {
+                prop_assert!(!(reproducing_error <= 1e-6));
             }
             Err(e) => prop_assert!(false, "unexpected error {e}"),
         }
@@ -322,4 +329,87 @@ fn cutoff_changes_values_by_the_truncated_tail_only() {
         previous_density = shape.mean_kernels_per_point();
     }
     assert!(previous_error < 1e-4, "cutoff 4 vs 6: {previous_error:e}");
+}
+
+/// The cubic B-spline window (support 2 r).
+fn compact() -> ShapeFunctionParams {
+    ShapeFunctionParams {
+        window: KernelWindow::CubicBSpline,
+        ..ShapeFunctionParams::default()
+    }
+}
+
+/// A sparse random layout in the box [0, 2]³ from `seed`: 30–80 compact kernels of one radius
+/// 0.2–0.6 m and 400 query points.
+fn sparse_layout(seed: u64) -> (Kernels, Vec<Vector3<f64>>) {
+    let mut rng = ChaCha8Rng::seed_from_u64(seed);
+    let count = rng.random_range(30..80);
+    let radius = rng.random_range(0.2..0.6);
+    let point = |rng: &mut ChaCha8Rng| Vector3::from_fn(|_, _| rng.random_range(0.0..2.0));
+    let centers = (0..count).map(|_| point(&mut rng)).collect();
+    let queries = (0..400).map(|_| point(&mut rng)).collect();
+    (Kernels::new(centers, vec![radius; count]).unwrap(), queries)
+}
+
+/// Seed 37 of [`sparse_layout`], widened until the moment matrix passes the condition estimate
+/// everywhere (the reproduction check relaxed), leaves a point whose functions reproduce
+/// linear fields only to ~1e-2: it is reported, with the violation it has, and covering with
+/// the check on widens it away.
+#[test]
+fn a_point_that_passes_the_condition_estimate_but_reproduces_poorly_is_reported_and_widened() {
+    let (kernels, queries) = sparse_layout(37);
+    let lax = ShapeFunctionParams {
+        max_reproducing_error: 1e3,
+        ..compact()
+    };
+    let (estimate_only, _) =
+        cover_queries(&kernels, &queries, &lax, &CoverageParams::default()).unwrap();
+    let error = evaluate_shape_functions(&estimate_only, &queries, &compact()).unwrap_err();
+    let ShapeFunctionError::InaccurateReproduction {
+        point,
+        reproducing_error,
+        ..
+    } = error
+    else {
+        panic!("expected an inaccurate point, got {error}");
+    };
+    assert!(reproducing_error > 1e-4, "{reproducing_error:e}");
+    // The report is true: the functions the lax check returns there violate the conditions
+    // by as much (in the global length 1 m, up to the local length's factor).
+    let at_point = &queries[point..=point];
+    let functions = evaluate_shape_functions(&estimate_only, at_point, &lax).unwrap();
+    let violation = functions
+        .reproducing_errors(&estimate_only, at_point, 1.0)
+        .max();
+    assert!(violation > 1e-5, "{violation:e}");
+
+    let (covered, report) =
+        cover_queries(&kernels, &queries, &compact(), &CoverageParams::default()).unwrap();
+    assert!(report.widened_kernels > 0);
+    let functions = evaluate_shape_functions(&covered, &queries, &compact()).unwrap();
+    let errors = functions.reproducing_errors(&covered, &queries, 1.0);
+    assert!(errors.max() < 1e-6, "{errors:?}");
+}
+
+proptest! {
+    #![proptest_config(ProptestConfig {
+        cases: 48,
+        rng_seed: RngSeed::Fixed(19),
+        ..ProptestConfig::default()
+    })]
+
+    /// Sparse random layouts of compact kernels, widened to cover random query points: every
+    /// point's functions reproduce linear fields to round-off, or covering names a point.
+    #[test]
+    fn covered_random_layouts_reproduce_linear_fields_at_every_point(seed in 0u64..1_000_000) {
+        let (kernels, queries) = sparse_layout(seed);
+        match cover_queries(&kernels, &queries, &compact(), &CoverageParams::default()) {
+            Ok((covered, _)) => {
+                let functions = evaluate_shape_functions(&covered, &queries, &compact()).unwrap();
+                let errors = functions.reproducing_errors(&covered, &queries, 1.0);
+                prop_assert!(errors.max() < 1e-5, "{errors:?}");
+            }
+            Err(error) => prop_assert!(error.uncovered_point().is_some(), "{error}"),
+        }
+    }
 }

@@ -354,7 +354,8 @@ fn shape_functions_covering(
         Ok(shape) if reaches_every_point(&placed, evaluated_at, shape_params) => {
             return Ok((placed, CoverageReport::default(), shape));
         }
-        Ok(_) | Err(ShapeFunctionError::SingularMomentMatrix { .. }) => {}
+        Ok(_) => {}
+        Err(e) if e.uncovered_point().is_some() => {}
         Err(e) => return Err(e.into()),
     }
     let covered: Vec<Vector3<f64>> = std::iter::once(points.positions())

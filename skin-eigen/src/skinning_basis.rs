@@ -11,8 +11,9 @@ use serde::{Deserialize, Serialize};
 /// File magic of a saved basis.
 const MAGIC: [u8; 8] = *b"FFBASIS\0";
 /// Format version; bump on any change of [`SkinningBasis`]'s serialized layout (2: the
-/// shape-function options carry the kernel window; 3: region weights for exactly held regions).
-pub const BASIS_FORMAT_VERSION: u32 = 3;
+/// shape-function options carry the kernel window; 3: region weights for exactly held regions;
+/// 4: the shape-function options carry the reproduction tolerance).
+pub const BASIS_FORMAT_VERSION: u32 = 4;
 
 /// Saving or loading a basis failed.
 #[derive(Debug, thiserror::Error)]
