@@ -115,7 +115,8 @@ pub struct BasisReport {
     pub integration_points: usize,
     /// Mean kernels reaching an integration point.
     pub mean_kernels_per_point: f64,
-    /// Kernels widened where the shape functions did not exist ([`BasisParams::coverage`]).
+    /// Kernels widened where the shape functions did not exist, or missed the reproducing
+    /// conditions ([`BasisParams::coverage`]).
     #[serde(default)]
     pub coverage: CoverageReport,
     /// `λ_max(𝓜)/λ_min(𝓜)` (NaN for the iterative solver, which does not compute it).

@@ -50,7 +50,8 @@ pub(crate) fn run(
     let coverage = &report.coverage;
     if coverage.widened_kernels > 0 {
         println!(
-            "{} points had too few kernels around them (a thin part?): {} kernels widened, \
+            "{} points had too few kernels around them for exact linear reproduction (a thin \
+             part?): {} kernels widened, \
              radii up to {:.2}× as placed, in {} rounds",
             coverage.singular_points,
             coverage.widened_kernels,
