@@ -271,20 +271,18 @@ impl ShapeFunctions {
         );
         let mut e = ReproducingErrors::default();
         for (i, x) in queries.iter().enumerate() {
-            let (mut sum, mut first) = (0.0, Vector3::zeros());
-            let (mut grad_sum, mut grad_first) = (Vector3::zeros(), Matrix3::zeros());
-            for ((&k, &phi), g) in self
-                .kernels(i)
-                .iter()
-                .zip(self.values(i))
-                .zip(self.gradients(i))
-            {
-                let p = kernels.centers()[k as usize];
-                sum += phi;
-                first += p * phi;
-                grad_sum += g;
-                grad_first += p * g.transpose();
-            }
+            let ReproducingSums {
+                sum,
+                first,
+                grad_sum,
+                grad_first,
+            } = ReproducingSums::new(
+                &Vector3::zeros(),
+                kernels,
+                self.kernels(i),
+                self.values(i),
+                self.gradients(i),
+            );
             e.partition_of_unity = e.partition_of_unity.max((sum - 1.0).abs());
             e.linear = e.linear.max((first - x).norm() / length);
             e.gradient_sum = e.gradient_sum.max(grad_sum.norm() * length);
@@ -293,6 +291,42 @@ impl ShapeFunctions {
                 .max((grad_first - Matrix3::identity()).norm());
         }
         e
+    }
+}
+
+/// The sums of the four reproducing conditions at one point, the centres taken relative to an
+/// origin o: `Σϕ_k`, `Σϕ_k (p_k − o)`, `Σ∇ϕ_k`, `Σ(p_k − o)∇ϕ_kᵀ`.
+struct ReproducingSums {
+    sum: f64,
+    first: Vector3<f64>,
+    grad_sum: Vector3<f64>,
+    grad_first: Matrix3<f64>,
+}
+
+impl ReproducingSums {
+    /// The sums over the kernels `indices` with values `values` and gradients `gradients`.
+    fn new(
+        origin: &Vector3<f64>,
+        kernels: &Kernels,
+        indices: &[u32],
+        values: &[f64],
+        gradients: &[Vector3<f64>],
+    ) -> Self {
+        let (mut sum, mut first) = (0.0, Vector3::zeros());
+        let (mut grad_sum, mut grad_first) = (Vector3::zeros(), Matrix3::zeros());
+        for ((&k, &phi), g) in indices.iter().zip(values).zip(gradients) {
+            let d = kernels.centers()[k as usize] - origin;
+            sum += phi;
+            first += d * phi;
+            grad_sum += g;
+            grad_first += d * g.transpose();
+        }
+        ReproducingSums {
+            sum,
+            first,
+            grad_sum,
+            grad_first,
+        }
     }
 }
 
@@ -310,15 +344,12 @@ impl PointShapeFunctions {
     /// length `s` and with centres taken relative to `x` (module docs).
     fn reproducing_error(&self, x: &Vector3<f64>, kernels: &Kernels) -> f64 {
         let s = self.local_length;
-        let (mut sum, mut first) = (0.0, Vector3::zeros());
-        let (mut grad_sum, mut grad_first) = (Vector3::zeros(), Matrix3::zeros());
-        for ((&k, &phi), g) in self.kernels.iter().zip(&self.values).zip(&self.gradients) {
-            let d = kernels.centers()[k as usize] - x;
-            sum += phi;
-            first += d * phi;
-            grad_sum += g;
-            grad_first += d * g.transpose();
-        }
+        let ReproducingSums {
+            sum,
+            first,
+            grad_sum,
+            grad_first,
+        } = ReproducingSums::new(x, kernels, &self.kernels, &self.values, &self.gradients);
         let errors = [
             (sum - 1.0).abs(),
             first.norm() / s,
