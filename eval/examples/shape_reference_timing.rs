@@ -9,7 +9,7 @@
 //!     ../shared/data/meshes/bunny.obj --boundary fix-side --steps 10 --tangent projected
 //! ```
 //! Options: `--boundary fix-side|pull-farthest|pull-boundary` (default fix-side), `--steps N`
-//! (default 40, the tables'), `--tangent projected|exact-when-definite` (default the mesher
+//! (default 40, the tables'), `--tangent projected|exact-when-definite|exact-else-absolute` (default the mesher
 //! choice's: exact-when-definite graded, projected uniform), `--ordering
 //! amd|nested-dissection|smaller-factor` (the factorization's elimination order, default the
 //! smaller factor of the two),
@@ -53,6 +53,7 @@ enum Condition {
 enum TangentArg {
     Projected,
     ExactWhenDefinite,
+    ExactElseAbsolute,
 }
 
 #[derive(Clone, Copy, Debug, clap::ValueEnum)]
@@ -204,6 +205,7 @@ fn main() -> Result<()> {
         None => params.tangent,
         Some(TangentArg::Projected) => HessianTangent::ProjectedPsd,
         Some(TangentArg::ExactWhenDefinite) => HessianTangent::ExactWhenDefinite,
+        Some(TangentArg::ExactElseAbsolute) => HessianTangent::ExactElseAbsolute,
     };
     let (mut sim, _) = FemProblem {
         tets,

@@ -336,6 +336,7 @@ impl<M: HyperelasticMaterial> FemModel<M> {
             let d: Matrix9 = match tangent {
                 Tangent::Exact => self.material.stress_derivative(lame, &f),
                 Tangent::ProjectedPsd => self.material.projected_stress_derivative(lame, &f),
+                Tangent::AbsoluteEigenvalues => self.material.absolute_stress_derivative(lame, &f),
             } * w;
             // Y_b[(3k + i), j] = Σ_l D[(3k + i), (3l + j)] ∇N_b[l]; K_ab[i][j] = Σ_k ∇N_a[k] Y_b.
             for (b, gb) in grads.iter().enumerate() {

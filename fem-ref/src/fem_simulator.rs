@@ -41,7 +41,10 @@ pub struct FemParams {
     /// Element tangent (default PSD-projected, the references' setting; `Exact` is only safe
     /// while the system stays positive definite, and a failed factorization is then reported;
     /// `ExactWhenDefinite` assembles the exact Hessian and the projected one only when the
-    /// exact one fails to factor, which converges in fewer iterations at large rotations).
+    /// exact one fails to factor, which converges in fewer iterations at large rotations;
+    /// `ExactElseAbsolute` falls back to the absolute-eigenvalue tangent instead: on the
+    /// Twist beam 182 instead of 189 Newton iterations, on the soft skull's Fix side sag (10
+    /// cells, 65k P2 DOFs, steps 1–33) 398 instead of 276, one step 151 instead of 42).
     pub tangent: HessianTangent,
     /// Elimination order of the sparse Cholesky factorization (default: nested dissection or
     /// minimum degree, whichever leaves the smaller factor).
@@ -902,8 +905,8 @@ impl<M: HyperelasticMaterial> FemSimulator<M> {
 struct StepObjective<'a, M: HyperelasticMaterial> {
     sim: &'a FemSimulator<M>,
     problem: StepProblem<'a>,
-    /// Where the last exact Hessian was assembled, for the projected one a failed
-    /// factorization falls back to ([`HessianTangent::ExactWhenDefinite`]).
+    /// Where the last exact Hessian was assembled, for the definite one a failed
+    /// factorization falls back to ([`HessianTangent::fallback`]).
     exact_at: Mutex<Option<Vec<f64>>>,
 }
 
@@ -932,7 +935,7 @@ impl<M: HyperelasticMaterial> NewtonObjective for StepObjective<'_, M> {
     fn gradient_and_hessian(&self, x: &[f64], gradient: Option<Vec<f64>>) -> (Vec<f64>, Vec<f64>) {
         let gradient = gradient.unwrap_or_else(|| self.gradient(x));
         let tangent = self.sim.params.tangent;
-        if tangent == HessianTangent::ExactWhenDefinite {
+        if tangent.fallback().is_some() {
             *self.exact_at.lock().unwrap_or_else(PoisonError::into_inner) = Some(x.to_vec());
         }
         (
@@ -943,16 +946,17 @@ impl<M: HyperelasticMaterial> NewtonObjective for StepObjective<'_, M> {
 
     fn factor(&self, values: Vec<f64>) -> Option<Self::Factor> {
         let factor = self.sim.system.factorize(&values);
-        if factor.is_some() || self.sim.params.tangent != HessianTangent::ExactWhenDefinite {
+        let fallback = self.sim.params.tangent.fallback();
+        let Some(fallback) = fallback.filter(|_| factor.is_none()) else {
             return factor;
-        }
+        };
         let x = self
             .exact_at
             .lock()
             .unwrap_or_else(PoisonError::into_inner)
             .take()?;
-        let projected = self.sim.hessian(&self.problem, &x, Tangent::ProjectedPsd);
-        self.sim.system.factorize(&projected)
+        let definite = self.sim.hessian(&self.problem, &x, fallback);
+        self.sim.system.factorize(&definite)
     }
 
     fn solve(&self, factor: &Self::Factor, gradient: &[f64]) -> Vec<f64> {

@@ -8,7 +8,9 @@
 //! equilibrium. [`HessianTangent::ExactWhenDefinite`] takes the exact Hessian of the whole step
 //! (inertia included, which usually makes it definite) and projects only when its Cholesky
 //! factorization fails: the "projection on demand" of Longva et al., *Pitfalls of Projection*
-//! (2023). Measurements: `reduced_sim::hessian_tangent`, `fem_ref::FemParams::tangent`.
+//! (2023). [`HessianTangent::ExactElseAbsolute`] falls back to the absolute-eigenvalue tangent
+//! instead ([`Tangent::AbsoluteEigenvalues`], Chen et al. 2024), which keeps the curvature the
+//! projection drops. Measurements: `reduced_sim::hessian_tangent`, `fem_ref::FemParams::tangent`.
 
 use serde::{Deserialize, Serialize};
 
@@ -34,6 +36,15 @@ pub enum HessianTangent {
     #[default]
     #[serde(rename = "ExactWhenDefinite", alias = "exact_when_definite")]
     ExactWhenDefinite,
+    /// Every point's `∂P/∂F` with its eigenvalues replaced by their absolute values
+    /// ([`Tangent::AbsoluteEigenvalues`], Chen et al. 2024): positive semidefinite like the
+    /// projection, closer to the exact tangent where points are compressed.
+    #[serde(rename = "AbsoluteEigenvalues", alias = "absolute_eigenvalues")]
+    AbsoluteEigenvalues,
+    /// As [`HessianTangent::ExactWhenDefinite`], but where the exact Hessian fails to factor
+    /// the absolute-eigenvalue one is used instead of the projected one.
+    #[serde(rename = "ExactElseAbsolute", alias = "exact_else_absolute")]
+    ExactElseAbsolute,
 }
 
 impl HessianTangent {
@@ -41,7 +52,24 @@ impl HessianTangent {
     pub fn first_try(self) -> Tangent {
         match self {
             HessianTangent::ProjectedPsd => Tangent::ProjectedPsd,
-            HessianTangent::Exact | HessianTangent::ExactWhenDefinite => Tangent::Exact,
+            HessianTangent::AbsoluteEigenvalues => Tangent::AbsoluteEigenvalues,
+            HessianTangent::Exact
+            | HessianTangent::ExactWhenDefinite
+            | HessianTangent::ExactElseAbsolute => Tangent::Exact,
+        }
+    }
+
+    /// The tangent assembled again when the first one's Newton system fails to factor: the
+    /// projected one for [`HessianTangent::ExactWhenDefinite`], the absolute-eigenvalue one for
+    /// [`HessianTangent::ExactElseAbsolute`], `None` where a failed factorization is an error
+    /// (exact) or cannot happen (the positive semidefinite tangents, with inertia).
+    pub fn fallback(self) -> Option<Tangent> {
+        match self {
+            HessianTangent::ExactWhenDefinite => Some(Tangent::ProjectedPsd),
+            HessianTangent::ExactElseAbsolute => Some(Tangent::AbsoluteEigenvalues),
+            HessianTangent::ProjectedPsd
+            | HessianTangent::AbsoluteEigenvalues
+            | HessianTangent::Exact => None,
         }
     }
 }
@@ -51,6 +79,7 @@ impl From<Tangent> for HessianTangent {
         match tangent {
             Tangent::Exact => HessianTangent::Exact,
             Tangent::ProjectedPsd => HessianTangent::ProjectedPsd,
+            Tangent::AbsoluteEigenvalues => HessianTangent::AbsoluteEigenvalues,
         }
     }
 }

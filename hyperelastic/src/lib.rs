@@ -46,6 +46,6 @@ pub use material_checks::{
 };
 pub use material_sample::{MaterialField, MaterialFunction, MaterialSample, lame_parameters_of};
 pub use polar_rotation::polar_rotation;
-pub use psd_projection::project_to_psd;
+pub use psd_projection::{absolute_eigenvalues, project_to_psd};
 pub use signed_svd::SignedSvd;
 pub use stable_neo_hookean::StableNeoHookean;

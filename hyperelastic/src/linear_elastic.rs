@@ -51,4 +51,8 @@ impl HyperelasticMaterial for LinearElastic {
     fn projected_stress_derivative(&self, params: &LameParameters, f: &Matrix3<f64>) -> Matrix9 {
         self.stress_derivative(params, f)
     }
+
+    fn absolute_stress_derivative(&self, params: &LameParameters, f: &Matrix3<f64>) -> Matrix9 {
+        self.stress_derivative(params, f)
+    }
 }

@@ -5,7 +5,7 @@ use serde::{Deserialize, Serialize};
 
 use crate::determinant::Matrix9;
 use crate::lame_parameters::LameParameters;
-use crate::psd_projection::project_to_psd;
+use crate::psd_projection::{absolute_eigenvalues, project_to_psd};
 
 /// Which tangent a batch call returns.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, Deserialize)]
@@ -15,6 +15,11 @@ pub enum Tangent {
     /// Its projection onto the positive semi-definite cone (negative eigenvalues clamped to 0),
     /// what Newton's method needs.
     ProjectedPsd,
+    /// Its absolute value `Σ |λ_i| q_i q_iᵀ` (negative eigenvalues mirrored, not clamped):
+    /// positive semi-definite like the projection, but it keeps the curvature of a compressed or
+    /// buckling point instead of dropping it. Chen et al., *Stabler Neo-Hookean Simulation:
+    /// Absolute Eigenvalue Filtering for Projected Newton* (SIGGRAPH 2024).
+    AbsoluteEigenvalues,
 }
 
 /// A hyperelastic material: energy density Ψ(F) (J/m³ = Pa), first Piola-Kirchhoff stress
@@ -40,6 +45,13 @@ pub trait HyperelasticMaterial: Send + Sync {
     /// a numeric 9×9 eigendecomposition; materials with an analytic eigensystem override it.
     fn projected_stress_derivative(&self, params: &LameParameters, f: &Matrix3<f64>) -> Matrix9 {
         project_to_psd(&self.stress_derivative(params, f))
+    }
+
+    /// The tangent with its eigenvalues replaced by their absolute values,
+    /// `Σ |λ_i| q_i q_iᵀ` ([`Tangent::AbsoluteEigenvalues`]). The default mirrors the eigenvalues
+    /// of a numeric 9×9 eigendecomposition; materials with an analytic eigensystem override it.
+    fn absolute_stress_derivative(&self, params: &LameParameters, f: &Matrix3<f64>) -> Matrix9 {
+        absolute_eigenvalues(&self.stress_derivative(params, f))
     }
 
     /// Ψ at many points: `out[i] = Ψ(params[i], F[i])`.
@@ -69,7 +81,7 @@ pub trait HyperelasticMaterial: Send + Sync {
         }
     }
 
-    /// ∂P/∂F (exact or PSD-projected) at many points.
+    /// ∂P/∂F (exact, PSD-projected or with absolute eigenvalues) at many points.
     ///
     /// # Panics
     /// If the three slices differ in length.
@@ -85,6 +97,7 @@ pub trait HyperelasticMaterial: Send + Sync {
             *o = match tangent {
                 Tangent::Exact => self.stress_derivative(p, f),
                 Tangent::ProjectedPsd => self.projected_stress_derivative(p, f),
+                Tangent::AbsoluteEigenvalues => self.absolute_stress_derivative(p, f),
             };
         }
     }

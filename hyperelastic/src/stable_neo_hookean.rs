@@ -141,4 +141,12 @@ impl HyperelasticMaterial for StableNeoHookean {
             .map(|(l, q)| q * q.transpose() * *l)
             .sum()
     }
+
+    fn absolute_stress_derivative(&self, params: &LameParameters, f: &Matrix3<f64>) -> Matrix9 {
+        let pairs = self.eigensystem(params, f);
+        if pairs.iter().all(|(l, _)| *l >= 0.0) {
+            return self.stress_derivative(params, f);
+        }
+        pairs.iter().map(|(l, q)| q * q.transpose() * l.abs()).sum()
+    }
 }

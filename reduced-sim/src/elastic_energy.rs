@@ -403,6 +403,9 @@ mod tests {
             let d = match tangent {
                 Tangent::Exact => model.material().stress_derivative(lame, f),
                 Tangent::ProjectedPsd => model.material().projected_stress_derivative(lame, f),
+                Tangent::AbsoluteEigenvalues => {
+                    model.material().absolute_stress_derivative(lame, f)
+                }
             } * model.elastic_weights()[i];
             let g = map.gradient_block(i);
             for (r, q, s, t) in every_index_quadruple() {

@@ -18,6 +18,9 @@
 //! fresh Hessians: 125 → 46 ms/step) and 3.7 instead of 7.8 at m = 32 on the cubature (one
 //! unconverged step → none), the MSE equal to 4 digits (the two trajectories 1e-11 apart).
 //! Hence the default; [`HessianTangent::ProjectedPsd`] stays the paper's setting.
+//! [`HessianTangent::ExactElseAbsolute`] falls back to the absolute-eigenvalue tangent (Chen et
+//! al. 2024) instead of the projected one; it is not measured on the reduced simulator (on the
+//! FEM references it did not pay: `fem_ref::FemParams::tangent`).
 
 pub use hyperelastic::HessianTangent;
 

@@ -68,13 +68,14 @@ impl<M: HyperelasticMaterial> IncrementalPotential<'_, M> {
     /// `(∂E/∂z, ∂²E/∂z²)` at z (J, J; the Hessian 12(m+1) square, dense), the Hessian with
     /// the potential's [`HessianTangent`]: for [`HessianTangent::ExactWhenDefinite`] the exact
     /// one when it (restricted to the free coordinates) has a Cholesky factorization, else the
-    /// projected one (assembled again).
+    /// projected one (assembled again); likewise the absolute-eigenvalue one for
+    /// [`HessianTangent::ExactElseAbsolute`] ([`HessianTangent::fallback`]).
     pub fn derivatives(&self, z: &[f64]) -> (Vec<f64>, Mat<f64>) {
         let first = self.derivatives_with(z, self.tangent.first_try());
-        if self.tangent == HessianTangent::ExactWhenDefinite
+        if let Some(fallback) = self.tangent.fallback()
             && self.free_block(&first.1).llt(Side::Lower).is_err()
         {
-            return self.derivatives_with(z, Tangent::ProjectedPsd);
+            return self.derivatives_with(z, fallback);
         }
         first
     }
@@ -518,7 +519,7 @@ mod tests {
     }
 
     #[test]
-    fn exact_when_definite_takes_the_exact_hessian_where_it_factors_and_the_projected_elsewhere() {
+    fn exact_first_tangents_take_the_exact_hessian_where_it_factors_and_their_fallback_elsewhere() {
         let (model, _) = analytic_model();
         let scene = Scene {
             gravity: Some(Vector3::new(0.0, -9.8, 0.0)),
@@ -546,9 +547,10 @@ mod tests {
         let exact = hessian(HessianTangent::Exact, 1e4, &z);
         assert!(definite(&exact));
         assert_eq!(hessian(HessianTangent::ExactWhenDefinite, 1e4, &z), exact);
+        assert_eq!(hessian(HessianTangent::ExactElseAbsolute, 1e4, &z), exact);
         assert_ne!(hessian(HessianTangent::ProjectedPsd, 1e4, &z), exact);
         // Inverted points and almost no inertia: the exact system is indefinite, so the
-        // projected one is taken.
+        // fallback is taken: the projected one, or the absolute-eigenvalue one (which differs).
         let z = probe_z(len, 0.8);
         let exact = hessian(HessianTangent::Exact, 1e-6, &z);
         assert!(!definite(&exact));
@@ -556,6 +558,12 @@ mod tests {
         assert_eq!(
             hessian(HessianTangent::ExactWhenDefinite, 1e-6, &z),
             projected
+        );
+        let absolute = hessian(HessianTangent::AbsoluteEigenvalues, 1e-6, &z);
+        assert_ne!(absolute, projected);
+        assert_eq!(
+            hessian(HessianTangent::ExactElseAbsolute, 1e-6, &z),
+            absolute
         );
     }
 

@@ -21,8 +21,10 @@ use crate::scene_terms::{SceneError, SceneTerms};
 /// Minimizes `objective` from z (updated in place), carrying `factor` across when `newton`
 /// reuses Hessians. A solve that does not converge with the library's shortcuts (Hessian reuse,
 /// or the exact tangent where definite) is solved again from the same start in the paper's
-/// setting, fresh Hessians with the tangent projected at every point, so the shortcuts are
-/// never less robust than it (the report counts both attempts): chord steps can spend the
+/// setting, fresh Hessians with the tangent projected at every point (with the
+/// absolute-eigenvalue tangent for [`HessianTangent::ExactElseAbsolute`]: each tangent's
+/// [`HessianTangent::fallback`]), so the shortcuts are never less robust than it (the report
+/// counts both attempts): chord steps can spend the
 /// iteration budget Newton needs, and an exact Hessian can be definite yet a poor model far
 /// from the solution. One object's step ([`Simulator::step`]) and a group's
 /// ([`crate::MultiBodySimulator`]) both solve this way.
@@ -40,7 +42,7 @@ where
 {
     let reuse = newton.hessian_reuse != HessianReuse::Never;
     let tangents = objective.tangents();
-    let exact_first = tangents.contains(&HessianTangent::ExactWhenDefinite);
+    let exact_first = tangents.iter().any(|t| t.fallback().is_some());
     if !reuse && !exact_first {
         return Ok(minimize(&*objective, z, newton)?);
     }
@@ -61,10 +63,7 @@ where
     };
     let projected: Vec<HessianTangent> = tangents
         .iter()
-        .map(|&t| match t {
-            HessianTangent::ExactWhenDefinite => HessianTangent::ProjectedPsd,
-            other => other,
-        })
+        .map(|&t| t.fallback().map_or(t, HessianTangent::from))
         .collect();
     objective.set_tangents(&projected);
     let retried = minimize_reusing(&*objective, z, &paper, factor);

@@ -241,6 +241,8 @@ fn settings_lines(study: &ShapeStudy) -> String {
             HessianTangent::ProjectedPsd => "PSD-projected",
             HessianTangent::Exact => "exact",
             HessianTangent::ExactWhenDefinite => "exact (projected when not definite)",
+            HessianTangent::AbsoluteEigenvalues => "absolute-eigenvalue",
+            HessianTangent::ExactElseAbsolute => "exact (absolute-eigenvalue when not definite)",
         }
     );
     let gate = c.max_reference_volume_error;

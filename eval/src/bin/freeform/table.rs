@@ -144,7 +144,8 @@ pub(crate) struct TableOptions {
     fem_mesher: FemMesherChoice,
     /// Tables 2 and 7: the element tangent of the FEM references' Newton Hessian: PSD-projected
     /// or exact, projected only when the exact Hessian fails to factor (fewer iterations at
-    /// large rotations; the same converged states, cached apart). Default: projected on
+    /// large rotations; the same converged states, cached apart), or exact with the
+    /// absolute-eigenvalue tangent as the fallback (exact-else-absolute). Default: projected on
     /// uniform lattices (the first tables' setting), exact-when-definite on graded ones.
     #[arg(long, value_enum)]
     fem_tangent: Option<FemTangentChoice>,
@@ -293,6 +294,8 @@ pub(crate) enum FemTangentChoice {
     Projected,
     /// `HessianTangent::ExactWhenDefinite`.
     ExactWhenDefinite,
+    /// `HessianTangent::ExactElseAbsolute`.
+    ExactElseAbsolute,
 }
 
 /// Where the reduced runs integrate the elastic energy.
@@ -556,6 +559,7 @@ pub(crate) fn run(
             shapes.fem.tangent = match choice {
                 FemTangentChoice::Projected => HessianTangent::ProjectedPsd,
                 FemTangentChoice::ExactWhenDefinite => HessianTangent::ExactWhenDefinite,
+                FemTangentChoice::ExactElseAbsolute => HessianTangent::ExactElseAbsolute,
             };
         }
         if skip_exact {
