@@ -44,7 +44,8 @@ pub struct FemParams {
     /// exact one fails to factor, which converges in fewer iterations at large rotations;
     /// `ExactElseAbsolute` falls back to the absolute-eigenvalue tangent instead: on the
     /// Twist beam 182 instead of 189 Newton iterations, on the soft skull's Fix side sag (10
-    /// cells, 65k P2 DOFs, steps 1–33) 398 instead of 276, one step 151 instead of 42).
+    /// cells, 65k P2 DOFs, steps 1–33) 398 instead of 276, one step 151 instead of 42; always
+    /// projected took 416 there).
     pub tangent: HessianTangent,
     /// Elimination order of the sparse Cholesky factorization (default: nested dissection or
     /// minimum degree, whichever leaves the smaller factor).
