@@ -207,6 +207,21 @@ pub struct FemRunSummary {
     pub cached: bool,
 }
 
+impl FemRunSummary {
+    /// What a table reports of `fem`, a run of `length` (m) across.
+    fn of(fem: &FemRun, length: f64) -> Self {
+        FemRunSummary {
+            region_nodes: fem.region_nodes.clone(),
+            max_displacement: fem.max_vertex_displacement() / length,
+            dofs: fem.dofs,
+            seconds_per_step: fem.seconds_per_step,
+            iterations_per_step: fem.iterations_per_step,
+            unconverged_steps: fem.unconverged_steps,
+            cached: fem.cached,
+        }
+    }
+}
+
 /// One (shape, boundary condition).
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
 pub struct ShapeRow {
@@ -234,6 +249,10 @@ pub struct ShapeRow {
     /// vertices inside the finer mesh.
     #[serde(default)]
     pub reference_change: Option<f64>,
+    /// The convergence check's finer reference, when it ran (its DOFs and seconds a step:
+    /// the check's cost, which the shape's `fem_seconds` leaves out).
+    #[serde(default)]
+    pub reference_check: Option<FemRunSummary>,
     /// Why the convergence check could not be made, when it was asked for.
     #[serde(default)]
     pub reference_check_error: Option<String>,
@@ -643,6 +662,7 @@ fn run_shape_into(
             exact_error: None,
             exact_kernel_coverage: None,
             reference_change: None,
+            reference_check: None,
             reference_check_error: None,
             fem_mesh: None,
             region_points: Vec::new(),
@@ -701,18 +721,16 @@ fn run_shape_into(
         };
         let outcome = reference_run(&problem(tets), &label, config, progress).and_then(|fem| {
             fem_seconds += fem.seconds_per_step * config.boundary.steps as f64;
-            row.fem = Some(FemRunSummary {
-                region_nodes: fem.region_nodes.clone(),
-                max_displacement: fem.max_vertex_displacement() / length,
-                dofs: fem.dofs,
-                seconds_per_step: fem.seconds_per_step,
-                iterations_per_step: fem.iterations_per_step,
-                unconverged_steps: fem.unconverged_steps,
-                cached: fem.cached,
-            });
+            row.fem = Some(FemRunSummary::of(&fem, length));
             fem.check_converged(config.fem.newton.max_iterations)?;
             if let Some(finer) = finer {
-                match reference_change(&fem, &problem(finer), length, &label, config, progress) {
+                let label = format!("{label} finer");
+                let change =
+                    reference_run(&problem(finer), &label, config, progress).and_then(|fine| {
+                        row.reference_check = Some(FemRunSummary::of(&fine, length));
+                        reference_change(&fem, &fine, length, config)
+                    });
+                match change {
                     Ok(change) => row.reference_change = Some(change),
                     Err(e) => row.reference_check_error = Some(failure_chain(&e)),
                 }
@@ -783,21 +801,18 @@ fn reference_run(
     })
 }
 
-/// The normalized MSE between `coarse` and the run of `finer` (the same problem on a finer
-/// mesh), at the coarse vertices inside the finer mesh over frames 1..T.
+/// The normalized MSE between `coarse` and `fine` (the same problem's run on a finer mesh), at
+/// the coarse vertices inside the finer mesh over frames 1..T.
 ///
 /// # Errors
-/// [`EvalError`] from the finer run (refused when a step did not converge) or the metric;
+/// [`EvalError`] when a step of the finer run did not converge, or from the metric;
 /// [`EvalError::InvalidInput`] when no coarse vertex lies inside the finer mesh.
 fn reference_change(
     coarse: &FemRun,
-    finer: &FemProblem<'_>,
+    fine: &FemRun,
     length: f64,
-    label: &str,
     config: &ShapeStudyConfig,
-    progress: &Progress,
 ) -> Result<f64, EvalError> {
-    let fine = reference_run(finer, &format!("{label} finer"), config, progress)?;
     fine.check_converged(config.fem.newton.max_iterations)?;
     let (inside, fine_frames) = fine.frames_inside(coarse.vertices());
     if inside.is_empty() {

@@ -483,6 +483,21 @@ pub fn table2(study: &ShapeStudy) -> RenderedTable {
         .filter_map(|s| s.training_seconds)
         .collect();
     let fem: Vec<f64> = study.shapes.iter().filter_map(|s| s.fem_seconds).collect();
+    // Each shape's convergence checks, where any ran: the seconds of their runs.
+    let steps = study.config.boundary.steps as f64;
+    let checks: Vec<f64> = study
+        .shapes
+        .iter()
+        .filter_map(|s| {
+            let runs: Vec<f64> = s
+                .rows
+                .iter()
+                .filter_map(|r| r.reference_check.as_ref())
+                .map(|check| check.seconds_per_step * steps)
+                .collect();
+            (!runs.is_empty()).then(|| runs.iter().sum())
+        })
+        .collect();
     let stat = |v: &[f64]| {
         mean_std(v).map_or("—".into(), |(m, s)| {
             format!("{m:.2} ± {s:.2} s (n = {})", v.len())
@@ -504,6 +519,13 @@ pub fn table2(study: &ShapeStudy) -> RenderedTable {
         );
     }
     let _ = writeln!(md, "- FEM reference, three runs: {}", stat(&fem));
+    if !checks.is_empty() {
+        let _ = writeln!(
+            md,
+            "- FEM convergence checks (the 1.5× finer references): {}",
+            stat(&checks)
+        );
+    }
     for (dataset, sm, ss, fm, fs) in paper::TABLE2_TRAINING {
         let _ = writeln!(
             md,
@@ -639,6 +661,7 @@ pub fn table2(study: &ShapeStudy) -> RenderedTable {
                 "trusted": row.is_some() && untrusted.is_none(),
                 "why_untrusted": untrusted,
                 "reference_change": row.and_then(|r| r.reference_change),
+                "reference_check": row.and_then(|r| r.reference_check.clone()),
                 "reference_check_error": row.and_then(|r| r.reference_check_error.clone()),
                 "exact_mse": exact.map(|s| s.mse),
                 "exact_max": exact.map(|s| s.max),
@@ -824,6 +847,7 @@ mod tests {
                     exact_error: None,
                     exact_kernel_coverage: None,
                     reference_change: None,
+                    reference_check: None,
                     reference_check_error: None,
                     fem_mesh: None,
                     region_points: vec![5],
@@ -936,6 +960,39 @@ mod tests {
             "{md}"
         );
         assert!(!md.contains("- Simplicits:"), "not run: {md}");
+    }
+
+    #[test]
+    fn convergence_checks_report_their_finer_runs_and_their_time_per_shape() {
+        let mut config = ShapeStudyConfig::full(Vec::new(), PathBuf::from("unused"));
+        config.simplicits = None;
+        let steps = config.boundary.steps as f64;
+        // Two of "checked"'s rows ran a check of 1234 DOFs at 2 s a step; "unchecked" none.
+        let mut checked = shape("checked", 0.0, 0, 1e-3);
+        for row in &mut checked.rows[..2] {
+            row.reference_check = row.fem.clone().map(|fem| FemRunSummary {
+                dofs: 1234,
+                seconds_per_step: 2.0,
+                ..fem
+            });
+            row.reference_change = Some(1e-6);
+        }
+        let study = ShapeStudy {
+            config,
+            shapes: vec![checked, shape("unchecked", 0.0, 0, 1e-3)],
+            seconds: 1.0,
+        };
+        let t2 = table2(&study);
+        let rows = t2.json["shapes"].as_array().unwrap();
+        let checks: Vec<&Value> = rows.iter().map(|r| &r["reference_check"]).collect();
+        assert_eq!(checks[0]["dofs"], 1234);
+        assert_eq!(checks[1]["seconds_per_step"], 2.0);
+        assert!(checks[2].is_null() && checks[3].is_null(), "{checks:?}");
+        let expected = format!(
+            "- FEM convergence checks (the 1.5× finer references): {:.2} ± 0.00 s (n = 1)",
+            2.0 * 2.0 * steps
+        );
+        assert!(t2.markdown.contains(&expected), "{}", t2.markdown);
     }
 
     #[test]
