@@ -719,8 +719,8 @@ impl SceneTerms {
     }
 
     /// Adds every external term's gradient at z to `gradient`, and its Hessian to `hessian`
-    /// when given (the colliders' curvature term dropped for [`Tangent::ProjectedPsd`], which
-    /// keeps it positive semidefinite).
+    /// when given (the colliders' curvature term dropped for the tangents other than
+    /// [`Tangent::Exact`], which keeps it positive semidefinite).
     pub(crate) fn add_derivatives<M: HyperelasticMaterial>(
         &self,
         model: &ReducedModel<M>,
@@ -808,9 +808,9 @@ impl SceneTerms {
 impl SceneTerms {
     /// The colliders' contact `κ v_i ψ(φ_i)` ([`FloorContact::profile`]) at z: gradient
     /// `κ v ψ' ∇φ` and Hessian `κ v (ψ'' ∇φ∇φᵀ + ψ' ∇²φ)` per point through the LBS rows, the
-    /// second term left out for [`Tangent::ProjectedPsd`] (ψ' ≤ 0, and ∇²φ is positive
-    /// semidefinite outside a convex shape and negative semidefinite inside it: the term can
-    /// be indefinite).
+    /// second term left out for the tangents other than [`Tangent::Exact`] (ψ' ≤ 0, and ∇²φ
+    /// is positive semidefinite outside a convex shape and negative semidefinite inside it:
+    /// the term can be indefinite).
     fn add_collider_derivatives<M: HyperelasticMaterial>(
         &self,
         model: &ReducedModel<M>,
