@@ -333,11 +333,7 @@ impl<M: HyperelasticMaterial> FemModel<M> {
             let w = self.qp_weights[k];
             let grads = &self.qp_gradients[k * npe..(k + 1) * npe];
             let f = self.deformation_gradient(e, q, x);
-            let d: Matrix9 = match tangent {
-                Tangent::Exact => self.material.stress_derivative(lame, &f),
-                Tangent::ProjectedPsd => self.material.projected_stress_derivative(lame, &f),
-                Tangent::AbsoluteEigenvalues => self.material.absolute_stress_derivative(lame, &f),
-            } * w;
+            let d: Matrix9 = self.material.tangent_stress_derivative(lame, &f, tangent) * w;
             // Y_b[(3k + i), j] = Σ_l D[(3k + i), (3l + j)] ∇N_b[l]; K_ab[i][j] = Σ_k ∇N_a[k] Y_b.
             for (b, gb) in grads.iter().enumerate() {
                 let mut y = [[0.0; 3]; 9];

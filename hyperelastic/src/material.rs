@@ -54,6 +54,22 @@ pub trait HyperelasticMaterial: Send + Sync {
         absolute_eigenvalues(&self.stress_derivative(params, f))
     }
 
+    /// The tangent `tangent` asks for: [`HyperelasticMaterial::stress_derivative`],
+    /// [`HyperelasticMaterial::projected_stress_derivative`] or
+    /// [`HyperelasticMaterial::absolute_stress_derivative`] (9×9, Pa).
+    fn tangent_stress_derivative(
+        &self,
+        params: &LameParameters,
+        f: &Matrix3<f64>,
+        tangent: Tangent,
+    ) -> Matrix9 {
+        match tangent {
+            Tangent::Exact => self.stress_derivative(params, f),
+            Tangent::ProjectedPsd => self.projected_stress_derivative(params, f),
+            Tangent::AbsoluteEigenvalues => self.absolute_stress_derivative(params, f),
+        }
+    }
+
     /// Ψ at many points: `out[i] = Ψ(params[i], F[i])`.
     ///
     /// # Panics
@@ -94,11 +110,7 @@ pub trait HyperelasticMaterial: Send + Sync {
     ) {
         assert_batch_lengths(params.len(), f.len(), out.len());
         for ((o, p), f) in out.iter_mut().zip(params).zip(f) {
-            *o = match tangent {
-                Tangent::Exact => self.stress_derivative(p, f),
-                Tangent::ProjectedPsd => self.projected_stress_derivative(p, f),
-                Tangent::AbsoluteEigenvalues => self.absolute_stress_derivative(p, f),
-            };
+            *o = self.tangent_stress_derivative(p, f, tangent);
         }
     }
 }

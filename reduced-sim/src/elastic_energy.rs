@@ -400,13 +400,8 @@ mod tests {
         let mut h = Mat::zeros(3 * n4, 3 * n4);
         for (i, f) in f.iter().enumerate() {
             let lame = &model.elastic_lame()[i];
-            let d = match tangent {
-                Tangent::Exact => model.material().stress_derivative(lame, f),
-                Tangent::ProjectedPsd => model.material().projected_stress_derivative(lame, f),
-                Tangent::AbsoluteEigenvalues => {
-                    model.material().absolute_stress_derivative(lame, f)
-                }
-            } * model.elastic_weights()[i];
+            let d = model.material().tangent_stress_derivative(lame, f, tangent)
+                * model.elastic_weights()[i];
             let g = map.gradient_block(i);
             for (r, q, s, t) in every_index_quadruple() {
                 let a_rq = d[(3 * s + r, 3 * t + q)];
