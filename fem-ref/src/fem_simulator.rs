@@ -947,10 +947,10 @@ impl<M: HyperelasticMaterial> NewtonObjective for StepObjective<'_, M> {
 
     fn factor(&self, values: Vec<f64>) -> Option<Self::Factor> {
         let factor = self.sim.system.factorize(&values);
-        let fallback = self.sim.params.tangent.fallback();
-        let Some(fallback) = fallback.filter(|_| factor.is_none()) else {
+        if factor.is_some() {
             return factor;
-        };
+        }
+        let fallback = self.sim.params.tangent.fallback()?;
         let x = self
             .exact_at
             .lock()

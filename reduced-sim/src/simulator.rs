@@ -24,9 +24,8 @@ use crate::scene_terms::{SceneError, SceneTerms};
 /// setting, fresh Hessians with the tangent projected at every point (with the
 /// absolute-eigenvalue tangent for [`HessianTangent::ExactElseAbsolute`]: each tangent's
 /// [`HessianTangent::fallback`]), so the shortcuts are never less robust than it (the report
-/// counts both attempts): chord steps can spend the
-/// iteration budget Newton needs, and an exact Hessian can be definite yet a poor model far
-/// from the solution. One object's step ([`Simulator::step`]) and a group's
+/// counts both attempts): chord steps can spend the iteration budget Newton needs, and an
+/// exact Hessian can be definite yet a poor model far from the solution. One object's step ([`Simulator::step`]) and a group's
 /// ([`crate::MultiBodySimulator`]) both solve this way.
 ///
 /// # Errors
@@ -61,11 +60,11 @@ where
         hessian_reuse: HessianReuse::Never,
         ..*newton
     };
-    let projected: Vec<HessianTangent> = tangents
+    let fallbacks: Vec<HessianTangent> = tangents
         .iter()
         .map(|&t| t.fallback().map_or(t, HessianTangent::from))
         .collect();
-    objective.set_tangents(&projected);
+    objective.set_tangents(&fallbacks);
     let retried = minimize_reusing(&*objective, z, &paper, factor);
     objective.set_tangents(&tangents);
     Ok(first.followed_by(&retried?))
