@@ -1,4 +1,4 @@
-//! Seconds per Simplicits training step on a 5 m beam of 5000 points (issue 19: the paper's
+//! Seconds per Simplicits training step on a 5 m beam of 5000 points (the paper's
 //! 10 000 steps per shape must fit the time budget):
 //! `cargo run --release -p baselines --example simplicits_training_speed -- --steps 200 --modes 32`.
 

@@ -1,4 +1,4 @@
-//! The optimization ablations of Table 3 (DESIGN 3.9): the RKPM coefficients c (K × m) of our
+//! The optimization ablations of Table 3 (design §3.9): the RKPM coefficients c (K × m) of our
 //! own skinning weights `W_j(X) = Σ_k ϕ_k(X) c_kj`, found by Adam instead of the eigen solve.
 //!
 //! Same kernels and shape functions as ours (farthest point sampling on the integration points,
@@ -71,7 +71,7 @@ pub enum TrainingPoints {
     Grid,
 }
 
-/// Options of [`train_coefficients`]; the defaults are Simplicits' (DESIGN 3.9) and our basis's.
+/// Options of [`train_coefficients`]; the defaults are Simplicits' (design §3.9) and our basis's.
 #[derive(Clone, Copy, Debug, PartialEq, Serialize, Deserialize)]
 pub struct CoefficientTrainingParams {
     /// Skinning weights m (default 16).

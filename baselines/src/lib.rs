@@ -1,18 +1,4 @@
-//! Baselines the method is compared against (DESIGN 3.9).
-//!
-//! Built so far:
-//! - [`Mlp`], the network of the Simplicits baseline (3 → 64 → 6 × 64 → m, ELU, PyTorch-default
-//!   initialization, f64, reverse-mode parameter gradients, forward-mode input derivatives,
-//!   save/load), and [`Adam`];
-//! - [`train_simplicits`]: the Simplicits losses and training loop of DESIGN 3.9, giving a
-//!   [`SimplicitsField`] that the reduced simulator runs through `reduced_sim::SkinningField`;
-//! - [`train_coefficients`]: the Table 3 optimization ablations, our RKPM coefficients c found
-//!   by Adam on the Simplicits loss or on the penalized Hessian objective, on random or grid
-//!   points, giving an ordinary `skin_eigen::SkinningBasis`.
-//!
-//! - [`mpm`]: the explicit APIC Material Point Method of Tables 1 and 5 (warp-mpm's scheme).
-//!
-//! - [`sph`]: the implicit corotated SPH solid of Tables 1 and 5 (Kugelstadt et al. 2021).
+#![doc = include_str!("../README.md")]
 
 pub mod adam;
 pub mod coefficient_training;

@@ -1,4 +1,4 @@
-//! A small fully connected network for the Simplicits baseline (DESIGN 3.9): forward pass,
+//! A small fully connected network for the Simplicits baseline (design §3.9): forward pass,
 //! reverse-mode gradients, PyTorch-default initialization, all in f64.
 //!
 //! Layout: `in → width → (hidden_layers × width→width) → out`, ELU after every layer but the
@@ -29,7 +29,7 @@ pub struct MlpShape {
 }
 
 impl MlpShape {
-    /// DESIGN 3.9's network: 3 → 64 → 6 × (64 → 64) → m.
+    /// design §3.9's network: 3 → 64 → 6 × (64 → 64) → m.
     pub fn simplicits(modes: usize) -> Self {
         MlpShape {
             inputs: 3,

@@ -1,4 +1,4 @@
-//! The Simplicits baseline (paper Sec. 3.1, DESIGN 3.9): skinning weights from an MLP trained on
+//! The Simplicits baseline (paper Sec. 3.1, design §3.9): skinning weights from an MLP trained on
 //! random handle transforms, simulated by the same reduced simulator as ours.
 //!
 //! Training, per Adam step (defaults as in the authors' Kaolin release):
@@ -33,7 +33,7 @@ use crate::adam::{Adam, AdamParams};
 use crate::mlp::{Mlp, MlpShape, Tape};
 use crate::model_file::{self, ModelFileError};
 
-/// Training options; defaults are DESIGN 3.9's.
+/// Training options; defaults are design §3.9's.
 #[derive(Clone, Copy, Debug, PartialEq, Serialize, Deserialize)]
 pub struct SimplicitsParams {
     /// Skinning weights m learned by the network (default 16).

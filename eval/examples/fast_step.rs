@@ -1,4 +1,4 @@
-//! What each shortcut of a fast step buys and costs on the beam (issue 18): for each test and
+//! What each shortcut of a fast step buys and costs on the beam: for each test and
 //! m, the reduced run with every combination of elastic quadrature (every point, the paper's
 //! setting, or an optimized cubature at each `--cubature-tolerance`) and Hessian reuse (fresh
 //! Hessians, the paper's setting, or `HessianReuse::WhileContracting { contraction }` at each
@@ -26,8 +26,8 @@ use eval::beam::reduced::{
 use eval::beam::study::beam_length_scale;
 use eval::beam::{BeamTest, beam_material};
 use eval::fem_reference::{FemResolution, run_fem_beam};
-use eval::metrics::trajectory_errors;
-use eval::progress::Progress;
+use freeform::metrics::trajectory_errors;
+use freeform::terminal_progress::TerminalProgress;
 use optimize::{HessianReuse, NewtonParams};
 use reduced_sim::{CubatureParams, HessianTangent, QuadratureRule, SimulationParams};
 
@@ -99,8 +99,8 @@ struct Args {
 
 fn main() -> anyhow::Result<()> {
     let args = Args::parse();
-    let progress = Progress::default();
-    let cache = eval::default_cache_dir();
+    let progress = TerminalProgress::default();
+    let cache = freeform::default_cache_dir();
     let mut rules = if args.no_full {
         Vec::new()
     } else {

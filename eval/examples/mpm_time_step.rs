@@ -14,10 +14,10 @@ use eval::beam::particle_baseline::ParticleBeamRun;
 use eval::beam::sph::{SphStudyConfig, run_sph_beam};
 use eval::beam::study::beam_length_scale;
 use eval::beam::{BEAM_MAX, BEAM_MIN, BEAM_TIME_STEP, BeamTest, beam_material};
-use eval::fem_reference::{FemProblem, run_fem};
-use eval::metrics::trajectory_errors;
-use eval::progress::Progress;
 use fem_ref::{ElementOrder, FillReducingOrdering, TetMesh};
+use freeform::fem_reference::{FemProblem, run_fem};
+use freeform::metrics::trajectory_errors;
+use freeform::terminal_progress::{BarProgress, TerminalProgress};
 use hyperelastic::HessianTangent;
 use optimize::NewtonParams;
 
@@ -30,7 +30,7 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
     };
     let steps: usize = args.get(2).map_or(Ok(test.steps()), |s| s.parse())?;
     let cache = PathBuf::from(std::env::var("FREEFORM_CACHE").unwrap_or("freeform-cache".into()));
-    let progress = Progress::default();
+    let progress = TerminalProgress::default();
     let tets = TetMesh::cuboid(BEAM_MIN, BEAM_MAX, [20, 4, 4])?;
     let run = |h: f64, substeps: usize| {
         run_fem(
@@ -48,7 +48,7 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
             },
             &format!("{} P2 res 4 h = {h}", test.name()),
             &cache,
-            &progress,
+            &BarProgress::new(progress),
         )
     };
     let coarse = run(BEAM_TIME_STEP, 1)?;
@@ -68,7 +68,7 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
     let l = beam_length_scale();
     let coarse_frames = coarse.vertex_frames();
     let fine_frames: Vec<_> = fine.vertex_frames().into_iter().step_by(10).collect();
-    let mse = |a: &[Vec<_>], b: &[Vec<_>]| -> Result<f64, eval::metrics::MetricsError> {
+    let mse = |a: &[Vec<_>], b: &[Vec<_>]| -> Result<f64, freeform::metrics::MetricsError> {
         Ok(trajectory_errors(&a[1..], &b[1..], l)?.normalized_mse)
     };
     println!(

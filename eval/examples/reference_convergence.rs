@@ -1,5 +1,5 @@
 //! How far the FEM ground truth is from a finer FEM, in the tables' own metric: the normalized
-//! MSE and max error (DESIGN 4.3) between P2 at `--coarse` and P2 at `--fine` elements per
+//! MSE and max error (design §4.3) between P2 at `--coarse` and P2 at `--fine` elements per
 //! metre, evaluated at the coarse mesh's vertices. If this is far below the errors a table
 //! reports, the ground truth is fine enough for that table.
 //!
@@ -13,9 +13,9 @@ use clap::Parser;
 use eval::beam::BeamTest;
 use eval::beam::study::beam_length_scale;
 use eval::fem_reference::{FemResolution, run_fem_beam};
-use eval::metrics::trajectory_errors;
-use eval::progress::Progress;
 use fem_ref::ElementOrder;
+use freeform::metrics::trajectory_errors;
+use freeform::terminal_progress::TerminalProgress;
 use optimize::NewtonParams;
 
 #[derive(Parser)]
@@ -38,8 +38,8 @@ fn main() -> anyhow::Result<()> {
         other => anyhow::bail!("--test must be bend or twist, not {other}"),
     };
     let steps = args.steps.unwrap_or(test.steps());
-    let cache = eval::default_cache_dir();
-    let progress = Progress::default();
+    let cache = freeform::default_cache_dir();
+    let progress = TerminalProgress::default();
     let p2 = |cells_per_metre| FemResolution {
         order: ElementOrder::Quadratic,
         cells_per_metre,

@@ -1,5 +1,5 @@
 //! Where a shape's FEM reference spends its time: one boundary condition of Table 2 on the
-//! reference mesh (graded by default, as `freeform table 2 --fem-mesher graded`), stepped
+//! reference mesh (graded by default, as `freeform-paper table 2 --fem-mesher graded`), stepped
 //! without the cache, with Newton iterations, factorizations, line-search cuts and seconds
 //! split into assembly (gradients and Hessians), solve (factorizations and triangular solves)
 //! and line search (energies), per step and in total. Nothing is cached or scored.
@@ -31,13 +31,13 @@ use std::time::Instant;
 
 use anyhow::{Context, Result};
 use clap::Parser;
-use eval::fem_reference::FemProblem;
 use eval::shapes::boundary::{ShapeBoundary, ShapeBoundaryParams};
 use eval::shapes::catalog::{SHAPE_DENSITY, SHAPE_POISSON_RATIO, catalog_entry};
 use eval::shapes::reference::{
     ConditionLattice, ReferenceFactorReuse, ShapeFemParams, mesh_for_fem, mesh_through,
 };
 use fem_ref::FillReducingOrdering;
+use freeform::fem_reference::FemProblem;
 use hyperelastic::{HessianTangent, MaterialSample};
 use optimize::NewtonParams;
 use rkpm_core::read_triangle_mesh;

@@ -1,4 +1,4 @@
-//! The error-vs-time study (DESIGN 5) on the beam Bend: sweep the knobs that trade time for
+//! The error-vs-time study (design §5) on the beam Bend: sweep the knobs that trade time for
 //! error — modes m, kernels K, simulation points, Newton tolerance, and coarser FEM as its own
 //! method — and mark the Pareto front (no other configuration is both faster and more accurate).
 
@@ -23,10 +23,10 @@ use crate::beam::sph::SphStudyConfig;
 use crate::beam::study::{beam_length_scale, region_drift};
 use crate::beam::{BeamTest, beam_material};
 use crate::fem_reference::{FemResolution, beam_seconds_per_step_here, run_fem_beam};
-use crate::metrics::trajectory_errors;
-use crate::progress::Progress;
 use crate::report::plot::{AxisScale, PlotSpec, Series};
 use artifact::write_atomically;
+use freeform::metrics::trajectory_errors;
+use freeform::terminal_progress::TerminalProgress;
 use freeform::{PinHold, RunReport};
 use reduced_sim::{CubatureParams, QuadratureRule, SimulationParams};
 
@@ -61,7 +61,7 @@ const FREEFORM_SERIES: [(&str, &str); 11] = [
     ),
 ];
 
-/// The fast-step series of issue 18 at modes `modes` on `base`: Hessian reuse on every point,
+/// The fast-step series at modes `modes` on `base`: Hessian reuse on every point,
 /// then the cubature with fresh and with reused Hessians.
 fn fast_step_runs(base: ReducedSettings, modes: &[usize]) -> Vec<(String, BenchMethod)> {
     let mut runs = Vec::new();
@@ -117,7 +117,7 @@ pub enum BenchMethod {
 /// What to sweep.
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
 pub struct BenchConfig {
-    /// Bend steps (300 = DESIGN 4.1).
+    /// Bend steps (300 = design §4.1).
     pub steps: usize,
     /// The ground truth.
     pub ground_truth: FemResolution,
@@ -142,7 +142,7 @@ impl BenchConfig {
         }
         runs.extend(fast_step_runs(base, &[6, 9, 16, 32]));
         // The simulation on the basis's own grid (20 000 points instead of 5000): the cubature
-        // keeps the step's cost, and the Bend MSE at m = 32 drops about 4× (issue 18).
+        // keeps the step's cost, and the Bend MSE at m = 32 drops about 4×.
         for m in [6, 9, 16, 32] {
             runs.push((
                 "basis grid".into(),
@@ -358,7 +358,10 @@ pub fn pareto_front(points: &[(f64, f64)]) -> Vec<usize> {
 ///
 /// # Errors
 /// [`EvalError`] from any run.
-pub fn run_bench(config: &BenchConfig, progress: &Progress) -> Result<Vec<BenchResult>, EvalError> {
+pub fn run_bench(
+    config: &BenchConfig,
+    progress: &TerminalProgress,
+) -> Result<Vec<BenchResult>, EvalError> {
     let truth = run_fem_beam(
         BeamTest::Bend,
         config.ground_truth,

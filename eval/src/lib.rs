@@ -1,23 +1,4 @@
-//! FreeForm experiments (DESIGN 4, 5), the paper layer on top of the `freeform` library: the
-//! named scenes, the metrics against the FEM ground truth, the paper's tables with its numbers
-//! beside ours, the error-vs-time benchmark, and the `freeform` CLI (`src/bin/freeform.rs`).
-//! Scenes, scene files, the reduced-run loop and frame writers live in the library crate
-//! `freeform`; this crate holds what reproduces the paper.
-//!
-//! The paper's experiments, one folder each:
-//! - [`beam`]: the beam Bend and Twist of DESIGN 4.1 and Tables 1, 5, 6 (with the Simplicits
-//!   baseline trained on the beam).
-//! - [`ablation`]: Tables 3 and 4 (how the basis is trained, how points are sampled).
-//! - [`shapes`]: Tables 2 and 7 on a folder of meshes.
-//! - [`bench`](mod@bench): the error-vs-time study. [`stress`]: the numerical stress suite.
-//! - [`report`]: the paper's numbers, rendered tables, plots.
-//!
-//! What they share: [`fem_reference`] (the FEM ground truth on any scene, cached, refused
-//! when unconverged), [`reduced_run`] (one reduced run recorded at the FEM vertices),
-//! [`metrics`] (DESIGN 4.3), [`model_cache`] (trained networks), [`progress`] (terminal bars).
-//!
-//! Caches (FEM trajectories, bases) live under one folder (default `freeform-cache/`, or
-//! `$FREEFORM_CACHE`), keyed by content hash; deleting it only costs recomputation.
+#![doc = include_str!("../README.md")]
 
 use std::path::Path;
 
@@ -27,10 +8,9 @@ pub mod ablation;
 pub mod beam;
 pub mod bench;
 pub mod fem_reference;
-pub mod metrics;
 pub mod model_cache;
 pub mod pins;
-pub mod progress;
+pub mod presets;
 pub mod reduced_run;
 pub mod report;
 pub mod shapes;
@@ -114,7 +94,7 @@ pub enum EvalError {
     Run(#[from] freeform::RunError),
     /// Metrics could not be computed.
     #[error(transparent)]
-    Metrics(#[from] metrics::MetricsError),
+    Metrics(#[from] freeform::metrics::MetricsError),
     /// A file could not be read or written.
     #[error("{path}: {source}")]
     Io {
@@ -132,7 +112,7 @@ pub enum EvalError {
     },
     /// A FEM reference stopped unconverged at some step, so nothing is scored against it.
     #[error(transparent)]
-    UnconvergedReference(#[from] fem_reference::UnconvergedReference),
+    UnconvergedReference(#[from] freeform::fem_reference::UnconvergedReference),
     /// An output or cache file could not be written or read.
     #[error(transparent)]
     Artifact(#[from] artifact::ArtifactError),
@@ -145,6 +125,21 @@ pub enum EvalError {
         /// The drawing backend's message.
         message: String,
     },
+}
+
+impl From<freeform::fem_reference::FemReferenceError> for EvalError {
+    fn from(error: freeform::fem_reference::FemReferenceError) -> Self {
+        use freeform::fem_reference::FemReferenceError as E;
+        match error {
+            E::Model(e) => EvalError::FemModel(e),
+            E::Setup(e) => EvalError::FemSetup(e),
+            E::Run(e) => EvalError::Fem(e),
+            E::Scene(e) => EvalError::Scene(e),
+            E::PointLocation(e) => EvalError::PointLocation(e),
+            E::OutputMap(e) => EvalError::OutputMap(e),
+            E::Metrics(e) => EvalError::Metrics(e),
+        }
+    }
 }
 
 impl From<freeform::HeldBasisError> for EvalError {
@@ -166,54 +161,17 @@ impl EvalError {
     }
 }
 
-/// An error and its sources on one line ("building the basis failed: …: …"): what a table row,
-/// a log line or the CLI's last line records, where `to_string` alone would drop the cause. A
-/// cause whose text the line already shows (our error enums print their source inside their
-/// own message) is not repeated.
-pub fn failure_chain(error: &dyn std::error::Error) -> String {
-    let mut line = error.to_string();
-    let mut source = error.source();
-    while let Some(cause) = source {
-        let text = cause.to_string();
-        if !line.contains(&text) {
-            line += ": ";
-            line += &text;
-        }
-        source = cause.source();
-    }
-    line
-}
-
-/// The cache folder: `$FREEFORM_CACHE` if set, else `freeform-cache` in the working directory.
-pub fn default_cache_dir() -> std::path::PathBuf {
-    std::env::var_os("FREEFORM_CACHE")
-        .map(Into::into)
-        .unwrap_or_else(|| "freeform-cache".into())
-}
-
 #[cfg(test)]
 mod tests {
     use super::*;
 
-    #[derive(Debug, Error)]
-    #[error("building the thing failed")]
-    struct Outer(#[source] Inner);
-
-    #[derive(Debug, Error)]
-    #[error("the inner cause")]
-    struct Inner;
-
     #[test]
-    fn failure_chain_names_every_cause_after_the_error_once() {
-        assert_eq!(
-            failure_chain(&Outer(Inner)),
-            "building the thing failed: the inner cause"
-        );
+    fn an_io_error_in_a_failure_chain_names_its_source_once() {
         // `Io` prints its source itself: the chain does not repeat it.
         let error = EvalError::io(
             Path::new("mesh.obj"),
             std::io::Error::new(std::io::ErrorKind::NotFound, "no such file"),
         );
-        assert_eq!(failure_chain(&error), "mesh.obj: no such file");
+        assert_eq!(freeform::failure_chain(&error), "mesh.obj: no such file");
     }
 }

@@ -12,7 +12,7 @@ use rkpm_core::IntegrationPoints;
 use crate::EvalError;
 use crate::beam::beam_material;
 use crate::beam::reduced::beam_basis_grid;
-use crate::progress::Progress;
+use freeform::terminal_progress::TerminalProgress;
 
 /// `<cache>/<folder>/<folder>-<hash>.model` for a model of the beam grid of about
 /// `basis_points` points, trained with `options` (their `Debug` form) by a file format of
@@ -74,7 +74,7 @@ pub fn model_path(
 pub fn load_cached<T>(
     path: &Path,
     label: &str,
-    progress: &Progress,
+    progress: &TerminalProgress,
     load: impl FnOnce(&Path) -> Result<T, ModelFileError>,
 ) -> Option<T> {
     if !path.is_file() {
@@ -104,7 +104,7 @@ pub fn load_cached<T>(
 pub fn load_or_train<T>(
     path: &Path,
     label: &str,
-    progress: &Progress,
+    progress: &TerminalProgress,
     load: impl FnOnce(&Path) -> Result<T, ModelFileError>,
     train: impl FnOnce() -> Result<T, EvalError>,
     save: impl FnOnce(&T, &Path) -> Result<(), ModelFileError>,
@@ -124,7 +124,7 @@ mod tests {
     use super::*;
     use test_support::fixtures::scratch_dir;
 
-    const QUIET: Progress = Progress {
+    const QUIET: TerminalProgress = TerminalProgress {
         quiet: true,
         hide_bars: true,
     };

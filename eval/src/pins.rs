@@ -1,4 +1,4 @@
-//! The pin sweep of issue 25: the beam tests at several Poisson ratios and m, each with every
+//! The pin sweep: the beam tests at several Poisson ratios and m, each with every
 //! pin factor under both pin moduli, against the FEM reference at the same material: which rule
 //! and factor are accurate across materials, and how far the pinned points drift.
 
@@ -12,6 +12,7 @@ use reduced_sim::{PinModulus, SimulationParams};
 use serde::{Deserialize, Serialize};
 use skin_eigen::SkinningBasis;
 
+use crate::EvalError;
 use crate::beam::reduced::{
     EXACT_INSET_KERNEL_RADII, ReducedSettings, build_beam_basis, build_beam_basis_for,
     exact_pin_hold, run_reduced_beam_with,
@@ -19,10 +20,10 @@ use crate::beam::reduced::{
 use crate::beam::study::{beam_length_scale, region_drift};
 use crate::beam::{BeamTest, beam_material};
 use crate::fem_reference::{FemResolution, run_fem_beam_with};
-use crate::metrics::{TrajectoryErrors, trajectory_errors};
-use crate::progress::Progress;
 use crate::reduced_run::ReducedRun;
-use crate::{EvalError, failure_chain};
+use freeform::failure_chain;
+use freeform::metrics::{TrajectoryErrors, trajectory_errors};
+use freeform::terminal_progress::TerminalProgress;
 
 /// What the sweep runs.
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
@@ -40,7 +41,7 @@ pub struct PinSweepConfig {
     /// Everything else of the reduced runs (its `modes`, `pin_factor`, `pin_modulus` are set
     /// per run).
     pub settings: ReducedSettings,
-    /// Steps per test; `None` for DESIGN 4.1's.
+    /// Steps per test; `None` for design §4.1's.
     pub steps: Option<usize>,
     /// The FEM reference.
     pub fem: FemResolution,
@@ -161,7 +162,10 @@ pub struct PinSweep {
 /// # Errors
 /// [`EvalError`] from a FEM run or a metric; a reduced run that fails is a row with its
 /// `failure`.
-pub fn run_pin_sweep(config: &PinSweepConfig, progress: &Progress) -> Result<PinSweep, EvalError> {
+pub fn run_pin_sweep(
+    config: &PinSweepConfig,
+    progress: &TerminalProgress,
+) -> Result<PinSweep, EvalError> {
     let mut rows = Vec::new();
     let mut exact_rows = Vec::new();
     let mut refused_references = Vec::new();
@@ -297,7 +301,7 @@ struct ScoredRuns<'a> {
     reference: &'a [Vec<Vector3<f64>>],
     steps: usize,
     config: &'a PinSweepConfig,
-    progress: &'a Progress,
+    progress: &'a TerminalProgress,
 }
 
 impl ScoredRuns<'_> {

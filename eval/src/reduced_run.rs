@@ -1,13 +1,13 @@
 //! One reduced run of any skinning field on any scene, recorded at given output points (usually
-//! the FEM vertices) every step: the library's [`freeform::run`] with a recorder and a bar.
+//! the FEM vertices) every step: the library's [`freeform::run_recorded`] with a bar.
 
 use hyperelastic::StableNeoHookean;
 use nalgebra::Vector3;
-use reduced_sim::{DeformationMap, SkinningField};
+use reduced_sim::SkinningField;
 
 use crate::EvalError;
-use crate::progress::Progress;
-use freeform::{RunReport, Simulation, run};
+use freeform::terminal_progress::{BarProgress, TerminalProgress};
+use freeform::{RecordError, RecordedRun, Simulation, run_recorded};
 
 /// Everything one reduced run needs: the library's [`Simulation`] (stable Neo-Hookean, as in
 /// every paper experiment) and where and how long to record it.
@@ -21,15 +21,10 @@ pub struct ReducedProblem<'a, B: SkinningField + ?Sized> {
 }
 
 /// A reduced trajectory at the output points, with the run's timings and convergence.
-#[derive(Clone, Debug)]
-pub struct ReducedRun {
-    /// Output-point positions per frame, frame 0 = rest (m); `steps + 1` frames.
-    pub frames: Vec<Vec<Vector3<f64>>>,
-    /// Timings, Newton counts, pin deviation, points simulated and held.
-    pub report: RunReport,
-}
+pub type ReducedRun = RecordedRun;
 
-/// Simulates `problem.steps` steps, showing a bar labelled `label`.
+/// Simulates `problem.steps` steps, showing a bar labelled `label`
+/// ([`freeform::run_recorded`]).
 ///
 /// # Errors
 /// [`EvalError::Run`] for a model, scene or step that fails (e.g. a region that selects no
@@ -37,23 +32,17 @@ pub struct ReducedRun {
 pub fn run_reduced<B: SkinningField + ?Sized>(
     problem: &ReducedProblem<'_, B>,
     label: &str,
-    progress: &Progress,
+    progress: &TerminalProgress,
 ) -> Result<ReducedRun, EvalError> {
-    let output = DeformationMap::new(problem.simulation.field, problem.output_points)
-        .map_err(EvalError::OutputMap)?;
-    let steps = problem.steps;
-    let bar = progress.bar(steps, label);
-    let mut frames = Vec::with_capacity(steps + 1);
-    let report = run(&problem.simulation, steps, |frame| {
-        frames.push(output.positions(&frame.simulator.state().z));
-        if frame.index > 0 {
-            bar.inc(1);
-        }
-        Ok(())
-    });
-    bar.finish_and_clear();
-    Ok(ReducedRun {
-        frames,
-        report: report?,
+    run_recorded(
+        &problem.simulation,
+        problem.output_points,
+        problem.steps,
+        label,
+        &BarProgress::new(*progress),
+    )
+    .map_err(|e| match e {
+        RecordError::OutputMap(e) => EvalError::OutputMap(e),
+        RecordError::Run(e) => EvalError::Run(e),
     })
 }

@@ -10,8 +10,8 @@ use eval::beam::BeamTest;
 use eval::beam::reduced::{ReducedSettings, SimulationSampling};
 use eval::beam::study::BeamStudyConfig;
 use eval::fem_reference::FemResolution;
-use eval::progress::Progress;
 use fem_ref::ElementOrder;
+use freeform::terminal_progress::TerminalProgress;
 use optimize::NewtonParams;
 
 fn tiny_config(cache: std::path::PathBuf) -> AblationStudyConfig {
@@ -47,7 +47,7 @@ fn tiny_config(cache: std::path::PathBuf) -> AblationStudyConfig {
 fn tiny_ablation_study_fills_tables_3_and_4_and_reloads_its_models_from_the_cache() {
     let dir = std::env::temp_dir().join(format!("freeform-ablation-{}", std::process::id()));
     let config = tiny_config(dir.join("cache"));
-    let quiet = Progress {
+    let quiet = TerminalProgress {
         quiet: true,
         ..Default::default()
     };

@@ -10,8 +10,8 @@
 use eval::beam::BeamTest;
 use eval::beam::reduced::{ReducedSettings, build_beam_basis, run_reduced_beam};
 use eval::fem_reference::{FemResolution, run_fem_beam};
-use eval::progress::Progress;
 use fem_ref::ElementOrder;
+use freeform::terminal_progress::TerminalProgress;
 use nalgebra::Vector3;
 use optimize::NewtonParams;
 
@@ -35,7 +35,7 @@ fn settings() -> ReducedSettings {
 
 #[test]
 fn basis_and_reduced_simulation_are_bit_identical_across_runs() {
-    let quiet = Progress {
+    let quiet = TerminalProgress {
         quiet: true,
         ..Default::default()
     };
@@ -73,7 +73,7 @@ fn basis_and_reduced_simulation_are_bit_identical_across_runs() {
 
 #[test]
 fn fem_reference_is_bit_identical_on_one_and_three_threads() {
-    let quiet = Progress {
+    let quiet = TerminalProgress {
         quiet: true,
         ..Default::default()
     };

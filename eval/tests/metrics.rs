@@ -3,7 +3,7 @@
 
 use eval::beam::reduced::{ReducedSettings, build_beam_basis};
 use eval::beam::{BEAM_MAX, BEAM_MIN};
-use eval::metrics::basis_fitting_residual;
+use freeform::metrics::basis_fitting_residual;
 use nalgebra::{Matrix3, Vector3};
 use reduced_sim::DeformationMap;
 

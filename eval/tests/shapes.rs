@@ -1,12 +1,12 @@
 //! The shapes experiment (Tables 2 and 7): the three boundary conditions select the intended
-//! regions (the end-to-end `freeform table 2 7 --quick` run is in `cli.rs`).
+//! regions (the end-to-end `freeform-paper table 2 7 --quick` run is in `cli.rs`).
 
-use eval::progress::Progress;
 use eval::shapes::boundary::{ShapeBoundary, ShapeBoundaryParams};
 use eval::shapes::reference::ShapeFemParams;
 use eval::shapes::study::{ShapeStudyConfig, run_shape_study};
 use fem_ref::{InteriorFeature, tetrahedralize};
 use freeform::scene::{Motion, SceneSpec};
+use freeform::terminal_progress::TerminalProgress;
 use nalgebra::Vector3;
 use rkpm_core::TriangleMesh;
 use std::sync::Mutex;
@@ -323,7 +323,7 @@ fn the_study_hands_each_finished_shape_the_study_so_far_in_table_order_one_call_
     );
     config.jobs = 2;
     let calls = Mutex::new(Vec::new());
-    let quiet = Progress {
+    let quiet = TerminalProgress {
         quiet: true,
         hide_bars: true,
     };

@@ -1,4 +1,4 @@
-//! The beam Bend scene of DESIGN 4.1 on the FEM reference: 5 m × 1 m × 1 m, E = 5 MPa,
+//! The beam Bend scene of design §4.1 on the FEM reference: 5 m × 1 m × 1 m, E = 5 MPa,
 //! ν = 0.45, ρ = 1000 kg/m³, nodes with x ≤ 0.5 m fixed (the plane x = 0.5 included), gravity
 //! 9.8 m/s² along -y, 100 steps of h = 0.01 s.
 //!

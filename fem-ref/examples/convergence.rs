@@ -1,4 +1,4 @@
-//! Mesh-convergence study of the FEM reference on the beam scenes of DESIGN 4.1: Bend (tip y
+//! Mesh-convergence study of the FEM reference on the beam scenes of design §4.1: Bend (tip y
 //! at t = 0.5 s and 1.0 s) and Twist (RMS displacement of the x = 2.5 m section at t = 0.17 s
 //! and 0.34 s), for P1 and P2 at increasing resolution, with the change from the previous level.
 //!

@@ -1,5 +1,5 @@
 //! Linear (P1, 4-node) and quadratic (P2, 10-node) tetrahedral elements: nodes, shape
-//! functions in barycentric coordinates, quadrature, exact integrals (DESIGN 3.8).
+//! functions in barycentric coordinates, quadrature, exact integrals (design §3.8).
 
 use std::collections::HashMap;
 

@@ -1,5 +1,5 @@
 //! How much memory the FEM's sparse Cholesky factors may take, checked after the symbolic
-//! analysis and before any numeric factorization (issue 19: a fine reference, such as the
+//! analysis and before any numeric factorization (a fine reference, such as the
 //! convergence check of a thin shape, can need a factor larger than the machine; without the
 //! check the process is killed by the operating system hours into a table, with nothing
 //! reported).

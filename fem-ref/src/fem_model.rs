@@ -1,5 +1,5 @@
 //! A finite-element model: mesh, per-element materials, precomputed shape-function gradients at
-//! quadrature points, mass matrix, and element energies, forces and tangents (DESIGN 3.8).
+//! quadrature points, mass matrix, and element energies, forces and tangents (design §3.8).
 
 use hyperelastic::MaterialSample;
 use hyperelastic::{

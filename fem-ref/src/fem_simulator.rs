@@ -1,5 +1,5 @@
 //! Backward Euler with Newton on the full FEM model, exact Dirichlet conditions, per-step
-//! reports (DESIGN 3.8).
+//! reports (design §3.8).
 
 use std::ops::ControlFlow;
 use std::path::PathBuf;

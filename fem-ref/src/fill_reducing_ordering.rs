@@ -1,4 +1,4 @@
-//! The elimination order of the FEM's sparse Cholesky factorization (DESIGN 3.8, issue 19).
+//! The elimination order of the FEM's sparse Cholesky factorization (design §3.8).
 
 use faer::sparse::SymbolicSparseColMatRef;
 use nested_dissection::{NestedDissectionError, nested_dissection_order};
@@ -27,7 +27,7 @@ use serde::{Deserialize, Serialize};
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Serialize, Deserialize)]
 pub enum FillReducingOrdering {
     /// Approximate minimum degree on the degrees of freedom (faer's default; the references'
-    /// order before issue 19's ordering study).
+    /// order before the ordering study of the shapes' references).
     ApproximateMinimumDegree,
     /// Nested dissection (METIS 5) on the graph of the free nodes, each node's three degrees
     /// of freedom kept together.

@@ -1,5 +1,5 @@
 //! Tetrahedralization of a closed triangle surface by cutting a Kuhn lattice along the surface
-//! (DESIGN 3.8: "a real tetrahedralization of the surface, volumes within 1%").
+//! (design §3.8: "a real tetrahedralization of the surface, volumes within 1%").
 //!
 //! Method (a marching-tetrahedra variant of isosurface stuffing, Labelle & Shewchuk 2007):
 //!
@@ -264,7 +264,7 @@ pub enum LatticeMesherError {
 /// When [`tetrahedralize_to_volume`] refines the lattice, and how far.
 #[derive(Clone, Copy, Debug, PartialEq, Serialize, Deserialize)]
 pub struct VolumeTarget {
-    /// Largest accepted `|relative_volume_error|`. Default 0.01 (DESIGN 3.8).
+    /// Largest accepted `|relative_volume_error|`. Default 0.01 (design §3.8).
     pub max_relative_error: f64,
     /// Finest lattice tried. Default 128.
     pub max_cells_across: usize,

@@ -1,21 +1,4 @@
-//! Tetrahedral finite-element ground truth (DESIGN 3.8): the reference every table's error is
-//! measured against.
-//!
-//! - [`TetMesh`]: validated linear tet meshes; [`TetMesh::cuboid`] for boxes;
-//!   [`tetrahedralize`] for the solid inside a closed triangle surface.
-//! - [`FemMesh`]: P1 (4-node) or P2 (10-node) elements on a tet mesh ([`ElementOrder`]).
-//! - [`FemModel`]: per-element materials (the shared `hyperelastic` models), quadrature data,
-//!   consistent or lumped mass ([`MassKind`]).
-//! - [`FemSimulator`]: backward Euler with Newton, line search, exact Dirichlet conditions
-//!   ([`FemScene`]), sparse Cholesky with the symbolic analysis done once.
-//! - [`PointInterpolation`]: positions at arbitrary points inside the mesh (e.g. the beam's tip
-//!   lattice).
-//! - [`TrajectoryCache`]: trajectories on disk keyed by a hash of every input
-//!   ([`FemSimulator::trajectory_key`], [`FemSimulator::run_cached`]; a stored run is found
-//!   from the simulator's inputs alone by [`FemSimulator::load_cached`]); a run stopped or
-//!   killed part way resumes from its [`RunCheckpoint`].
-//!
-//! Units: SI (m, s, kg, Pa). Positions are flat `[x0, y0, z0, x1, …]` where noted.
+#![doc = include_str!("../README.md")]
 
 pub mod element;
 pub mod factor_memory;

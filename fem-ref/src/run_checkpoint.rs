@@ -1,4 +1,4 @@
-//! A FEM run saved part way (DESIGN 3.8): the frames computed so far and the state to go on
+//! A FEM run saved part way (design §3.8): the frames computed so far and the state to go on
 //! from, so that an hours-long reference that is stopped or killed resumes where it was
 //! instead of starting over ([`crate::FemSimulator::run_cached`]).
 //!

@@ -1,5 +1,5 @@
 //! The sparse pattern of the Newton system on free degrees of freedom, its element scatter
-//! table and the reused symbolic Cholesky analysis (DESIGN 3.8).
+//! table and the reused symbolic Cholesky analysis (design §3.8).
 
 use std::sync::{Arc, Mutex, PoisonError};
 

@@ -1,5 +1,5 @@
 //! Linear tetrahedral meshes: validation, volume, quality, and structured meshes of boxes
-//! (DESIGN 3.8).
+//! (design §3.8).
 
 use nalgebra::{Matrix3, Vector3};
 use serde::{Deserialize, Serialize};

@@ -1,4 +1,4 @@
-//! FEM trajectories on disk, keyed by a hash of every input that defines them (DESIGN 3.8).
+//! FEM trajectories on disk, keyed by a hash of every input that defines them (design §3.8).
 //!
 //! A trajectory is expensive (minutes) and fully determined by the mesh, element order, mass
 //! kind, materials, scene, time step, Newton options and step count. [`TrajectoryKey`] hashes

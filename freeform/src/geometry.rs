@@ -1,5 +1,5 @@
 //! An object's shape, read from a file or given as a box, turned into the integration points
-//! every other step works on (DESIGN 3.1): grid points inside a closed surface, or the points
+//! every other step works on (design §3.1): grid points inside a closed surface, or the points
 //! of a cloud (a plain PLY cloud or a 3D Gaussian Splatting file) with estimated volumes.
 
 use std::path::{Path, PathBuf};

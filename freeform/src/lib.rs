@@ -1,63 +1,29 @@
-//! FreeForm as a library: everything a program needs to simulate its own shapes with
-//! skinning eigenmodes of RKPM kernels, without the paper's experiments or the CLI.
-//!
-//! - [`geometry`]: a closed mesh, a point cloud or a 3DGS file ([`Geometry::read`]) → integration
-//!   points ([`Geometry::integration_points`]).
-//! - Bases: [`skin_eigen::build_basis`] on those points ([`skin_eigen::SkinningBasis`] saves and
-//!   loads itself); any [`reduced_sim::SkinningField`] runs.
-//! - [`scene`]: what acts on the object ([`SceneSpec`]: gravity, pinned and moving regions, a
-//!   floor), translated for the reduced simulator and for the FEM reference alike;
-//!   [`scene_file`]: the same as a TOML/JSON file with geometry, material, basis and time;
-//!   [`pin_hold`]: whether the reduced simulator holds the regions by a penalty or exactly.
-//! - [`runner`]: one loop ([`run`]) for any skinning field and any
-//!   [`hyperelastic::HyperelasticMaterial`], handing every frame to the caller.
-//! - [`frames`]: per-frame PLY and VTK ([`FrameWriter`]), with the stress of
-//!   [`stress_field`] ([`StressField`]: Cauchy, principal, von Mises) when asked; [`splats`]: 3DGS files deformed
-//!   (`Σ' = F Σ Fᵀ`) in their own layout ([`SplatTable`]); [`simulate`]: a scene file end to
-//!   end.
-//! - [`progress`]: progress reported through a trait ([`Progress`]), not a terminal type.
-//!
-//! Units: SI throughout (m, s, kg, Pa).
-//!
-//! ```no_run
-//! # fn main() -> Result<(), Box<dyn std::error::Error>> {
-//! use freeform::{FloorSpec, Geometry, SceneSpec, Simulation, run};
-//! use hyperelastic::{MaterialField, MaterialSample, StableNeoHookean};
-//! use nalgebra::Vector3;
-//!
-//! let geometry = Geometry::read("data/meshes/spot.obj".as_ref())?.normalized();
-//! let points = geometry.integration_points(5000)?;
-//! let material = MaterialSample { youngs_modulus: 1e5, poisson_ratio: 0.45, density: 1000.0 };
-//! let lame = vec![material.lame_parameters()?; points.len()];
-//! let params = skin_eigen::BasisParams::default().with_modes(16).with_kernels(400);
-//! let (basis, _, _) = skin_eigen::build_basis(&points, &lame, &params)?;
-//! let scene = SceneSpec {
-//!     gravity: Some(Vector3::new(0.0, -9.8, 0.0)),
-//!     floor: Some(FloorSpec { normal: Vector3::y(), offset: -0.5, friction: 0.3 }),
-//!     ..Default::default()
-//! };
-//! let simulation = Simulation {
-//!     field: &basis,
-//!     points: &points,
-//!     material: &MaterialField::Uniform(material),
-//!     material_model: StableNeoHookean,
-//!     scene: &scene,
-//!     params: Default::default(),
-//!     quadrature: Default::default(), // every point; QuadratureRule::Cubature(..) is faster
-//!     cache_dir: None,
-//!     pin_hold: Default::default(), // the penalty; PinHold::Exact needs a basis built for it
-//! };
-//! let report = run(&simulation, 100, |_frame| Ok(()))?;
-//! println!("{:.2} ms per step", report.ms_per_step);
-//! # Ok(()) }
-//! ```
+#![doc = include_str!("../README.md")]
 
+// The method crates a program calls through this one, so that it depends on `freeform` alone.
+pub use hyperelastic;
+pub use nalgebra;
+pub use reduced_sim;
+pub use rkpm_core;
+pub use skin_eigen;
+
+/// The repository README's Rust snippet, compiled as a doctest so that it cannot drift.
+#[cfg(doctest)]
+#[doc = include_str!("../../README.md")]
+pub struct RepositoryReadme;
+
+pub mod cache_dir;
 pub mod collider_frames;
+pub mod failure_chain;
+#[cfg(feature = "fem")]
+pub mod fem_reference;
 pub mod frames;
 pub mod geometry;
+pub mod metrics;
 pub mod object_scene;
 pub mod pin_hold;
 pub mod progress;
+pub mod recorded_run;
 pub mod runner;
 pub mod scene;
 pub mod scene_file;
@@ -66,13 +32,18 @@ pub mod spherical_harmonics;
 pub mod splat_preview;
 pub mod splats;
 pub mod stress_field;
+#[cfg(feature = "terminal")]
+pub mod terminal_progress;
 
+pub use cache_dir::default_cache_dir;
 pub use collider_frames::ColliderFrames;
+pub use failure_chain::failure_chain;
 pub use frames::FrameWriter;
 pub use geometry::{Geometry, GeometryError};
 pub use object_scene::{ObjectSpec, ObjectSummary, ObjectsFile, ObjectsReport, simulate_objects};
 pub use pin_hold::{HeldBasisError, PinHold};
 pub use progress::{Progress, Silent};
+pub use recorded_run::{RecordError, RecordedRun, run_recorded};
 pub use runner::{Frame, ObserverResult, RunError, RunReport, Simulation, run};
 pub use scene::{Constraint, FloorSpec, Motion, Region, SceneSpec, SceneSpecError};
 pub use scene_file::{

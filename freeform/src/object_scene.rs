@@ -1,4 +1,4 @@
-//! Scene files with several objects (issue 21): each object its own shape, material, basis,
+//! Scene files with several objects: each object its own shape, material, basis,
 //! pose and velocity; contact between them ([`reduced_sim::MultiBodySimulator`]); gravity,
 //! floor and colliders shared.
 //!
@@ -68,7 +68,8 @@ pub struct ObjectSpec {
     pub scale: f64,
     /// Its material.
     pub material: MaterialSpec,
-    /// Its basis.
+    /// Its basis (default [`BasisSpec::default`]).
+    #[serde(default)]
     pub basis: BasisSpec,
     /// Where its rest frame's origin starts (m): `x = R X + position`.
     #[serde(default)]
@@ -91,7 +92,8 @@ fn unit_scale() -> f64 {
 pub struct ObjectsFile {
     /// The objects (at least one).
     pub objects: Vec<ObjectSpec>,
-    /// Time stepping, shared (`points` per object).
+    /// Time stepping, shared (`points` per object; default [`SimulationSpec::default`]).
+    #[serde(default)]
     pub simulation: SimulationSpec,
     /// Gravity, floor and colliders, shared.
     #[serde(default)]

@@ -1,4 +1,4 @@
-//! How the reduced simulator holds a scene's constrained regions (issue 25): by the penalty, or
+//! How the reduced simulator holds a scene's constrained regions: by the penalty, or
 //! exactly, with a basis built for the regions.
 //!
 //! Holding a region exactly makes the basis's modes vanish on it; RKPM weights do not
@@ -9,7 +9,7 @@
 //! (tip within 0.4% / 2.0%); the points between the inset and the region's boundary are then
 //! kept by the penalty and drift by about as much as it lets them (1.4 cm on the 5 m beam).
 //!
-//! The default is the penalty: across the pin sweep (`freeform pins`: beam Bend and Twist,
+//! The default is the penalty: across the pin sweep (`freeform-paper pins`: beam Bend and Twist,
 //! m = 16 and 32, ν = 0.3 / 0.45 / 0.49) exact holding with that inset is more accurate in 2 of
 //! the 10 scored runs and less accurate in 8, by 1.46× in geometric mean; on the Twist the band
 //! lags the rotating end (up to 0.17 m at the FEM's held vertices).

@@ -8,6 +8,9 @@ pub trait Progress: Sync {
     fn begin(&self, _len: usize, _label: &str) {}
     /// One more unit of the current stage is done.
     fn advance(&self) {}
+    /// The current stage resumes with `done` units already done by an earlier run (a FEM
+    /// reference resumed from its checkpoint): they count as done but not in time estimates.
+    fn resume_at(&self, _done: usize) {}
     /// The current stage is over.
     fn finish(&self) {}
     /// A one-line status message (e.g. "basis: m = 16, K = 1000").

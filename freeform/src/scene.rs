@@ -8,13 +8,14 @@
 
 use std::sync::Arc;
 
+#[cfg(feature = "fem")]
 use fem_ref::{DirichletRegion, FemFloor, FemScene, NodeTarget};
 use nalgebra::{Rotation3, Unit, Vector3};
 use reduced_sim::{Collider, Floor, PinTarget, PinnedRegion, Scene, TargetFunction};
 use serde::{Deserialize, Serialize};
 use thiserror::Error;
 
-/// Points closer than this to a region's boundary plane count as inside it (m). DESIGN 4.1:
+/// Points closer than this to a region's boundary plane count as inside it (m). design §4.1:
 /// FEM nodes on the plane x = 0.5 are pinned.
 pub const REGION_TOLERANCE: f64 = 1e-9;
 
@@ -354,11 +355,12 @@ impl SceneSpec {
     }
 
     /// The FEM reference's scene on nodes `nodes` (rest positions), with the floor penalty
-    /// factor `floor_factor`.
+    /// factor `floor_factor` (feature `fem`).
     ///
     /// # Errors
     /// As [`SceneSpec::select`]; [`SceneSpecError::FemFriction`] for a floor with friction,
     /// [`SceneSpecError::FemColliders`] for colliders.
+    #[cfg(feature = "fem")]
     pub fn fem_scene(
         &self,
         nodes: &[Vector3<f64>],

@@ -143,96 +143,116 @@ pub struct BoxSpec {
     pub max: [f64; 3],
 }
 
-/// Basis settings.
+/// Basis settings; every field is optional in a file and defaults to [`BasisSpec::default`].
 #[derive(Clone, Copy, Debug, PartialEq, Serialize, Deserialize)]
-#[serde(deny_unknown_fields)]
+#[serde(default, deny_unknown_fields)]
 pub struct BasisSpec {
-    /// Modes m.
+    /// Modes m (default 16, [`skin_eigen::EigenParams`]).
     pub modes: usize,
-    /// Kernels K.
+    /// Kernels K (default 1000, [`rkpm_core::KernelParams`]).
     pub kernels: usize,
-    /// Grid points the basis is built on.
+    /// Grid points the basis is built on (default [`BasisSpec::DEFAULT_POINTS`]).
     pub points: usize,
 }
 
-/// Time stepping.
+impl BasisSpec {
+    /// Integration points the basis is built on when a file does not say: 20 000.
+    pub const DEFAULT_POINTS: usize = 20_000;
+}
+
+impl Default for BasisSpec {
+    /// The library's basis: m = 16, K = 1000 on 20 000 points.
+    fn default() -> Self {
+        let params = skin_eigen::BasisParams::default();
+        BasisSpec {
+            modes: params.eigen.modes,
+            kernels: params.kernels.count,
+            points: Self::DEFAULT_POINTS,
+        }
+    }
+}
+
+/// Time stepping; every field is optional in a file and defaults to
+/// [`SimulationSpec::default`].
 #[derive(Clone, Copy, Debug, PartialEq, Serialize, Deserialize)]
-#[serde(deny_unknown_fields)]
+#[serde(default, deny_unknown_fields)]
 pub struct SimulationSpec {
-    /// h (s).
+    /// h (s) (default 0.01).
     pub time_step: f64,
-    /// Steps to run.
+    /// Steps to run (default 100).
     pub steps: usize,
-    /// Grid points the simulation integrates over.
+    /// Grid points the simulation integrates over (default
+    /// [`SimulationSpec::DEFAULT_POINTS`]).
     pub points: usize,
     /// Write every n-th frame (default 1).
-    #[serde(default = "one")]
     pub output_every: usize,
     /// Where the elastic energy is integrated (default `{ kind = "cubature" }`: a cubature
     /// optimized first, with [`reduced_sim::CubatureParams`]' fields as optional overrides;
     /// `{ kind = "full" }`: every point, the paper's setting).
-    #[serde(default)]
     pub quadrature: QuadratureRule,
     /// Carry the Hessian factorization across steps while chord steps contract (default true,
     /// [`reduced_sim::SimulationParams::HESSIAN_REUSE`]; false: a fresh Hessian every Newton
     /// iteration, the paper's setting).
-    #[serde(default = "yes")]
     pub hessian_reuse: bool,
     /// How the constraints are held (default `"penalty"`; `{ exact = { inset = d } }` builds
     /// the basis for the regions shrunk by d m, see [`crate::PinHold`]).
-    #[serde(default)]
     pub pins: crate::PinHold,
     /// Write the stress (Sec. 9.3) into every VTK frame at the surface vertices or cloud
     /// points, and `points_NNNNN.vtk` of the integration points with theirs (default false:
     /// not computed). See [`crate::StressField`] for the arrays.
-    #[serde(default)]
     pub stress: bool,
     /// Slip speed ε_v (m/s) at which friction reaches its Coulomb limit (default 1e-3,
     /// [`reduced_sim::PenaltyParams::friction_slip_speed`]): larger values let sticking
     /// contacts creep faster (about 0.6 ε_v under 80% of the limit) but cost far fewer Newton
     /// iterations.
-    #[serde(default = "default_friction_slip_speed")]
     pub friction_slip_speed: f64,
     /// Newton's tolerance (default 1e-6, [`optimize::NewtonParams::tolerance`]): a step is
     /// solved when a Newton step moves the mass by less than this times the object's largest
-    /// rest side, root mean square. Contact scenes converge slowly near the end; 3e-5 took the
-    /// container example from 170 to about 115 ms a step (2026-11-24, 2 cores) with the same
-    /// penetration and energy record.
-    #[serde(default = "default_newton_tolerance")]
+    /// rest side, root mean square. A looser tolerance (e.g. 3e-5) speeds up contact scenes that
+    /// converge slowly near the end (`results/RESULTS.md`, "Newton's tolerance in contact scenes").
     pub newton_tolerance: f64,
     /// The floor's and colliders' penalty factor (default 1e4,
     /// [`reduced_sim::PenaltyParams::floor_factor`]: κ = factor · (λ + 2μ) / L²). Penetration
-    /// falls about as 1/factor: 1e5 kept the container example's objects within 0.23 mm of
-    /// the cup (1.1 mm at 1e4) at about the same Newton iterations.
-    #[serde(default = "default_floor_stiffness_factor")]
+    /// falls about as 1/factor.
     pub floor_stiffness_factor: f64,
     /// The material tangent in Newton's Hessians (default `"exact_when_definite"`: projected
     /// only when the exact system does not factor, see [`reduced_sim::HessianTangent`]; the
     /// container example's armadillo converges in half the Hessians; `"projected_psd"` at every
     /// point is the paper's; `"exact"`).
-    #[serde(default)]
     pub tangent: reduced_sim::HessianTangent,
     /// How the floor and the colliders push back (default `"penalty"`; `{ barrier = {
     /// distance = d } }`: IPC's log barrier within d m, so no integration point ever reaches
     /// them, see [`reduced_sim::FloorContact`]). A mesh collider's band must exceed d.
-    #[serde(default)]
     pub floor_contact: reduced_sim::FloorContact,
 }
 
-fn default_floor_stiffness_factor() -> f64 {
-    reduced_sim::PenaltyParams::default().floor_factor
+impl SimulationSpec {
+    /// Integration points the simulation uses when a file does not say: 5000.
+    pub const DEFAULT_POINTS: usize = 5000;
 }
 
-fn default_newton_tolerance() -> f64 {
-    optimize::NewtonParams::default().tolerance
-}
-
-fn default_friction_slip_speed() -> f64 {
-    reduced_sim::PenaltyParams::default().friction_slip_speed
-}
-
-fn one() -> usize {
-    1
+impl Default for SimulationSpec {
+    /// The library's defaults: 100 steps of 0.01 s on 5000 points, every frame written, the
+    /// cubature, Hessian reuse, penalty pins, no stress, and [`reduced_sim::PenaltyParams`]'
+    /// and [`optimize::NewtonParams`]' contact and solver settings.
+    fn default() -> Self {
+        let penalty = reduced_sim::PenaltyParams::default();
+        SimulationSpec {
+            time_step: 0.01,
+            steps: 100,
+            points: Self::DEFAULT_POINTS,
+            output_every: 1,
+            quadrature: QuadratureRule::default(),
+            hessian_reuse: true,
+            pins: crate::PinHold::default(),
+            stress: false,
+            friction_slip_speed: penalty.friction_slip_speed,
+            newton_tolerance: optimize::NewtonParams::default().tolerance,
+            floor_stiffness_factor: penalty.floor_factor,
+            tangent: reduced_sim::HessianTangent::default(),
+            floor_contact: reduced_sim::FloorContact::default(),
+        }
+    }
 }
 
 fn yes() -> bool {
@@ -312,9 +332,11 @@ pub struct SceneFile {
     pub geometry: GeometrySpec,
     /// Material (SI).
     pub material: MaterialSpec,
-    /// Basis settings.
+    /// Basis settings (default [`BasisSpec::default`]).
+    #[serde(default)]
     pub basis: BasisSpec,
-    /// Time stepping.
+    /// Time stepping (default [`SimulationSpec::default`]).
+    #[serde(default)]
     pub simulation: SimulationSpec,
     /// What acts on the object.
     #[serde(default)]

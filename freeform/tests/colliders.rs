@@ -1,4 +1,4 @@
-//! Kinematic colliders (issue 21): a box pushed by a moving box collider takes on the pusher's
+//! Kinematic colliders: a box pushed by a moving box collider takes on the pusher's
 //! speed, and a fast pusher does not pass through it.
 
 mod support;

@@ -1,4 +1,4 @@
-//! Floor friction (issue 21): a block on a 30° incline sticks when μ > tan 30° and slides with
+//! Floor friction: a block on a 30° incline sticks when μ > tan 30° and slides with
 //! Coulomb's acceleration g (sin θ − μ cos θ) when μ < tan 30°.
 //!
 //! The incline is the floor y ≥ 0 with gravity tilted by θ: `g = 9.8 (sin θ, −cos θ, 0)` m/s²,
@@ -77,7 +77,7 @@ fn a_block_on_a_30_degree_incline_slides_at_coulombs_acceleration_with_friction_
 }
 
 #[test]
-fn a_negative_friction_and_a_frictional_floor_for_the_fem_are_named_errors() {
+fn a_negative_friction_is_a_named_error_and_a_positive_one_valid() {
     let with_friction = |friction| SceneSpec {
         floor: Some(FloorSpec {
             normal: Vector3::y(),
@@ -91,6 +91,19 @@ fn a_negative_friction_and_a_frictional_floor_for_the_fem_are_named_errors() {
         Err(freeform::SceneSpecError::Invalid(why)) if why.contains("friction")
     ));
     assert!(with_friction(0.3).validate().is_ok());
+}
+
+#[cfg(feature = "fem")]
+#[test]
+fn a_frictional_floor_is_refused_by_the_fem_translation_and_a_frictionless_one_taken() {
+    let with_friction = |friction| SceneSpec {
+        floor: Some(FloorSpec {
+            normal: Vector3::y(),
+            offset: 0.0,
+            friction,
+        }),
+        ..Default::default()
+    };
     assert!(matches!(
         with_friction(0.3).fem_scene(&[Vector3::zeros()], 1e4),
         Err(freeform::SceneSpecError::FemFriction { friction }) if friction == 0.3

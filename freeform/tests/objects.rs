@@ -1,4 +1,4 @@
-//! Scene files with several objects (issue 21): validation names the field, and two boxes
+//! Scene files with several objects: validation names the field, and two boxes
 //! dropped on each other write every object's frames and stay apart by the contact distance.
 
 use std::path::{Path, PathBuf};

@@ -52,7 +52,7 @@ impl LameParameters {
     }
 
     /// From Young's modulus E (Pa) and Poisson ratio ν:
-    /// `μ = E / (2(1+ν))`, `λ = E ν / ((1+ν)(1-2ν))` (DESIGN 3.4).
+    /// `μ = E / (2(1+ν))`, `λ = E ν / ((1+ν)(1-2ν))` (design §3.4).
     ///
     /// # Errors
     /// [`MaterialParameterError::InvalidYoungsModulus`] unless E > 0 and finite;

@@ -1,22 +1,4 @@
-//! Hyperelastic constitutive models shared by every solver (DESIGN 3.6): energy density
-//! Ψ(F), first Piola-Kirchhoff stress P = ∂Ψ/∂F, the 9×9 tangent ∂P/∂F and its positive
-//! semi-definite projection, per-point Lamé parameters, and Cauchy stress.
-//!
-//! - [`StableNeoHookean`]: the paper's material (Eq. 16), with an analytic eigensystem for the
-//!   PSD projection.
-//! - [`LinearElastic`]: small-strain elasticity (the Simplicits loss ramp).
-//!
-//! Conventions: f64, SI units (Pa), `vec(F)` column-major (see [`determinant`]).
-//!
-//! ```
-//! use hyperelastic::{HyperelasticMaterial, LameParameters, StableNeoHookean};
-//! use nalgebra::Matrix3;
-//! let params = LameParameters::from_young_poisson(5e6, 0.45)?;
-//! let f = Matrix3::new(1.1, 0.1, 0.0, 0.0, 0.95, 0.0, 0.0, 0.0, 1.0);
-//! let psi = StableNeoHookean.energy_density(&params, &f); // J/m³
-//! assert!(psi > 0.0);
-//! # Ok::<(), hyperelastic::MaterialParameterError>(())
-//! ```
+#![doc = include_str!("../README.md")]
 
 pub mod cauchy_stress;
 pub mod determinant;

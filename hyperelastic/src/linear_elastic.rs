@@ -1,4 +1,4 @@
-//! Linear (small-strain) elasticity, used by the Simplicits baseline's loss ramp (DESIGN 3.9).
+//! Linear (small-strain) elasticity, used by the Simplicits baseline's loss ramp (design §3.9).
 
 use nalgebra::Matrix3;
 

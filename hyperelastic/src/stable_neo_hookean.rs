@@ -18,7 +18,7 @@ use crate::signed_svd::SignedSvd;
 ///
 /// Written with the cofactor (no F⁻¹), so every quantity is finite for inverted (J ≤ 0) and
 /// degenerate F. At F = I the tangent equals linear elasticity's `μ(I + T) + λ vec(I)vec(I)ᵀ`
-/// with the same (λ, μ), the fact behind Prop. 1 (DESIGN 3.4, 3.6).
+/// with the same (λ, μ), the fact behind Prop. 1 (design §3.4, 3.6).
 ///
 /// The PSD projection uses the analytic eigensystem of Smith et al. 2019: with the signed SVD
 /// `F = U diag(σ) Vᵀ`, six eigenpairs are closed-form — for each pair (i, j) with third index k,

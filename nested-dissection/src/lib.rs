@@ -1,15 +1,4 @@
-//! Fill-reducing orderings of sparse symmetric matrices by nested dissection (George 1973;
-//! Karypis & Kumar 1998): METIS 5's `METIS_NodeND`, vendored, behind one safe function.
-//!
-//! A sparse Cholesky factorization `LLᵀ = PAPᵀ` fills in entries of `L` that are zero in `A`;
-//! how many depends on the elimination order P. Nested dissection splits the graph of A by a
-//! small vertex separator, orders both halves first (recursively) and the separator last. On
-//! 3D finite-element meshes it often leaves less fill than minimum-degree orderings (fem-ref's
-//! P2 shape references: up to 35% fewer entries in L than approximate minimum degree, though
-//! not on every mesh).
-//!
-//! This crate is the workspace's only `unsafe` code: the call into METIS, whose inputs
-//! [`nested_dissection_order`] checks first.
+#![doc = include_str!("../README.md")]
 
 use std::sync::Mutex;
 

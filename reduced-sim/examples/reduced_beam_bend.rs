@@ -1,4 +1,4 @@
-//! The beam Bend scene of DESIGN 4.1 on the reduced simulator: a 5 m × 1 m × 1 m beam
+//! The beam Bend scene of design §4.1 on the reduced simulator: a 5 m × 1 m × 1 m beam
 //! (E = 5 MPa, ν = 0.45, ρ = 1000 kg/m³) with x ≤ 0.5 m pinned, bending under gravity
 //! (9.8 m/s² along -y), 100 steps of h = 0.01 s.
 //!

@@ -1,4 +1,4 @@
-//! Contact between objects (issue 21): a swappable repulsion between the contact samples of
+//! Contact between objects: a swappable repulsion between the contact samples of
 //! different objects, and their smoothed, lagged Coulomb friction.
 //!
 //! Each object carries contact samples on its surface at spacing about r, moved by its own

@@ -1,4 +1,4 @@
-//! Kinematic colliders (issue 21): rigid shapes moving on prescribed paths that push the object
+//! Kinematic colliders: rigid shapes moving on prescribed paths that push the object
 //! through a penalty on their signed distance (or the floor's barrier,
 //! [`crate::FloorContact::Barrier`]), with the floor's friction model (a pusher, a peg, a
 //! container wall, the jointed links of a robot arm).

@@ -1,5 +1,5 @@
 //! Smoothed, lagged Coulomb friction at the object's contacts with the floor and with
-//! kinematic colliders (IPC's model, Li et al. 2020, Sec. 5), for issue 21.
+//! kinematic colliders (IPC's model, Li et al. 2020, Sec. 5).
 //!
 //! Every integration point i in contact gets its normal force `λ_i = κ v_i d_i` (N; κ the
 //! contact stiffness, v_i the volume, d_i the penetration depth) and its contact normal n_i,

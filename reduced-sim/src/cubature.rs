@@ -1,5 +1,5 @@
 //! Optimized cubature for the reduced elastic forces (An, Kim and James 2008, "Optimizing
-//! cubature for efficient integration of subspace deformations"; DESIGN 3.7, issue 18).
+//! cubature for efficient integration of subspace deformations"; design §3.7).
 //!
 //! Training poses `z_p` are drawn from the basis alone ([`training_poses`]): every handle gets a
 //! random rotation (up to [`CubatureParams::max_rotation`]) and a random stretch, scaled so the
@@ -77,22 +77,14 @@ pub struct CubatureParams {
     /// directions, which move the solution most, count most.
     pub time_step: f64,
     /// Points the greedy selection chooses from, drawn at random (default 5000; every point
-    /// when the model has fewer). Too few limit the error reachable with non-negative
-    /// weights: on the beam at m = 32 a pool of 1500 of 5000 points stalled at 5.3e-3, and
-    /// its Bend MSE against the FEM was 10× the full quadrature's (1.2× from all 5000).
-    /// Memory: 4 · 12(m+1) · poses · candidates bytes (0.48 GB at m = 32).
+    /// when the model has fewer). Too few limit the error reachable with non-negative weights
+    /// (`results/RESULTS.md`, "The cubature's candidate pool"). Memory:
+    /// 4 · 12(m+1) · poses · candidates bytes (0.48 GB at m = 32).
     pub candidates: usize,
     /// Relative force error over the training poses (in the weighted norm of
-    /// [`force_weights`]) at which selection stops (default 0.001). On the beam at m = 32 (5000
-    /// points, pin factor 3e3, `eval/examples/fast_step.rs`) the Bend / Twist MSE against the
-    /// FEM was 1.25× / 1.08× the full quadrature's at 0.003 (799 points), 1.21× / 1.01× at
-    /// 0.002 (994) and 1.14× / 1.00× at 0.001 (1434); 0.005 gave 1.5× Bend. At m = 16, 0.95× /
-    /// 1.01× at 0.001 (795 points) against 1.03× / 1.04× at 0.003 (483). The step with Hessian
-    /// reuse then took 2.27 ms at m = 32 and 0.81 ms at m = 16 (1.88 and 0.60 ms at 0.003,
-    /// 2026-11-26). The cubature's own change of the trajectory ("MSE to full", 2.0e-7 at 0.001,
-    /// 4.7e-7 at 0.003) is small against the error (1.56e-5) but aligned with it: the
-    /// cubature makes the beam slightly softer, as the penalty pins already do. 0.003 was the
-    /// default before 2026-11-26.
+    /// [`force_weights`]) at which selection stops (default 0.001). Lower values keep more points
+    /// and follow the full quadrature more closely; the measurements that chose the default are in
+    /// `results/RESULTS.md` ("The cubature's tolerance").
     pub tolerance: f64,
     /// Most points with positive weight the cubature may hold (default 2000).
     pub max_points: usize,

@@ -1,5 +1,5 @@
 //! The Gram matrix of the cubature's force columns from small per-point factors, without the
-//! columns themselves (issue 18: the Gram updates were the largest part of the cubature's
+//! columns themselves (the Gram updates were the largest part of the cubature's
 //! preparation at m = 32).
 //!
 //! Column i of the cubature's matrix A stacks, pose after pose, point i's weighted force

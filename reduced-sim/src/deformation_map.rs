@@ -1,5 +1,5 @@
 //! The linear-blend-skinning deformation map at a fixed set of rest points, precomputed once
-//! (DESIGN 3.7, paper Eq. 1).
+//! (design §3.7, paper Eq. 1).
 
 use std::ops::Range;
 

@@ -1,5 +1,5 @@
 //! The reduced elastic energy `Σ_i v_i Ψ(F_i(z))`, its gradient and its Hessian, built from
-//! dense matrix products over the per-point G_i (DESIGN 3.7, paper Eq. 2).
+//! dense matrix products over the per-point G_i (design §3.7, paper Eq. 2).
 
 use faer::linalg::matmul::triangular::{self, BlockStructure};
 use faer::{Accum, Mat, MatRef, Par};

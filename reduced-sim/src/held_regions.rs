@@ -1,4 +1,4 @@
-//! Exactly held regions (issue 25, [`crate::Scene::held`]): each held region moves
+//! Exactly held regions ([`crate::Scene::held`]): each held region moves
 //! by an affine transform carried by its own handles, prescribed from the region's targets and
 //! eliminated from Newton.
 //!

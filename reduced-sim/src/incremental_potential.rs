@@ -1,4 +1,4 @@
-//! The backward-Euler incremental potential of one step (DESIGN 3.7):
+//! The backward-Euler incremental potential of one step (design §3.7):
 //!
 //! ```text
 //! E(z) = 1/(2h²) (z - ẑ)ᵀ M_z (z - ẑ) + Σ_i v_i Ψ(F_i(z)) + E_grav(z) + E_pin(z, t+h) + E_floor(z)
@@ -31,7 +31,7 @@ pub(crate) struct Inertia<'a> {
     pub(crate) inverse_step_squared: f64,
 }
 
-/// E(z) of one step (Eq. 2 with backward Euler, DESIGN 3.7), with its gradient and Hessian
+/// E(z) of one step (Eq. 2 with backward Euler, design §3.7), with its gradient and Hessian
 /// (material tangent by [`HessianTangent`]). z has length 12(m + 1) (the
 /// [`crate::ReducedLayout`]); E is in J up to a constant.
 pub struct IncrementalPotential<'a, M: HyperelasticMaterial> {

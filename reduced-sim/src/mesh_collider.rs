@@ -1,4 +1,4 @@
-//! A closed triangle mesh as a collider shape (issue 21): a container, a ramp, pegs of any form.
+//! A closed triangle mesh as a collider shape: a container, a ramp, pegs of any form.
 //!
 //! φ(p) = ±|p − c(p)|, c the closest surface point, negative
 //! inside; ∇φ = ±(p − c)/|p − c|. The sign is that of `(p − c)·N`, N the angle-weighted

@@ -1,4 +1,4 @@
-//! Several objects in one scene (issue 21): each a [`Simulator`] of its own model and scene
+//! Several objects in one scene: each a [`Simulator`] of its own model and scene
 //! (floor, colliders, pins, gravity), coupled by contact between their surface samples
 //! ([`crate::body_contact`]).
 //!

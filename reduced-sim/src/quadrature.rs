@@ -1,5 +1,5 @@
 //! The elastic quadrature: which integration points, with which non-negative weights, carry the
-//! elastic energy `E_el(z) ≈ Σ_{q ∈ Q} w_q Ψ(F_q(z))` (DESIGN 3.7, issue 18).
+//! elastic energy `E_el(z) ≈ Σ_{q ∈ Q} w_q Ψ(F_q(z))` (design §3.7).
 //!
 //! Mass, gravity, pins and the floor always use every integration point with its volume; only
 //! the elastic energy, its gradient and its Hessian (the cost of a step) move to the quadrature.
@@ -172,10 +172,8 @@ impl ElasticQuadrature {
 /// How to choose the elastic quadrature of a model: a typed option for scene files, the CLI
 /// and the experiments.
 ///
-/// The default is an optimized cubature with [`CubatureParams::DEFAULT`]: on the beam (Bend
-/// and Twist, against the converged FEM) it gives 0.86–1.09× the full quadrature's MSE at
-/// m = 6 … 32 (Bend at m = 32: 1.26×) with 305 / 437 / 628 / 1098 of 5000 points at
-/// m = 6 / 9 / 16 / 32, and steps 5–9× faster (`eval/examples/fast_step.rs`).
+/// The default is an optimized cubature with [`CubatureParams::DEFAULT`], chosen against the
+/// converged FEM on the beam (`results/RESULTS.md`, "The default quadrature").
 /// [`QuadratureRule::PAPER`] is the paper's setting.
 #[derive(Clone, Copy, Debug, PartialEq, Serialize, Deserialize)]
 #[serde(rename_all = "snake_case", tag = "kind")]

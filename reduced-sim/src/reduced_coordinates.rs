@@ -1,4 +1,4 @@
-//! The layout of the reduced coordinates z (DESIGN 3.7).
+//! The layout of the reduced coordinates z (design §3.7).
 //!
 //! The deformation map is `x(X, z) = X + Σ_{j=0..m} W^j(X) Z_j X̄`, `X̄ = [X; 1]`, with one 3×4
 //! affine matrix `Z_j` per handle. Row r of every `Z_j` only moves coordinate r of x, so z is

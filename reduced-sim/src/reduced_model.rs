@@ -1,5 +1,5 @@
 //! What the simulator simulates: integration points with volumes and materials, their
-//! deformation map, and the constant reduced mass matrix (DESIGN 3.7).
+//! deformation map, and the constant reduced mass matrix (design §3.7).
 
 use faer::{Accum, Mat, Par, Side};
 use hyperelastic::MaterialSample;

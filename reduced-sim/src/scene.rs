@@ -1,4 +1,4 @@
-//! The external terms of a scene, each present only when the scene has it (DESIGN 3.7):
+//! The external terms of a scene, each present only when the scene has it (design §3.7):
 //! gravity, pinned or moving points, a floor half-space.
 
 use std::fmt;
@@ -83,14 +83,14 @@ pub struct Scene {
     pub pins: Vec<PinnedRegion>,
     /// An optional floor.
     pub floor: Option<Floor>,
-    /// Regions held exactly (issue 25): each moves by the affine transform that best fits its
+    /// Regions held exactly: each moves by the affine transform that best fits its
     /// targets, carried by handles the basis holds for it and eliminated from Newton, so the
     /// region sits on its targets whenever they are an affine motion of it (rest, rigid
     /// motions, the Twist's rotating end). Needs a basis built for these regions, in this order
     /// ([`skin_eigen::build_basis_with_regions`]); empty by default. [`Scene::pins`] keep their
     /// penalty beside them (e.g. on the band between a held region and the region's boundary).
     pub held: Vec<PinnedRegion>,
-    /// Kinematic colliders (issue 21): rigid shapes on prescribed paths that push the object
+    /// Kinematic colliders: rigid shapes on prescribed paths that push the object
     /// (penalty on their signed distance, with the floor's stiffness) and rub it (their
     /// friction coefficient, the floor's friction model); empty by default.
     pub colliders: Vec<Collider>,
@@ -128,7 +128,7 @@ impl Scene {
 pub struct PenaltyParams {
     /// Pin stiffness factor (dimensionless, default 3e3 with [`PinModulus::Young`]).
     ///
-    /// Chosen against the converged FEM (`freeform pins`: beam Bend and Twist, m = 16 and 32,
+    /// Chosen against the converged FEM (`freeform-paper pins`: beam Bend and Twist, m = 16 and 32,
     /// ν = 0.3 / 0.45 / 0.49, factors 1e2 … 3e4 under both moduli): E · 3e3 has the lowest
     /// geometric-mean MSE over the sweep's ten scored runs together with E · 1e3 (both 1.8×
     /// below the former tables' rule, (λ + 2μ) · 1e3), beats that rule in 9 of the 10 runs, and
@@ -217,7 +217,7 @@ fn default_friction_lag_iterations() -> usize {
     2
 }
 
-/// Which material modulus scales the pin penalty (issue 25).
+/// Which material modulus scales the pin penalty.
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Serialize, Deserialize)]
 #[serde(rename_all = "snake_case")]
 pub enum PinModulus {

@@ -1,5 +1,5 @@
 //! A [`Scene`] turned into reduced energy terms on one model: gravity, pin and floor penalties
-//! with their gradients and Hessians in z (DESIGN 3.7).
+//! with their gradients and Hessians in z (design §3.7).
 
 use faer::{Accum, Mat, MatRef, Par};
 use hyperelastic::HyperelasticMaterial;

@@ -1,5 +1,5 @@
 //! The time stepper: a model, a scene, and the reduced state advanced by backward Euler
-//! (DESIGN 3.7, paper Eqs. 1-2).
+//! (design §3.7, paper Eqs. 1-2).
 
 use faer::linalg::solvers::Llt;
 use hyperelastic::HyperelasticMaterial;
@@ -102,12 +102,8 @@ fn default_hessian_max_age() -> usize {
 
 impl SimulationParams {
     /// The default Hessian reuse: chord steps with the carried factorization while each is at
-    /// most 0.7 of the previous one. On the beam (m = 6 … 32, cubature to 0.001, against the
-    /// converged FEM; `eval/examples/fast_step.rs --reuse-contraction 0.5,0.7`) it assembles
-    /// 0.04–0.08 Hessians per Bend step and 1.7–2.7 per Twist step instead of 2 and 6.5–7.7, with
-    /// the fresh-Hessian MSE to three digits; against the former 0.5 (0.05–0.09 and 2.6–4.3) the
-    /// Twist step is 1.2–1.9× faster and the Bend step the same within the machine's noise, and
-    /// the contact scenes and the stress suite do not change (2026-11-26).
+    /// most 0.7 of the previous one; a fresh Hessian otherwise. Chosen on the beam against the
+    /// converged FEM (`results/RESULTS.md`, "Hessian reuse").
     pub const HESSIAN_REUSE: HessianReuse = HessianReuse::WhileContracting { contraction: 0.7 };
 
     /// The paper's setting: the defaults with a fresh Hessian every Newton iteration and the

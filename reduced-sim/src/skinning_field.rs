@@ -1,4 +1,4 @@
-//! The basis trait: what the simulator needs from any skinning basis (DESIGN 2, 3.7).
+//! The basis trait: what the simulator needs from any skinning basis (design §2, 3.7).
 
 use nalgebra::Vector3;
 use rkpm_core::ShapeFunctionError;

@@ -1,4 +1,4 @@
-//! Exactly held regions (issue 25, `PinTreatment::Subspace`): the regions follow their targets
+//! Exactly held regions (`PinTreatment::Subspace`): the regions follow their targets
 //! at every step, a translated body moves rigidly, the constrained step's derivatives match
 //! finite differences, and a basis not built for the regions is refused.
 

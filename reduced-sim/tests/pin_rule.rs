@@ -1,4 +1,4 @@
-//! The pin penalty's modulus (issue 25): scaled by Young's modulus, the same factor lets a
+//! The pin penalty's modulus: scaled by Young's modulus, the same factor lets a
 //! pinned region drift by about the same fraction of the deformation at ν = 0.3 and ν = 0.49;
 //! scaled by the p-wave modulus λ + 2μ, which grows without bound as ν → 1/2, it does not.
 

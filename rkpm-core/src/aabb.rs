@@ -34,7 +34,7 @@ impl Aabb {
         self.max - self.min
     }
 
-    /// Largest side length `L = max_i (max_i - min_i)` (the normalization length of DESIGN 4.3).
+    /// Largest side length `L = max_i (max_i - min_i)` (the normalization length of design §4.3).
     pub fn largest_side(&self) -> f64 {
         self.extent().max()
     }

@@ -1,5 +1,5 @@
 //! Integration (quadrature) points inside a solid, each with the volume it stands for
-//! (DESIGN 3.1).
+//! (design §3.1).
 //!
 //! - [`sample_grid`]: cell centres of a uniform grid over the bounding box, kept where inside;
 //!   `v_i` = cell volume. The per-axis spacing is fitted so the cells tile the box exactly.
@@ -93,7 +93,7 @@ impl IntegrationPoints {
     }
 
     /// Mean distance from each point to its nearest other point (the sampling spacing used by
-    /// the kernel-radius clamp of DESIGN 3.2). Zero for a single point.
+    /// the kernel-radius clamp of design §3.2). Zero for a single point.
     pub fn mean_nearest_neighbor_distance(&self) -> f64 {
         mean_nearest_neighbor_distance(&self.positions)
     }
@@ -163,7 +163,7 @@ impl Default for GridSamplingParams {
     }
 }
 
-/// Uniform-grid integration points inside a closed mesh (DESIGN 3.1).
+/// Uniform-grid integration points inside a closed mesh (design §3.1).
 ///
 /// The bounding box is split into `n_x × n_y × n_z` equal cells, `n_d = max(1, round(L_d/h))`,
 /// `h = (V/target)^(1/3)`; each cell centre inside the mesh becomes a point with volume
@@ -340,7 +340,7 @@ impl Default for PointCloudSamplingParams {
 }
 
 /// Integration points from a point cloud or 3DGS object: the points themselves (down-sampled
-/// to `max_points`, a seeded random subset), each with volume `V / N` (DESIGN 3.1); with
+/// to `max_points`, a seeded random subset), each with volume `V / N` (design §3.1); with
 /// [`PointCloudSamplingParams::fill_interior`], also the empty inner cells of the voxel closing.
 ///
 /// # Errors

@@ -1,4 +1,4 @@
-//! RKPM kernel centres and radii (DESIGN 3.2).
+//! RKPM kernel centres and radii (design §3.2).
 //!
 //! Centres: farthest point sampling over the integration points. Radius of kernel k:
 //! `r_k = max(radius_scale · d₂(p_k), min_radius_factor · s̄)`, with d₂ the distance from p_k to

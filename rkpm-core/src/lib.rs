@@ -1,25 +1,4 @@
-//! Geometry input, integration points, kernel centres and RKPM shape functions: the first
-//! stage of FreeForm (paper Sec. 3.2, Eqs. 6-11; DESIGN 3.1-3.3).
-//!
-//! The pipeline a basis builder runs, with the default parameters:
-//!
-//! ```no_run
-//! use rkpm_core::{
-//!     evaluate_shape_functions, place_kernels, read_triangle_mesh, sample_grid,
-//!     GridSamplingParams, KernelParams, ShapeFunctionParams,
-//! };
-//! # fn main() -> Result<(), Box<dyn std::error::Error>> {
-//! let (mesh, _to_unit) = read_triangle_mesh("bunny.obj")?.normalized();
-//! let points = sample_grid(&mesh, &GridSamplingParams::default())?; // ~30k points, v_i = h³
-//! let kernels = place_kernels(points.positions(), &KernelParams::default())?; // K = 1000, FPS
-//! let shape = evaluate_shape_functions(&kernels, points.positions(), &ShapeFunctionParams::default())?;
-//! println!("{:.1} kernels per point", shape.mean_kernels_per_point());
-//! # Ok(()) }
-//! ```
-//!
-//! Conventions: 3D, f64, positions in metres (or file units before normalization), column
-//! vectors `nalgebra::Vector3<f64>`. Every fallible function returns a `thiserror` enum whose
-//! variants name the offending input.
+#![doc = include_str!("../README.md")]
 
 pub mod aabb;
 pub mod geometry_io;

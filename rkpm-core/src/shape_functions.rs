@@ -1,4 +1,4 @@
-//! RKPM shape functions and their gradients (paper Eqs. 6-11, DESIGN 3.3).
+//! RKPM shape functions and their gradients (paper Eqs. 6-11, design §3.3).
 //!
 //! The paper's form is `ϕ_k(X) = φ_k(X) P(p_k)ᵀ C(X)` with `P(X) = [1, x, y, z]ᵀ`,
 //! `M(X) C(X) = P(X)` and `M(X) = Σ_k φ_k(X) P(p_k) P(p_k)ᵀ` (Eqs. 7, 9-11). We evaluate the
@@ -224,7 +224,7 @@ impl ShapeFunctions {
     }
 }
 
-/// Largest violation over a set of points of the four reproducing conditions (DESIGN 3.3),
+/// Largest violation over a set of points of the four reproducing conditions (design §3.3),
 /// made dimensionless with a length `L`. All are round-off small wherever M(X) is invertible.
 #[derive(Clone, Copy, Debug, Default, PartialEq, Serialize, Deserialize)]
 pub struct ReproducingErrors {

@@ -247,7 +247,7 @@ impl TriangleMesh {
     }
 
     /// A copy translated and scaled so its bounding box starts at the origin and its largest
-    /// side is 1, with the transform applied (DESIGN 4.2).
+    /// side is 1, with the transform applied (design §4.2).
     pub fn normalized(&self) -> (TriangleMesh, Normalization) {
         let bbox = self.bounding_box();
         let normalization = Normalization {

@@ -1,4 +1,4 @@
-//! RKPM shape functions: the four reproducing conditions (DESIGN 3.3), gradients against
+//! RKPM shape functions: the four reproducing conditions (design §3.3), gradients against
 //! central differences, equivalence with the paper's unshifted Eqs. 7-11, singularity reports.
 
 use nalgebra::Vector3;

@@ -1,5 +1,5 @@
 //! Skinning eigenmodes of the 5 m × 1 m × 1 m beam against the analytic Neumann-Laplacian
-//! eigenvalues π²(i²/a² + j²/b² + k²/c²) (DESIGN 3.5).
+//! eigenvalues π²(i²/a² + j²/b² + k²/c²) (design §3.5).
 //!
 //! ```sh
 //! cargo run --release -p skin-eigen --example box_modes -- --json

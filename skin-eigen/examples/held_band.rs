@@ -1,4 +1,4 @@
-//! The band of a held region (issue 25): on the 5 m × 1 m × 1 m beam with the end x ≤ 0.5 m
+//! The band of a held region: on the 5 m × 1 m × 1 m beam with the end x ≤ 0.5 m
 //! held, how far beyond x = 0.5 the modes stay near zero, for the Gaussian and the compact
 //! B-spline kernel windows.
 //!

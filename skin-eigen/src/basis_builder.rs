@@ -133,7 +133,7 @@ pub struct BasisReport {
     pub held_regions: Option<HeldRegionsReport>,
 }
 
-/// How exactly the weights of a basis with held regions hold them (issue 25).
+/// How exactly the weights of a basis with held regions hold them.
 #[derive(Clone, Copy, Debug, PartialEq, Serialize, Deserialize)]
 pub struct HeldRegionsReport {
     /// Number of regions R.
@@ -191,7 +191,7 @@ pub fn build_basis(
     build(points, materials, params, None, &[])
 }
 
-/// [`build_basis`] for an object with R exactly held regions (issue 25): the basis carries one
+/// [`build_basis`] for an object with R exactly held regions: the basis carries one
 /// weight per region beyond the first (1 on its region, 0 on the others, the material-aware
 /// harmonic extension of H_w elsewhere) and m modes computed among the weights that vanish on
 /// every region ([`crate::solve_constrained_modes`]), so each region moves by the affine

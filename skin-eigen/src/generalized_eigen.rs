@@ -83,7 +83,7 @@ pub struct EigenSolution {
 }
 
 /// Solves `H_w c = λ 𝓜 c` for the m + 1 smallest pairs, drops the first (the constant mode,
-/// λ ≈ 0) and returns the next m, 𝓜-orthonormal (Eq. 15, DESIGN 3.5).
+/// λ ≈ 0) and returns the next m, 𝓜-orthonormal (Eq. 15, design §3.5).
 ///
 /// Method (dense, K up to a few thousand): `𝓜 = Q D Qᵀ`; keep the directions with
 /// `d_i > tol · d_max`; with `B = Q_r D_r^{-1/2}` solve the standard problem

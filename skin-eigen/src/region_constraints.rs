@@ -1,4 +1,4 @@
-//! Skinning weights for exactly held regions (issue 25): one weight per region, 1 on its region
+//! Skinning weights for exactly held regions: one weight per region, 1 on its region
 //! and 0 on the others, and m eigenmodes that vanish on every region.
 //!
 //! With regions Ω_0 … Ω_{R-1}, each given by rest points X_p (those that must be held: the

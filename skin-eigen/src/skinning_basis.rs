@@ -71,7 +71,7 @@ pub struct BasisMetadata {
 
 /// m skinning weight fields `W^j(X) = Σ_k ϕ_k(X) c_kj` (Sec. 3.2), plus the constant handle.
 ///
-/// A basis built for R exactly held regions ([`crate::build_basis_with_regions`], issue 25)
+/// A basis built for R exactly held regions ([`crate::build_basis_with_regions`])
 /// also carries R − 1 region weights between the constant handle and the modes: handle r
 /// (1 ≤ r < R) is 1 on region r and 0 on the other regions, the modes vanish on every region,
 /// and region 0's weight is the constant minus the others. Handles, in order:

@@ -1,4 +1,4 @@
-//! Bases with exactly held regions (issue 25): region weights 1 on their region and 0 on the
+//! Bases with exactly held regions: region weights 1 on their region and 0 on the
 //! others, summing to one everywhere; modes that vanish on the regions; clear errors.
 
 use hyperelastic::LameParameters;

@@ -1,5 +1,5 @@
 //! The MPM baseline's stress: the Kirchhoff stress τ = P Fᵀ of the particle's deformation
-//! gradient F, which the grid force −Σ_p V⁰_p τ_p ∇w_ip takes (DESIGN 7.6).
+//! gradient F, which the grid force −Σ_p V⁰_p τ_p ∇w_ip takes (design §3.10).
 
 use hyperelastic::{
     HyperelasticMaterial, LameParameters, SignedSvd, StableNeoHookean, polar_rotation,

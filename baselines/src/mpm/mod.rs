@@ -1,4 +1,4 @@
-//! The Material Point Method baseline of Tables 1 and 5 (DESIGN 7.6): explicit MPM with APIC
+//! The Material Point Method baseline of Tables 1 and 5 (design §3.10): explicit MPM with APIC
 //! transfers and quadratic B-spline weights, as warp-mpm (PhysGaussian's solver) runs it.
 //!
 //! - [`QuadraticStencil`]: the 3 × 3 × 3 node weights and gradients of a point;

@@ -1,4 +1,4 @@
-//! Explicit MPM with APIC transfers, as warp-mpm (PhysGaussian's solver) runs it (DESIGN 7.6).
+//! Explicit MPM with APIC transfers, as warp-mpm (PhysGaussian's solver) runs it (design §3.10).
 //!
 //! One substep of length Δt from time t:
 //! 1. particles in a constrained region get the velocity that lands them on their target:

@@ -1,5 +1,5 @@
 //! Total-Lagrangian SPH neighbourhoods and corrected kernel gradients, fixed at rest
-//! (Kugelstadt et al. 2021, Eq. 8; DESIGN 7.6).
+//! (Kugelstadt et al. 2021, Eq. 8; design §3.10).
 
 use nalgebra::{Matrix3, Vector3};
 use rayon::prelude::*;

@@ -1,4 +1,4 @@
-//! The SPH solid baseline of Tables 1 and 5 (DESIGN 7.6): the implicit corotated SPH of
+//! The SPH solid baseline of Tables 1 and 5 (design §3.10): the implicit corotated SPH of
 //! Kugelstadt et al. 2021 with zero-energy mode control, as SPlisHSPlasH runs it.
 //!
 //! - [`CubicSplineKernel`]: W and ∇W;

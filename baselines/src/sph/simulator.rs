@@ -1,6 +1,6 @@
 //! The implicit corotated SPH solid of Kugelstadt et al. 2021 ("Fast Corotated Elastic SPH
 //! Solids with Implicit Zero-Energy Mode Control"), as SPlisHSPlasH's
-//! `Elasticity_Kugelstadt2021` runs it (DESIGN 7.6).
+//! `Elasticity_Kugelstadt2021` runs it (design §3.10).
 //!
 //! One step of length Δt from time t (x, v the particles' positions and velocities):
 //! 1. free particles: v ← v + Δt g; particles in a constrained region get the velocity that

@@ -10,7 +10,7 @@ use baselines::{
 use crate::EvalError;
 use crate::beam::reduced::beam_basis_grid;
 use crate::model_cache::{beam_model_path, load_or_train};
-use crate::progress::Progress;
+use freeform::terminal_progress::TerminalProgress;
 
 /// A trained ablation basis and whether it came from the cache.
 pub struct BeamCoefficients {
@@ -29,7 +29,7 @@ pub fn train_beam_coefficients(
     params: &CoefficientTrainingParams,
     basis_points: usize,
     cache_dir: &Path,
-    progress: &Progress,
+    progress: &TerminalProgress,
 ) -> Result<BeamCoefficients, EvalError> {
     let path = beam_model_path(
         cache_dir,

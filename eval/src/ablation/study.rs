@@ -15,7 +15,7 @@ use crate::beam::simplicits::train_beam_simplicits;
 use crate::beam::study::{
     BeamStudyConfig, FemReference, FemSummary, evaluate_field, fem_references,
 };
-use crate::progress::Progress;
+use freeform::terminal_progress::TerminalProgress;
 
 /// What the ablation study runs.
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
@@ -156,7 +156,7 @@ fn score_all<B: SkinningField + ?Sized>(
     settings: &ReducedSettings,
     config: &BeamStudyConfig,
     references: &[FemReference],
-    progress: &Progress,
+    progress: &TerminalProgress,
 ) -> Result<Vec<TestScore>, EvalError> {
     references
         .iter()
@@ -199,7 +199,7 @@ fn sampling_rows(method: &str, grid: &[TestScore], random: &[TestScore]) -> Vec<
 /// [`EvalError`] from any run; nothing is half-reported.
 pub fn run_ablation_study(
     config: &AblationStudyConfig,
-    progress: &Progress,
+    progress: &TerminalProgress,
 ) -> Result<AblationStudy, EvalError> {
     let base = &config.base;
     let (references, fem) = fem_references(base, progress)?;

@@ -1,4 +1,4 @@
-//! The beam experiments of DESIGN 4.1: a 5 m × 1 m × 1 m beam, E = 5 MPa, ν = 0.45,
+//! The beam experiments of design §4.1: a 5 m × 1 m × 1 m beam, E = 5 MPa, ν = 0.45,
 //! ρ = 1000 kg/m³, h = 0.01 s; Bend (gravity, x ≤ 0.5 pinned, 300 steps) and Twist (x ≤ 0.5
 //! pinned, x ≥ 4.5 rotated about the beam axis by min(2160°/s · t, 720°), 30 steps: 648° at
 //! t = 0.30 s, before the twisted beam buckles).
@@ -62,7 +62,7 @@ impl BeamTest {
         }
     }
 
-    /// Steps of DESIGN 4.1: 300 for Bend (3 s), 30 for Twist (648° at t = 0.30 s, as the
+    /// Steps of design §4.1: 300 for Bend (3 s), 30 for Twist (648° at t = 0.30 s, as the
     /// authors' research code runs it). Not 34: from about 518° the twisted beam's stiffness is
     /// indefinite, and at steps 33-34 both our FEM and an external one stop unconverged and
     /// part by 0.1-0.6 m (it buckles), so those frames would measure the bifurcation rather than

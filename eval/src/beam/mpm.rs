@@ -1,8 +1,8 @@
-//! The MPM baseline on the beam (Tables 1 and 5, issue 22): particles on the beam grid at
+//! The MPM baseline on the beam (Tables 1 and 5): particles on the beam grid at
 //! `particles_per_cell` per axis per grid cell, the test's scene on those particles (pinned and
 //! twisted regions by particle velocity enforcement), tracers at the FEM vertices' rest
 //! positions (those in a constrained region moved onto its target like the region's
-//! particles, the others with the grid velocity), scored by the metrics of DESIGN 4.3. A run
+//! particles, the others with the grid velocity), scored by the metrics of design §4.3. A run
 //! that stops (a tracer left the material, an instability) is reported with its reason and
 //! not scored. Trajectories are cached under
 //! `<cache>/mpm/`: a Bend run at Δx = 0.05 m takes more than 80 min on 2 cores.
@@ -21,8 +21,8 @@ use crate::beam::particle_baseline::{
     score_particle_run, store_cached_run,
 };
 use crate::beam::{BEAM_MAX, BEAM_MIN, BEAM_TIME_STEP, BeamTest, beam_material};
-use crate::fem_reference::FemRun;
-use crate::progress::Progress;
+use freeform::fem_reference::FemRun;
+use freeform::terminal_progress::TerminalProgress;
 
 /// Cache file kind and format version of an MPM beam trajectory.
 const MPM_CACHE_MAGIC: &[u8] = b"FFMPMTR1";
@@ -77,7 +77,7 @@ pub fn run_mpm_beam(
     steps: usize,
     reference: &FemRun,
     cache_dir: &Path,
-    progress: &Progress,
+    progress: &TerminalProgress,
 ) -> Result<ParticleBeamRun, EvalError> {
     let particles = sample_box_grid(
         BEAM_MIN,

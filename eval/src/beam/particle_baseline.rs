@@ -1,4 +1,4 @@
-//! What the particle baselines of Tables 1 and 5 (MPM, issue 22; SPH, issue 23) report on the
+//! What the particle baselines of Tables 1 and 5 (MPM and SPH) report on the
 //! beam, and how a run of either is scored against the FEM.
 
 use std::path::Path;
@@ -11,10 +11,10 @@ use serde::{Deserialize, Serialize};
 use crate::EvalError;
 use crate::beam::BeamTest;
 use crate::beam::study::beam_length_scale;
-use crate::fem_reference::FemRun;
-use crate::metrics::{per_frame_mse, trajectory_errors};
-use crate::progress::Progress;
 use crate::report::paper;
+use freeform::fem_reference::FemRun;
+use freeform::metrics::{per_frame_mse, trajectory_errors};
+use freeform::terminal_progress::TerminalProgress;
 
 /// Which particle method.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, PartialOrd, Ord, Hash, Serialize, Deserialize)]
@@ -135,7 +135,7 @@ pub(crate) struct ParticleTrajectory {
     pub(crate) cached: bool,
 }
 
-/// Scores `run` against `reference` (DESIGN 4.3 metrics at the FEM vertices); a run that
+/// Scores `run` against `reference` (design §4.3 metrics at the FEM vertices); a run that
 /// stopped is reported and not scored.
 ///
 /// # Errors
@@ -143,7 +143,7 @@ pub(crate) struct ParticleTrajectory {
 pub(crate) fn score_particle_run(
     run: ParticleTrajectory,
     reference: &FemRun,
-    progress: &Progress,
+    progress: &TerminalProgress,
 ) -> Result<ParticleBeamRun, EvalError> {
     let frames: Vec<Vec<Vector3<f64>>> = run
         .frames
@@ -202,7 +202,7 @@ pub(crate) fn load_cached_run<T: DeserializeOwned>(
     magic: &[u8],
     version: u32,
     label: &str,
-    progress: &Progress,
+    progress: &TerminalProgress,
     complete: impl Fn(&T) -> bool,
 ) -> Option<T> {
     match load_framed::<T>(path, magic, version) {
@@ -228,7 +228,7 @@ pub(crate) fn store_cached_run<T: Serialize>(
     magic: &[u8],
     version: u32,
     label: &str,
-    progress: &Progress,
+    progress: &TerminalProgress,
     run: &T,
 ) {
     if let Err(e) = save_framed(path, magic, version, run) {
@@ -251,7 +251,7 @@ pub(crate) fn record_frames(
     rest: &[Vector3<f64>],
     steps: usize,
     label: String,
-    progress: &Progress,
+    progress: &TerminalProgress,
     mut advance: impl FnMut() -> Result<(Vec<[f64; 3]>, f64), String>,
 ) -> RecordedFrames {
     let bar = progress.bar(steps, label);

@@ -8,8 +8,8 @@ use crate::beam::mpm::{MpmStudyConfig, run_mpm_beam};
 use crate::beam::particle_baseline::{ParticleBeamRun, ParticleMethod};
 use crate::beam::sph::{SphStudyConfig, run_sph_beam};
 use crate::beam::{BEAM_TIME_STEP, BeamTest};
-use crate::fem_reference::FemRun;
-use crate::progress::Progress;
+use freeform::fem_reference::FemRun;
+use freeform::terminal_progress::TerminalProgress;
 
 /// SPH's implicit step per particle, in MPM particle substeps' worth of time: a coarse weight
 /// that only orders the runs (measured on the beam: an SPH particle step 8.6 µs at 5 000
@@ -67,7 +67,7 @@ impl ParticleConfig<'_> {
         steps: usize,
         reference: &FemRun,
         cache_dir: &Path,
-        progress: &Progress,
+        progress: &TerminalProgress,
     ) -> Result<ParticleBeamRun, EvalError> {
         match self {
             ParticleConfig::Mpm(c) => {

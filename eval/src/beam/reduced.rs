@@ -20,8 +20,8 @@ use skin_eigen::{BasisError, BasisParams, BasisReport, SkinningBasis, build_basi
 
 use crate::EvalError;
 use crate::beam::{BEAM_MAX, BEAM_MIN, BEAM_TIME_STEP, BeamTest, beam_grid_spacing, beam_material};
-use crate::progress::Progress;
 use crate::reduced_run::{ReducedProblem, ReducedRun, run_reduced};
+use freeform::terminal_progress::TerminalProgress;
 
 /// The knobs of a reduced beam run.
 #[derive(Clone, Copy, Debug, PartialEq, Serialize, Deserialize)]
@@ -37,7 +37,7 @@ pub struct ReducedSettings {
     /// Newton tolerance (default 1e-6, see `reduced_sim::NewtonParams`).
     pub tolerance: f64,
     /// Pin penalty factor (default the library's, [`PenaltyParams::default`]: 3e3 with
-    /// [`PinModulus::Young`], κ = factor · max E / L², chosen by `freeform pins` against the
+    /// [`PinModulus::Young`], κ = factor · max E / L², chosen by `freeform-paper pins` against the
     /// FEM; the first tables used 1e3 with [`PinModulus::PWave`]).
     pub pin_factor: f64,
     /// Where the simulation integrates (default the grid; random points are Table 4's
@@ -76,13 +76,8 @@ fn paper_tangent() -> HessianTangent {
 /// The inset of exactly held regions, in kernel radii (the median radius of the basis's
 /// kernels): [`exact_pin_hold`]'s rule.
 ///
-/// Chosen against the converged FEM on the beam Bend (`reduced_beam_bend --exact`, K = 1000,
-/// compact kernels, median radius ≈ 0.19 m) while the band's penalty was, by a bug since
-/// fixed, not applied: holding the whole clamped end left the tip 7.3% / 29% short of the FEM
-/// at t = 0.5 / 1.0 s at m = 32; insets of 0.1, 0.2, 0.3 and 0.4 m gave −4.0 / −16%,
-/// −2.8 / −12%, +0.3 / +1.3% and +1.1 / +4.3%, and Table 1 at 1.0 / 1.5 / 2.0 radii showed a
-/// sharp optimum at 1.5. With the band penalized the rule gives −0.4 / −2.0% at m = 32 and
-/// −2.5 / −10.5% at m = 16; it has not been re-swept.
+/// Chosen against the converged FEM on the beam Bend (`results/RESULTS.md`, "The exact pins'
+/// inset").
 pub const EXACT_INSET_KERNEL_RADII: f64 = 1.5;
 
 /// How the simulation's integration points are placed.
@@ -92,7 +87,7 @@ pub enum SimulationSampling {
     #[default]
     Grid,
     /// As many uniform random points in the beam as the grid has, `v_i = V / N`, seeded
-    /// (DESIGN 3.1, Table 4).
+    /// (design §3.1, Table 4).
     Random {
         /// The random seed.
         seed: u64,
@@ -175,7 +170,7 @@ impl ReducedSettings {
     }
 
     /// The pin penalty in words, for table preambles: "κ_pin = 3e3 · max E / L² (the library
-    /// default, chosen against the FEM by `freeform pins`)".
+    /// default, chosen against the FEM by `freeform-paper pins`)".
     pub fn pin_rule_label(&self) -> String {
         let modulus = match self.pin_modulus {
             PinModulus::Young => "max E",
@@ -184,7 +179,7 @@ impl ReducedSettings {
         let default = PenaltyParams::default();
         let origin =
             if self.pin_factor == default.pin_factor && self.pin_modulus == default.pin_modulus {
-                " (the library default, chosen against the FEM by `freeform pins`)"
+                " (the library default, chosen against the FEM by `freeform-paper pins`)"
             } else {
                 ""
             };
@@ -375,7 +370,7 @@ pub fn run_reduced_beam<B: SkinningField + ?Sized>(
     settings: &ReducedSettings,
     output_points: &[Vector3<f64>],
     steps: usize,
-    progress: &Progress,
+    progress: &TerminalProgress,
 ) -> Result<ReducedRun, EvalError> {
     run_reduced_beam_with(
         test,
@@ -403,7 +398,7 @@ pub fn run_reduced_beam_with<B: SkinningField + ?Sized>(
     cache_dir: Option<&Path>,
     output_points: &[Vector3<f64>],
     steps: usize,
-    progress: &Progress,
+    progress: &TerminalProgress,
 ) -> Result<ReducedRun, EvalError> {
     let points = settings
         .simulation_sampling

@@ -11,7 +11,7 @@ use rkpm_core::IntegrationPoints;
 use crate::EvalError;
 use crate::beam::reduced::beam_basis_grid;
 use crate::model_cache::{beam_model_path, load_or_train};
-use crate::progress::Progress;
+use freeform::terminal_progress::TerminalProgress;
 
 /// A trained network and whether it came from the cache.
 pub struct CachedSimplicits {
@@ -30,7 +30,7 @@ pub fn train_beam_simplicits(
     params: &SimplicitsParams,
     basis_points: usize,
     cache_dir: &Path,
-    progress: &Progress,
+    progress: &TerminalProgress,
 ) -> Result<CachedSimplicits, EvalError> {
     let path = beam_model_path(
         cache_dir,
@@ -53,7 +53,7 @@ pub fn train_cached_simplicits(
     lame: &[LameParameters],
     params: &SimplicitsParams,
     path: &Path,
-    progress: &Progress,
+    progress: &TerminalProgress,
 ) -> Result<CachedSimplicits, EvalError> {
     let (trained, cached) = load_or_train(
         path,

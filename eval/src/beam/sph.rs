@@ -1,10 +1,10 @@
-//! The SPH baseline on the beam (Tables 1 and 5, issue 23): particles on the beam at the
+//! The SPH baseline on the beam (Tables 1 and 5): particles on the beam at the
 //! study's spacing, the test's scene on those particles (pinned and twisted regions as
 //! prescribed particle positions), one implicit step per 0.01 s frame (the paper's Δt; more on
 //! request), the
 //! FEM vertices' positions from the particles' displacements by the linear interpolant of
 //! `baselines::sph::ParticleInterpolation` (those in a pinned or twisted region put on its
-//! target, like the region's particles), scored by the metrics of DESIGN 4.3. A run that stops
+//! target, like the region's particles), scored by the metrics of design §4.3. A run that stops
 //! is reported with its reason and not scored. Trajectories are cached under `<cache>/sph/`.
 
 use std::path::Path;
@@ -20,8 +20,8 @@ use crate::beam::particle_baseline::{
     score_particle_run, store_cached_run,
 };
 use crate::beam::{BEAM_MAX, BEAM_MIN, BEAM_TIME_STEP, BeamTest, beam_material};
-use crate::fem_reference::FemRun;
-use crate::progress::Progress;
+use freeform::fem_reference::FemRun;
+use freeform::terminal_progress::TerminalProgress;
 
 /// Cache file kind and format version of an SPH beam trajectory.
 const SPH_CACHE_MAGIC: &[u8] = b"FFSPHTR1";
@@ -94,7 +94,7 @@ pub fn run_sph_beam(
     steps: usize,
     reference: &FemRun,
     cache_dir: &Path,
-    progress: &Progress,
+    progress: &TerminalProgress,
 ) -> Result<ParticleBeamRun, EvalError> {
     let params = config.params;
     let substeps = config.substeps.max(1);

@@ -22,11 +22,12 @@ use crate::beam::simplicits::train_beam_simplicits;
 use crate::beam::sph::SphStudyConfig;
 use crate::beam::{BEAM_MAX, BEAM_MIN, BEAM_TIME_STEP, BeamTest, beam_material};
 use crate::fem_reference::{
-    FEM_TIMING_STEPS, FemResolution, FemRun, beam_seconds_per_step_here, run_fem_beam,
+    FEM_TIMING_STEPS, FemResolution, beam_seconds_per_step_here, run_fem_beam,
 };
-use crate::metrics::TrajectoryErrors;
-use crate::progress::Progress;
 use crate::reduced_run::ReducedRun;
+use freeform::fem_reference::FemRun;
+use freeform::metrics::TrajectoryErrors;
+use freeform::terminal_progress::TerminalProgress;
 
 /// What the study runs.
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
@@ -37,7 +38,7 @@ pub struct BeamStudyConfig {
     pub tests: Vec<BeamTest>,
     /// Everything but m.
     pub settings: ReducedSettings,
-    /// Steps per test; `None` for DESIGN 4.1's (300 Bend, 30 Twist).
+    /// Steps per test; `None` for design §4.1's (300 Bend, 30 Twist).
     pub steps: Option<usize>,
     /// The FEM ground truth.
     pub fem: FemResolution,
@@ -55,18 +56,18 @@ pub struct BeamStudyConfig {
     /// 25); `None` to leave it out.
     #[serde(default)]
     pub exact_pins: Option<f64>,
-    /// The MPM baseline (issue 22) at each of its grid spacings on every test, or `None` to
+    /// The MPM baseline at each of its grid spacings on every test, or `None` to
     /// leave it out.
     #[serde(default)]
     pub mpm: Option<MpmStudyConfig>,
-    /// The SPH baseline (issue 23) at each of its particle spacings on every test, or `None` to
+    /// The SPH baseline at each of its particle spacings on every test, or `None` to
     /// leave it out.
     #[serde(default)]
     pub sph: Option<SphStudyConfig>,
 }
 
 impl BeamStudyConfig {
-    /// The paper's configuration: m ∈ {6, 9, 16, 32}, both tests, K = 1000, DESIGN 4.1's steps,
+    /// The paper's configuration: m ∈ {6, 9, 16, 32}, both tests, K = 1000, design §4.1's steps,
     /// FEM P2 res 6.
     pub fn full(cache_dir: PathBuf) -> Self {
         BeamStudyConfig {
@@ -123,7 +124,7 @@ pub struct BeamRow {
     pub test: BeamTest,
     /// Modes.
     pub m: usize,
-    /// Normalized MSE against FEM (DESIGN 4.3).
+    /// Normalized MSE against FEM (design §4.3).
     pub ours_mse: f64,
     /// Normalized max error against FEM.
     pub ours_max: f64,
@@ -279,7 +280,7 @@ pub fn beam_length_scale() -> f64 {
 /// [`EvalError`] from any run; nothing is half-reported.
 pub fn run_beam_study(
     config: &BeamStudyConfig,
-    progress: &Progress,
+    progress: &TerminalProgress,
 ) -> Result<BeamStudy, EvalError> {
     let (references, fem) = fem_references(config, progress)?;
     let mut rows = Vec::new();
@@ -437,7 +438,7 @@ pub(crate) type FemReference = (BeamTest, FemRun);
 /// [`EvalError::Fem`] from a failed run.
 pub(crate) fn fem_references(
     config: &BeamStudyConfig,
-    progress: &Progress,
+    progress: &TerminalProgress,
 ) -> Result<(Vec<FemReference>, Vec<FemSummary>), EvalError> {
     let mut references = Vec::new();
     let mut fem = Vec::new();
@@ -506,7 +507,7 @@ fn evaluate_exact(
     reference: &FemRun,
     steps: usize,
     config: &BeamStudyConfig,
-    progress: &Progress,
+    progress: &TerminalProgress,
 ) -> Result<ExactRow, EvalError> {
     let PinHold::Exact { inset } = exact.pins else {
         return Err(EvalError::InvalidInput(
@@ -548,7 +549,7 @@ pub(crate) fn evaluate_field<B: SkinningField + ?Sized>(
     reference: &FemRun,
     steps: usize,
     cache_dir: &Path,
-    progress: &Progress,
+    progress: &TerminalProgress,
 ) -> Result<FieldEvaluation, EvalError> {
     let run = run_reduced_beam_with(
         test,

@@ -57,7 +57,7 @@ pub(crate) fn settings_lines(config: &BeamStudyConfig, fem: &[FemSummary]) -> St
     }
     let _ = writeln!(
         out,
-        "Metrics (DESIGN 4.3) at the FEM vertices over frames 1..T, L = {} m: MSE = mean |x − x*|² / L², \
+        "Metrics (design §4.3) at the FEM vertices over frames 1..T, L = {} m: MSE = mean |x − x*|² / L², \
          max = max |x − x*| / L, fitting residual = mean |x(z*) − x*| / L.",
         beam_length_scale()
     );
@@ -94,7 +94,7 @@ fn simplicits_line(study: &BeamStudy) -> String {
                 })
                 .collect();
             format!(
-                "\nSimplicits (ours): the baseline of DESIGN 3.9 trained on the same grid as our basis \
+                "\nSimplicits (ours): the baseline of design §3.9 trained on the same grid as our basis \
                  ({} Adam steps of {} points × {} transforms; training time {}), simulated by the same \
                  reduced simulator and scene.\n",
                 p.steps,
@@ -239,7 +239,7 @@ fn particle_baselines_section(study: &BeamStudy) -> String {
         Some(mpm) => {
             let _ = write!(
                 md,
-                "\n### MPM (ours, issue 22)\n\nExplicit APIC MPM as warp-mpm runs it (quadratic \
+                "\n### MPM (ours)\n\nExplicit APIC MPM as warp-mpm runs it (quadratic \
                  B-splines, {}, Δt = {:e} s), {} particles per grid cell on the beam grid, pinned \
                  and twisted regions by particle velocity enforcement; positions read at tracers \
                  placed at the FEM vertices (moved with the grid velocity; those in a pinned or \
@@ -257,7 +257,7 @@ fn particle_baselines_section(study: &BeamStudy) -> String {
         Some(sph) => {
             let _ = write!(
                 md,
-                "\n### SPH (ours, issue 23)\n\nImplicit corotated SPH of Kugelstadt et al. 2021 as \
+                "\n### SPH (ours)\n\nImplicit corotated SPH of Kugelstadt et al. 2021 as \
                  SPlisHSPlasH runs it (cubic spline kernel, support {} × the particle spacing, \
                  corrected gradients fixed at rest, stretching solved against a matrix factored \
                  once, volume by conjugate gradients to {:e}, zero-energy-mode control α = {}, {} \
@@ -332,12 +332,12 @@ fn exact_line(study: &BeamStudy) -> String {
         .find_map(|r| r.exact.as_ref().map(|e| e.inset));
     match (inset, study.config.exact_pins) {
         (Some(inset), Some(radii)) => format!(
-            "Exact pins (issue 25): each pinned or twisted region held exactly by its own handles \
+            "Exact pins: each pinned or twisted region held exactly by its own handles \
              (a basis per test, built for the regions on compact B-spline kernels, modes vanishing \
              there), on the region shrunk by {inset:.3} m ({} median kernel radii); the points \
              between are kept by the penalty. Drift: held = the held integration points (penalty \
              columns: every pinned point), region = the FEM vertices of the whole region (what \
-             the FEM holds exactly). The library's default is the penalty: across `freeform pins` \
+             the FEM holds exactly). The library's default is the penalty: across `freeform-paper pins` \
              (Bend and Twist, m = 16 / 32, three ν) the exact pins are more accurate in 2 of 10 \
              runs (README).\n",
             radii

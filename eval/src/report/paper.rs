@@ -1,4 +1,4 @@
-//! The paper's numbers that our tables print beside ours (DESIGN 4.4, from the CVPR text
+//! The paper's numbers that our tables print beside ours (design §4.4, from the CVPR text
 //! rendering `paper/001_...`). Never used in a computation.
 
 /// Table 1, normalized MSE against FEM: (test, m, Simplicits, FreeForm).

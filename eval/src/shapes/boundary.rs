@@ -1,4 +1,4 @@
-//! The three boundary conditions of the shapes experiment (DESIGN 4.2, paper Sec. 4 "Thingi10K
+//! The three boundary conditions of the shapes experiment (design §4.2, paper Sec. 4 "Thingi10K
 //! and SimReady"), as solver-independent [`SceneSpec`]s of a surface. Every size, speed and
 //! step count is a field of [`ShapeBoundaryParams`] and printed with the tables.
 //!

@@ -1,13 +1,13 @@
-//! The shared meshes of `data/meshes/` (DESIGN 4.2): which collection each comes from and which
-//! Young's modulus it gets. DESIGN 4.2: E = 10⁵ Pa for organic shapes (animals, body parts),
+//! The shared meshes of `data/meshes/` (design §4.2): which collection each comes from and which
+//! Young's modulus it gets. design §4.2: E = 10⁵ Pa for organic shapes (animals, body parts),
 //! 10⁸ Pa for everything else (buildings, parts, polyhedra); ν = 0.45 and ρ = 1000 kg/m³ for all.
 //! The choice is one row per file here, and every table prints it.
 
 use serde::{Deserialize, Serialize};
 
-/// Poisson ratio of every shape (DESIGN 4.2).
+/// Poisson ratio of every shape (design §4.2).
 pub const SHAPE_POISSON_RATIO: f64 = 0.45;
-/// Density of every shape (kg/m³, DESIGN 4.2).
+/// Density of every shape (kg/m³, design §4.2).
 pub const SHAPE_DENSITY: f64 = 1000.0;
 /// Young's modulus of a file not in the catalog unless `--young` says otherwise (Pa).
 pub const DEFAULT_SHAPE_YOUNGS_MODULUS: f64 = 1e5;
@@ -35,7 +35,7 @@ impl ShapeCollection {
     }
 }
 
-/// The material class that picks E (DESIGN 4.2).
+/// The material class that picks E (design §4.2).
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Hash, Serialize, Deserialize)]
 #[serde(rename_all = "snake_case")]
 pub enum MaterialClass {

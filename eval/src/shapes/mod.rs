@@ -1,4 +1,4 @@
-//! Tables 2 and 7 (DESIGN 4.2): every mesh of a folder under Drop and Fix side, ours and
+//! Tables 2 and 7 (design §4.2): every mesh of a folder under Drop and Fix side, ours and
 //! Simplicits against a FEM reference of the same mesh.
 //!
 //! - [`catalog`]: the shared meshes' names and materials; [`boundary`]: the two boundary

@@ -166,48 +166,18 @@ impl ConditionLattice {
 }
 
 impl ShapeFemParams {
-    /// References on graded lattices (issue 19): 16 cells across refined up to two halvings
-    /// near the surface where the signed distance is not linear (tolerance 0.05), the base
-    /// lattice ×1.5 up to 36 until the volume is within 3%. On the shared meshes this keeps
-    /// thin parts the uniform 16-cell lattice loses. Newton may take 60 iterations a step
-    /// instead of 20: the resolved shapes swing far under Fix side (0.84 L on the bunny), and
-    /// with the PSD-projected tangent the bunny's last frame needs more than 20. Newton's
-    /// element tangent is exact, projected only when the exact Hessian fails to factor: under
-    /// Fix side the projected one crawls (steps of 1e-6 L, contraction 0.97) where a part
-    /// buckles; exact-when-definite takes 6.0 instead of 9.7 iterations a step on Spot (one
-    /// step unconverged at 60 before, none after), 6.2 instead of 11.5 on the koala, 4.1
-    /// instead of 4.4 on the bunny (`eval/examples/shape_reference_timing.rs`). Fix side is
-    /// clamped on a lattice plane ([`ShapeFemParams::clamp_on_lattice_plane`]): on the eight
-    /// gated shapes the 1.5× finer reference then changed the trajectory 4–15× less on six
-    /// (hand 2.2e-5 → 3.7e-6, ghost 3.2e-5 → 8.2e-6, cat 1.6e-6 → 3.2e-7, goat head 4.7e-6 →
-    /// 7.5e-7, 37620 6.1e-13 → 1.0e-13, 93070 1.3e-11 → 8.8e-13) and 1.2–1.6× more on two
-    /// (squirrel 1.7e-5 → 2.1e-5, 94492 4.3e-10 → 6.8e-10), 2026-11-26. Pull boundary's two
-    /// slabs likewise ([`ShapeFemParams::pull_slabs_on_lattice_planes`]): on those eight shapes
-    /// and the bunny and the koala the finer reference's change fell 1.6–24× on eight (37620
-    /// 2.3e-7 → 2.6e-8, 94492 4.8e-7 → 9.7e-8, hand 3.9e-6 → 1.6e-7 at 24 cells), stayed on the
-    /// cat and rose 1.4× on 93070, which took the trusted Pull boundary rows from 6 to 9 of 10.
-    /// Both Pulls' region edges are refined
+    /// References on graded lattices: 16 cells across refined up to two halvings near the
+    /// surface where the signed distance is not linear (tolerance 0.05), the base lattice ×1.5 up
+    /// to 36 until the volume is within 3%; Newton up to 60 iterations a step with the exact
+    /// element tangent, projected only where the exact Hessian fails to factor; Fix side clamped
+    /// and Pull boundary's slabs pulled on lattice planes
+    /// ([`ShapeFemParams::clamp_on_lattice_plane`],
+    /// [`ShapeFemParams::pull_slabs_on_lattice_planes`]); both Pulls' region edges refined
     /// ([`ShapeFemParams::refine_pulled_patch_edges`],
-    /// [`ShapeFemParams::refine_pulled_slab_faces`]): the finer reference's change fell 3.5–56×
-    /// on the seven rows measured (2026-11-27; Pull farthest: 37620 2.5e-6 → 9.9e-8, 47076
-    /// 3.2e-6 → 5.7e-8, 80084 2.5e-6 → 1.3e-7, cat 3.8e-7 → 1.1e-7; Pull boundary: 47076
-    /// 5.3e-6 → 6.0e-7, 93070 3.1e-6 → 2.6e-7, cat 3.1e-7 → 5.6e-8) for 6–60% more DOFs, and
-    /// the five stiff rows among them, which failed the gate, pass it. The Pulls' references
-    /// carry the Cholesky factor across iterations and steps
-    /// ([`ReferenceFactorReuse::Pulls`]): they are nearly linear (2.05–2.12 Newton iterations
-    /// a step), and over 40 steps (`eval/examples/shape_reference_timing.rs`, 2026-11-27) 93070's
-    /// Pull boundary took 0.58 instead of 1.54 s a step, 47076's 3.8 instead of 8.0, the cat's
-    /// Pull farthest 0.77 instead of 0.87, their trajectories within 1e-16–5e-13 (MSE) of the
-    /// fresh ones, and Table 2's rows (finer change, both methods' MSE) the same to 4–5
-    /// digits; against the cat's Pull farthest solved to 1e-10 the reused reference is off by
-    /// 2.9e-16 (MSE), the fresh one by 5.2e-13. So do the stiff shapes' Fix side references
-    /// ([`ReferenceFactorReuse::PullsAndStiffFixSide`], 2026-11-27): under their own weight
-    /// they are as nearly linear, and 93070's took 0.10 instead of 1.31 s a step (its finer
-    /// check 0.29 instead of 3.95), 94492's 0.44 instead of 1.50 (finer 0.85 instead of 3.62),
-    /// Table 2's rows the same to 4–5 digits; against 1e-10 solutions the reused trajectories
-    /// are off by 3.6e-19 (93070) and 2.7e-18 (94492, fresh 4.5e-15). A soft shape's Fix side
-    /// stays fresh: where it sags far the tighter tolerance costs more factorizations than the
-    /// reuse saves (the skull at 10 cells, steps 1–24: 275 instead of 209 s).
+    /// [`ShapeFemParams::refine_pulled_slab_faces`]); the Cholesky factor carried across
+    /// iterations and steps for the Pulls and the stiff shapes' Fix side
+    /// ([`ReferenceFactorReuse::PullsAndStiffFixSide`]). Each choice and its measurements:
+    /// `results/RESULTS.md` ("The graded references").
     pub fn graded() -> Self {
         ShapeFemParams {
             first_cells_across: 16,

@@ -1,4 +1,4 @@
-//! The shapes study behind Tables 2 and 7 (DESIGN 4.2): for every closed mesh, normalized so its
+//! The shapes study behind Tables 2 and 7 (design §4.2): for every closed mesh, normalized so its
 //! largest bounding-box side is L = 1 m, our basis and the Simplicits network (m = 32) on the
 //! same grid of integration points, a tetrahedralization for the FEM reference, and the three
 //! boundary conditions of [`crate::shapes::boundary`] run by all three solvers. Reduced runs are
@@ -27,12 +27,10 @@ use rkpm_core::{
 use serde::{Deserialize, Serialize};
 use skin_eigen::{SkinningBasis, build_basis};
 
+use crate::EvalError;
 use crate::beam::reduced::{ReducedSettings, median_kernel_radius};
 use crate::beam::simplicits::train_cached_simplicits;
-use crate::fem_reference::{FemProblem, FemRun, cached_fem, run_fem};
-use crate::metrics::trajectory_errors;
 use crate::model_cache::{load_cached, model_path};
-use crate::progress::Progress;
 use crate::reduced_run::{ReducedProblem, run_reduced};
 use crate::shapes::boundary::{ShapeBoundary, ShapeBoundaryParams};
 use crate::shapes::catalog::{
@@ -42,8 +40,11 @@ use crate::shapes::catalog::{
 use crate::shapes::reference::{
     ConditionLattice, FemMeshSummary, ShapeFemParams, mesh_for_fem, mesh_through,
 };
-use crate::{EvalError, failure_chain};
+use freeform::failure_chain;
+use freeform::fem_reference::{FemProblem, FemRun, cached_fem, run_fem};
+use freeform::metrics::trajectory_errors;
 use freeform::scene::SceneSpec;
+use freeform::terminal_progress::{BarProgress, TerminalProgress};
 use freeform::{PinHold, Simulation};
 
 /// What the study runs.
@@ -69,11 +70,11 @@ pub struct ShapeStudyConfig {
     pub jobs: usize,
     /// Cache folder (FEM trajectories under `fem/`, networks under `simplicits/`).
     pub cache_dir: PathBuf,
-    /// The quality gate of the FEM reference (issue 19): a row is scored only when the
+    /// The quality gate of the FEM reference: a row is scored only when the
     /// reference's tet mesh keeps the surface's volume within this fraction (default 0.03).
     #[serde(default = "default_reference_volume_gate")]
     pub max_reference_volume_error: f64,
-    /// Check each reference's convergence (issue 19): run the FEM again on the lattice 1.5×
+    /// Check each reference's convergence: run the FEM again on the lattice 1.5×
     /// finer and measure how much the trajectory changes at the reference's vertices (default
     /// false: it multiplies the FEM time by about 5).
     #[serde(default)]
@@ -110,7 +111,7 @@ fn all_boundaries() -> Vec<ShapeBoundary> {
 }
 
 impl ShapeStudyConfig {
-    /// The paper's configuration (DESIGN 4.2): m = 32, K = 1000, Simplicits trained for 10 000
+    /// The paper's configuration (design §4.2): m = 32, K = 1000, Simplicits trained for 10 000
     /// steps, FEM P2.
     pub fn full(meshes: Vec<PathBuf>, cache_dir: PathBuf) -> Self {
         ShapeStudyConfig {
@@ -171,7 +172,7 @@ impl ShapeStudyConfig {
 /// A method's scores on one (shape, boundary condition).
 #[derive(Clone, Copy, Debug, PartialEq, Serialize, Deserialize)]
 pub struct MethodScores {
-    /// Normalized MSE against the FEM (DESIGN 4.3).
+    /// Normalized MSE against the FEM (design §4.3).
     pub mse: f64,
     /// Normalized max error.
     pub max: f64,
@@ -447,7 +448,7 @@ pub fn mesh_files(dir: &Path, only: Option<&str>) -> Result<Vec<PathBuf>, EvalEr
 /// `jobs = 0` or no meshes.
 pub fn run_shape_study(
     config: &ShapeStudyConfig,
-    progress: &Progress,
+    progress: &TerminalProgress,
     on_shape: impl Fn(&ShapeResult, &ShapeStudy) + Sync,
 ) -> Result<ShapeStudy, EvalError> {
     if config.jobs == 0 || config.meshes.is_empty() {
@@ -555,7 +556,7 @@ impl ShapeResult {
 }
 
 /// Runs one shape; every failure ends up in the result.
-fn run_shape(path: &Path, config: &ShapeStudyConfig, progress: &Progress) -> ShapeResult {
+fn run_shape(path: &Path, config: &ShapeStudyConfig, progress: &TerminalProgress) -> ShapeResult {
     let mut result = ShapeResult::new(path, config);
     let start = Instant::now();
     progress.status(format!(
@@ -584,7 +585,7 @@ fn run_shape(path: &Path, config: &ShapeStudyConfig, progress: &Progress) -> Sha
 fn run_shape_into(
     path: &Path,
     config: &ShapeStudyConfig,
-    progress: &Progress,
+    progress: &TerminalProgress,
     result: &mut ShapeResult,
 ) -> Result<(), EvalError> {
     let surface = read_triangle_mesh(path)?.normalized().0;
@@ -786,12 +787,13 @@ fn reference_run(
     problem: &FemProblem<'_>,
     label: &str,
     config: &ShapeStudyConfig,
-    progress: &Progress,
+    progress: &TerminalProgress,
 ) -> Result<FemRun, EvalError> {
+    let bars = BarProgress::new(*progress);
     if !config.cached_only {
-        return run_fem(problem, label, &config.cache_dir, progress);
+        return Ok(run_fem(problem, label, &config.cache_dir, &bars)?);
     }
-    cached_fem(problem, label, &config.cache_dir, progress)?.ok_or_else(|| {
+    cached_fem(problem, label, &config.cache_dir, &bars)?.ok_or_else(|| {
         progress.status(format!(
             "FEM {label}: not in the cache, not computed (cached only)"
         ));
@@ -885,7 +887,7 @@ struct BoundaryRun<'a> {
     steps: usize,
     length: f64,
     label: &'a str,
-    progress: &'a Progress,
+    progress: &'a TerminalProgress,
 }
 
 impl BoundaryRun<'_> {

@@ -257,7 +257,7 @@ fn settings_lines(study: &ShapeStudy) -> String {
         .count();
     let _ = writeln!(
         out,
-        "Quality gate (issue 19): a (shape, BC) row is scored, and averaged, only if its FEM mesh \
+        "Quality gate: a (shape, BC) row is scored, and averaged, only if its FEM mesh \
          keeps the surface's volume within ±{:.0}%, every FEM step converged{}: {trusted} of {} \
          rows pass.",
         100.0 * gate,
@@ -274,7 +274,7 @@ fn settings_lines(study: &ShapeStudy) -> String {
         "{}",
         match &c.simplicits {
             Some(p) => format!(
-                "Simplicits (ours): DESIGN 3.9's network trained for {} Adam steps{} of {} points × \
+                "Simplicits (ours): design §3.9's network trained for {} Adam steps{} of {} points × \
                  {} transforms, simulated by the same reduced simulator and scene.",
                 p.steps,
                 if p.steps < baselines::SimplicitsParams::default().steps {
@@ -290,7 +290,7 @@ fn settings_lines(study: &ShapeStudy) -> String {
     );
     let _ = writeln!(
         out,
-        "Metrics (DESIGN 4.3) at the FEM mesh's vertices over frames 1..T: MSE = mean |x − x*|² / \
+        "Metrics (design §4.3) at the FEM mesh's vertices over frames 1..T: MSE = mean |x − x*|² / \
          L², max = max |x − x*| / L, fitting residual = mean |x(z*) − x*| / L. Wall time of the \
          study: {:.0} s ({} job{}){}.",
         study.seconds,

@@ -1,4 +1,4 @@
-//! The numerical stress suite (`freeform stress`): the reduced simulator pushed to the edges a
+//! The numerical stress suite (`freeform-paper stress`): the reduced simulator pushed to the edges a
 //! user will hit — near-incompressible materials, stiffness contrast, large time steps, fast
 //! twists that invert material, a 10 m/s impact, extreme m and K, degenerate sampling — with
 //! per-case diagnostics that make a failure loud.
@@ -19,11 +19,11 @@ use serde::{Deserialize, Serialize};
 /// The object and what happens to it.
 #[derive(Clone, Copy, Debug, PartialEq, Serialize, Deserialize)]
 pub enum StressScene {
-    /// The beam of DESIGN 4.1 (5 × 1 × 1 m, E = 5 MPa) under gravity, x ≤ 0.5 pinned.
+    /// The beam of design §4.1 (5 × 1 × 1 m, E = 5 MPa) under gravity, x ≤ 0.5 pinned.
     BeamBend,
     /// The beam with x ≤ 0.5 pinned and x ≥ 4.5 rotated about its axis at this rate up to 720°.
     BeamTwist {
-        /// Degrees per second (DESIGN 4.1: 2160).
+        /// Degrees per second (design §4.1: 2160).
         degrees_per_second: f64,
     },
     /// A 1 m cube (E = 0.1 MPa) starting 2 cm above a floor, moving down at this speed.

@@ -66,7 +66,7 @@ fn floor_drop_scene() -> SceneSpec {
     }
 }
 
-/// The beam scenes of DESIGN 4.1 ([`BeamTest::scene`]), the twist at its own rate.
+/// The beam scenes of design §4.1 ([`BeamTest::scene`]), the twist at its own rate.
 fn beam_scene(scene: StressScene) -> SceneSpec {
     match scene {
         StressScene::BeamTwist { degrees_per_second } => {

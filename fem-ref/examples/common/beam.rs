@@ -1,5 +1,5 @@
 #![allow(dead_code)] // shared by several examples; each uses a part of it
-//! The beam scenes of DESIGN 4.1 on the FEM reference, shared by the fem-ref examples.
+//! The beam scenes of design §4.1 on the FEM reference, shared by the fem-ref examples.
 
 use std::sync::Arc;
 use std::time::Instant;

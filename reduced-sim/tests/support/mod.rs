@@ -44,7 +44,7 @@ pub fn uniform_model(
     .expect("valid model")
 }
 
-/// The beam material of DESIGN 4.1: E = 5 MPa, ν = 0.45, ρ = 1000 kg/m³.
+/// The beam material of design §4.1: E = 5 MPa, ν = 0.45, ρ = 1000 kg/m³.
 pub const BEAM_MATERIAL: MaterialSample = MaterialSample {
     youngs_modulus: 5e6,
     poisson_ratio: 0.45,

@@ -1,4 +1,4 @@
-//! Error metrics against the FEM reference (DESIGN 4.3), at the FEM mesh's vertices over frames
+//! Error metrics against the FEM reference (design §4.3), at the FEM mesh's vertices over frames
 //! t = 1..T, normalized by the largest side L of the rest bounding box:
 //!
 //! - normalized MSE = (1/(T·N)) Σ_t Σ_i |x_it − x*_it|² / L²

@@ -1,19 +1,22 @@
-//! `freeform stress`: the numerical stress suite.
+//! `freeform-paper stress`: the numerical stress suite.
 
+use crate::preset_args::PresetArgs;
 use std::path::Path;
 
 use anyhow::{Result, bail};
 use artifact::write_atomically;
-use eval::progress::Progress;
+use eval::presets::StudyKind;
 use eval::stress::{StressConfig, run_stress, stress_markdown};
+use freeform::terminal_progress::TerminalProgress;
 
 /// Runs the suite, writes `stress/stress.{md,json}` and fails if any case is not acceptable.
-pub(crate) fn run(quick: bool, json: bool, out: &Path, progress: &Progress) -> Result<()> {
-    let config = if quick {
-        StressConfig::quick()
-    } else {
-        StressConfig::full()
-    };
+pub(crate) fn run(
+    preset: &PresetArgs,
+    json: bool,
+    out: &Path,
+    progress: &TerminalProgress,
+) -> Result<()> {
+    let config: StressConfig = preset.load("stress")?.config(StudyKind::Stress, |_| {})?;
     let bar = progress.bar(config.cases.len(), "stress cases");
     let outcomes = run_stress(&config, |o| {
         bar.inc(1);

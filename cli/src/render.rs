@@ -6,8 +6,6 @@ use std::time::Instant;
 use anyhow::{Context, Result, bail};
 use freeform::{Camera, PreviewImage, PreviewParams, SplatTable, preview_splats, render_preview};
 use nalgebra::Vector3;
-use plotters::prelude::{BitMapBackend, DrawingBackend, RGBColor};
-use plotters::style::Color;
 
 /// The world axis that points up in the images.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, clap::ValueEnum)]
@@ -81,23 +79,24 @@ pub(crate) fn run(files: &[PathBuf], options: &RenderOptions, out: &Path) -> Res
     Ok(())
 }
 
-/// Writes `image` as an RGB PNG.
+/// Writes `image` as an 8-bit RGB PNG.
 pub(crate) fn write_png(image: &PreviewImage, path: &Path) -> Result<()> {
-    let size = (
-        u32::try_from(image.width).context("image width")?,
-        u32::try_from(image.height).context("image height")?,
-    );
-    let mut backend = BitMapBackend::new(path, size);
+    let width = u32::try_from(image.width).context("image width")?;
+    let height = u32::try_from(image.height).context("image height")?;
+    let mut rgb = Vec::with_capacity(3 * image.width * image.height);
     for y in 0..image.height {
         for x in 0..image.width {
-            let [r, g, b] = image.pixel(x, y);
-            backend
-                .draw_pixel((x as i32, y as i32), RGBColor(r, g, b).to_backend_color())
-                .map_err(|e| anyhow::anyhow!("drawing {}: {e}", path.display()))?;
+            rgb.extend_from_slice(&image.pixel(x, y));
         }
     }
-    backend
-        .present()
-        .map_err(|e| anyhow::anyhow!("writing {}: {e}", path.display()))?;
+    let mut bytes = Vec::new();
+    let mut encoder = png::Encoder::new(&mut bytes, width, height);
+    encoder.set_color(png::ColorType::Rgb);
+    encoder.set_depth(png::BitDepth::Eight);
+    encoder
+        .write_header()
+        .and_then(|mut writer| writer.write_image_data(&rgb))
+        .with_context(|| format!("encoding {}", path.display()))?;
+    artifact::write_atomically(path, &bytes)?;
     Ok(())
 }

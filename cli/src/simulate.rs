@@ -3,7 +3,7 @@
 use std::path::Path;
 
 use anyhow::Result;
-use eval::progress::{BarProgress, Progress};
+use freeform::terminal_progress::{BarProgress, TerminalProgress};
 use freeform::{
     Camera, Geometry, ObjectsFile, PreviewParams, SceneFile, SimulateReport, point_splats,
     render_preview, simulate_objects, simulate_scene_file,
@@ -20,7 +20,7 @@ pub(crate) fn run(
     stress: bool,
     out: &Path,
     cache: &Path,
-    progress: Progress,
+    progress: TerminalProgress,
 ) -> Result<()> {
     let stem = scene.file_stem().unwrap_or_default().to_string_lossy();
     let out = out.join(stem.as_ref());
@@ -102,7 +102,12 @@ pub(crate) fn run(
 }
 
 /// Runs a scene of several objects and writes their frames under `out/<object>/`.
-fn run_objects(file: &ObjectsFile, out: &Path, cache: &Path, progress: Progress) -> Result<()> {
+fn run_objects(
+    file: &ObjectsFile,
+    out: &Path,
+    cache: &Path,
+    progress: TerminalProgress,
+) -> Result<()> {
     let report = simulate_objects(file, out, Some(cache), &BarProgress::new(progress))?;
     println!(
         "{} objects, {} frames each written under {}; setup {:.2} s, {:.2} ms/step \

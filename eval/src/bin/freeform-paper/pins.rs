@@ -1,29 +1,25 @@
-//! `freeform pins`: the pin sweep of issue 25.
+//! `freeform-paper pins`: the pin sweep.
 
-use std::path::{Path, PathBuf};
+use crate::preset_args::PresetArgs;
+use std::path::Path;
 
 use anyhow::Result;
 use artifact::write_atomically;
 use eval::pins::{PinSweepConfig, exact_sweep_table, pin_sweep_table, run_pin_sweep};
-use eval::progress::Progress;
+use eval::presets::{StudyKind, set_folder};
+use freeform::terminal_progress::TerminalProgress;
 
 /// Runs the sweep, prints its table (or JSON) and writes `pins.md` and `pins.json` under `out`.
 pub(crate) fn run(
-    quick: bool,
+    preset: &PresetArgs,
     json: bool,
-    exact_only: bool,
-    cache: PathBuf,
+    cache: &Path,
     out: &Path,
-    progress: &Progress,
+    progress: &TerminalProgress,
 ) -> Result<()> {
-    let mut config = if quick {
-        PinSweepConfig::quick(cache)
-    } else {
-        PinSweepConfig::full(cache)
-    };
-    if exact_only {
-        config.factors.clear();
-    }
+    let config: PinSweepConfig = preset.load("pins")?.config(StudyKind::Pins, |table| {
+        set_folder(table, "cache_dir", cache)
+    })?;
     let sweep = run_pin_sweep(&config, progress)?;
     let mut md = pin_sweep_table(&config, &sweep);
     md += &exact_sweep_table(&config, &sweep);

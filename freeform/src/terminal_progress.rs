@@ -1,4 +1,4 @@
-//! Progress bars on stderr for long work, silent with `--quiet`. Where a bar is not drawn
+//! Progress bars on stderr for long work (feature `terminal`), silent with `--quiet`. Where a bar is not drawn
 //! (stderr not a terminal, or work running in parallel), long work prints a line a minute
 //! instead, so a log shows how far an hour-long reference has come.
 
@@ -12,9 +12,9 @@ use indicatif::{ProgressBar, ProgressDrawTarget, ProgressStyle};
 /// sooner).
 pub const HIDDEN_BAR_LINE_INTERVAL: Duration = Duration::from_secs(60);
 
-/// Makes progress bars, or none when quiet.
+/// Makes progress bars on stderr, or none when quiet.
 #[derive(Clone, Copy, Debug, Default)]
-pub struct Progress {
+pub struct TerminalProgress {
     /// No bars and no status lines.
     pub quiet: bool,
     /// No bars, status lines still shown (work running in parallel, whose bars would draw over
@@ -22,7 +22,7 @@ pub struct Progress {
     pub hide_bars: bool,
 }
 
-impl Progress {
+impl TerminalProgress {
     /// A bar of `len` steps labelled `label`; not drawn, it prints a line every
     /// [`HIDDEN_BAR_LINE_INTERVAL`] (none with `quiet`).
     pub fn bar(&self, len: usize, label: impl Into<String>) -> StepBar {
@@ -59,8 +59,8 @@ impl Progress {
     }
 
     /// The same, without bars.
-    pub fn without_bars(self) -> Progress {
-        Progress {
+    pub fn without_bars(self) -> TerminalProgress {
+        TerminalProgress {
             hide_bars: true,
             ..self
         }
@@ -74,7 +74,7 @@ impl Progress {
     }
 }
 
-/// A progress bar of counted steps ([`Progress::bar`]); where it is not drawn, its progress
+/// A progress bar of counted steps ([`TerminalProgress::bar`]); where it is not drawn, its progress
 /// as a line on stderr at most every `interval`.
 #[derive(Debug)]
 pub struct StepBar {
@@ -147,16 +147,16 @@ impl StepBar {
     }
 }
 
-/// [`Progress`] behind the library's [`freeform::Progress`] trait: one bar per stage.
+/// [`TerminalProgress`] behind the library's [`crate::Progress`] trait: one bar per stage.
 #[derive(Debug, Default)]
 pub struct BarProgress {
-    settings: Progress,
+    settings: TerminalProgress,
     bar: Mutex<Option<StepBar>>,
 }
 
 impl BarProgress {
     /// Bars and status lines as `settings` says.
-    pub fn new(settings: Progress) -> Self {
+    pub fn new(settings: TerminalProgress) -> Self {
         BarProgress {
             settings,
             bar: Mutex::new(None),
@@ -169,9 +169,17 @@ impl BarProgress {
     }
 }
 
-impl freeform::Progress for BarProgress {
+impl crate::Progress for BarProgress {
     fn begin(&self, len: usize, label: &str) {
         self.with_bar(|bar| *bar = Some(self.settings.bar(len, label)));
+    }
+
+    fn resume_at(&self, done: usize) {
+        self.with_bar(|bar| {
+            if let Some(bar) = bar {
+                bar.resume_at(done as u64);
+            }
+        });
     }
 
     fn advance(&self) {
@@ -201,7 +209,7 @@ mod tests {
 
     #[test]
     fn a_bar_that_is_not_drawn_prints_its_progress_once_its_interval_has_passed() {
-        let hidden = Progress {
+        let hidden = TerminalProgress {
             quiet: false,
             hide_bars: true,
         };
@@ -217,7 +225,7 @@ mod tests {
         assert!(bar.due_line().unwrap().starts_with("relabelled: 1/4"));
         let hour = Duration::from_secs(3600);
         assert_eq!(hidden.bar_with_lines_every(4, "x", hour).due_line(), None);
-        let quiet = Progress {
+        let quiet = TerminalProgress {
             quiet: true,
             hide_bars: true,
         };
@@ -231,7 +239,7 @@ mod tests {
 
     #[test]
     fn a_resumed_bar_counts_earlier_steps_as_done_but_estimates_from_its_own() {
-        let hidden = Progress {
+        let hidden = TerminalProgress {
             quiet: false,
             hide_bars: true,
         };

@@ -3,8 +3,8 @@
 use std::path::{Path, PathBuf};
 
 use anyhow::{Context, Result};
-use eval::progress::Progress;
 use freeform::Geometry;
+use freeform::terminal_progress::TerminalProgress;
 use hyperelastic::LameParameters;
 use skin_eigen::{BasisParams, build_basis};
 
@@ -22,7 +22,7 @@ pub(crate) fn run(
     geometry: &Path,
     o: BasisOptions,
     save: PathBuf,
-    progress: &Progress,
+    progress: &TerminalProgress,
 ) -> Result<()> {
     let points = Geometry::read(geometry)?
         .normalized()
