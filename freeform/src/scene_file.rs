@@ -1,6 +1,8 @@
 //! Scene files: a TOML or JSON file naming the geometry, material, basis settings, what acts on
 //! the object and how long to run. [`crate::simulate::simulate_scene_file`] runs one and writes
-//! per-frame PLY and VTK of the deformed surface (or cloud).
+//! per-frame PLY and VTK of the deformed surface (or cloud). `[basis]` and `[simulation]` and
+//! every key in them are optional ([`BasisSpec::default`], [`SimulationSpec::default`]); every
+//! key with its unit and default is listed in `docs/scene-files.md`.
 //!
 //! ```toml
 //! [geometry]
@@ -22,15 +24,15 @@
 //! poisson_ratio = 0.45
 //! density = 1000
 //!
-//! [basis]
-//! modes = 16        # m
-//! kernels = 1000    # K
-//! points = 20000    # grid points the basis is built on
+//! [basis]           # optional, as every key in it
+//! modes = 16        # m (default 16)
+//! kernels = 1000    # K (default 1000)
+//! points = 20000    # grid points the basis is built on (default 20 000)
 //!
-//! [simulation]
-//! time_step = 0.01  # s
-//! steps = 100
-//! points = 5000     # grid points the simulation integrates over
+//! [simulation]      # optional, as every key in it
+//! time_step = 0.01  # s (default 0.01)
+//! steps = 100       # (default 100)
+//! points = 5000     # grid points the simulation integrates over (default 5000)
 //! output_every = 5  # write every 5th frame (default 1)
 //! quadrature = { kind = "cubature" }  # elastic energy on an optimized cubature (the default;
 //!                                     # { kind = "full" }: every point, the paper's setting)
