@@ -76,16 +76,20 @@ fn a_block_on_a_30_degree_incline_slides_at_coulombs_acceleration_with_friction_
     );
 }
 
-#[test]
-fn a_negative_friction_is_a_named_error_and_a_positive_one_valid() {
-    let with_friction = |friction| SceneSpec {
+/// A scene whose only term is a floor y ≥ 0 with friction `friction`.
+fn with_friction(friction: f64) -> SceneSpec {
+    SceneSpec {
         floor: Some(FloorSpec {
             normal: Vector3::y(),
             offset: 0.0,
             friction,
         }),
         ..Default::default()
-    };
+    }
+}
+
+#[test]
+fn a_negative_friction_is_a_named_error_and_a_positive_one_valid() {
     assert!(matches!(
         with_friction(-0.1).validate(),
         Err(freeform::SceneSpecError::Invalid(why)) if why.contains("friction")
@@ -96,14 +100,6 @@ fn a_negative_friction_is_a_named_error_and_a_positive_one_valid() {
 #[cfg(feature = "fem")]
 #[test]
 fn a_frictional_floor_is_refused_by_the_fem_translation_and_a_frictionless_one_taken() {
-    let with_friction = |friction| SceneSpec {
-        floor: Some(FloorSpec {
-            normal: Vector3::y(),
-            offset: 0.0,
-            friction,
-        }),
-        ..Default::default()
-    };
     assert!(matches!(
         with_friction(0.3).fem_scene(&[Vector3::zeros()], 1e4),
         Err(freeform::SceneSpecError::FemFriction { friction }) if friction == 0.3
