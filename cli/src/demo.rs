@@ -163,6 +163,7 @@ pub(crate) fn run(
         quadrature: QuadratureRule::default(),
         cache_dir: Some(cache),
         pin_hold: freeform::PinHold::default(),
+        pressure: None,
     };
     let paper = Simulation {
         params: SimulationParams {

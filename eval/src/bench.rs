@@ -414,6 +414,7 @@ pub fn run_bench(
                         match s.pins {
                             PinHold::Penalty => format!("{:e}", s.pin_factor),
                             PinHold::Exact { inset } => format!("exact(inset {inset:.3} m)"),
+                            PinHold::Weighted { .. } => "weighted".to_string(),
                         },
                         match s.hessian_reuse {
                             HessianReuse::Never => String::new(),

@@ -7,6 +7,7 @@ use thiserror::Error;
 pub mod ablation;
 pub mod beam;
 pub mod bench;
+pub mod convergence;
 pub mod fem_reference;
 pub mod model_cache;
 pub mod pins;
@@ -116,6 +117,15 @@ pub enum EvalError {
     /// An output or cache file could not be written or read.
     #[error(transparent)]
     Artifact(#[from] artifact::ArtifactError),
+    /// The static FEM reference of the convergence study did not converge.
+    #[error("the static FEM reference did not converge in {iterations} Newton iterations")]
+    StaticReferenceNotConverged {
+        /// Iterations run.
+        iterations: usize,
+    },
+    /// A best-approximation projection of the convergence study could not be solved.
+    #[error("projection onto the subspace: {0}")]
+    Projection(&'static str),
     /// A plot could not be drawn (plotters' errors are generic over the backend, so only
     /// their text is kept).
     #[error("{path}: plot failed: {message}")]

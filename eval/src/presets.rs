@@ -51,6 +51,11 @@ pub const PRESETS: &[(&str, &str)] = &[
     ("bench-quick", include_str!("../presets/bench-quick.toml")),
     ("pins", include_str!("../presets/pins.toml")),
     ("pins-quick", include_str!("../presets/pins-quick.toml")),
+    ("convergence", include_str!("../presets/convergence.toml")),
+    (
+        "convergence-quick",
+        include_str!("../presets/convergence-quick.toml"),
+    ),
     ("stress", include_str!("../presets/stress.toml")),
     ("stress-quick", include_str!("../presets/stress-quick.toml")),
 ];
@@ -71,6 +76,8 @@ pub enum StudyKind {
     Pins,
     /// The numerical stress suite ([`crate::stress::StressConfig`]).
     Stress,
+    /// The convergence study ([`crate::convergence::ConvergenceConfig`]).
+    Convergence,
 }
 
 impl StudyKind {
@@ -83,6 +90,7 @@ impl StudyKind {
             StudyKind::Bench => "bench",
             StudyKind::Pins => "pins",
             StudyKind::Stress => "stress",
+            StudyKind::Convergence => "convergence",
         }
     }
 }

@@ -10,6 +10,7 @@ use eval::ablation::study::AblationStudyConfig;
 use eval::beam::reduced::ReducedSettings;
 use eval::beam::study::BeamStudyConfig;
 use eval::bench::BenchConfig;
+use eval::convergence::ConvergenceConfig;
 use eval::pins::PinSweepConfig;
 use eval::presets::{PRESETS, Preset, StudyKind, render_preset, set_folder};
 use eval::shapes::reference::ShapeFemParams;
@@ -188,6 +189,20 @@ fn every_committed_preset_equals_the_configuration_the_code_builds() {
         &["cache_dir"],
     );
     check(
+        "convergence",
+        StudyKind::Convergence,
+        "The convergence study: static Bend, Bend and Twist at nu = 0.3, 0.45, 0.49, m = 8 to 64,\nK = 1000 and 2000, each boundary treatment, against the FEM, with the subspace's best\napproximations.",
+        ConvergenceConfig::full(cache()),
+        &["cache_dir"],
+    );
+    check(
+        "convergence-quick",
+        StudyKind::Convergence,
+        "The convergence study in minutes: the static Bend at nu = 0.45, m = 8, 16, 32, K = 1000,\neach boundary treatment, against P2 res 4.",
+        ConvergenceConfig::quick(cache()),
+        &["cache_dir"],
+    );
+    check(
         "stress",
         StudyKind::Stress,
         "The numerical stress suite: extreme nu, stiffness contrast, large steps, fast twists, an\nimpact, extreme m and K, degenerate sampling.",
@@ -201,5 +216,5 @@ fn every_committed_preset_equals_the_configuration_the_code_builds() {
         StressConfig::quick(),
         &[],
     );
-    assert_eq!(PRESETS.len(), 15, "every committed preset is checked above");
+    assert_eq!(PRESETS.len(), 17, "every committed preset is checked above");
 }

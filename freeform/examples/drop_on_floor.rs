@@ -45,6 +45,7 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
         quadrature: Default::default(),
         cache_dir: None,
         pin_hold: Default::default(),
+        pressure: None,
     };
     let frames = FrameWriter::new(&out, &geometry);
     let surface = DeformationMap::new(&basis, frames.rest_positions())?;

@@ -22,6 +22,7 @@ pub mod geometry;
 pub mod metrics;
 pub mod object_scene;
 pub mod pin_hold;
+pub mod pressure_space;
 pub mod progress;
 pub mod recorded_run;
 pub mod runner;
@@ -42,9 +43,13 @@ pub use frames::FrameWriter;
 pub use geometry::{Geometry, GeometryError};
 pub use object_scene::{ObjectSpec, ObjectSummary, ObjectsFile, ObjectsReport, simulate_objects};
 pub use pin_hold::{HeldBasisError, PinHold};
+pub use pressure_space::{PressureSpace, PressureSpaceParams};
 pub use progress::{Progress, Silent};
 pub use recorded_run::{RecordError, RecordedRun, run_recorded};
-pub use runner::{Frame, ObserverResult, RunError, RunReport, Simulation, run};
+pub use runner::{
+    Frame, ObserverResult, RunError, RunReport, Simulation, StaticEquilibrium, run,
+    static_equilibrium,
+};
 pub use scene::{Constraint, FloorSpec, Motion, Region, SceneSpec, SceneSpecError};
 pub use scene_file::{
     BasisSpec, BoxSpec, GeometrySpec, MaterialRegion, MaterialSpec, SceneFile, SceneFileError,

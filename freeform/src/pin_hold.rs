@@ -1,5 +1,7 @@
 //! How the reduced simulator holds a scene's constrained regions: by the penalty, or
-//! exactly, with a basis built for the regions.
+//! exactly, with a basis built for the regions: modes in the null space of the kernels on the
+//! (inset) regions ([`PinHold::Exact`]), or modes multiplied by a smooth distance to the regions
+//! ([`PinHold::Weighted`], no band and no parameter; see [`skin_eigen::build_weighted_basis`]).
 //!
 //! Holding a region exactly makes the basis's modes vanish on it; RKPM weights do not
 //! interpolate, so weights that vanish on a region stay small over a band about one kernel
@@ -12,7 +14,10 @@
 //! The default is the penalty: across the pin sweep (`freeform-paper pins`: beam Bend and Twist,
 //! m = 16 and 32, ν = 0.3 / 0.45 / 0.49) exact holding with that inset is more accurate in 2 of
 //! the 10 scored runs and less accurate in 8, by 1.46× in geometric mean; on the Twist the band
-//! lags the rotating end (up to 0.17 m at the FEM's held vertices).
+//! lags the rotating end (up to 0.17 m at the FEM's held vertices). The weighted basis holds
+//! every region point exactly, but it exposes the subspace's volumetric locking at ν ≥ 0.45
+//! (too stiff) that the penalty's softness partly cancels: `freeform-paper convergence` measures
+//! both against the FEM.
 
 use std::collections::HashSet;
 
@@ -22,11 +27,11 @@ use reduced_sim::{PinnedRegion, Scene};
 use rkpm_core::{IntegrationPoints, KernelWindow, ShapeFunctionParams};
 use serde::{Deserialize, Serialize};
 use skin_eigen::{
-    BasisError, BasisParams, BasisReport, RegionConstraintParams, SkinningBasis, build_basis,
-    build_basis_with_regions,
+    BasisError, BasisParams, BasisReport, HeldRegionShape, RegionConstraintParams, RegionWeight,
+    RegionWeightError, SkinningBasis, build_basis, build_basis_with_regions, build_weighted_basis,
 };
 
-use crate::scene::{Region, SceneSpec, SceneSpecError};
+use crate::scene::{REGION_TOLERANCE, Region, SceneSpec, SceneSpecError};
 
 /// [`PinHold::build_basis`] failed.
 #[derive(Debug, thiserror::Error)]
@@ -54,16 +59,55 @@ pub enum PinHold {
         /// How far inside each region's boundary the held points start (m, ≥ 0).
         inset: f64,
     },
+    /// Exactly ([`Scene::held`]) on the whole of each region, with a weighted basis
+    /// ([`skin_eigen::build_weighted_basis`]): the modes are multiplied by a smooth distance to
+    /// the regions, so they vanish on them with no penalty, no band and no parameter to tune.
+    Weighted {
+        /// The transition length δ of the weight ([`skin_eigen::RegionWeight`]) as a fraction
+        /// of the smallest side of the basis points' bounding box (default 1: the weight reaches
+        /// 1 one object thickness from the regions).
+        transition_fraction: f64,
+    },
 }
 
 impl PinHold {
+    /// [`PinHold::Weighted`] with its default transition (one object thickness).
+    pub const WEIGHTED: PinHold = PinHold::Weighted {
+        transition_fraction: 1.0,
+    };
+
+    /// The weight of [`PinHold::Weighted`] for `scene`'s constraint regions, in order, on an
+    /// object whose basis points span `bounding_box_sides` (m); `None` for the other holds.
+    ///
+    /// # Errors
+    /// [`RegionWeightError`] for a scene without constraints or a transition that is not
+    /// positive.
+    pub fn region_weight(
+        &self,
+        scene: &SceneSpec,
+        bounding_box_sides: Vector3<f64>,
+    ) -> Result<Option<RegionWeight>, RegionWeightError> {
+        let PinHold::Weighted {
+            transition_fraction,
+        } = *self
+        else {
+            return Ok(None);
+        };
+        let regions = scene
+            .constraints
+            .iter()
+            .map(|c| c.region.held_region_shape())
+            .collect();
+        RegionWeight::new(regions, transition_fraction * bounding_box_sides.min()).map(Some)
+    }
+
     /// The basis options for this hold: `params` as given for the penalty; for exact holding,
     /// with compact kernels ([`KernelWindow::CubicBSpline`], zero beyond two radii), since the
     /// Gaussian's tails reach every kernel within four radii into the region and widen the band
     /// where the modes vanish.
     pub fn basis_params(&self, params: BasisParams) -> BasisParams {
         match self {
-            PinHold::Penalty => params,
+            PinHold::Penalty | PinHold::Weighted { .. } => params,
             PinHold::Exact { .. } => BasisParams {
                 shape_functions: ShapeFunctionParams {
                     window: KernelWindow::CubicBSpline,
@@ -88,8 +132,16 @@ impl PinHold {
         points: &[Vector3<f64>],
     ) -> Result<Scene, SceneSpecError> {
         let full = scene.reduced_scene(points)?;
-        if *self == PinHold::Penalty {
-            return Ok(full);
+        match self {
+            PinHold::Penalty => return Ok(full),
+            PinHold::Weighted { .. } => {
+                return Ok(Scene {
+                    held: full.pins,
+                    pins: Vec::new(),
+                    ..full
+                });
+            }
+            PinHold::Exact { .. } => {}
         }
         let held = self
             .held_scene(scene)?
@@ -128,7 +180,7 @@ impl PinHold {
     /// ball.
     pub fn held_scene(&self, scene: &SceneSpec) -> Result<SceneSpec, SceneSpecError> {
         match *self {
-            PinHold::Penalty => Ok(scene.clone()),
+            PinHold::Penalty | PinHold::Weighted { .. } => Ok(scene.clone()),
             PinHold::Exact { inset } => {
                 if !(inset >= 0.0 && inset.is_finite()) {
                     return Err(SceneSpecError::Invalid(format!(
@@ -200,6 +252,21 @@ impl PinHold {
         let params = self.basis_params(params);
         let (basis, report, _) = match self {
             PinHold::Penalty => build_basis(basis_points, materials, &params)?,
+            PinHold::Weighted { .. } => {
+                let bounds = basis_points.bounding_box();
+                let weight = self
+                    .region_weight(scene, bounds.max - bounds.min)
+                    .map_err(|e| SceneSpecError::Invalid(format!("weighted holding: {e}")))?
+                    .expect("a weighted hold has a weight");
+                let (basis, report, _) = build_weighted_basis(
+                    basis_points,
+                    materials,
+                    &params,
+                    &weight,
+                    &[simulation_points, output_points],
+                )?;
+                return Ok((basis, report));
+            }
             PinHold::Exact { .. } => {
                 let regions =
                     self.basis_regions(scene, &[basis_points.positions(), simulation_points])?;
@@ -237,6 +304,26 @@ impl PinHold {
 }
 
 impl Region {
+    /// The region as a [`HeldRegionShape`] with an analytic distance, grown by
+    /// [`REGION_TOLERANCE`] as [`Region::contains`] is.
+    pub fn held_region_shape(&self) -> HeldRegionShape {
+        let axis_vector = |axis: usize| Vector3::from_fn(|d, _| f64::from(u8::from(d == axis)));
+        match *self {
+            Region::Below { axis, value } => HeldRegionShape::HalfSpace {
+                normal: axis_vector(axis),
+                offset: value + REGION_TOLERANCE,
+            },
+            Region::Above { axis, value } => HeldRegionShape::HalfSpace {
+                normal: -axis_vector(axis),
+                offset: -(value - REGION_TOLERANCE),
+            },
+            Region::Ball { center, radius } => HeldRegionShape::Ball {
+                center,
+                radius: radius + REGION_TOLERANCE,
+            },
+        }
+    }
+
     /// The region shrunk by `distance` (m): the points at least that far inside its boundary
     /// (planes moved inwards, a ball's radius reduced); `None` when nothing is left of a ball.
     pub fn inset(&self, distance: f64) -> Option<Region> {

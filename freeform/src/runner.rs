@@ -16,6 +16,7 @@ use rkpm_core::IntegrationPoints;
 use thiserror::Error;
 
 use crate::pin_hold::PinHold;
+use crate::pressure_space::PressureSpace;
 use crate::scene::{SceneSpec, SceneSpecError};
 
 /// Everything one reduced run needs.
@@ -41,6 +42,10 @@ pub struct Simulation<'a, B: SkinningField + ?Sized, M> {
     /// How the constrained regions are held ([`PinHold::Penalty`] by default; exact holding
     /// needs `field` built for [`PinHold::basis_regions`]).
     pub pin_hold: PinHold,
+    /// The pressure space of a locking-free volumetric term
+    /// ([`reduced_sim::ReducedModel::with_projected_dilatation`]); `None` (the paper's setting)
+    /// integrates the material's own volumetric term at every point.
+    pub pressure: Option<&'a PressureSpace>,
 }
 
 /// The state after frame `index`, handed to the observer of [`run`].
@@ -125,6 +130,15 @@ pub enum RunError {
         #[source]
         source: StepError,
     },
+    /// The pressure space could not be evaluated at the integration points.
+    #[error("evaluating the pressure space")]
+    PressureSpace(#[source] rkpm_core::ShapeFunctionError),
+    /// The projected volumetric term could not be set up.
+    #[error("setting up the projected volumetric term")]
+    Dilatation(#[source] reduced_sim::ProjectedDilatationError),
+    /// The static solve of [`static_equilibrium`] failed.
+    #[error("the static solve failed")]
+    Static(#[source] StepError),
     /// The observer stopped the run (e.g. a frame could not be written).
     #[error("frame {frame}: the observer stopped the run")]
     Observer {
@@ -134,6 +148,92 @@ pub enum RunError {
         #[source]
         source: Box<dyn std::error::Error + Send + Sync>,
     },
+}
+
+/// The reduced simulator of `simulation` at rest, the quadrature it integrates with, and the
+/// points each constrained region selected (penalized regions, then held ones).
+fn simulator<B, M>(
+    simulation: &Simulation<'_, B, M>,
+) -> Result<(Simulator<M>, QuadratureReport, Vec<usize>), RunError>
+where
+    B: SkinningField + ?Sized,
+    M: HyperelasticMaterial + Clone,
+{
+    let points = simulation.points;
+    let model = ReducedModel::new(
+        simulation.field,
+        points,
+        &simulation.material.sample(points.positions()),
+        simulation.material_model.clone(),
+    )
+    .map_err(RunError::Model)?;
+    let model = match simulation.pressure {
+        None => model,
+        Some(space) => model
+            .with_projected_dilatation(
+                space
+                    .values(points.positions())
+                    .map_err(RunError::PressureSpace)?,
+            )
+            .map_err(RunError::Dilatation)?,
+    };
+    let (model, quadrature) = simulation
+        .quadrature
+        .apply_cached(model, simulation.cache_dir)
+        .map_err(RunError::Quadrature)?;
+    let scene = simulation
+        .pin_hold
+        .reduced_scene(simulation.scene, model.rest_positions())?;
+    let region_points = scene
+        .pins
+        .iter()
+        .chain(&scene.held)
+        .map(|p| p.points.len())
+        .collect();
+    let sim = Simulator::new(model, &scene, simulation.params).map_err(RunError::Simulator)?;
+    Ok((sim, quadrature, region_points))
+}
+
+/// The static equilibrium of [`static_equilibrium`].
+#[derive(Clone, Debug)]
+pub struct StaticEquilibrium {
+    /// Reduced coordinates z at equilibrium (12 per handle).
+    pub z: Vec<f64>,
+    /// The Newton solve.
+    pub newton: NewtonReport,
+    /// Wall time of the solve alone (s).
+    pub solve_seconds: f64,
+    /// Largest penalized point's distance from its target (m), if any region is penalized.
+    pub max_pin_deviation: Option<f64>,
+    /// Largest exactly held point's distance from its target (m), if any region is held.
+    pub max_held_deviation: Option<f64>,
+}
+
+/// The static equilibrium of `simulation` under its loads and the constraint targets at time
+/// `time` (s): the potential without inertia minimized from rest
+/// ([`reduced_sim::Simulator::solve_static`]).
+///
+/// # Errors
+/// [`RunError`] for a model, quadrature or scene that cannot be built, and
+/// [`RunError::Static`] for a solve that fails.
+pub fn static_equilibrium<B, M>(
+    simulation: &Simulation<'_, B, M>,
+    time: f64,
+) -> Result<StaticEquilibrium, RunError>
+where
+    B: SkinningField + ?Sized,
+    M: HyperelasticMaterial + Clone,
+{
+    let (mut sim, _, _) = simulator(simulation)?;
+    let start = Instant::now();
+    let newton = sim.solve_static(time).map_err(RunError::Static)?;
+    Ok(StaticEquilibrium {
+        z: sim.state().z.clone(),
+        newton,
+        solve_seconds: start.elapsed().as_secs_f64(),
+        max_pin_deviation: sim.max_pin_deviation(),
+        max_held_deviation: sim.max_held_deviation(),
+    })
 }
 
 /// What [`run`] hands each frame to: return `Err` to stop the run.
@@ -155,27 +255,7 @@ where
 {
     let start = Instant::now();
     let points = simulation.points;
-    let model = ReducedModel::new(
-        simulation.field,
-        points,
-        &simulation.material.sample(points.positions()),
-        simulation.material_model.clone(),
-    )
-    .map_err(RunError::Model)?;
-    let (model, quadrature) = simulation
-        .quadrature
-        .apply_cached(model, simulation.cache_dir)
-        .map_err(RunError::Quadrature)?;
-    let scene = simulation
-        .pin_hold
-        .reduced_scene(simulation.scene, model.rest_positions())?;
-    let region_points = scene
-        .pins
-        .iter()
-        .chain(&scene.held)
-        .map(|p| p.points.len())
-        .collect();
-    let mut sim = Simulator::new(model, &scene, simulation.params).map_err(RunError::Simulator)?;
+    let (mut sim, quadrature, region_points) = simulator(simulation)?;
     let setup_seconds = start.elapsed().as_secs_f64();
 
     let mut notify = |sim: &Simulator<M>, index: usize, step: Option<&NewtonReport>| {

@@ -242,6 +242,7 @@ pub fn simulate_scene_file(
         quadrature: file.simulation.quadrature,
         cache_dir,
         pin_hold: hold,
+        pressure: None,
     };
     let mut frames_written = 0;
     let mut last_z = Vec::new();

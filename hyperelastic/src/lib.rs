@@ -21,7 +21,7 @@ pub use determinant::{Matrix9, cofactor, determinant_hessian};
 pub use hessian_tangent::HessianTangent;
 pub use lame_parameters::{LameParameters, MaterialParameterError};
 pub use linear_elastic::LinearElastic;
-pub use material::{HyperelasticMaterial, Tangent};
+pub use material::{HyperelasticMaterial, Tangent, VolumetricPart};
 #[cfg(any(test, feature = "checks"))]
 pub use material_checks::{
     MaterialCheckError, MaterialCheckParams, MaterialCheckReport, check_material,

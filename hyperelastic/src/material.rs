@@ -22,6 +22,19 @@ pub enum Tangent {
     AbsoluteEigenvalues,
 }
 
+/// The volumetric term of a material whose energy density splits as
+/// `Ψ(F) = Ψ_rest(F) + ½ κ (J − γ)²`, J = det F: the term a projected dilatation replaces by
+/// `½ κ (Π(J − γ))²`. Ψ_rest must be stable on its own (stress-free at F = I with a positive
+/// semi-definite tangent there) and must not grow with κ: it is integrated pointwise while the
+/// volumetric term is projected.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct VolumetricPart {
+    /// κ (Pa).
+    pub modulus: f64,
+    /// γ (dimensionless): the J at which the term vanishes.
+    pub rest_ratio: f64,
+}
+
 /// A hyperelastic material: energy density Ψ(F) (J/m³ = Pa), first Piola-Kirchhoff stress
 /// P = ∂Ψ/∂F (Pa) and the 9×9 tangent ∂P/∂F (Pa) over column-major `vec(F)`, with per-point
 /// Lamé parameters (heterogeneous objects).
@@ -34,6 +47,13 @@ pub trait HyperelasticMaterial: Send + Sync {
 
     /// Energy density Ψ(F) (Pa).
     fn energy_density(&self, params: &LameParameters, f: &Matrix3<f64>) -> f64;
+
+    /// The volumetric term `½ κ (J − γ)²` of Ψ at these parameters, if Ψ has one in that form
+    /// (default `None`).
+    fn volumetric_part(&self, params: &LameParameters) -> Option<VolumetricPart> {
+        let _ = params;
+        None
+    }
 
     /// First Piola-Kirchhoff stress P(F) = ∂Ψ/∂F (Pa).
     fn first_piola_kirchhoff(&self, params: &LameParameters, f: &Matrix3<f64>) -> Matrix3<f64>;

@@ -102,6 +102,17 @@ fn product_of_others(s: &nalgebra::Vector3<f64>, i: usize) -> f64 {
 }
 
 impl HyperelasticMaterial for StableNeoHookean {
+    /// `½ λ (J − 1)²`: the rest, `Ψ − ½ λ (J − 1)² = ½ μ [(J − 1)² − 2(J − 1) + tr FᵀF − 3]`,
+    /// does not depend on λ, is stress-free at F = I and has the rest tangent `μ(I + T)` of
+    /// linear elasticity's shear part (positive semi-definite). (λ̄ (J − γ)² would not do: its
+    /// rest stress −μ cof F balances the μ term, and the rest alone would be unstable.)
+    fn volumetric_part(&self, params: &LameParameters) -> Option<crate::VolumetricPart> {
+        Some(crate::VolumetricPart {
+            modulus: params.lambda(),
+            rest_ratio: 1.0,
+        })
+    }
+
     fn name(&self) -> &'static str {
         "stable Neo-Hookean"
     }

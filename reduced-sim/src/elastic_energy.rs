@@ -8,6 +8,7 @@ use nalgebra::Matrix3;
 use rayon::prelude::*;
 
 use crate::deformation_map::{DeformationMap, deformation_gradient_of_block};
+use crate::projected_dilatation::ProjectedDilatation;
 use crate::reduced_model::ReducedModel;
 
 /// The three diagonal and three upper row-block pairs (r, q) of the reduced Hessian.
@@ -25,6 +26,9 @@ impl<M: HyperelasticMaterial> ReducedModel<M> {
     /// # Panics
     /// If `z.len() != 12(m + 1)`.
     pub fn elastic_energy(&self, z: &[f64]) -> f64 {
+        let dilatation = self.dilatation().map_or(0.0, |d| {
+            d.state(&self.elastic_map().deformation_gradients(z)).energy
+        });
         let map = self.elastic_map();
         let z = map.z_columns(z);
         let (lame, weights, material) =
@@ -44,7 +48,12 @@ impl<M: HyperelasticMaterial> ReducedModel<M> {
                 })
             })
             .collect();
-        parts.iter().sum()
+        let pointwise: f64 = parts.iter().sum();
+        if self.dilatation().is_some() {
+            pointwise + dilatation
+        } else {
+            pointwise
+        }
     }
 
     /// Gradient `∂E_el/∂z` (J per unit z, length 12(m + 1), z's layout):
@@ -54,6 +63,9 @@ impl<M: HyperelasticMaterial> ReducedModel<M> {
     /// # Panics
     /// If `z.len() != 12(m + 1)`.
     pub fn elastic_gradient(&self, z: &[f64]) -> Vec<f64> {
+        if self.dilatation().is_some() {
+            return self.elastic_gradient_at(&self.elastic_map().deformation_gradients(z));
+        }
         weighted_elastic_gradient_at_z(
             self.material(),
             self.elastic_map(),
@@ -71,6 +83,22 @@ impl<M: HyperelasticMaterial> ReducedModel<M> {
     /// If `f.len()` is not the number of elastic points.
     pub(crate) fn elastic_gradient_at(&self, f: &[Matrix3<f64>]) -> Vec<f64> {
         assert_eq!(f.len(), self.elastic_map().len(), "one F per elastic point");
+        if let Some(d) = self.dilatation() {
+            let state = d.state(f);
+            let (material, lame, weights) =
+                (self.material(), self.elastic_lame(), self.elastic_weights());
+            return accumulate_point_gradients(
+                self.elastic_map(),
+                PointDeformation::Given(f),
+                |i, f| {
+                    ProjectedDilatation::shifted_stress(
+                        material.first_piola_kirchhoff(&lame[i], f),
+                        f,
+                        state.pressure_shift[i],
+                    ) * weights[i]
+                },
+            );
+        }
         weighted_elastic_gradient(
             self.material(),
             self.elastic_map(),
@@ -118,11 +146,12 @@ impl<M: HyperelasticMaterial> ReducedModel<M> {
         let n4 = map.layout().block_len();
         let parts = rayon::current_num_threads().clamp(1, n.div_ceil(POINTS_PER_CHUNK));
         let part_len = n.div_ceil(parts);
+        let shift = self.dilatation().map(|d| d.state(f).pressure_shift);
         let blocks: Vec<[Mat<f64>; 6]> = (0..parts)
             .into_par_iter()
             .map(|part| {
                 let range = part * part_len..((part + 1) * part_len).min(n);
-                self.elastic_hessian_blocks(f, range, tangent)
+                self.elastic_hessian_blocks(f, range, tangent, shift.as_deref())
             })
             .collect();
         for part in &blocks {
@@ -149,6 +178,39 @@ impl<M: HyperelasticMaterial> ReducedModel<M> {
                 }
             }
         }
+        if let Some(d) = self.dilatation() {
+            self.add_dilatation_rank_update(d, f, h);
+        }
+    }
+
+    /// Adds `(∂r/∂z)ᵀ G⁻¹ (∂r/∂z)` of the projected dilatation to `h`
+    /// ([`crate::projected_dilatation`]).
+    fn add_dilatation_rank_update(
+        &self,
+        d: &ProjectedDilatation,
+        f: &[Matrix3<f64>],
+        h: &mut Mat<f64>,
+    ) {
+        let functions = d.functions();
+        let rows: Vec<Vec<f64>> = (0..functions)
+            .map(|b| {
+                accumulate_point_gradients(
+                    self.elastic_map(),
+                    PointDeformation::Given(f),
+                    |i, f| hyperelastic::cofactor(f) * d.jacobian_weight(i, b),
+                )
+            })
+            .collect();
+        let len = h.nrows();
+        let jacobian = Mat::from_fn(functions, len, |b, k| rows[b][k]);
+        let g = d.gram_inverse();
+        let g = Mat::from_fn(functions, functions, |a, b| g[(a, b)]);
+        let update = jacobian.transpose() * (&g * &jacobian);
+        for j in 0..len {
+            for i in 0..len {
+                h[(i, j)] += 0.5 * (update[(i, j)] + update[(j, i)]);
+            }
+        }
     }
 
     /// The six blocks `Σ_i G_i A_i^{rq} G_iᵀ` (r, q in [`BLOCK_PAIRS`] order, each
@@ -159,6 +221,7 @@ impl<M: HyperelasticMaterial> ReducedModel<M> {
         f: &[Matrix3<f64>],
         range: std::ops::Range<usize>,
         tangent: Tangent,
+        pressure_shift: Option<&[f64]>,
     ) -> [Mat<f64>; 6] {
         let material = self.material();
         let lame = self.elastic_lame();
@@ -175,12 +238,32 @@ impl<M: HyperelasticMaterial> ReducedModel<M> {
         for start in range.clone().step_by(POINTS_PER_CHUNK) {
             let end = (start + POINTS_PER_CHUNK).min(range.end);
             let len = end - start;
-            material.stress_derivatives(
-                &lame[start..end],
-                &f[start..end],
-                tangent,
-                &mut tangents[..len],
-            );
+            match (pressure_shift, self.dilatation()) {
+                (Some(shift), Some(d)) => {
+                    material.stress_derivatives(
+                        &lame[start..end],
+                        &f[start..end],
+                        Tangent::Exact,
+                        &mut tangents[..len],
+                    );
+                    for (k, t) in tangents[..len].iter_mut().enumerate() {
+                        let i = start + k;
+                        *t = ProjectedDilatation::shifted_tangent(
+                            t,
+                            &f[i],
+                            d.modulus(i),
+                            shift[i],
+                            tangent,
+                        );
+                    }
+                }
+                _ => material.stress_derivatives(
+                    &lame[start..end],
+                    &f[start..end],
+                    tangent,
+                    &mut tangents[..len],
+                ),
+            }
             for (d, w) in tangents.iter_mut().zip(&weights[start..end]) {
                 *d *= *w;
             }

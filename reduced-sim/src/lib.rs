@@ -15,6 +15,7 @@ pub mod incremental_potential;
 mod log_barrier;
 pub mod mesh_collider;
 pub mod multibody;
+pub mod projected_dilatation;
 pub mod quadrature;
 pub mod reduced_coordinates;
 pub mod reduced_model;
@@ -35,6 +36,7 @@ pub use mesh_collider::MeshShape;
 pub use multibody::{
     Body, MultiBodyError, MultiBodyReport, MultiBodySimulator, MultiBodyStepError,
 };
+pub use projected_dilatation::ProjectedDilatationError;
 pub use quadrature::{ElasticQuadrature, QuadratureError, QuadratureReport, QuadratureRule};
 pub use reduced_coordinates::ReducedLayout;
 pub use reduced_model::{ReducedModel, ReducedModelError};

@@ -9,6 +9,7 @@ use rkpm_core::{Aabb, IntegrationPoints};
 use thiserror::Error;
 
 use crate::deformation_map::{DeformationMap, DeformationMapError};
+use crate::projected_dilatation::{ProjectedDilatation, ProjectedDilatationError};
 use crate::quadrature::{ElasticQuadrature, QuadratureError};
 use crate::skinning_field::SkinningField;
 
@@ -88,6 +89,8 @@ pub struct ReducedModel<M: HyperelasticMaterial> {
     mass_factor: faer::linalg::solvers::Llt<f64>,
     total_mass: f64,
     bounds: Aabb,
+    /// The projected volumetric term, when set.
+    dilatation: Option<ProjectedDilatation>,
 }
 
 impl<M: HyperelasticMaterial> ReducedModel<M> {
@@ -167,7 +170,53 @@ impl<M: HyperelasticMaterial> ReducedModel<M> {
             mass_block,
             mass_factor,
             total_mass,
+            dilatation: None,
         })
+    }
+
+    /// The model with the material's volumetric term `½ κ (J − γ)²` replaced by its projection
+    /// onto the pressure space whose values at the model's points are the columns of
+    /// `pressure` (N × P; see [`crate::projected_dilatation`]): the locking-free volumetric
+    /// term. Include the constant function; a point whose row is all zeros (a held region)
+    /// carries no volumetric energy.
+    ///
+    /// # Errors
+    /// [`ProjectedDilatationError`] for a material without a volumetric term, a row count other
+    /// than N, no or non-finite values, or functions linearly dependent at the elastic points.
+    pub fn with_projected_dilatation(
+        mut self,
+        pressure: nalgebra::DMatrix<f64>,
+    ) -> Result<Self, ProjectedDilatationError> {
+        if pressure.nrows() != self.map.len() {
+            return Err(ProjectedDilatationError::RowCount {
+                rows: pressure.nrows(),
+                points: self.map.len(),
+            });
+        }
+        self.dilatation = Some(self.dilatation_on_elastic_points(pressure)?);
+        Ok(self)
+    }
+
+    /// The number P of pressure functions of the projected volumetric term, if it is set.
+    pub fn pressure_functions(&self) -> Option<usize> {
+        self.dilatation.as_ref().map(ProjectedDilatation::functions)
+    }
+
+    pub(crate) fn dilatation(&self) -> Option<&ProjectedDilatation> {
+        self.dilatation.as_ref()
+    }
+
+    fn dilatation_on_elastic_points(
+        &self,
+        pressure: nalgebra::DMatrix<f64>,
+    ) -> Result<ProjectedDilatation, ProjectedDilatationError> {
+        ProjectedDilatation::new(
+            &self.material,
+            pressure,
+            self.elastic.as_ref().map(|e| e.quadrature.points()),
+            self.elastic_weights(),
+            self.elastic_lame(),
+        )
     }
 
     /// The model with its elastic energy integrated by `quadrature` instead of every point
@@ -189,6 +238,13 @@ impl<M: HyperelasticMaterial> ReducedModel<M> {
             lame: quadrature.points().iter().map(|&i| self.lame[i]).collect(),
             quadrature,
         });
+        if let Some(dilatation) = self.dilatation.take() {
+            let pressure = dilatation.pressure().clone();
+            self.dilatation = Some(
+                self.dilatation_on_elastic_points(pressure)
+                    .map_err(QuadratureError::Dilatation)?,
+            );
+        }
         Ok(self)
     }
 

@@ -146,6 +146,39 @@ pub enum ShapeFunctionError {
 }
 
 impl ShapeFunctionError {
+    /// The same error with its query-point index mapped by `index` (for errors raised on a
+    /// subset of a caller's points).
+    pub fn renumbered(self, index: impl Fn(usize) -> usize) -> ShapeFunctionError {
+        match self {
+            ShapeFunctionError::SingularMomentMatrix {
+                point,
+                position,
+                kernels_in_reach,
+                reciprocal_condition,
+            } => ShapeFunctionError::SingularMomentMatrix {
+                point: index(point),
+                position,
+                kernels_in_reach,
+                reciprocal_condition,
+            },
+            ShapeFunctionError::InaccurateReproduction {
+                point,
+                position,
+                kernels_in_reach,
+                reproducing_error,
+            } => ShapeFunctionError::InaccurateReproduction {
+                point: index(point),
+                position,
+                kernels_in_reach,
+                reproducing_error,
+            },
+            ShapeFunctionError::NonFiniteQuery { point } => ShapeFunctionError::NonFiniteQuery {
+                point: index(point),
+            },
+            other => other,
+        }
+    }
+
     /// The query point at which the shape functions do not exist, or not to the required
     /// accuracy ([`ShapeFunctionError::SingularMomentMatrix`],
     /// [`ShapeFunctionError::InaccurateReproduction`]): a point wider kernels may cover.
@@ -206,6 +239,31 @@ impl ShapeFunctions {
     /// `∇ϕ_k(X_i)` (1/m) for the kernels of [`ShapeFunctions::kernels`].
     pub fn gradients(&self, i: usize) -> &[Vector3<f64>] {
         &self.gradients[self.offsets[i]..self.offsets[i + 1]]
+    }
+
+    /// The shape functions multiplied by a per-point scalar field w: `w(X_i) ϕ_k(X_i)` with
+    /// gradients `w ∇ϕ_k + ϕ_k ∇w` (the product rule). `factors[i]` is `(w(X_i), ∇w(X_i))`
+    /// (w dimensionless, ∇w in 1/m); the sparsity pattern is kept, zero products included.
+    ///
+    /// # Panics
+    /// If `factors` does not have one entry per point.
+    pub fn multiplied(&self, factors: &[(f64, Vector3<f64>)]) -> ShapeFunctions {
+        assert_eq!(factors.len(), self.point_count(), "one factor per point");
+        let mut values = Vec::with_capacity(self.values.len());
+        let mut gradients = Vec::with_capacity(self.gradients.len());
+        for (i, &(w, grad_w)) in factors.iter().enumerate() {
+            for (&phi, grad_phi) in self.values(i).iter().zip(self.gradients(i)) {
+                values.push(w * phi);
+                gradients.push(grad_phi * w + grad_w * phi);
+            }
+        }
+        ShapeFunctions {
+            offsets: self.offsets.clone(),
+            kernel_indices: self.kernel_indices.clone(),
+            values,
+            gradients,
+            kernel_count: self.kernel_count,
+        }
     }
 
     /// Interpolates nodal scalars: `u(X_i) = Σ_k ϕ_k(X_i) c_k` and `∇u(X_i) = Σ_k ∇ϕ_k(X_i) c_k`.

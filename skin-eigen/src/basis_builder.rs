@@ -344,7 +344,7 @@ fn build(
 /// The kernels (`placed`, widened where needed, [`cover_queries`]), what widening did, and the
 /// shape functions at `points`. Kernels as placed that reach every point of `points` and of
 /// `evaluated_at` are kept after one evaluation at `points` and a check of the other sets.
-fn shape_functions_covering(
+pub(crate) fn shape_functions_covering(
     points: &IntegrationPoints,
     evaluated_at: &[&[Vector3<f64>]],
     placed: Kernels,

@@ -119,6 +119,7 @@ pub fn solve_skinning_modes(
     let mc = mass * &pencil.vectors;
     Ok(EigenSolution::from_pencil(
         pencil,
+        1,
         &hc,
         &mc,
         hessian.norm_l2(),
@@ -199,13 +200,20 @@ impl EigenSolution {
         }
     }
 
-    /// Drops the constant (first) pair of a pencil solution and measures the accuracy from
-    /// `hc = H_w c`, `mc = 𝓜 c` (all `count` columns) and `|H_w|_F`.
-    pub(crate) fn from_pencil(pencil: Pencil, hc: &Mat<f64>, mc: &Mat<f64>, h_norm: f64) -> Self {
-        let modes = pencil.vectors.ncols() - 1;
-        let coefficients = pencil.vectors.subcols(1, modes).to_owned();
-        let eigenvalues: Vec<f64> = pencil.values[1..=modes].to_vec();
-        let (hc, mc) = (hc.subcols(1, modes), mc.subcols(1, modes));
+    /// Drops the first `dropped` pairs of a pencil solution (1: the constant mode; 0 for a
+    /// weighted basis, which has none) and measures the accuracy from `hc = H_w c`, `mc = 𝓜 c`
+    /// (all `count` columns) and `|H_w|_F`.
+    pub(crate) fn from_pencil(
+        pencil: Pencil,
+        dropped: usize,
+        hc: &Mat<f64>,
+        mc: &Mat<f64>,
+        h_norm: f64,
+    ) -> Self {
+        let modes = pencil.vectors.ncols() - dropped;
+        let coefficients = pencil.vectors.subcols(dropped, modes).to_owned();
+        let eigenvalues: Vec<f64> = pencil.values[dropped..dropped + modes].to_vec();
+        let (hc, mc) = (hc.subcols(dropped, modes), mc.subcols(dropped, modes));
         let max_relative_residual = (0..modes)
             .map(|j| {
                 let r: f64 = (0..coefficients.nrows())
@@ -222,7 +230,7 @@ impl EigenSolution {
         EigenSolution {
             eigenvalues,
             coefficients,
-            constant_eigenvalue: pencil.values[0],
+            constant_eigenvalue: if dropped > 0 { pencil.values[0] } else { 0.0 },
             mass_condition_number: pencil.mass_condition_number,
             discarded_mass_directions: pencil.discarded_mass_directions,
             max_relative_residual,

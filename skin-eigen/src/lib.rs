@@ -4,9 +4,11 @@ pub mod assembly;
 pub mod basis_builder;
 pub mod generalized_eigen;
 pub mod region_constraints;
+pub mod region_weight;
 pub mod skinning_basis;
 pub mod sparse_assembly;
 pub mod subspace_iteration;
+pub mod weighted_basis;
 
 pub use assembly::{AssemblyError, WeightSpaceMatrices, assemble_weight_space_matrices};
 pub use basis_builder::{
@@ -17,8 +19,10 @@ pub use generalized_eigen::{EigenError, EigenParams, EigenSolution, solve_skinni
 pub use region_constraints::{
     ConstrainedModes, RegionConstraintParams, RegionError, solve_constrained_modes,
 };
+pub use region_weight::{HeldRegionShape, RegionWeight, RegionWeightError};
 pub use skinning_basis::{
     BASIS_FORMAT_VERSION, BasisFileError, BasisMetadata, SkinningBasis, SkinningWeights,
 };
 pub use sparse_assembly::{SparseWeightSpaceMatrices, assemble_sparse_weight_space_matrices};
 pub use subspace_iteration::{SubspaceParams, solve_skinning_modes_iteratively};
+pub use weighted_basis::build_weighted_basis;

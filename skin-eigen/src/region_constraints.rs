@@ -64,6 +64,9 @@ pub enum RegionError {
     /// No region was given.
     #[error("exact constraints need at least one region")]
     NoRegions,
+    /// Every point lies in a held region: nothing is left to deform.
+    #[error("every integration point lies in a held region; no free part is left to deform")]
+    NoFreePoints,
     /// A region holds no point.
     #[error("region {region} holds no integration point")]
     EmptyRegion {

@@ -8,12 +8,15 @@ use nalgebra::{DMatrix, Vector3};
 use rkpm_core::{Kernels, ShapeFunctionError, ShapeFunctionParams, evaluate_shape_functions};
 use serde::{Deserialize, Serialize};
 
+use crate::region_weight::RegionWeight;
+
 /// File magic of a saved basis.
 const MAGIC: [u8; 8] = *b"FFBASIS\0";
 /// Format version; bump on any change of [`SkinningBasis`]'s serialized layout (2: the
 /// shape-function options carry the kernel window; 3: region weights for exactly held regions;
-/// 4: the shape-function options carry the reproduction tolerance).
-pub const BASIS_FORMAT_VERSION: u32 = 4;
+/// 4: the shape-function options carry the reproduction tolerance; 5: the weight of a weighted
+/// basis).
+pub const BASIS_FORMAT_VERSION: u32 = 5;
 
 /// Saving or loading a basis failed.
 #[derive(Debug, thiserror::Error)]
@@ -76,6 +79,11 @@ pub struct BasisMetadata {
 /// (1 ≤ r < R) is 1 on region r and 0 on the other regions, the modes vanish on every region,
 /// and region 0's weight is the constant minus the others. Handles, in order:
 /// `[1, a_1 … a_{R-1}, c_1 … c_m]`.
+///
+/// A weighted basis ([`crate::build_weighted_basis`]) multiplies its kernel sums by the region
+/// weight w of [`RegionWeight`]: `W^j = w Σ_k ϕ_k c_kj` for the modes and
+/// `a_r = g_r + w Σ_k ϕ_k b_kr` for the region handles, so the modes are exactly 0 and the region
+/// handles exactly 1 or 0 on the regions, where no kernel is evaluated.
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
 pub struct SkinningBasis {
     kernels: Kernels,
@@ -87,6 +95,8 @@ pub struct SkinningBasis {
     held_regions: usize,
     /// Region weights a_1 … a_{R-1}, K × (R − 1) (no columns for a free basis).
     region_coefficients: DMatrix<f64>,
+    /// The weight of a weighted basis (`None` otherwise).
+    region_weight: Option<RegionWeight>,
     metadata: BasisMetadata,
 }
 
@@ -131,6 +141,7 @@ impl SkinningBasis {
             eigenvalues,
             held_regions: 0,
             region_coefficients,
+            region_weight: None,
             metadata,
         }
     }
@@ -150,6 +161,27 @@ impl SkinningBasis {
         self.held_regions = region_coefficients.ncols() + 1;
         self.region_coefficients = region_coefficients;
         self
+    }
+
+    /// The same basis weighted by `weight` (see [`SkinningBasis`]): its R − 1 region
+    /// coefficients must already be set ([`SkinningBasis::with_held_regions`]).
+    ///
+    /// # Panics
+    /// If `weight` does not have one region per held region.
+    pub fn with_region_weight(mut self, weight: RegionWeight) -> Self {
+        assert_eq!(
+            weight.regions().len(),
+            self.region_coefficients.ncols() + 1,
+            "one weight region per held region"
+        );
+        self.held_regions = weight.regions().len();
+        self.region_weight = Some(weight);
+        self
+    }
+
+    /// The region weight of a weighted basis.
+    pub fn region_weight(&self) -> Option<&RegionWeight> {
+        self.region_weight.as_ref()
     }
 
     /// Number m of eigen-weights (the constant handle not counted, as in the paper).
@@ -201,6 +233,9 @@ impl SkinningBasis {
     /// [`ShapeFunctionError`] when a point is not reached by enough kernels (far outside the
     /// object) or is not finite.
     pub fn evaluate(&self, points: &[Vector3<f64>]) -> Result<SkinningWeights, ShapeFunctionError> {
+        if let Some(weight) = &self.region_weight {
+            return self.evaluate_weighted(weight, points);
+        }
         let shape = evaluate_shape_functions(&self.kernels, points, &self.shape_params)?;
         let (n, handles) = (points.len(), self.handles());
         let first_mode = 1 + self.region_coefficients.ncols();
@@ -231,6 +266,66 @@ impl SkinningBasis {
                     for (d, g) in gradients.iter_mut().enumerate() {
                         g[(i, j)] += grad[d] * c;
                     }
+                }
+            }
+        }
+        Ok(SkinningWeights { weights, gradients })
+    }
+
+    /// [`SkinningBasis::evaluate`] for a weighted basis: kernels are evaluated only at the
+    /// points outside every region; inside region r the modes are 0 and handle r is 1.
+    fn evaluate_weighted(
+        &self,
+        weight: &RegionWeight,
+        points: &[Vector3<f64>],
+    ) -> Result<SkinningWeights, ShapeFunctionError> {
+        if let Some(point) = points.iter().position(|x| !x.iter().all(|v| v.is_finite())) {
+            return Err(ShapeFunctionError::NonFiniteQuery { point });
+        }
+        let (n, handles) = (points.len(), self.handles());
+        let first_mode = 1 + self.region_coefficients.ncols();
+        let factors: Vec<(f64, Vector3<f64>)> = points.iter().map(|x| weight.weight(x)).collect();
+        let free: Vec<usize> = (0..n).filter(|&i| factors[i].0 > 0.0).collect();
+        let free_points: Vec<Vector3<f64>> = free.iter().map(|&i| points[i]).collect();
+        let shape = evaluate_shape_functions(&self.kernels, &free_points, &self.shape_params)
+            .map_err(|e| e.renumbered(|p| free[p]))?;
+        let mut weights = DMatrix::zeros(n, handles);
+        let mut gradients = [
+            DMatrix::zeros(n, handles),
+            DMatrix::zeros(n, handles),
+            DMatrix::zeros(n, handles),
+        ];
+        for i in 0..n {
+            weights[(i, 0)] = 1.0;
+            for j in 1..first_mode {
+                let (g, grad_g) = weight.blend(j, &points[i]);
+                weights[(i, j)] = g;
+                for (d, grads) in gradients.iter_mut().enumerate() {
+                    grads[(i, j)] = grad_g[d];
+                }
+            }
+        }
+        for (q, &i) in free.iter().enumerate() {
+            let (w, grad_w) = factors[i];
+            for j in 1..handles {
+                let column = if j < first_mode {
+                    self.region_coefficients.column(j - 1)
+                } else {
+                    self.coefficients.column(j - first_mode)
+                };
+                let (sum, grad_sum) = shape
+                    .kernels(q)
+                    .iter()
+                    .zip(shape.values(q))
+                    .zip(shape.gradients(q))
+                    .fold((0.0, Vector3::zeros()), |(s, g), ((&k, &phi), grad)| {
+                        let c = column[k as usize];
+                        (s + phi * c, g + grad * c)
+                    });
+                weights[(i, j)] += w * sum;
+                let grad = grad_sum * w + grad_w * sum;
+                for (d, grads) in gradients.iter_mut().enumerate() {
+                    grads[(i, j)] += grad[d];
                 }
             }
         }
@@ -290,6 +385,10 @@ impl SkinningBasis {
             || basis.coefficients.ncols() != basis.eigenvalues.len()
             || basis.region_coefficients.nrows() != basis.kernels.len()
             || basis.region_coefficients.ncols() != basis.held_regions.saturating_sub(1)
+            || basis
+                .region_weight
+                .as_ref()
+                .is_some_and(|w| w.regions().len() != basis.held_regions)
         {
             return Err(BasisFileError::Corrupt {
                 path: name,

@@ -150,7 +150,7 @@ pub fn solve_skinning_modes_iteratively(
                 vectors: c.to_owned(),
                 ..ritz
             };
-            let mut solution = EigenSolution::from_pencil(pencil, &hc, &mc, h_norm);
+            let mut solution = EigenSolution::from_pencil(pencil, 1, &hc, &mc, h_norm);
             solution.mass_condition_number = f64::NAN;
             return Ok(solution);
         }

@@ -4,7 +4,7 @@
 use std::path::Path;
 use std::time::Instant;
 
-use freeform::{PinHold, Simulation};
+use freeform::{PinHold, PressureSpace, PressureSpaceParams, Simulation};
 use hyperelastic::{LameParameters, MaterialField, MaterialSample, StableNeoHookean};
 use nalgebra::Vector3;
 use optimize::{HessianReuse, NewtonParams};
@@ -190,6 +190,11 @@ impl ReducedSettings {
             PinHold::Exact { inset } => {
                 format!("exact (held regions shrunk by {inset:.3} m, compact kernels)")
             }
+            PinHold::Weighted {
+                transition_fraction,
+            } => format!(
+                "exact (weighted basis, transition {transition_fraction} × the beam's thickness)"
+            ),
         }
     }
 
@@ -400,6 +405,36 @@ pub fn run_reduced_beam_with<B: SkinningField + ?Sized>(
     steps: usize,
     progress: &TerminalProgress,
 ) -> Result<ReducedRun, EvalError> {
+    run_reduced_beam_with_pressure(
+        test,
+        basis,
+        settings,
+        material,
+        None,
+        cache_dir,
+        output_points,
+        steps,
+        progress,
+    )
+}
+
+/// [`run_reduced_beam_with`] with the locking-free volumetric term over `pressure`
+/// ([`freeform::Simulation::pressure`]; `None` is [`run_reduced_beam_with`]).
+///
+/// # Errors
+/// As [`run_reduced_beam`].
+#[allow(clippy::too_many_arguments)]
+pub fn run_reduced_beam_with_pressure<B: SkinningField + ?Sized>(
+    test: BeamTest,
+    basis: &B,
+    settings: &ReducedSettings,
+    material: MaterialSample,
+    pressure: Option<&PressureSpace>,
+    cache_dir: Option<&Path>,
+    output_points: &[Vector3<f64>],
+    steps: usize,
+    progress: &TerminalProgress,
+) -> Result<ReducedRun, EvalError> {
     let points = settings
         .simulation_sampling
         .beam_points(settings.simulation_points)?;
@@ -415,6 +450,7 @@ pub fn run_reduced_beam_with<B: SkinningField + ?Sized>(
                 quadrature: settings.quadrature,
                 cache_dir,
                 pin_hold: settings.pins,
+                pressure,
             },
             output_points,
             steps,
@@ -422,4 +458,28 @@ pub fn run_reduced_beam_with<B: SkinningField + ?Sized>(
         &format!("FreeForm {} m={}", test.name(), settings.modes),
         progress,
     )
+}
+
+/// The pressure space of `test`'s beam under `settings` (its hold, kernels and modes) on the
+/// basis grid ([`PressureSpace::build`]).
+///
+/// # Errors
+/// [`EvalError::Sampling`] / [`EvalError::Basis`] when the grid or the Neumann basis cannot be
+/// made.
+pub fn beam_pressure_space(
+    test: BeamTest,
+    settings: &ReducedSettings,
+    params: &PressureSpaceParams,
+) -> Result<PressureSpace, EvalError> {
+    let (grid, lame) = beam_basis_grid(settings.basis_points)?;
+    PressureSpace::build(
+        &test.scene(),
+        settings.pins,
+        &grid,
+        &lame,
+        settings.basis_params(),
+        settings.modes,
+        params,
+    )
+    .map_err(EvalError::Basis)
 }

@@ -911,6 +911,7 @@ impl BoundaryRun<'_> {
                     quadrature: self.quadrature,
                     cache_dir: Some(self.cache_dir),
                     pin_hold,
+                    pressure: None,
                 },
                 output_points: self.fem.vertices(),
                 steps: self.steps,
@@ -928,7 +929,7 @@ impl BoundaryRun<'_> {
             unconverged_steps: run.report.unconverged_steps,
             max_pin_deviation: match pin_hold {
                 PinHold::Penalty => run.report.max_pin_deviation,
-                PinHold::Exact { .. } => run.report.max_held_deviation,
+                PinHold::Exact { .. } | PinHold::Weighted { .. } => run.report.max_held_deviation,
             },
         };
         Ok((scores, run.report.region_points))

@@ -46,6 +46,7 @@ pub fn run_cube(
         quadrature: QuadratureRule::Full,
         cache_dir: None,
         pin_hold: Default::default(),
+        pressure: None,
     };
     let report = run(&simulation, steps, |frame| {
         let map = frame.simulator.model().deformation_map();

@@ -18,6 +18,7 @@ use freeform::terminal_progress::TerminalProgress;
 use preset_args::PresetArgs;
 
 mod bench;
+mod convergence;
 mod pins;
 mod preset_args;
 mod presets;
@@ -78,6 +79,16 @@ enum Command {
         #[arg(long)]
         json: bool,
     },
+    /// Convergence study: the beam's error against m for each boundary treatment and ν, with
+    /// the subspace's best approximations (preset `convergence`, `--quick` for minutes); writes
+    /// convergence.md, convergence.json and plots.
+    Convergence {
+        #[command(flatten)]
+        preset: PresetArgs,
+        /// Print one JSON row per run instead of Markdown.
+        #[arg(long)]
+        json: bool,
+    },
     /// Error-vs-time sweep on the beam Bend (preset `bench`); writes CSV and a log-log plot
     /// with the Pareto front.
     Bench {
@@ -118,6 +129,9 @@ fn run(cli: Cli) -> Result<()> {
         }
         Command::Stress { preset, json } => stress::run(&preset, json, &cli.out, &progress),
         Command::Pins { preset, json } => pins::run(&preset, json, &cache, &cli.out, &progress),
+        Command::Convergence { preset, json } => {
+            convergence::run(&preset, json, &cache, &cli.out, &progress)
+        }
         Command::Bench { preset } => bench::run(&preset, &cache, &cli.out, &progress),
         Command::Presets { name, set } => presets::run(name.as_deref(), &set),
     }

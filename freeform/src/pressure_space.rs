@@ -1,0 +1,154 @@
+//! The pressure space of the locking-free volumetric term
+//! ([`reduced_sim::ReducedModel::with_projected_dilatation`]): the constant, the affine functions
+//! and the lowest Neumann eigenmodes of the part of the object that deforms.
+//!
+//! ```text
+//! Q = span{ 1, (X − c)/L, W^1 … W^P }     W^j: skinning eigenmodes with free boundaries (Eq. 15)
+//! ```
+//!
+//! on the points outside the scene's held regions (values 0 inside them, so held points carry no
+//! volumetric energy) for a weighted or exact hold, on every point for the penalty. c and L are
+//! the centre and largest side of the basis points' bounding box.
+
+use hyperelastic::LameParameters;
+use nalgebra::{DMatrix, Vector3};
+use rkpm_core::{IntegrationPoints, ShapeFunctionError};
+use serde::{Deserialize, Serialize};
+use skin_eigen::{BasisError, BasisParams, SkinningBasis, build_basis};
+
+use crate::pin_hold::PinHold;
+use crate::scene::{Region, SceneSpec};
+
+/// Options of [`PressureSpace::build`].
+#[derive(Clone, Copy, Debug, PartialEq, Serialize, Deserialize)]
+pub struct PressureSpaceParams {
+    /// Neumann modes as a fraction of m + 1, rounded up (default 0.5).
+    pub mode_fraction: f64,
+    /// Whether the affine functions are in the space (default true).
+    pub affine: bool,
+}
+
+impl Default for PressureSpaceParams {
+    fn default() -> Self {
+        PressureSpaceParams {
+            mode_fraction: 0.5,
+            affine: true,
+        }
+    }
+}
+
+impl PressureSpaceParams {
+    /// Neumann modes for m displacement modes: `⌈mode_fraction · (m + 1)⌉`.
+    pub fn neumann_modes(&self, modes: usize) -> usize {
+        (self.mode_fraction * (modes + 1) as f64).ceil().max(0.0) as usize
+    }
+}
+
+/// The pressure functions, evaluable at any rest points.
+#[derive(Clone, Debug)]
+pub struct PressureSpace {
+    neumann: Option<SkinningBasis>,
+    affine: bool,
+    center: Vector3<f64>,
+    scale: f64,
+    held: Vec<Region>,
+}
+
+impl PressureSpace {
+    /// The pressure space for a model of `modes` modes held by `hold` in `scene`, its Neumann
+    /// modes built on `basis_points` (those outside the held regions, unless the hold is the
+    /// penalty) with `materials` and the kernel options of `basis` (its mode count replaced).
+    ///
+    /// # Errors
+    /// [`BasisError`] when the Neumann basis cannot be built (too few free points for its
+    /// kernels, more modes than kernels).
+    pub fn build(
+        scene: &SceneSpec,
+        hold: PinHold,
+        basis_points: &IntegrationPoints,
+        materials: &[LameParameters],
+        basis: BasisParams,
+        modes: usize,
+        params: &PressureSpaceParams,
+    ) -> Result<PressureSpace, BasisError> {
+        let held: Vec<Region> = match hold {
+            PinHold::Penalty => Vec::new(),
+            PinHold::Exact { .. } | PinHold::Weighted { .. } => {
+                scene.constraints.iter().map(|c| c.region.clone()).collect()
+            }
+        };
+        let bounds = basis_points.bounding_box();
+        let count = params.neumann_modes(modes);
+        let neumann = if count == 0 {
+            None
+        } else {
+            let free: Vec<usize> = (0..basis_points.len())
+                .filter(|&i| {
+                    !held
+                        .iter()
+                        .any(|r| r.contains(&basis_points.positions()[i]))
+                })
+                .collect();
+            let points = IntegrationPoints::new(
+                free.iter().map(|&i| basis_points.positions()[i]).collect(),
+                free.iter().map(|&i| basis_points.volumes()[i]).collect(),
+            )
+            .map_err(|_| BasisError::Regions(skin_eigen::RegionError::NoFreePoints))?;
+            let lame: Vec<LameParameters> = free.iter().map(|&i| materials[i]).collect();
+            let kernels = basis.kernels.count.min(points.len());
+            let params = basis.with_modes(count).with_kernels(kernels);
+            Some(build_basis(&points, &lame, &params)?.0)
+        };
+        Ok(PressureSpace {
+            neumann,
+            affine: params.affine,
+            center: 0.5 * (bounds.min + bounds.max),
+            scale: (bounds.max - bounds.min).max(),
+            held,
+        })
+    }
+
+    /// Number P of pressure functions.
+    pub fn functions(&self) -> usize {
+        1 + if self.affine { 3 } else { 0 } + self.neumann.as_ref().map_or(0, SkinningBasis::modes)
+    }
+
+    /// The functions' values at `points` (N × P; rows of held points are 0).
+    ///
+    /// # Errors
+    /// [`ShapeFunctionError`] when the Neumann modes cannot be evaluated at a free point.
+    pub fn values(&self, points: &[Vector3<f64>]) -> Result<DMatrix<f64>, ShapeFunctionError> {
+        let free: Vec<usize> = (0..points.len())
+            .filter(|&i| !self.held.iter().any(|r| r.contains(&points[i])))
+            .collect();
+        let free_points: Vec<Vector3<f64>> = free.iter().map(|&i| points[i]).collect();
+        let modes = match &self.neumann {
+            Some(basis) => Some(
+                basis
+                    .evaluate(&free_points)
+                    .map_err(|e| e.renumbered(|p| free[p]))?
+                    .weights,
+            ),
+            None => None,
+        };
+        let mut values = DMatrix::zeros(points.len(), self.functions());
+        for (row, &i) in free.iter().enumerate() {
+            values[(i, 0)] = 1.0;
+            let mut column = 1;
+            if self.affine {
+                let x = (points[i] - self.center) / self.scale;
+                for d in 0..3 {
+                    values[(i, column + d)] = x[d];
+                }
+                column += 3;
+            }
+            if let Some(modes) = &modes {
+                // Column 0 of the Neumann basis is its constant handle, already in column 0.
+                for j in 1..modes.ncols() {
+                    values[(i, column + j - 1)] = modes[(row, j)];
+                }
+            }
+        }
+        Ok(values)
+    }
+}

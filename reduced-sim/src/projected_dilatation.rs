@@ -1,0 +1,231 @@
+//! A volumetric term that does not lock: the material's `½ κ (J − γ)²` replaced by its
+//! projection onto a small pressure space Q (J-bar / mixed u–p with the pressure eliminated).
+//!
+//! With pressure functions `q_1 … q_P` given at the elastic quadrature points (weights w_q),
+//! `κ_q`, `γ_q` the material's [`VolumetricPart`] there and `J_q = det F_q(z)`:
+//!
+//! ```text
+//! G  = Σ_q w_q κ_q q(X_q) q(X_q)ᵀ                      (P × P, the κ-weighted Gram matrix)
+//! r  = Σ_q w_q κ_q q(X_q) (J_q − γ_q)                  (P)
+//! p̂  = G⁻¹ r,   p(X) = p̂ · q(X)                        (the projected dilatation Π(J − γ))
+//! E  = Σ_q w_q [Ψ(F_q) − ½ κ_q (J_q − γ_q)²]  +  ½ rᵀ G⁻¹ r
+//! ∂E/∂z = Σ_q w_q Gᵢᵀ… [P(F_q) + κ_q (p_q − (J_q − γ_q)) cof F_q]          (the stress with p)
+//! ∂²E/∂z² = Σ_q (∂F_q/∂z)ᵀ w_q [∂P/∂F − κ_q cof⊗cof + κ_q (p_q − (J_q − γ_q)) ∂²J/∂F²] (∂F_q/∂z)
+//!         + (∂r/∂z)ᵀ G⁻¹ (∂r/∂z),    ∂r_b/∂z = Σ_q w_q κ_q q_b(X_q) cof F_q : ∂F_q/∂z
+//! ```
+//!
+//! With Q = every function (one per point) this is the pointwise energy again; with a small Q
+//! containing the constants the subspace no longer has to keep J ≈ γ pointwise, which is what
+//! locks a poor displacement space at ν → 0.5. A point whose pressure values are all 0 (a held
+//! region) carries no volumetric energy. The per-point curvature term can be indefinite; the
+//! projected tangents project the whole per-point 9 × 9 matrix. Any `J_q ≤ 0` makes the energy
+//! +∞ (an inversion guard: pointwise J can invert while ΠJ stays positive).
+
+use hyperelastic::{
+    HyperelasticMaterial, LameParameters, Matrix9, Tangent, VolumetricPart, cofactor,
+    determinant_hessian,
+};
+use nalgebra::{DMatrix, DVector, Matrix3, SMatrix};
+use thiserror::Error;
+
+/// The projected dilatation could not be set up.
+#[derive(Debug, Error, Clone, PartialEq)]
+pub enum ProjectedDilatationError {
+    /// The material has no volumetric term of the form `½ κ (J − γ)²`.
+    #[error("the material `{material}` has no volumetric term to project")]
+    NoVolumetricPart {
+        /// Its name.
+        material: &'static str,
+    },
+    /// The pressure values do not have one row per integration point.
+    #[error("pressure values have {rows} rows for {points} integration points")]
+    RowCount {
+        /// Rows given.
+        rows: usize,
+        /// Points of the model.
+        points: usize,
+    },
+    /// No pressure function, or a value that is not finite.
+    #[error("the pressure space needs at least one function with finite values")]
+    Empty,
+    /// The pressure functions are linearly dependent at the elastic points.
+    #[error(
+        "the pressure functions are linearly dependent at the elastic points (Gram matrix {size}×{size} not positive definite)"
+    )]
+    DependentFunctions {
+        /// P.
+        size: usize,
+    },
+}
+
+/// The pressure space at every integration point of a model, and what the energy needs at its
+/// elastic quadrature points.
+#[derive(Clone, Debug)]
+pub(crate) struct ProjectedDilatation {
+    /// q at every model point, N × P.
+    pressure: DMatrix<f64>,
+    /// q at the elastic points, N_e × P.
+    elastic_pressure: DMatrix<f64>,
+    /// κ_q, γ_q at the elastic points.
+    volumetric: Vec<VolumetricPart>,
+    /// w_q κ_q at the elastic points.
+    weighted_modulus: Vec<f64>,
+    /// G⁻¹ (P × P).
+    gram_inverse: DMatrix<f64>,
+}
+
+/// `r`, `p̂` and the per-point factors of the term at some deformation gradients.
+pub(crate) struct DilatationState {
+    /// `½ rᵀ G⁻¹ r − Σ_q w_q ½ κ_q (J_q − γ_q)²` (J).
+    pub energy: f64,
+    /// Per elastic point: `κ_q (p_q − (J_q − γ_q))` (Pa), the factor of `cof F` in the stress
+    /// and of `∂²J/∂F²` in the tangent.
+    pub pressure_shift: Vec<f64>,
+}
+
+impl ProjectedDilatation {
+    /// The term for pressure values `pressure` (N × P, at every model point) on the elastic
+    /// points `elastic_points` (indices into the model's points) with weights `weights` and
+    /// Lamé parameters `lame`.
+    pub(crate) fn new<M: HyperelasticMaterial>(
+        material: &M,
+        pressure: DMatrix<f64>,
+        elastic_points: Option<&[usize]>,
+        weights: &[f64],
+        lame: &[LameParameters],
+    ) -> Result<Self, ProjectedDilatationError> {
+        if pressure.ncols() == 0 || pressure.iter().any(|v| !v.is_finite()) {
+            return Err(ProjectedDilatationError::Empty);
+        }
+        let elastic_pressure = match elastic_points {
+            None => pressure.clone(),
+            Some(points) => pressure.select_rows(points),
+        };
+        let volumetric = lame
+            .iter()
+            .map(|l| {
+                material
+                    .volumetric_part(l)
+                    .ok_or(ProjectedDilatationError::NoVolumetricPart {
+                        material: material.name(),
+                    })
+            })
+            .collect::<Result<Vec<_>, _>>()?;
+        let weighted_modulus: Vec<f64> = weights
+            .iter()
+            .zip(&volumetric)
+            .map(|(w, v)| w * v.modulus)
+            .collect();
+        let size = pressure.ncols();
+        let mut gram = DMatrix::zeros(size, size);
+        for (q, wk) in weighted_modulus.iter().enumerate() {
+            let row = elastic_pressure.row(q);
+            gram += row.transpose() * row * *wk;
+        }
+        let gram_inverse = gram
+            .cholesky()
+            .ok_or(ProjectedDilatationError::DependentFunctions { size })?
+            .inverse();
+        Ok(ProjectedDilatation {
+            pressure,
+            elastic_pressure,
+            volumetric,
+            weighted_modulus,
+            gram_inverse,
+        })
+    }
+
+    /// The pressure values at every model point (N × P).
+    pub(crate) fn pressure(&self) -> &DMatrix<f64> {
+        &self.pressure
+    }
+
+    /// Number P of pressure functions.
+    pub(crate) fn functions(&self) -> usize {
+        self.pressure.ncols()
+    }
+
+    /// The energy and per-point factors at the elastic points' deformation gradients `f`;
+    /// `energy` is +∞ when some `J_q ≤ 0`.
+    #[allow(non_snake_case)]
+    pub(crate) fn state(&self, f: &[Matrix3<f64>]) -> DilatationState {
+        let mut r = DVector::zeros(self.functions());
+        let mut pointwise = 0.0;
+        let mut inverted = false;
+        let dilatations: Vec<f64> = f
+            .iter()
+            .zip(&self.volumetric)
+            .map(|(f, v)| {
+                let J = f.determinant();
+                inverted |= J <= 0.0;
+                J - v.rest_ratio
+            })
+            .collect();
+        for (q, (&d, &wk)) in dilatations.iter().zip(&self.weighted_modulus).enumerate() {
+            r += self.elastic_pressure.row(q).transpose() * (wk * d);
+            pointwise += 0.5 * wk * d * d;
+        }
+        let p_hat = &self.gram_inverse * &r;
+        let pressure_shift = dilatations
+            .iter()
+            .zip(&self.volumetric)
+            .enumerate()
+            .map(|(q, (&d, v))| {
+                v.modulus * (self.elastic_pressure.row(q).dot(&p_hat.transpose()) - d)
+            })
+            .collect();
+        let energy = if inverted {
+            f64::INFINITY
+        } else {
+            0.5 * r.dot(&p_hat) - pointwise
+        };
+        DilatationState {
+            energy,
+            pressure_shift,
+        }
+    }
+
+    /// `w_q κ_q q_b(X_q)`: the weight of point q in row b of `∂r/∂z`.
+    pub(crate) fn jacobian_weight(&self, q: usize, b: usize) -> f64 {
+        self.weighted_modulus[q] * self.elastic_pressure[(q, b)]
+    }
+
+    /// G⁻¹.
+    pub(crate) fn gram_inverse(&self) -> &DMatrix<f64> {
+        &self.gram_inverse
+    }
+
+    /// The stress `P(F) + shift · cof F` of an elastic point whose material stress is `stress`.
+    pub(crate) fn shifted_stress(
+        stress: Matrix3<f64>,
+        f: &Matrix3<f64>,
+        shift: f64,
+    ) -> Matrix3<f64> {
+        stress + cofactor(f) * shift
+    }
+
+    /// The tangent of an elastic point: `∂P/∂F − κ cof⊗cof + shift · ∂²J/∂F²` from the exact
+    /// material tangent `exact`, then treated as `tangent` asks (projected or mirrored as a
+    /// whole).
+    pub(crate) fn shifted_tangent(
+        exact: &Matrix9,
+        f: &Matrix3<f64>,
+        modulus: f64,
+        shift: f64,
+        tangent: Tangent,
+    ) -> Matrix9 {
+        let c = cofactor(f);
+        let c: SMatrix<f64, 9, 1> = SMatrix::from_column_slice(c.as_slice());
+        let d = exact - c * c.transpose() * modulus + determinant_hessian(f) * shift;
+        match tangent {
+            Tangent::Exact => d,
+            Tangent::ProjectedPsd => hyperelastic::psd_projection::project_to_psd(&d),
+            Tangent::AbsoluteEigenvalues => hyperelastic::psd_projection::absolute_eigenvalues(&d),
+        }
+    }
+
+    /// κ_q of elastic point q.
+    pub(crate) fn modulus(&self, q: usize) -> f64 {
+        self.volumetric[q].modulus
+    }
+}

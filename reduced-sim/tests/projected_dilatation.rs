@@ -1,0 +1,135 @@
+//! The projected volumetric term: its gradient and exact Hessian against central differences,
+//! the full pressure space giving back the pointwise energy, the PSD tangent staying PSD, the
+//! inversion guard, and clear errors.
+
+mod support;
+
+use hyperelastic::{LinearElastic, StableNeoHookean, Tangent};
+use nalgebra::{DMatrix, Vector3};
+use reduced_sim::{ProjectedDilatationError, ReducedModel};
+use support::BEAM_MATERIAL;
+use test_support::finite_difference::{gradient, jacobian, relative_error};
+
+/// A 2 × 0.5 × 0.5 m box model (4 modes) and its pressure values: 1, the affine functions
+/// and two smooth functions of x.
+fn model() -> ReducedModel<StableNeoHookean> {
+    let (basis, points) =
+        support::box_basis(Vector3::new(2.0, 0.5, 0.5), 0.125, 80, 4, &BEAM_MATERIAL);
+    let model = support::uniform_model(&basis, &points, &BEAM_MATERIAL);
+    let pressure = DMatrix::from_fn(points.len(), 6, |i, b| {
+        let x = points.positions()[i];
+        match b {
+            0 => 1.0,
+            1..=3 => x[b - 1],
+            4 => (std::f64::consts::PI * x.x / 2.0).cos(),
+            _ => (std::f64::consts::PI * x.x).cos(),
+        }
+    });
+    model.with_projected_dilatation(pressure).unwrap()
+}
+
+/// A deformed configuration: rest plus a fixed moderate perturbation.
+fn probe(len: usize) -> Vec<f64> {
+    (0..len)
+        .map(|i| 0.03 * ((i * 7 % 11) as f64 / 11.0 - 0.5))
+        .collect()
+}
+
+#[test]
+fn the_projected_terms_gradient_and_exact_hessian_match_central_differences() {
+    let model = model();
+    let z = probe(12 * 5);
+    let g = model.elastic_gradient(&z);
+    let fd = gradient(|z| model.elastic_energy(z), &z, 1e-6);
+    let g = DMatrix::from_column_slice(g.len(), 1, &g);
+    let fd = DMatrix::from_column_slice(fd.len(), 1, fd.as_slice());
+    let gradient_error = relative_error(&g, &fd, 1e-8);
+    assert!(gradient_error < 1e-6, "gradient vs FD: {gradient_error:e}");
+    let h = model.elastic_hessian(&z, Tangent::Exact);
+    let h = DMatrix::from_fn(z.len(), z.len(), |i, j| h[(i, j)]);
+    let fd_hessian = jacobian(|z| model.elastic_gradient(z), &z, 1e-6);
+    let hessian_error = relative_error(&h, &fd_hessian, 1e-8);
+    assert!(hessian_error < 1e-5, "Hessian vs FD: {hessian_error:e}");
+}
+
+#[test]
+fn a_pressure_function_per_point_gives_back_the_pointwise_energy() {
+    let (basis, points) =
+        support::box_basis(Vector3::new(2.0, 0.5, 0.5), 0.25, 30, 2, &BEAM_MATERIAL);
+    let pointwise = support::uniform_model(&basis, &points, &BEAM_MATERIAL);
+    let n = points.len();
+    let projected = support::uniform_model(&basis, &points, &BEAM_MATERIAL)
+        .with_projected_dilatation(DMatrix::identity(n, n))
+        .unwrap();
+    let z = probe(12 * 3);
+    let (a, b) = (pointwise.elastic_energy(&z), projected.elastic_energy(&z));
+    assert!((a - b).abs() <= 1e-10 * a.abs(), "{a} vs {b}");
+    let (ga, gb) = (
+        pointwise.elastic_gradient(&z),
+        projected.elastic_gradient(&z),
+    );
+    let scale = ga.iter().fold(0.0f64, |m, v| m.max(v.abs()));
+    for (x, y) in ga.iter().zip(&gb) {
+        assert!((x - y).abs() <= 1e-9 * scale, "{x} vs {y}");
+    }
+}
+
+#[test]
+fn a_constant_pressure_softens_the_rest_stiffness_and_the_projected_tangent_stays_psd() {
+    let model = model();
+    let (basis, points) =
+        support::box_basis(Vector3::new(2.0, 0.5, 0.5), 0.125, 80, 4, &BEAM_MATERIAL);
+    let pointwise = support::uniform_model(&basis, &points, &BEAM_MATERIAL);
+    let rest = vec![0.0; 60];
+    let soft = model.elastic_hessian(&rest, Tangent::Exact);
+    let stiff = pointwise.elastic_hessian(&rest, Tangent::Exact);
+    // The projection never adds volumetric stiffness: stiff − soft is PSD at rest.
+    let difference = DMatrix::from_fn(60, 60, |i, j| stiff[(i, j)] - soft[(i, j)]);
+    let smallest = difference.symmetric_eigenvalues().min();
+    let scale = DMatrix::from_fn(60, 60, |i, j| stiff[(i, j)])
+        .symmetric_eigenvalues()
+        .max();
+    assert!(smallest > -1e-10 * scale, "{smallest:e}");
+    let projected = model.elastic_hessian(&probe(60), Tangent::ProjectedPsd);
+    let projected = DMatrix::from_fn(60, 60, |i, j| projected[(i, j)]);
+    assert!(projected.symmetric_eigenvalues().min() > -1e-9 * scale);
+}
+
+#[test]
+fn an_inverted_point_makes_the_energy_infinite() {
+    let model = model();
+    let mut z = vec![0.0; 60];
+    // Handle 0's affine part −2 I: F = −I everywhere, J = −1.
+    let layout = reduced_sim::ReducedLayout::new(5);
+    for r in 0..3 {
+        z[layout.index(0, r, r)] = -2.0;
+    }
+    assert_eq!(model.elastic_energy(&z), f64::INFINITY);
+}
+
+#[test]
+fn bad_pressure_spaces_and_materials_are_named() {
+    let (basis, points) =
+        support::box_basis(Vector3::new(2.0, 0.5, 0.5), 0.25, 30, 2, &BEAM_MATERIAL);
+    let n = points.len();
+    let build = || support::uniform_model(&basis, &points, &BEAM_MATERIAL);
+    assert!(matches!(
+        build().with_projected_dilatation(DMatrix::from_element(n + 1, 1, 1.0)),
+        Err(ProjectedDilatationError::RowCount { .. })
+    ));
+    assert!(matches!(
+        build().with_projected_dilatation(DMatrix::from_element(n, 2, 1.0)),
+        Err(ProjectedDilatationError::DependentFunctions { size: 2 })
+    ));
+    assert!(matches!(
+        build().with_projected_dilatation(DMatrix::from_element(n, 1, f64::NAN)),
+        Err(ProjectedDilatationError::Empty)
+    ));
+    let linear = ReducedModel::new(&basis, &points, &vec![BEAM_MATERIAL; n], LinearElastic)
+        .unwrap()
+        .with_projected_dilatation(DMatrix::from_element(n, 1, 1.0));
+    assert!(matches!(
+        linear,
+        Err(ProjectedDilatationError::NoVolumetricPart { .. })
+    ));
+}
