@@ -24,7 +24,8 @@ use freeform::metrics::trajectory_errors;
 use freeform::scene::SceneSpec;
 use freeform::terminal_progress::TerminalProgress;
 use freeform::{
-    PinHold, PressureSpace, PressureSpaceParams, Simulation, failure_chain, static_equilibrium,
+    PinHold, PressureSpace, PressureSpaceParams, Simulation, failure_chain, pressure_inf_sup,
+    static_equilibrium,
 };
 use hyperelastic::{HessianTangent, MaterialField, MaterialSample, StableNeoHookean, Tangent};
 use nalgebra::{DMatrix, DVector, Vector3};
@@ -160,6 +161,8 @@ pub struct ConvergenceConfig {
     pub volumetric: Vec<VolumetricTerm>,
     /// The pressure space of [`VolumetricTerm::Projected`].
     pub pressure: PressureSpaceParams,
+    /// Neumann-mode fractions whose inf-sup constants the static projected rows report.
+    pub inf_sup_fractions: Vec<f64>,
     /// Everything else of the reduced runs (`modes`, `kernels` and `pins` are set per run).
     pub settings: ReducedSettings,
     /// Gravity of the static Bend as a fraction of the Bend's 9.8 m/s² (small: linear).
@@ -199,6 +202,7 @@ impl ConvergenceConfig {
             ],
             volumetric: vec![VolumetricTerm::Pointwise, VolumetricTerm::Projected],
             pressure: PressureSpaceParams::default(),
+            inf_sup_fractions: vec![0.5, 1.0, 2.0, 3.0, 5.0],
             settings: ReducedSettings {
                 hessian_reuse: reduced_sim::SimulationParams::HESSIAN_REUSE,
                 ..ReducedSettings::default()
@@ -261,7 +265,8 @@ pub struct ConvergenceRow {
     /// Relative L2 error of the displacements, `sqrt(Σ|u − u*|² / Σ|u*|²)` over points (and
     /// frames).
     pub relative_error: f64,
-    /// Tip error: `max_t |x_tip − x*_tip| / max_t |u*_tip|` at the node nearest (5, 0.5, 0.5).
+    /// Tip error: `max_t |x_tip − x*_tip| / max_t |u*_tip|` at the node nearest the tip corner
+    /// (5, 1, 1).
     pub tip_error: f64,
     /// Static Bend: `u_tip,y / u*_tip,y − 1` (+ too soft, − too stiff); NaN for dynamic tests.
     pub tip_ratio: f64,
@@ -273,6 +278,9 @@ pub struct ConvergenceRow {
     pub best_l2: Option<f64>,
     /// Normalized MSE of the energy projection of the FEM field onto the subspace (static only).
     pub best_energy: Option<f64>,
+    /// Static projected rows: the discrete inf-sup constant β of the pressure space with each
+    /// candidate count of Neumann modes ([`ConvergenceConfig::inf_sup_fractions`]).
+    pub inf_sup: Vec<(usize, f64)>,
     /// Why the run stopped, when it did (then the errors are NaN).
     pub failure: Option<String>,
 }
@@ -308,9 +316,10 @@ struct StaticReference {
     tip: usize,
 }
 
-/// Index of the point nearest the beam's tip centre (5, 0.5, 0.5).
+/// Index of the point nearest the beam's tip corner (5, 1, 1): off the Twist's axis, so that
+/// the Twist moves it too.
 fn tip_index(points: &[Vector3<f64>]) -> usize {
-    let tip = Vector3::new(BEAM_MAX.x, 0.5 * (BEAM_MIN.y + BEAM_MAX.y), 0.5);
+    let tip = BEAM_MAX;
     (0..points.len())
         .min_by(|&a, &b| {
             (points[a] - tip)
@@ -396,12 +405,15 @@ fn field_errors(ours: &[Vector3<f64>], reference: &[Vector3<f64>]) -> (f64, f64)
     )
 }
 
+/// The L2 and the energy projection of a field, as displacement fields at the same points.
+type Projections = (Vec<Vector3<f64>>, Vec<Vector3<f64>>);
+
 /// The L2 and energy projections of the reference onto the LBS span of `basis` at the nodes
 /// (module docs), as displacement fields.
 fn projections(
     basis: &SkinningBasis,
     reference: &StaticReference,
-) -> Result<(Vec<Vector3<f64>>, Vec<Vector3<f64>>), EvalError> {
+) -> Result<Projections, EvalError> {
     let map = DeformationMap::new(basis, &reference.nodes).map_err(EvalError::OutputMap)?;
     let positions = map.position_matrix();
     let (width, n) = (positions.nrows(), positions.ncols());
@@ -569,12 +581,33 @@ pub fn run_convergence(
                 };
                 for &volumetric in &config.volumetric {
                     let mut spaces: Vec<(BeamTest, PressureSpace)> = Vec::new();
+                    // The candidates of the inf-sup report share one space built for the largest.
+                    let candidates: Vec<usize> = config
+                        .inf_sup_fractions
+                        .iter()
+                        .map(|&f| {
+                            PressureSpaceParams {
+                                mode_fraction: f,
+                                ..config.pressure
+                            }
+                            .neumann_modes(m)
+                        })
+                        .collect();
+                    let chosen = config.pressure.neumann_modes(m);
+                    let largest = PressureSpaceParams {
+                        mode_fraction: config
+                            .inf_sup_fractions
+                            .iter()
+                            .copied()
+                            .fold(config.pressure.mode_fraction, f64::max),
+                        ..config.pressure
+                    };
+                    let mut full_spaces: Vec<(BeamTest, PressureSpace)> = Vec::new();
                     if volumetric == VolumetricTerm::Projected {
                         for (beam, _) in &bases {
-                            spaces.push((
-                                *beam,
-                                beam_pressure_space(*beam, &settings, &config.pressure)?,
-                            ));
+                            let full = beam_pressure_space(*beam, &settings, &largest)?;
+                            spaces.push((*beam, full.truncated(chosen)));
+                            full_spaces.push((*beam, full));
                         }
                     }
                     let space_for = |beam: BeamTest| {
@@ -604,15 +637,21 @@ pub fn run_convergence(
                             ms_per_step: f64::NAN,
                             best_l2: None,
                             best_energy: None,
+                            inf_sup: Vec::new(),
                             failure: None,
                         };
                         if let Some(reference) = &statics[v] {
                             let mut r = row(ConvergenceTest::StaticBend);
                             let basis = basis_for(BeamTest::Bend);
+                            let full_space = full_spaces
+                                .iter()
+                                .find(|(b, _)| *b == BeamTest::Bend)
+                                .map(|(_, s)| (s, candidates.as_slice()));
                             match static_row(
                                 &mut r,
                                 basis,
                                 space_for(BeamTest::Bend),
+                                full_space,
                                 &settings,
                                 material,
                                 &static_scene,
@@ -624,13 +663,14 @@ pub fn run_convergence(
                             }
                             progress.status(format!(
                             "static ν = {nu} K = {kernels} m = {m} {} {}: MSE {:.3e}, tip {:+.2}%, \
-                             best L2 {:.3e}, best energy {:.3e}",
+                             best L2 {:.3e}, best energy {:.3e}, inf-sup {:?}",
                             treatment.name(),
                             volumetric.name(),
                             r.mse,
                             100.0 * r.tip_ratio,
                             r.best_l2.unwrap_or(f64::NAN),
-                            r.best_energy.unwrap_or(f64::NAN)
+                            r.best_energy.unwrap_or(f64::NAN),
+                            r.inf_sup
                         ));
                             study.rows.push(r);
                         }
@@ -732,6 +772,7 @@ fn static_row(
     row: &mut ConvergenceRow,
     basis: &SkinningBasis,
     pressure: Option<&PressureSpace>,
+    inf_sup: Option<(&PressureSpace, &[usize])>,
     settings: &ReducedSettings,
     material: MaterialSample,
     scene: &SceneSpec,
@@ -781,6 +822,23 @@ fn static_row(
     let (best_l2, best_energy) = projections(basis, reference)?;
     row.best_l2 = Some(field_errors(&best_l2, &reference.displacements).0);
     row.best_energy = Some(field_errors(&best_energy, &reference.displacements).0);
+    if let Some((space, candidates)) = inf_sup {
+        let simulation = Simulation {
+            field: basis,
+            points: &points,
+            material: &MaterialField::Uniform(material),
+            material_model: StableNeoHookean,
+            scene,
+            params: settings.simulation_params(BEAM_TIME_STEP),
+            quadrature: settings.quadrature,
+            cache_dir: None,
+            pin_hold: settings.pins,
+            pressure: Some(space),
+        };
+        if let Some(betas) = pressure_inf_sup(&simulation, candidates)? {
+            row.inf_sup = candidates.iter().copied().zip(betas).collect();
+        }
+    }
     Ok(())
 }
 

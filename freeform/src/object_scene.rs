@@ -196,6 +196,12 @@ impl ObjectsFile {
                 "stress output is not written for several objects yet".into(),
             ));
         }
+        if self.simulation.pressure.is_some() {
+            return Some((
+                "simulation.pressure".into(),
+                "the projected volumetric term is not available for several objects yet".into(),
+            ));
+        }
         if self.simulation.pins != crate::PinHold::default() {
             return Some((
                 "simulation.pins".into(),

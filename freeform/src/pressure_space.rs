@@ -19,13 +19,17 @@ use skin_eigen::{BasisError, BasisParams, SkinningBasis, build_basis};
 use crate::pin_hold::PinHold;
 use crate::scene::{Region, SceneSpec};
 
-/// Options of [`PressureSpace::build`].
+/// Options of [`PressureSpace::build`]; every field is optional in a file.
 #[derive(Clone, Copy, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(default, deny_unknown_fields)]
 pub struct PressureSpaceParams {
     /// Neumann modes as a fraction of m + 1, rounded up (default 0.5).
     pub mode_fraction: f64,
     /// Whether the affine functions are in the space (default true).
     pub affine: bool,
+    /// c: the part `min(κ, c μ)` of the volumetric modulus kept pointwise
+    /// ([`reduced_sim::ProjectedDilatationParams`]; default 0, all of it projected).
+    pub retained_shear_multiple: f64,
 }
 
 impl Default for PressureSpaceParams {
@@ -33,6 +37,7 @@ impl Default for PressureSpaceParams {
         PressureSpaceParams {
             mode_fraction: 0.5,
             affine: true,
+            retained_shear_multiple: 0.0,
         }
     }
 }
@@ -52,6 +57,9 @@ pub struct PressureSpace {
     center: Vector3<f64>,
     scale: f64,
     held: Vec<Region>,
+    retained_shear_multiple: f64,
+    /// At most this many Neumann modes ([`PressureSpace::truncated`]).
+    neumann_limit: Option<usize>,
 }
 
 impl PressureSpace {
@@ -105,12 +113,34 @@ impl PressureSpace {
             center: 0.5 * (bounds.min + bounds.max),
             scale: (bounds.max - bounds.min).max(),
             held,
+            retained_shear_multiple: params.retained_shear_multiple,
+            neumann_limit: None,
         })
+    }
+
+    /// The options of the projected term over this space.
+    pub fn dilatation_params(&self) -> reduced_sim::ProjectedDilatationParams {
+        reduced_sim::ProjectedDilatationParams {
+            retained_shear_multiple: self.retained_shear_multiple,
+        }
     }
 
     /// Number P of pressure functions.
     pub fn functions(&self) -> usize {
-        1 + if self.affine { 3 } else { 0 } + self.neumann.as_ref().map_or(0, SkinningBasis::modes)
+        1 + if self.affine { 3 } else { 0 } + self.neumann_modes()
+    }
+
+    /// The same space with its first `neumann_modes` Neumann modes only (all when fewer).
+    pub fn truncated(&self, neumann_modes: usize) -> PressureSpace {
+        let mut space = self.clone();
+        space.neumann_limit = Some(neumann_modes);
+        space
+    }
+
+    /// Number of Neumann modes in the space.
+    pub fn neumann_modes(&self) -> usize {
+        let available = self.neumann.as_ref().map_or(0, SkinningBasis::modes);
+        self.neumann_limit.map_or(available, |n| n.min(available))
     }
 
     /// The functions' values at `points` (N × P; rows of held points are 0).
@@ -144,7 +174,7 @@ impl PressureSpace {
             }
             if let Some(modes) = &modes {
                 // Column 0 of the Neumann basis is its constant handle, already in column 0.
-                for j in 1..modes.ncols() {
+                for j in 1..=self.neumann_modes() {
                     values[(i, column + j - 1)] = modes[(row, j)];
                 }
             }

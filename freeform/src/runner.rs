@@ -174,6 +174,7 @@ where
                 space
                     .values(points.positions())
                     .map_err(RunError::PressureSpace)?,
+                space.dilatation_params(),
             )
             .map_err(RunError::Dilatation)?,
     };
@@ -234,6 +235,54 @@ where
         max_pin_deviation: sim.max_pin_deviation(),
         max_held_deviation: sim.max_held_deviation(),
     })
+}
+
+/// The discrete inf-sup constants of `simulation`'s pressure space truncated to its first
+/// `neumann_modes[k]` Neumann modes ([`reduced_sim::ReducedModel::inf_sup_constants`]), on the
+/// coordinates Newton solves for (all but the held regions' handles), every point integrated.
+/// `None` without a pressure space.
+///
+/// # Errors
+/// [`RunError`] for a model or pressure space that cannot be built.
+pub fn pressure_inf_sup<B, M>(
+    simulation: &Simulation<'_, B, M>,
+    neumann_modes: &[usize],
+) -> Result<Option<Vec<f64>>, RunError>
+where
+    B: SkinningField + ?Sized,
+    M: HyperelasticMaterial + Clone,
+{
+    let Some(space) = simulation.pressure else {
+        return Ok(None);
+    };
+    let points = simulation.points;
+    let model = ReducedModel::new(
+        simulation.field,
+        points,
+        &simulation.material.sample(points.positions()),
+        simulation.material_model.clone(),
+    )
+    .map_err(RunError::Model)?
+    .with_projected_dilatation(
+        space
+            .values(points.positions())
+            .map_err(RunError::PressureSpace)?,
+        space.dilatation_params(),
+    )
+    .map_err(RunError::Dilatation)?;
+    let layout = model.deformation_map().layout();
+    let held = match simulation.pin_hold {
+        PinHold::Penalty => 0,
+        PinHold::Exact { .. } | PinHold::Weighted { .. } => simulation.scene.constraints.len(),
+    };
+    let n4 = layout.block_len();
+    let free: Vec<usize> = (0..layout.len()).filter(|i| (i % n4) / 4 >= held).collect();
+    let base = space.functions() - space.neumann_modes();
+    let sizes: Vec<usize> = neumann_modes
+        .iter()
+        .map(|&n| base + n.min(space.neumann_modes()))
+        .collect();
+    Ok(model.inf_sup_constants(&free, &sizes))
 }
 
 /// What [`run`] hands each frame to: return `Err` to stop the run.

@@ -226,6 +226,10 @@ pub struct SimulationSpec {
     /// distance = d } }`: IPC's log barrier within d m, so no integration point ever reaches
     /// them, see [`reduced_sim::FloorContact`]). A mesh collider's band must exceed d.
     pub floor_contact: reduced_sim::FloorContact,
+    /// A locking-free volumetric term over a pressure space (default none: the material's
+    /// own volumetric term at every point, the paper's setting; e.g. `{ mode_fraction = 3.0,
+    /// retained_shear_multiple = 2.0 }`, see [`crate::PressureSpaceParams`]).
+    pub pressure: Option<crate::PressureSpaceParams>,
 }
 
 impl SimulationSpec {
@@ -253,6 +257,7 @@ impl Default for SimulationSpec {
             floor_stiffness_factor: penalty.floor_factor,
             tangent: reduced_sim::HessianTangent::default(),
             floor_contact: reduced_sim::FloorContact::default(),
+            pressure: None,
         }
     }
 }

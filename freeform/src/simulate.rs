@@ -18,6 +18,7 @@ use thiserror::Error;
 use crate::frames::FrameWriter;
 use crate::geometry::{Geometry, GeometryError};
 use crate::pin_hold::HeldBasisError;
+use crate::pressure_space::PressureSpace;
 use crate::progress::Progress;
 use crate::runner::RunError;
 use crate::runner::{Simulation, run};
@@ -208,6 +209,23 @@ pub fn simulate_scene_file(
             HeldBasisError::Scene(e) => SimulateError::Run(RunError::Scene(e)),
             HeldBasisError::Basis(e) => SimulateError::Basis(e),
         })?;
+    let pressure = match &file.simulation.pressure {
+        None => None,
+        Some(params) => Some(
+            PressureSpace::build(
+                &file.scene,
+                hold,
+                &basis_points,
+                &lame_at(basis_points.positions())?,
+                BasisParams::default()
+                    .with_modes(file.basis.modes)
+                    .with_kernels(file.basis.kernels),
+                file.basis.modes,
+                params,
+            )
+            .map_err(SimulateError::Basis)?,
+        ),
+    };
     let basis_seconds = start.elapsed().as_secs_f64();
 
     let collider_frames = crate::ColliderFrames::new(out_dir, &file.scene.colliders);
@@ -242,7 +260,7 @@ pub fn simulate_scene_file(
         quadrature: file.simulation.quadrature,
         cache_dir,
         pin_hold: hold,
-        pressure: None,
+        pressure: pressure.as_ref(),
     };
     let mut frames_written = 0;
     let mut last_z = Vec::new();

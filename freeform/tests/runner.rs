@@ -273,3 +273,52 @@ fn a_weighted_basis_holds_a_fixed_and_a_turning_end_exactly() {
         run_report.max_held_deviation
     );
 }
+
+#[test]
+fn a_projected_volumetric_term_runs_holds_its_regions_and_reports_inf_sup_constants() {
+    let (geometry, scene) = twisted_bar();
+    let basis_points = geometry.integration_points(3000).unwrap();
+    let points = geometry.integration_points(600).unwrap();
+    let lame = vec![RUBBER.lame_parameters().unwrap(); basis_points.len()];
+    let hold = freeform::PinHold::WEIGHTED;
+    let params = BasisParams::default().with_modes(6).with_kernels(150);
+    let (basis, _) = hold
+        .build_basis(
+            &scene,
+            &basis_points,
+            &lame,
+            points.positions(),
+            &[],
+            params,
+        )
+        .unwrap();
+    let space = freeform::PressureSpace::build(
+        &scene,
+        hold,
+        &basis_points,
+        &lame,
+        params,
+        6,
+        &freeform::PressureSpaceParams::default(),
+    )
+    .unwrap();
+    assert_eq!(space.functions(), 1 + 3 + 4);
+    let values = space.values(points.positions()).unwrap();
+    for (i, x) in points.positions().iter().enumerate() {
+        let held = x.x <= 0.2 || x.x >= 1.8;
+        assert_eq!(values[(i, 0)], if held { 0.0 } else { 1.0 });
+    }
+    let simulation = Simulation {
+        pin_hold: hold,
+        pressure: Some(&space),
+        ..rubber(&basis, &points, &scene)
+    };
+    let report = run(&simulation, 5, |_| Ok(())).unwrap();
+    assert!(report.max_held_deviation < 1e-12);
+    let betas = freeform::pressure_inf_sup(&simulation, &[0, 2, 4])
+        .unwrap()
+        .unwrap();
+    assert_eq!(betas.len(), 3);
+    assert!(betas.iter().all(|b| b.is_finite() && *b > 0.0), "{betas:?}");
+    assert_eq!(space.truncated(2).functions(), 1 + 3 + 2);
+}

@@ -183,6 +183,58 @@ impl<M: HyperelasticMaterial> ReducedModel<M> {
         }
     }
 
+    /// The discrete inf-sup constants (Brezzi–Bathe test) of the leading `sizes[k]` functions
+    /// of the projected dilatation's pressure space, at rest, on the coordinates `free` (those
+    /// Newton solves for):
+    ///
+    /// ```text
+    /// β_n² = λ_min( B_n K₀⁻¹ B_nᵀ, G_n ),   B_n = ∂r_{1..n}/∂z at rest,   K₀ = rest Hessian less Bᵀ G⁻¹ B
+    /// ```
+    ///
+    /// (K₀: the pointwise part, the shear stiffness; a relative ridge of 1e-10 keeps its rigid
+    /// directions, in which B vanishes, invertible.) A space whose β_n falls as n grows is
+    /// heading for locking. `None` without a projected dilatation or for sizes out of range.
+    pub fn inf_sup_constants(&self, free: &[usize], sizes: &[usize]) -> Option<Vec<f64>> {
+        let d = self.dilatation()?;
+        let functions = d.functions();
+        if sizes.iter().any(|&n| n == 0 || n > functions) || free.is_empty() {
+            return None;
+        }
+        let rest_z = self.elastic_map().layout().rest();
+        let f = vec![Matrix3::identity(); self.elastic_map().len()];
+        let full = self.elastic_hessian(&rest_z, Tangent::Exact);
+        let rows: Vec<Vec<f64>> = (0..functions)
+            .map(|b| {
+                accumulate_point_gradients(
+                    self.elastic_map(),
+                    PointDeformation::Given(&f),
+                    |i, f| hyperelastic::cofactor(f) * d.jacobian_weight(i, b),
+                )
+            })
+            .collect();
+        let nf = free.len();
+        let b = nalgebra::DMatrix::from_fn(functions, nf, |a, k| rows[a][free[k]]);
+        let h = nalgebra::DMatrix::from_fn(nf, nf, |i, j| full[(free[i], free[j])]);
+        let shear = h - b.transpose() * d.gram_inverse() * &b;
+        let ridge = 1e-10 * shear.trace() / nf as f64;
+        let shear =
+            (&shear + shear.transpose()) * 0.5 + nalgebra::DMatrix::identity(nf, nf) * ridge;
+        let factor = shear.cholesky()?;
+        let solved = factor.solve(&b.transpose());
+        let s = &b * solved;
+        sizes
+            .iter()
+            .map(|&n| {
+                let g = d.gram().view((0, 0), (n, n)).into_owned();
+                let l = g.cholesky()?.l();
+                let l_inv = l.try_inverse()?;
+                let m = &l_inv * s.view((0, 0), (n, n)) * l_inv.transpose();
+                let m = (&m + m.transpose()) * 0.5;
+                Some(m.symmetric_eigenvalues().min().max(0.0).sqrt())
+            })
+            .collect()
+    }
+
     /// Adds `(∂r/∂z)ᵀ G⁻¹ (∂r/∂z)` of the projected dilatation to `h`
     /// ([`crate::projected_dilatation`]).
     fn add_dilatation_rank_update(

@@ -36,7 +36,7 @@ pub use mesh_collider::MeshShape;
 pub use multibody::{
     Body, MultiBodyError, MultiBodyReport, MultiBodySimulator, MultiBodyStepError,
 };
-pub use projected_dilatation::ProjectedDilatationError;
+pub use projected_dilatation::{ProjectedDilatationError, ProjectedDilatationParams};
 pub use quadrature::{ElasticQuadrature, QuadratureError, QuadratureReport, QuadratureRule};
 pub use reduced_coordinates::ReducedLayout;
 pub use reduced_model::{ReducedModel, ReducedModelError};

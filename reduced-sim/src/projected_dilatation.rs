@@ -14,7 +14,9 @@
 //!         + (∂r/∂z)ᵀ G⁻¹ (∂r/∂z),    ∂r_b/∂z = Σ_q w_q κ_q q_b(X_q) cof F_q : ∂F_q/∂z
 //! ```
 //!
-//! With Q = every function (one per point) this is the pointwise energy again; with a small Q
+//! κ here is the projected part `κ_p = max(0, κ − c μ)` of the material's modulus
+//! ([`ProjectedDilatationParams::retained_shear_multiple`]); the rest stays in the pointwise
+//! energy. With Q = every function (one per point) this is the pointwise energy again; with a small Q
 //! containing the constants the subspace no longer has to keep J ≈ γ pointwise, which is what
 //! locks a poor displacement space at ν → 0.5. A point whose pressure values are all 0 (a held
 //! region) carries no volumetric energy. The per-point curvature term can be indefinite; the
@@ -28,6 +30,24 @@ use hyperelastic::{
 use nalgebra::{DMatrix, DVector, Matrix3, SMatrix};
 use thiserror::Error;
 
+/// Options of the projected volumetric term.
+#[derive(Clone, Copy, Debug, PartialEq, serde::Serialize, serde::Deserialize)]
+pub struct ProjectedDilatationParams {
+    /// c: the part `min(κ, c μ)` of the volumetric modulus stays pointwise and only
+    /// `κ_p = max(0, κ − c μ)` is projected (default 0: all of it). A bounded pointwise part
+    /// cannot lock (it is at most c shear moduli), and at a compressible material with
+    /// κ ≤ c μ the term is the pointwise one again, with no projection softening it.
+    pub retained_shear_multiple: f64,
+}
+
+impl Default for ProjectedDilatationParams {
+    fn default() -> Self {
+        ProjectedDilatationParams {
+            retained_shear_multiple: 0.0,
+        }
+    }
+}
+
 /// The projected dilatation could not be set up.
 #[derive(Debug, Error, Clone, PartialEq)]
 pub enum ProjectedDilatationError {
@@ -36,6 +56,12 @@ pub enum ProjectedDilatationError {
     NoVolumetricPart {
         /// Its name.
         material: &'static str,
+    },
+    /// The retained multiple c is negative or not finite.
+    #[error("the retained shear multiple must be finite and non-negative, got {value}")]
+    RetainedMultiple {
+        /// The value given.
+        value: f64,
     },
     /// The pressure values do not have one row per integration point.
     #[error("pressure values have {rows} rows for {points} integration points")]
@@ -64,12 +90,16 @@ pub enum ProjectedDilatationError {
 pub(crate) struct ProjectedDilatation {
     /// q at every model point, N × P.
     pressure: DMatrix<f64>,
+    /// The options it was made with.
+    params: ProjectedDilatationParams,
     /// q at the elastic points, N_e × P.
     elastic_pressure: DMatrix<f64>,
     /// κ_q, γ_q at the elastic points.
     volumetric: Vec<VolumetricPart>,
     /// w_q κ_q at the elastic points.
     weighted_modulus: Vec<f64>,
+    /// G (P × P).
+    gram: DMatrix<f64>,
     /// G⁻¹ (P × P).
     gram_inverse: DMatrix<f64>,
 }
@@ -90,10 +120,15 @@ impl ProjectedDilatation {
     pub(crate) fn new<M: HyperelasticMaterial>(
         material: &M,
         pressure: DMatrix<f64>,
+        params: ProjectedDilatationParams,
         elastic_points: Option<&[usize]>,
         weights: &[f64],
         lame: &[LameParameters],
     ) -> Result<Self, ProjectedDilatationError> {
+        let retained = params.retained_shear_multiple;
+        if !(retained >= 0.0 && retained.is_finite()) {
+            return Err(ProjectedDilatationError::RetainedMultiple { value: retained });
+        }
         if pressure.ncols() == 0 || pressure.iter().any(|v| !v.is_finite()) {
             return Err(ProjectedDilatationError::Empty);
         }
@@ -106,6 +141,10 @@ impl ProjectedDilatation {
             .map(|l| {
                 material
                     .volumetric_part(l)
+                    .map(|v| VolumetricPart {
+                        modulus: (v.modulus - retained * l.mu()).max(0.0),
+                        ..v
+                    })
                     .ok_or(ProjectedDilatationError::NoVolumetricPart {
                         material: material.name(),
                     })
@@ -122,17 +161,29 @@ impl ProjectedDilatation {
             let row = elastic_pressure.row(q);
             gram += row.transpose() * row * *wk;
         }
-        let gram_inverse = gram
-            .cholesky()
-            .ok_or(ProjectedDilatationError::DependentFunctions { size })?
-            .inverse();
+        // All of the modulus kept pointwise: nothing is projected (and G is 0).
+        let gram_inverse = if weighted_modulus.iter().all(|&w| w == 0.0) {
+            DMatrix::zeros(size, size)
+        } else {
+            gram.clone()
+                .cholesky()
+                .ok_or(ProjectedDilatationError::DependentFunctions { size })?
+                .inverse()
+        };
         Ok(ProjectedDilatation {
             pressure,
+            params,
             elastic_pressure,
             volumetric,
             weighted_modulus,
+            gram,
             gram_inverse,
         })
+    }
+
+    /// The options it was made with.
+    pub(crate) fn params(&self) -> ProjectedDilatationParams {
+        self.params
     }
 
     /// The pressure values at every model point (N × P).
@@ -188,6 +239,11 @@ impl ProjectedDilatation {
     /// `w_q κ_q q_b(X_q)`: the weight of point q in row b of `∂r/∂z`.
     pub(crate) fn jacobian_weight(&self, q: usize, b: usize) -> f64 {
         self.weighted_modulus[q] * self.elastic_pressure[(q, b)]
+    }
+
+    /// G.
+    pub(crate) fn gram(&self) -> &DMatrix<f64> {
+        &self.gram
     }
 
     /// G⁻¹.

@@ -9,7 +9,9 @@ use rkpm_core::{Aabb, IntegrationPoints};
 use thiserror::Error;
 
 use crate::deformation_map::{DeformationMap, DeformationMapError};
-use crate::projected_dilatation::{ProjectedDilatation, ProjectedDilatationError};
+use crate::projected_dilatation::{
+    ProjectedDilatation, ProjectedDilatationError, ProjectedDilatationParams,
+};
 use crate::quadrature::{ElasticQuadrature, QuadratureError};
 use crate::skinning_field::SkinningField;
 
@@ -176,8 +178,8 @@ impl<M: HyperelasticMaterial> ReducedModel<M> {
 
     /// The model with the material's volumetric term `½ κ (J − γ)²` replaced by its projection
     /// onto the pressure space whose values at the model's points are the columns of
-    /// `pressure` (N × P; see [`crate::projected_dilatation`]): the locking-free volumetric
-    /// term. Include the constant function; a point whose row is all zeros (a held region)
+    /// `pressure` (N × P; see [`crate::projected_dilatation`]; the part `min(κ, c μ)` of `params`
+    /// stays pointwise): the locking-free volumetric term. Include the constant function; a point whose row is all zeros (a held region)
     /// carries no volumetric energy.
     ///
     /// # Errors
@@ -186,6 +188,7 @@ impl<M: HyperelasticMaterial> ReducedModel<M> {
     pub fn with_projected_dilatation(
         mut self,
         pressure: nalgebra::DMatrix<f64>,
+        params: ProjectedDilatationParams,
     ) -> Result<Self, ProjectedDilatationError> {
         if pressure.nrows() != self.map.len() {
             return Err(ProjectedDilatationError::RowCount {
@@ -193,7 +196,7 @@ impl<M: HyperelasticMaterial> ReducedModel<M> {
                 points: self.map.len(),
             });
         }
-        self.dilatation = Some(self.dilatation_on_elastic_points(pressure)?);
+        self.dilatation = Some(self.dilatation_on_elastic_points(pressure, params)?);
         Ok(self)
     }
 
@@ -209,10 +212,12 @@ impl<M: HyperelasticMaterial> ReducedModel<M> {
     fn dilatation_on_elastic_points(
         &self,
         pressure: nalgebra::DMatrix<f64>,
+        params: ProjectedDilatationParams,
     ) -> Result<ProjectedDilatation, ProjectedDilatationError> {
         ProjectedDilatation::new(
             &self.material,
             pressure,
+            params,
             self.elastic.as_ref().map(|e| e.quadrature.points()),
             self.elastic_weights(),
             self.elastic_lame(),
@@ -241,7 +246,7 @@ impl<M: HyperelasticMaterial> ReducedModel<M> {
         if let Some(dilatation) = self.dilatation.take() {
             let pressure = dilatation.pressure().clone();
             self.dilatation = Some(
-                self.dilatation_on_elastic_points(pressure)
+                self.dilatation_on_elastic_points(pressure, dilatation.params())
                     .map_err(QuadratureError::Dilatation)?,
             );
         }

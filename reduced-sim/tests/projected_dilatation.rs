@@ -6,7 +6,7 @@ mod support;
 
 use hyperelastic::{LinearElastic, StableNeoHookean, Tangent};
 use nalgebra::{DMatrix, Vector3};
-use reduced_sim::{ProjectedDilatationError, ReducedModel};
+use reduced_sim::{ProjectedDilatationError, ProjectedDilatationParams, ReducedModel};
 use support::BEAM_MATERIAL;
 use test_support::finite_difference::{gradient, jacobian, relative_error};
 
@@ -25,7 +25,9 @@ fn model() -> ReducedModel<StableNeoHookean> {
             _ => (std::f64::consts::PI * x.x).cos(),
         }
     });
-    model.with_projected_dilatation(pressure).unwrap()
+    model
+        .with_projected_dilatation(pressure, ProjectedDilatationParams::default())
+        .unwrap()
 }
 
 /// A deformed configuration: rest plus a fixed moderate perturbation.
@@ -59,7 +61,10 @@ fn a_pressure_function_per_point_gives_back_the_pointwise_energy() {
     let pointwise = support::uniform_model(&basis, &points, &BEAM_MATERIAL);
     let n = points.len();
     let projected = support::uniform_model(&basis, &points, &BEAM_MATERIAL)
-        .with_projected_dilatation(DMatrix::identity(n, n))
+        .with_projected_dilatation(
+            DMatrix::identity(n, n),
+            ProjectedDilatationParams::default(),
+        )
         .unwrap();
     let z = probe(12 * 3);
     let (a, b) = (pointwise.elastic_energy(&z), projected.elastic_energy(&z));
@@ -114,22 +119,73 @@ fn bad_pressure_spaces_and_materials_are_named() {
     let n = points.len();
     let build = || support::uniform_model(&basis, &points, &BEAM_MATERIAL);
     assert!(matches!(
-        build().with_projected_dilatation(DMatrix::from_element(n + 1, 1, 1.0)),
+        build().with_projected_dilatation(
+            DMatrix::from_element(n + 1, 1, 1.0),
+            ProjectedDilatationParams::default()
+        ),
         Err(ProjectedDilatationError::RowCount { .. })
     ));
     assert!(matches!(
-        build().with_projected_dilatation(DMatrix::from_element(n, 2, 1.0)),
+        build().with_projected_dilatation(
+            DMatrix::from_element(n, 2, 1.0),
+            ProjectedDilatationParams::default()
+        ),
         Err(ProjectedDilatationError::DependentFunctions { size: 2 })
     ));
     assert!(matches!(
-        build().with_projected_dilatation(DMatrix::from_element(n, 1, f64::NAN)),
+        build().with_projected_dilatation(
+            DMatrix::from_element(n, 1, f64::NAN),
+            ProjectedDilatationParams::default()
+        ),
         Err(ProjectedDilatationError::Empty)
     ));
     let linear = ReducedModel::new(&basis, &points, &vec![BEAM_MATERIAL; n], LinearElastic)
         .unwrap()
-        .with_projected_dilatation(DMatrix::from_element(n, 1, 1.0));
+        .with_projected_dilatation(
+            DMatrix::from_element(n, 1, 1.0),
+            ProjectedDilatationParams::default(),
+        );
     assert!(matches!(
         linear,
         Err(ProjectedDilatationError::NoVolumetricPart { .. })
+    ));
+}
+
+#[test]
+fn a_modulus_kept_pointwise_up_to_c_shear_moduli_gives_back_the_pointwise_energy_when_it_covers_lambda()
+ {
+    // ν = 0.45: λ = 9 μ. With c = 9 nothing is projected; with c = 4 part of it is.
+    let (basis, points) =
+        support::box_basis(Vector3::new(2.0, 0.5, 0.5), 0.25, 30, 2, &BEAM_MATERIAL);
+    let n = points.len();
+    let z = probe(12 * 3);
+    let pointwise = support::uniform_model(&basis, &points, &BEAM_MATERIAL).elastic_energy(&z);
+    let with = |c: f64| {
+        support::uniform_model(&basis, &points, &BEAM_MATERIAL)
+            .with_projected_dilatation(
+                DMatrix::from_element(n, 1, 1.0),
+                ProjectedDilatationParams {
+                    retained_shear_multiple: c,
+                },
+            )
+            .unwrap()
+            .elastic_energy(&z)
+    };
+    assert!((with(9.0 + 1e-9) - pointwise).abs() <= 1e-12 * pointwise.abs());
+    let (partial, full) = (with(4.0), with(0.0));
+    assert!(
+        full < partial && partial < pointwise,
+        "{full} < {partial} < {pointwise}"
+    );
+    let negative = support::uniform_model(&basis, &points, &BEAM_MATERIAL)
+        .with_projected_dilatation(
+            DMatrix::from_element(n, 1, 1.0),
+            ProjectedDilatationParams {
+                retained_shear_multiple: -1.0,
+            },
+        );
+    assert!(matches!(
+        negative,
+        Err(ProjectedDilatationError::RetainedMultiple { .. })
     ));
 }
