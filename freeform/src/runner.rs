@@ -240,7 +240,8 @@ where
 /// The discrete inf-sup constants of `simulation`'s pressure space truncated to its first
 /// `neumann_modes[k]` Neumann modes ([`reduced_sim::ReducedModel::inf_sup_constants`]), on the
 /// coordinates Newton solves for (all but the held regions' handles), every point integrated.
-/// `None` without a pressure space.
+/// `None` without a pressure space, or when nothing is projected (the material's modulus all
+/// kept pointwise, [`crate::PressureSpaceParams::retained_shear_multiple`]).
 ///
 /// # Errors
 /// [`RunError`] for a model or pressure space that cannot be built.

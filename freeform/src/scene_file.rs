@@ -227,8 +227,8 @@ pub struct SimulationSpec {
     /// them, see [`reduced_sim::FloorContact`]). A mesh collider's band must exceed d.
     pub floor_contact: reduced_sim::FloorContact,
     /// A locking-free volumetric term over a pressure space (default none: the material's
-    /// own volumetric term at every point, the paper's setting; e.g. `{ mode_fraction = 3.0,
-    /// retained_shear_multiple = 2.0 }`, see [`crate::PressureSpaceParams`]).
+    /// own volumetric term at every point, the paper's setting; `{}` for
+    /// [`crate::PressureSpaceParams`]' defaults).
     pub pressure: Option<crate::PressureSpaceParams>,
 }
 
