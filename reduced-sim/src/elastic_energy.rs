@@ -203,17 +203,9 @@ impl<M: HyperelasticMaterial> ReducedModel<M> {
         let rest_z = self.elastic_map().layout().rest();
         let f = vec![Matrix3::identity(); self.elastic_map().len()];
         let full = self.elastic_hessian(&rest_z, Tangent::Exact);
-        let rows: Vec<Vec<f64>> = (0..functions)
-            .map(|b| {
-                accumulate_point_gradients(
-                    self.elastic_map(),
-                    PointDeformation::Given(&f),
-                    |i, f| hyperelastic::cofactor(f) * d.jacobian_weight(i, b),
-                )
-            })
-            .collect();
+        let jacobian = self.dilatation_jacobian(d, &f);
         let nf = free.len();
-        let b = nalgebra::DMatrix::from_fn(functions, nf, |a, k| rows[a][free[k]]);
+        let b = nalgebra::DMatrix::from_fn(functions, nf, |a, k| jacobian[(a, free[k])]);
         let h = nalgebra::DMatrix::from_fn(nf, nf, |i, j| full[(free[i], free[j])]);
         let shear = h - b.transpose() * d.gram_inverse() * &b;
         let ridge = 1e-10 * shear.trace() / nf as f64;
@@ -244,17 +236,8 @@ impl<M: HyperelasticMaterial> ReducedModel<M> {
         h: &mut Mat<f64>,
     ) {
         let functions = d.functions();
-        let rows: Vec<Vec<f64>> = (0..functions)
-            .map(|b| {
-                accumulate_point_gradients(
-                    self.elastic_map(),
-                    PointDeformation::Given(f),
-                    |i, f| hyperelastic::cofactor(f) * d.jacobian_weight(i, b),
-                )
-            })
-            .collect();
         let len = h.nrows();
-        let jacobian = Mat::from_fn(functions, len, |b, k| rows[b][k]);
+        let jacobian = self.dilatation_jacobian(d, f);
         let g = d.gram_inverse();
         let g = Mat::from_fn(functions, functions, |a, b| g[(a, b)]);
         let update = jacobian.transpose() * (&g * &jacobian);
@@ -263,6 +246,37 @@ impl<M: HyperelasticMaterial> ReducedModel<M> {
                 h[(i, j)] += 0.5 * (update[(i, j)] + update[(j, i)]);
             }
         }
+    }
+
+    /// `∂r/∂z` of the projected dilatation (P × 12(m + 1)) at the elastic points' deformation
+    /// gradients `f`: row b is `Σ_q w_q κ_q q_b(X_q) ∂J_q/∂z`, formed as one product `Q_wᵀ V`
+    /// with `V[q, :] = ∂J_q/∂z` (entry `r·4(m+1) + a` is `Σ_s G_q[a, s] cof F_q[r, s]`).
+    fn dilatation_jacobian(&self, d: &ProjectedDilatation, f: &[Matrix3<f64>]) -> Mat<f64> {
+        let map = self.elastic_map();
+        let n4 = map.layout().block_len();
+        let n = f.len();
+        let mut v = Mat::<f64>::zeros(n, 3 * n4);
+        for (q, fq) in f.iter().enumerate() {
+            let c = hyperelastic::cofactor(fq);
+            let g = map.gradient_block(q);
+            for r in 0..3 {
+                for a in 0..n4 {
+                    v[(q, r * n4 + a)] =
+                        g[a] * c[(r, 0)] + g[n4 + a] * c[(r, 1)] + g[2 * n4 + a] * c[(r, 2)];
+                }
+            }
+        }
+        let weights = Mat::from_fn(n, d.functions(), |q, b| d.jacobian_weight(q, b));
+        let mut jacobian = Mat::<f64>::zeros(d.functions(), 3 * n4);
+        faer::linalg::matmul::matmul(
+            jacobian.as_mut(),
+            Accum::Replace,
+            weights.transpose(),
+            v.as_ref(),
+            1.0,
+            Par::rayon(0),
+        );
+        jacobian
     }
 
     /// The six blocks `Σ_i G_i A_i^{rq} G_iᵀ` (r, q in [`BLOCK_PAIRS`] order, each
