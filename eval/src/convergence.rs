@@ -782,21 +782,20 @@ fn static_row(
     let points = settings
         .simulation_sampling
         .beam_points(settings.simulation_points)?;
-    let equilibrium = static_equilibrium(
-        &Simulation {
-            field: basis,
-            points: &points,
-            material: &MaterialField::Uniform(material),
-            material_model: StableNeoHookean,
-            scene,
-            params: settings.simulation_params(BEAM_TIME_STEP),
-            quadrature: settings.quadrature,
-            cache_dir: Some(&config.cache_dir),
-            pin_hold: settings.pins,
-            pressure,
-        },
-        0.0,
-    )?;
+    let material = MaterialField::Uniform(material);
+    let simulation = Simulation {
+        field: basis,
+        points: &points,
+        material: &material,
+        material_model: StableNeoHookean,
+        scene,
+        params: settings.simulation_params(BEAM_TIME_STEP),
+        quadrature: settings.quadrature,
+        cache_dir: Some(&config.cache_dir),
+        pin_hold: settings.pins,
+        pressure,
+    };
+    let equilibrium = static_equilibrium(&simulation, 0.0)?;
     let map = DeformationMap::new(basis, &reference.nodes).map_err(EvalError::OutputMap)?;
     let ours = map.displacements(&equilibrium.z);
     let (mse, relative) = field_errors(&ours, &reference.displacements);
@@ -823,19 +822,11 @@ fn static_row(
     row.best_l2 = Some(field_errors(&best_l2, &reference.displacements).0);
     row.best_energy = Some(field_errors(&best_energy, &reference.displacements).0);
     if let Some((space, candidates)) = inf_sup {
-        let simulation = Simulation {
-            field: basis,
-            points: &points,
-            material: &MaterialField::Uniform(material),
-            material_model: StableNeoHookean,
-            scene,
-            params: settings.simulation_params(BEAM_TIME_STEP),
-            quadrature: settings.quadrature,
-            cache_dir: None,
-            pin_hold: settings.pins,
+        let candidates_space = Simulation {
             pressure: Some(space),
+            ..simulation
         };
-        if let Some(betas) = pressure_inf_sup(&simulation, candidates)? {
+        if let Some(betas) = pressure_inf_sup(&candidates_space, candidates)? {
             row.inf_sup = candidates.iter().copied().zip(betas).collect();
         }
     }

@@ -150,11 +150,9 @@ pub enum RunError {
     },
 }
 
-/// The reduced simulator of `simulation` at rest, the quadrature it integrates with, and the
-/// points each constrained region selected (penalized regions, then held ones).
-fn simulator<B, M>(
-    simulation: &Simulation<'_, B, M>,
-) -> Result<(Simulator<M>, QuadratureReport, Vec<usize>), RunError>
+/// The reduced model of `simulation` on every point, with its projected volumetric term when it
+/// has a pressure space (the quadrature not applied yet).
+fn reduced_model<B, M>(simulation: &Simulation<'_, B, M>) -> Result<ReducedModel<M>, RunError>
 where
     B: SkinningField + ?Sized,
     M: HyperelasticMaterial + Clone,
@@ -167,8 +165,8 @@ where
         simulation.material_model.clone(),
     )
     .map_err(RunError::Model)?;
-    let model = match simulation.pressure {
-        None => model,
+    match simulation.pressure {
+        None => Ok(model),
         Some(space) => model
             .with_projected_dilatation(
                 space
@@ -176,8 +174,20 @@ where
                     .map_err(RunError::PressureSpace)?,
                 space.dilatation_params(),
             )
-            .map_err(RunError::Dilatation)?,
-    };
+            .map_err(RunError::Dilatation),
+    }
+}
+
+/// The reduced simulator of `simulation` at rest, the quadrature it integrates with, and the
+/// points each constrained region selected (penalized regions, then held ones).
+fn simulator<B, M>(
+    simulation: &Simulation<'_, B, M>,
+) -> Result<(Simulator<M>, QuadratureReport, Vec<usize>), RunError>
+where
+    B: SkinningField + ?Sized,
+    M: HyperelasticMaterial + Clone,
+{
+    let model = reduced_model(simulation)?;
     let (model, quadrature) = simulation
         .quadrature
         .apply_cached(model, simulation.cache_dir)
@@ -256,21 +266,7 @@ where
     let Some(space) = simulation.pressure else {
         return Ok(None);
     };
-    let points = simulation.points;
-    let model = ReducedModel::new(
-        simulation.field,
-        points,
-        &simulation.material.sample(points.positions()),
-        simulation.material_model.clone(),
-    )
-    .map_err(RunError::Model)?
-    .with_projected_dilatation(
-        space
-            .values(points.positions())
-            .map_err(RunError::PressureSpace)?,
-        space.dilatation_params(),
-    )
-    .map_err(RunError::Dilatation)?;
+    let model = reduced_model(simulation)?;
     let layout = model.deformation_map().layout();
     let held = match simulation.pin_hold {
         PinHold::Penalty => 0,

@@ -243,27 +243,52 @@ fn twisted_bar() -> (Geometry, SceneSpec) {
     (geometry, scene)
 }
 
-#[test]
-fn a_weighted_basis_holds_a_fixed_and_a_turning_end_exactly() {
+/// The twisted bar with its weighted basis (m = 6, K = 150 on 3000 points), 600 simulation
+/// points and the Lamé parameters of the basis points.
+struct WeightedBar {
+    scene: SceneSpec,
+    basis_points: IntegrationPoints,
+    points: IntegrationPoints,
+    lame: Vec<hyperelastic::LameParameters>,
+    params: BasisParams,
+    basis: SkinningBasis,
+    max_mode_value_on_regions: f64,
+}
+
+fn weighted_bar() -> WeightedBar {
     let (geometry, scene) = twisted_bar();
     let basis_points = geometry.integration_points(3000).unwrap();
     let points = geometry.integration_points(600).unwrap();
     let lame = vec![RUBBER.lame_parameters().unwrap(); basis_points.len()];
-    let hold = freeform::PinHold::WEIGHTED;
-    let (basis, report) = hold
+    let params = BasisParams::default().with_modes(6).with_kernels(150);
+    let (basis, report) = freeform::PinHold::WEIGHTED
         .build_basis(
             &scene,
             &basis_points,
             &lame,
             points.positions(),
             &[],
-            BasisParams::default().with_modes(6).with_kernels(150),
+            params,
         )
         .unwrap();
-    assert_eq!(report.held_regions.unwrap().max_mode_value_on_regions, 0.0);
+    WeightedBar {
+        scene,
+        basis_points,
+        points,
+        lame,
+        params,
+        basis,
+        max_mode_value_on_regions: report.held_regions.unwrap().max_mode_value_on_regions,
+    }
+}
+
+#[test]
+fn a_weighted_basis_holds_a_fixed_and_a_turning_end_exactly() {
+    let bar = weighted_bar();
+    assert_eq!(bar.max_mode_value_on_regions, 0.0);
     let simulation = Simulation {
-        pin_hold: hold,
-        ..rubber(&basis, &points, &scene)
+        pin_hold: freeform::PinHold::WEIGHTED,
+        ..rubber(&bar.basis, &bar.points, &bar.scene)
     };
     let run_report = run(&simulation, 10, |_| Ok(())).unwrap();
     assert!(run_report.region_points.iter().all(|&n| n > 0));
@@ -276,28 +301,14 @@ fn a_weighted_basis_holds_a_fixed_and_a_turning_end_exactly() {
 
 #[test]
 fn a_projected_volumetric_term_runs_holds_its_regions_and_reports_inf_sup_constants() {
-    let (geometry, scene) = twisted_bar();
-    let basis_points = geometry.integration_points(3000).unwrap();
-    let points = geometry.integration_points(600).unwrap();
-    let lame = vec![RUBBER.lame_parameters().unwrap(); basis_points.len()];
+    let bar = weighted_bar();
     let hold = freeform::PinHold::WEIGHTED;
-    let params = BasisParams::default().with_modes(6).with_kernels(150);
-    let (basis, _) = hold
-        .build_basis(
-            &scene,
-            &basis_points,
-            &lame,
-            points.positions(),
-            &[],
-            params,
-        )
-        .unwrap();
     let space = freeform::PressureSpace::build(
-        &scene,
+        &bar.scene,
         hold,
-        &basis_points,
-        &lame,
-        params,
+        &bar.basis_points,
+        &bar.lame,
+        bar.params,
         6,
         // RUBBER has ν = 0.3 (λ = 1.5 μ): keep nothing pointwise, so that something is projected.
         &freeform::PressureSpaceParams {
@@ -308,15 +319,15 @@ fn a_projected_volumetric_term_runs_holds_its_regions_and_reports_inf_sup_consta
     .unwrap();
     // ⌈3 · (6 + 1)⌉ = 21 Neumann modes by default.
     assert_eq!(space.functions(), 1 + 3 + 21);
-    let values = space.values(points.positions()).unwrap();
-    for (i, x) in points.positions().iter().enumerate() {
+    let values = space.values(bar.points.positions()).unwrap();
+    for (i, x) in bar.points.positions().iter().enumerate() {
         let held = x.x <= 0.2 || x.x >= 1.8;
         assert_eq!(values[(i, 0)], if held { 0.0 } else { 1.0 });
     }
     let simulation = Simulation {
         pin_hold: hold,
         pressure: Some(&space),
-        ..rubber(&basis, &points, &scene)
+        ..rubber(&bar.basis, &bar.points, &bar.scene)
     };
     let report = run(&simulation, 5, |_| Ok(())).unwrap();
     assert!(report.max_held_deviation < 1e-12);
