@@ -233,15 +233,8 @@ fn build(
     regions: Option<(&[Vec<Vector3<f64>>], &RegionConstraintParams)>,
     evaluated_at: &[&[Vector3<f64>]],
 ) -> Result<(SkinningBasis, BasisReport, AssembledMatrices), BasisError> {
-    let mut timings = PhaseTimings::default();
-    let t = Instant::now();
-    let placed = place_kernels(points.positions(), &params.kernels)?;
-    timings.kernel_placement = t.elapsed().as_secs_f64();
-
-    let t = Instant::now();
-    let (kernels, coverage, shape) =
-        shape_functions_covering(points, evaluated_at, placed, params)?;
-    timings.shape_functions = t.elapsed().as_secs_f64();
+    let (mut timings, kernels, coverage, shape) =
+        placed_kernels_and_shape_functions(points, evaluated_at, params)?;
 
     let iterative = match params.solver {
         EigenSolverChoice::Auto if kernels.len() > DENSE_SOLVER_MAX_KERNELS => {
@@ -341,10 +334,29 @@ fn build(
     Ok((basis, report, matrices))
 }
 
+/// The first two phases of a basis build, timed: kernels placed on `points` by farthest point
+/// sampling, widened where needed ([`shape_functions_covering`]), and their shape functions at
+/// `points`.
+pub(crate) fn placed_kernels_and_shape_functions(
+    points: &IntegrationPoints,
+    evaluated_at: &[&[Vector3<f64>]],
+    params: &BasisParams,
+) -> Result<(PhaseTimings, Kernels, CoverageReport, ShapeFunctions), BasisError> {
+    let mut timings = PhaseTimings::default();
+    let t = Instant::now();
+    let placed = place_kernels(points.positions(), &params.kernels)?;
+    timings.kernel_placement = t.elapsed().as_secs_f64();
+    let t = Instant::now();
+    let (kernels, coverage, shape) =
+        shape_functions_covering(points, evaluated_at, placed, params)?;
+    timings.shape_functions = t.elapsed().as_secs_f64();
+    Ok((timings, kernels, coverage, shape))
+}
+
 /// The kernels (`placed`, widened where needed, [`cover_queries`]), what widening did, and the
 /// shape functions at `points`. Kernels as placed that reach every point of `points` and of
 /// `evaluated_at` are kept after one evaluation at `points` and a check of the other sets.
-pub(crate) fn shape_functions_covering(
+fn shape_functions_covering(
     points: &IntegrationPoints,
     evaluated_at: &[&[Vector3<f64>]],
     placed: Kernels,

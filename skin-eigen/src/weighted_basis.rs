@@ -24,12 +24,12 @@ use std::time::Instant;
 use faer::Mat;
 use hyperelastic::LameParameters;
 use nalgebra::{DMatrix, Vector3};
-use rkpm_core::{IntegrationPoints, place_kernels};
+use rkpm_core::IntegrationPoints;
 
 use crate::assembly::{WeightSpaceMatrices, assemble_weight_space_matrices};
 use crate::basis_builder::{
     BasisError, BasisParams, BasisReport, DENSE_SOLVER_MAX_KERNELS, EigenSolverChoice,
-    HeldRegionsReport, PhaseTimings, shape_functions_covering,
+    HeldRegionsReport, placed_kernels_and_shape_functions,
 };
 use crate::generalized_eigen::{EigenError, EigenSolution, smallest_generalized_eigenpairs};
 use crate::region_constraints::RegionError;
@@ -105,21 +105,16 @@ pub fn build_weighted_basis(
         .collect();
     let free_evaluated: Vec<&[Vector3<f64>]> = free_evaluated.iter().map(Vec::as_slice).collect();
 
-    let mut timings = PhaseTimings::default();
+    let (mut timings, kernels, coverage, shape) =
+        placed_kernels_and_shape_functions(&free_points, &free_evaluated, params)?;
     let t = Instant::now();
-    let placed = place_kernels(free_points.positions(), &params.kernels)?;
-    timings.kernel_placement = t.elapsed().as_secs_f64();
-
-    let t = Instant::now();
-    let (kernels, coverage, shape) =
-        shape_functions_covering(&free_points, &free_evaluated, placed, params)?;
     let factors: Vec<(f64, Vector3<f64>)> = free_points
         .positions()
         .iter()
         .map(|x| weight.weight(x))
         .collect();
     let weighted = shape.multiplied(&factors);
-    timings.shape_functions = t.elapsed().as_secs_f64();
+    timings.shape_functions += t.elapsed().as_secs_f64();
 
     let t = Instant::now();
     let matrices =
@@ -140,8 +135,8 @@ pub fn build_weighted_basis(
         modes + 1,
         params.eigen.mass_rank_tolerance,
     )?;
-    let all = pencil.vectors.clone();
-    let all_values = pencil.values[..all.ncols()].to_vec();
+    let all = &pencil.vectors;
+    let all_values = &pencil.values[..all.ncols()];
     let mut rhs = Mat::<f64>::zeros(kernels.len(), regions.saturating_sub(1));
     for (q, x) in free_points.positions().iter().enumerate() {
         let v = free_points.volumes()[q] * free_materials[q].weight_space_hessian_modulus();
@@ -156,10 +151,10 @@ pub fn build_weighted_basis(
     let scaled = Mat::from_fn(projected.nrows(), projected.ncols(), |j, r| {
         projected[(j, r)] / all_values[j]
     });
-    let region_coefficients = &all * scaled;
+    let region_coefficients = all * scaled;
     let truncated = crate::generalized_eigen::Pencil {
+        vectors: pencil.vectors.subcols(0, modes).to_owned(),
         values: pencil.values,
-        vectors: all.subcols(0, modes).to_owned(),
         mass_condition_number: pencil.mass_condition_number,
         discarded_mass_directions: pencil.discarded_mass_directions,
     };
