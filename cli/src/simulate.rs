@@ -77,6 +77,26 @@ pub(crate) fn run(
             }
             None => println!("elastic quadrature: {} ({} points)", q.kind, q.points),
         }
+        if let Some(choice) = &q.choice
+            && !choice.chose_cubature
+        {
+            let why = if choice.noted_over_budget {
+                format!(
+                    "an earlier run's cubature training ran out of its budget on a run predicted \
+                     at least half as long; this run's elastic work on every point is predicted \
+                     at {:.2} s",
+                    choice.predicted_full_seconds
+                )
+            } else {
+                format!(
+                    "the run's elastic work on every point was predicted at {:.2} s, and \
+                     training stopped after {:.2} s, past the {:.2} s a cubature of its size \
+                     could still save",
+                    choice.predicted_full_seconds, choice.spent_seconds, choice.budget_seconds
+                )
+            };
+            println!("  (automatic quadrature: every point, since {why})");
+        }
     }
     if !report.final_positions.is_empty() {
         let png = out.join("preview.png");

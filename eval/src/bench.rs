@@ -587,6 +587,9 @@ pub fn quadrature_label(rule: &QuadratureRule, points: usize) -> String {
         QuadratureRule::Full => String::new(),
         QuadratureRule::RandomSubset { .. } => format!(" random({points} pts)"),
         QuadratureRule::Cubature(p) => format!(" cubature(tol={}, {points} pts)", p.tolerance),
+        QuadratureRule::Automatic(p) => {
+            format!(" automatic(tol={}, {points} pts)", p.tolerance)
+        }
     }
 }
 

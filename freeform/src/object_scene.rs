@@ -37,8 +37,8 @@ use std::time::Instant;
 use hyperelastic::{StableNeoHookean, lame_parameters_of};
 use nalgebra::{UnitQuaternion, Vector3};
 use reduced_sim::{
-    Body, BodyContactParams, DeformationMap, MultiBodySimulator, QuadratureReport, ReducedModel,
-    ReducedState, Simulator,
+    Body, BodyContactParams, DeformationMap, MultiBodySimulator, PlannedRun, QuadratureReport,
+    ReducedModel, ReducedState, Simulator,
 };
 use serde::{Deserialize, Serialize};
 use skin_eigen::{BasisParams, build_basis};
@@ -336,6 +336,12 @@ pub fn simulate_objects(
     let mut bodies = Vec::with_capacity(file.objects.len());
     let mut outputs = Vec::with_capacity(file.objects.len());
     let mut summaries = Vec::with_capacity(file.objects.len());
+    // Bodies in contact with each other take many more Newton iterations per step, which
+    // the automatic quadrature weighs.
+    let planned = match file.objects.len() {
+        1 => PlannedRun::single_body(file.simulation.steps),
+        _ => PlannedRun::multibody(file.simulation.steps),
+    };
     for object in &file.objects {
         let basis_start = Instant::now();
         progress.status(&format!(
@@ -372,7 +378,7 @@ pub fn simulate_objects(
         let (model, quadrature) = file
             .simulation
             .quadrature
-            .apply_cached(model, cache_dir)
+            .apply_for_run(model, cache_dir, Some(&planned))
             .map_err(|e| SimulateError::Run(RunError::Quadrature(e)))?;
         let scene = file
             .scene

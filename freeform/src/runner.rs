@@ -8,9 +8,12 @@ use std::time::Instant;
 
 use hyperelastic::{HyperelasticMaterial, MaterialField};
 use optimize::NewtonReport;
+use reduced_sim::automatic_quadrature::cubature_if_it_pays;
+use reduced_sim::cubature::load_cached_cubature;
 use reduced_sim::{
-    CubatureError, QuadratureReport, QuadratureRule, ReducedModel, ReducedModelError, SceneError,
-    SimulationParams, Simulator, SkinningField, StepError,
+    CubatureError, CubatureParams, PlannedRun, QuadratureChoice, QuadratureReport, QuadratureRule,
+    ReducedModel, ReducedModelError, SceneError, SimulationParams, Simulator, SkinningField,
+    StepError,
 };
 use rkpm_core::IntegrationPoints;
 use thiserror::Error;
@@ -178,20 +181,85 @@ where
     }
 }
 
-/// The reduced simulator of `simulation` at rest, the quadrature it integrates with, and the
-/// points each constrained region selected (penalized regions, then held ones).
+/// Steps an automatic quadrature runs on every point before it decides, for a run of `steps`
+/// steps: a twentieth of them, at least 3 (the first is not counted in the prediction).
+fn warmup_steps(steps: usize) -> usize {
+    (steps / 20).max(3)
+}
+
+/// A reduced simulator at rest and what the run reports about it.
+struct Prepared<M: HyperelasticMaterial> {
+    simulator: Simulator<M>,
+    /// The quadrature it integrates with.
+    quadrature: QuadratureReport,
+    /// The points each constrained region selected (penalized regions, then held ones).
+    region_points: Vec<usize>,
+    /// The cubature options of a [`QuadratureRule::Automatic`] choice left to be made after
+    /// the warm-up steps.
+    pending: Option<CubatureParams>,
+}
+
+/// The reduced simulator of `simulation` at rest for a run of `planned_steps` steps; an
+/// automatic quadrature with no cached cubature is left to be chosen after the warm-up steps
+/// when `online`.
 fn simulator<B, M>(
     simulation: &Simulation<'_, B, M>,
-) -> Result<(Simulator<M>, QuadratureReport, Vec<usize>), RunError>
+    planned_steps: usize,
+    online: bool,
+) -> Result<Prepared<M>, RunError>
 where
     B: SkinningField + ?Sized,
     M: HyperelasticMaterial + Clone,
 {
     let model = reduced_model(simulation)?;
-    let (model, quadrature) = simulation
-        .quadrature
-        .apply_cached(model, simulation.cache_dir)
-        .map_err(RunError::Quadrature)?;
+    let cache_dir = simulation.cache_dir;
+    let (model, quadrature, pending) = match simulation.quadrature {
+        QuadratureRule::Automatic(params)
+            if online && planned_steps > warmup_steps(planned_steps) =>
+        {
+            match cache_dir.and_then(|dir| load_cached_cubature(&model, &params, dir)) {
+                Some((cubature, report)) => {
+                    let choice = QuadratureChoice {
+                        planned_steps,
+                        predicted_full_seconds: 0.0,
+                        budget_seconds: 0.0,
+                        spent_seconds: 0.0,
+                        chose_cubature: true,
+                        noted_over_budget: false,
+                    };
+                    let report = QuadratureReport {
+                        kind: "cubature".to_string(),
+                        points: cubature.len(),
+                        cubature: Some(report),
+                        choice: Some(choice),
+                    };
+                    let model = model
+                        .with_elastic_quadrature(cubature)
+                        .map_err(|e| RunError::Quadrature(e.into()))?;
+                    (model, report, None)
+                }
+                None => {
+                    let report = QuadratureReport {
+                        kind: QuadratureRule::Full.name().to_string(),
+                        points: model.elastic_point_count(),
+                        cubature: None,
+                        choice: None,
+                    };
+                    (model, report, Some(params))
+                }
+            }
+        }
+        rule => {
+            let (model, report) = rule
+                .apply_for_run(
+                    model,
+                    cache_dir,
+                    Some(&PlannedRun::single_body(planned_steps)),
+                )
+                .map_err(RunError::Quadrature)?;
+            (model, report, None)
+        }
+    };
     let scene = simulation
         .pin_hold
         .reduced_scene(simulation.scene, model.rest_positions())?;
@@ -201,8 +269,14 @@ where
         .chain(&scene.held)
         .map(|p| p.points.len())
         .collect();
-    let sim = Simulator::new(model, &scene, simulation.params).map_err(RunError::Simulator)?;
-    Ok((sim, quadrature, region_points))
+    let simulator =
+        Simulator::new(model, &scene, simulation.params).map_err(RunError::Simulator)?;
+    Ok(Prepared {
+        simulator,
+        quadrature,
+        region_points,
+        pending,
+    })
 }
 
 /// The static equilibrium of [`static_equilibrium`].
@@ -235,7 +309,8 @@ where
     B: SkinningField + ?Sized,
     M: HyperelasticMaterial + Clone,
 {
-    let (mut sim, _, _) = simulator(simulation)?;
+    // A static solve costs about what one step does.
+    let mut sim = simulator(simulation, 1, false)?.simulator;
     let start = Instant::now();
     let newton = sim.solve_static(time).map_err(RunError::Static)?;
     Ok(StaticEquilibrium {
@@ -301,8 +376,15 @@ where
 {
     let start = Instant::now();
     let points = simulation.points;
-    let (mut sim, quadrature, region_points) = simulator(simulation)?;
-    let setup_seconds = start.elapsed().as_secs_f64();
+    let Prepared {
+        simulator: mut sim,
+        mut quadrature,
+        region_points,
+        mut pending,
+    } = simulator(simulation, steps, true)?;
+    let mut setup_seconds = start.elapsed().as_secs_f64();
+    let warmup = warmup_steps(steps);
+    let mut first_step_elastic = 0.0;
 
     let mut notify = |sim: &Simulator<M>, index: usize, step: Option<&NewtonReport>| {
         observe(&Frame {
@@ -342,6 +424,32 @@ where
         max_energy_rise = max_energy_rise.max(now - energy);
         energy = now;
         notify(&sim, step, Some(&report))?;
+        if step == 1 {
+            first_step_elastic = assembly + line_search;
+        }
+        if step == warmup
+            && let Some(params) = pending.take()
+        {
+            // The automatic quadrature: the rest of the run on every point, predicted from the
+            // elastic part (assembly and line search) of the warm-up steps after the first,
+            // which always assembles a Hessian that later steps may carry.
+            let choosing = Instant::now();
+            let rest = steps - warmup;
+            let per_step = (assembly + line_search - first_step_elastic) / (warmup - 1) as f64;
+            let predicted = per_step * rest as f64;
+            let outcome =
+                cubature_if_it_pays(sim.model(), &params, simulation.cache_dir, rest, predicted)
+                    .map_err(RunError::Quadrature)?;
+            if let Some((cubature, report)) = outcome.cubature {
+                quadrature.kind = "cubature".to_string();
+                quadrature.points = cubature.len();
+                quadrature.cubature = Some(report);
+                sim.set_elastic_quadrature(cubature)
+                    .map_err(|e| RunError::Quadrature(e.into()))?;
+            }
+            quadrature.choice = Some(outcome.choice);
+            setup_seconds += choosing.elapsed().as_secs_f64();
+        }
     }
     let n = steps.max(1) as f64;
     Ok(RunReport {

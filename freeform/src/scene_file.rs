@@ -34,8 +34,9 @@
 //! steps = 100       # (default 100)
 //! points = 5000     # grid points the simulation integrates over (default 5000)
 //! output_every = 5  # write every 5th frame (default 1)
-//! quadrature = { kind = "cubature" }  # elastic energy on an optimized cubature (the default;
-//!                                     # { kind = "full" }: every point, the paper's setting)
+//! quadrature = { kind = "automatic" } # a cubature if it pays for itself in the run, else every
+//!                                     # point (default); { kind = "cubature" }: always one;
+//!                                     # { kind = "full" }: every point, the paper's setting
 //! newton_tolerance = 1e-6            # Newton stops below this RMS step / L (default)
 //! floor_stiffness_factor = 1e4        # floor and colliders: κ = factor (λ + 2μ) / L² (default)
 //! tangent = "exact_when_definite"     # Newton's material tangent (default); "projected_psd": the paper's
@@ -188,8 +189,10 @@ pub struct SimulationSpec {
     pub points: usize,
     /// Write every n-th frame (default 1).
     pub output_every: usize,
-    /// Where the elastic energy is integrated (default `{ kind = "cubature" }`: a cubature
-    /// optimized first, with [`reduced_sim::CubatureParams`]' fields as optional overrides;
+    /// Where the elastic energy is integrated (default `{ kind = "automatic" }`: a cubature
+    /// when its training pays for itself over the run's steps, otherwise every point,
+    /// [`QuadratureRule::Automatic`]; `{ kind = "cubature" }`: always a cubature, optimized
+    /// first; both take [`reduced_sim::CubatureParams`]' fields as optional overrides;
     /// `{ kind = "full" }`: every point, the paper's setting).
     pub quadrature: QuadratureRule,
     /// Carry the Hessian factorization across steps while chord steps contract (default true,
@@ -239,7 +242,7 @@ impl SimulationSpec {
 
 impl Default for SimulationSpec {
     /// The library's defaults: 100 steps of 0.01 s on 5000 points, every frame written, the
-    /// cubature, Hessian reuse, penalty pins, no stress, and [`reduced_sim::PenaltyParams`]'
+    /// automatic quadrature, Hessian reuse, penalty pins, no stress, and [`reduced_sim::PenaltyParams`]'
     /// and [`optimize::NewtonParams`]' contact and solver settings.
     fn default() -> Self {
         let penalty = reduced_sim::PenaltyParams::default();
@@ -248,7 +251,7 @@ impl Default for SimulationSpec {
             steps: 100,
             points: Self::DEFAULT_POINTS,
             output_every: 1,
-            quadrature: QuadratureRule::default(),
+            quadrature: QuadratureRule::Automatic(reduced_sim::CubatureParams::DEFAULT),
             hessian_reuse: true,
             pins: crate::PinHold::default(),
             stress: false,

@@ -265,11 +265,17 @@ pub fn simulate_scene_file(
     let mut frames_written = 0;
     let mut last_z = Vec::new();
     let mut final_von_mises = None;
-    if let QuadratureRule::Cubature(p) = &file.simulation.quadrature {
-        progress.status(&format!(
+    match &file.simulation.quadrature {
+        QuadratureRule::Cubature(p) => progress.status(&format!(
             "elastic quadrature: optimizing a cubature to force error {} (at most {} points)",
             p.tolerance, p.max_points
-        ));
+        )),
+        QuadratureRule::Automatic(p) => progress.status(&format!(
+            "elastic quadrature: a cubature to force error {} (at most {} points) if it pays \
+             for itself in {steps} steps, else every point",
+            p.tolerance, p.max_points
+        )),
+        QuadratureRule::Full | QuadratureRule::RandomSubset { .. } => {}
     }
     progress.begin(steps, "simulate");
     let report = run(&simulation, steps, |frame| {

@@ -9,7 +9,7 @@ use freeform::{
 };
 use hyperelastic::{MaterialField, MaterialSample, StableNeoHookean};
 use nalgebra::Vector3;
-use reduced_sim::{DeformationMap, SimulationParams};
+use reduced_sim::{DeformationMap, QuadratureRule, SimulationParams};
 use rkpm_core::IntegrationPoints;
 use skin_eigen::{BasisParams, SkinningBasis, build_basis};
 use test_support::fixtures::scratch_dir;
@@ -337,4 +337,64 @@ fn a_projected_volumetric_term_runs_holds_its_regions_and_reports_inf_sup_consta
     assert_eq!(betas.len(), 3);
     assert!(betas.iter().all(|b| b.is_finite() && *b > 0.0), "{betas:?}");
     assert_eq!(space.truncated(2).functions(), 1 + 3 + 2);
+}
+
+#[test]
+fn an_automatic_quadrature_decides_after_the_warm_up_and_reports_what_it_chose() {
+    let geometry = Geometry::cuboid(Vector3::zeros(), Vector3::new(1.0, 0.25, 0.25));
+    let basis = small_basis(&geometry);
+    let points = geometry.integration_points(600).unwrap();
+    let scene = falling(&SceneSpec::default());
+    let cubature = reduced_sim::CubatureParams {
+        tolerance: 0.02,
+        ..Default::default()
+    };
+    let cache = scratch_dir("freeform-automatic-quadrature");
+    let simulation = Simulation {
+        quadrature: QuadratureRule::Automatic(cubature),
+        cache_dir: Some(&cache),
+        ..rubber(&basis, &points, &scene)
+    };
+    let steps = 40;
+    let mut largest_error: f64 = 0.0;
+    let map = DeformationMap::new(&basis, points.positions()).unwrap();
+    let mut check = |index: usize, z: &[f64]| {
+        for (x, rest) in map.positions(z).iter().zip(points.positions()) {
+            let expected = rest - Vector3::y() * free_fall_drop(index);
+            largest_error = largest_error.max((x - expected).norm());
+        }
+    };
+    let report = run(&simulation, steps, |frame| {
+        check(frame.index, &frame.simulator.state().z);
+        Ok(())
+    })
+    .unwrap();
+    // Whichever quadrature it chose, a translation has no elastic energy.
+    assert!(largest_error < 1e-8, "{largest_error:e} m from free fall");
+    let quadrature = &report.quadrature;
+    let choice = quadrature
+        .choice
+        .expect("an automatic rule reports its choice");
+    // The first 3 steps (a twentieth, at least 3) ran on every point.
+    assert_eq!(choice.planned_steps, steps - 3);
+    assert_eq!(quadrature.kind == "cubature", choice.chose_cubature);
+    assert_eq!(quadrature.cubature.is_some(), choice.chose_cubature);
+    assert_eq!(quadrature.points < points.len(), choice.chose_cubature);
+    assert!(report.setup_seconds >= choice.spent_seconds);
+
+    // With the cubature in the cache, the run uses it from the first step.
+    let model = reduced_sim::ReducedModel::new(
+        &basis,
+        &points,
+        &vec![RUBBER; points.len()],
+        StableNeoHookean,
+    )
+    .unwrap();
+    let (cached, _) =
+        reduced_sim::cubature::optimize_cubature_cached(&model, &cubature, &cache).unwrap();
+    let report = run(&simulation, steps, |_| Ok(())).unwrap();
+    let choice = report.quadrature.choice.unwrap();
+    assert!(choice.chose_cubature && choice.planned_steps == steps);
+    assert_eq!(report.quadrature.points, cached.len());
+    assert!(report.quadrature.cubature.unwrap().cached);
 }

@@ -23,7 +23,7 @@ fn box_scene(quadrature: &str) -> String {
 }
 
 #[test]
-fn a_scene_file_picks_a_cubature_with_defaults_for_the_fields_it_leaves_out() {
+fn a_scene_file_picks_a_quadrature_with_defaults_for_the_fields_it_leaves_out() {
     let dir = scratch_dir("quadrature-parse");
     let path = dir.join("cubature.toml");
     std::fs::write(
@@ -44,7 +44,20 @@ fn a_scene_file_picks_a_cubature_with_defaults_for_the_fields_it_leaves_out() {
     let default = SceneFile::load(&path).unwrap().simulation;
     assert_eq!(
         default.quadrature,
-        QuadratureRule::Cubature(CubatureParams::DEFAULT)
+        QuadratureRule::Automatic(CubatureParams::DEFAULT)
+    );
+    let path = dir.join("automatic.toml");
+    std::fs::write(
+        &path,
+        box_scene("quadrature = { kind = \"automatic\", max_points = 500 }"),
+    )
+    .unwrap();
+    assert_eq!(
+        SceneFile::load(&path).unwrap().simulation.quadrature,
+        QuadratureRule::Automatic(CubatureParams {
+            max_points: 500,
+            ..CubatureParams::DEFAULT
+        })
     );
     assert!(default.hessian_reuse);
     let path = dir.join("paper.toml");

@@ -177,6 +177,16 @@ pub enum CubatureError {
     /// Every training pose has zero elastic force (a basis with no deformable handle).
     #[error("the training poses have no elastic force: the basis has no deformable handle")]
     NoForce,
+    /// The optimization ran past its time budget ([`optimize_cubature_within`]) and stopped.
+    #[error(
+        "the cubature optimization stopped after {seconds:.2} s, past its budget of {budget:.2} s"
+    )]
+    OverBudget {
+        /// Time spent when it stopped (s).
+        seconds: f64,
+        /// The budget for the points it held then (s).
+        budget: f64,
+    },
     /// The weight solve failed.
     #[error("cubature weights: {0}")]
     Nnls(#[from] NnlsError),
@@ -291,7 +301,61 @@ pub fn optimize_cubature_on<M: HyperelasticMaterial>(
     extra_poses: &[Vec<f64>],
     params: &CubatureParams,
 ) -> Result<(ElasticQuadrature, CubatureReport), CubatureError> {
+    optimize(model, extra_poses, params, None)
+}
+
+/// How long a cubature's training may run: no longer than the cubature can still save over a
+/// run, `T(S) = full_run_seconds · (1 − S/N)` with S the points it holds so far (a cubature
+/// only grows while training, so S bounds its final size from below) and N the model's points.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct CubatureBudget {
+    /// Predicted elastic time of the run on every point (s), e.g.
+    /// [`crate::ElasticCost::run`].
+    pub full_run_seconds: f64,
+    /// Points of the full quadrature, N.
+    pub full_points: usize,
+}
+
+impl CubatureBudget {
+    /// `T(S)` in s for a cubature of `points` points (0 once it holds N or more).
+    pub fn seconds(&self, points: usize) -> f64 {
+        let kept = points as f64 / self.full_points.max(1) as f64;
+        self.full_run_seconds * (1.0 - kept).max(0.0)
+    }
+}
+
+/// [`optimize_cubature`] that gives up once it has spent more than `budget` allows for the
+/// points it holds: it looks at the clock between its stages and between greedy batches, so
+/// it stops within one batch of the budget.
+///
+/// # Errors
+/// [`CubatureError::OverBudget`] when the budget runs out, otherwise as [`optimize_cubature`].
+pub fn optimize_cubature_within<M: HyperelasticMaterial>(
+    model: &ReducedModel<M>,
+    params: &CubatureParams,
+    budget: &CubatureBudget,
+) -> Result<(ElasticQuadrature, CubatureReport), CubatureError> {
+    optimize(model, &[], params, Some(budget))
+}
+
+/// The optimization of the module docs, stopped with [`CubatureError::OverBudget`] once it has
+/// spent more than `budget` allows, if one is given.
+fn optimize<M: HyperelasticMaterial>(
+    model: &ReducedModel<M>,
+    extra_poses: &[Vec<f64>],
+    params: &CubatureParams,
+    budget: Option<&CubatureBudget>,
+) -> Result<(ElasticQuadrature, CubatureReport), CubatureError> {
     let start = Instant::now();
+    let check_budget = |points: usize| match budget {
+        Some(budget) if start.elapsed().as_secs_f64() > budget.seconds(points) => {
+            Err(CubatureError::OverBudget {
+                seconds: start.elapsed().as_secs_f64(),
+                budget: budget.seconds(points),
+            })
+        }
+        _ => Ok(()),
+    };
     check_params(params)?;
     if model.elastic_quadrature().is_some() {
         return Err(CubatureError::NotFull);
@@ -336,6 +400,7 @@ pub fn optimize_cubature_on<M: HyperelasticMaterial>(
         .iter()
         .map(|z| weigh(model.elastic_gradient(z)))
         .collect();
+    check_budget(0)?;
     let norms: Vec<f64> = targets.iter().map(|f| norm(f)).collect();
     let kept: Vec<usize> = (0..poses.len()).filter(|&p| norms[p] > 0.0).collect();
     if kept.is_empty() {
@@ -425,6 +490,7 @@ pub fn optimize_cubature_on<M: HyperelasticMaterial>(
             },
         )
         .collect();
+    check_budget(0)?;
     let a = MatRef::from_column_major_slice(&columns, rows, pool.len());
     let b_norm = norm(&b);
 
@@ -450,6 +516,7 @@ pub fn optimize_cubature_on<M: HyperelasticMaterial>(
         {
             break;
         }
+        check_budget(weights.iter().filter(|&&w| w > 0.0).count())?;
         // Correlations Aᵀr of every candidate with the residual, as one product.
         let residual32: Vec<f32> = residual.iter().map(|&r| r as f32).collect();
         let mut correlation = Mat::<f32>::zeros(pool.len(), 1);
@@ -625,20 +692,46 @@ pub fn optimize_cubature_cached<M: HyperelasticMaterial>(
     params: &CubatureParams,
     cache_dir: &Path,
 ) -> Result<(ElasticQuadrature, CubatureReport), CubatureError> {
+    if let Some(cached) = load_cached_cubature(model, params, cache_dir) {
+        return Ok(cached);
+    }
+    let (quadrature, report) = optimize_cubature(model, params)?;
+    Ok(save_cached_cubature(
+        model, params, cache_dir, quadrature, report,
+    ))
+}
+
+/// The cubature of `model` and `params` cached under `cache_dir`, if there is a readable one
+/// that fits the model (its report says `cached`).
+pub fn load_cached_cubature<M: HyperelasticMaterial>(
+    model: &ReducedModel<M>,
+    params: &CubatureParams,
+    cache_dir: &Path,
+) -> Option<(ElasticQuadrature, CubatureReport)> {
     let path = cubature_cache_path(model, params, cache_dir);
     let n = model.volumes().len();
-    if let Ok(Some(cached)) =
-        load_framed::<CachedCubature>(&path, CUBATURE_MAGIC, CUBATURE_FORMAT_VERSION)
-        && cached.points.iter().all(|&p| p < n)
-        && let Ok(quadrature) = ElasticQuadrature::new(cached.points, cached.weights)
-    {
-        let report = CubatureReport {
-            cached: true,
-            ..cached.report
-        };
-        return Ok((quadrature, report));
-    }
-    let (quadrature, mut report) = optimize_cubature(model, params)?;
+    let cached = load_framed::<CachedCubature>(&path, CUBATURE_MAGIC, CUBATURE_FORMAT_VERSION)
+        .ok()
+        .flatten()
+        .filter(|cached| cached.points.iter().all(|&p| p < n))?;
+    let quadrature = ElasticQuadrature::new(cached.points, cached.weights).ok()?;
+    let report = CubatureReport {
+        cached: true,
+        ..cached.report
+    };
+    Some((quadrature, report))
+}
+
+/// Saves a freshly optimized cubature of `model` and `params` under `cache_dir` and returns
+/// it; when it cannot be saved, the reason goes into the report's `cache_warning`.
+pub fn save_cached_cubature<M: HyperelasticMaterial>(
+    model: &ReducedModel<M>,
+    params: &CubatureParams,
+    cache_dir: &Path,
+    quadrature: ElasticQuadrature,
+    mut report: CubatureReport,
+) -> (ElasticQuadrature, CubatureReport) {
+    let path = cubature_cache_path(model, params, cache_dir);
     let entry = CachedCubature {
         points: quadrature.points().to_vec(),
         weights: quadrature.weights().to_vec(),
@@ -655,7 +748,7 @@ pub fn optimize_cubature_cached<M: HyperelasticMaterial>(
     if let Err(why) = saved {
         report.cache_warning = Some(format!("{}: {why}", path.display()));
     }
-    Ok((quadrature, report))
+    (quadrature, report)
 }
 
 /// The weights `ω_k = 1/sqrt(H_kk)` of the force components, with `H = M_z/h² + K₀` the

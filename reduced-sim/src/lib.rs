@@ -2,12 +2,14 @@
 
 #[cfg(test)]
 mod analytic_field;
+pub mod automatic_quadrature;
 pub mod body_contact;
 pub mod collider;
 mod contact_friction;
 pub mod cubature;
 mod cubature_gram;
 pub mod deformation_map;
+pub mod elastic_cost;
 pub mod elastic_energy;
 mod held_regions;
 pub mod hessian_tangent;
@@ -24,12 +26,16 @@ mod scene_terms;
 pub mod simulator;
 pub mod skinning_field;
 
+pub use automatic_quadrature::QuadratureChoice;
 pub use body_contact::{BodyContactModel, BodyContactParams};
 pub use collider::{
     Collider, ColliderShape, Keyframe, SignedDistance, chain_defect, collider_poses,
 };
-pub use cubature::{CubatureError, CubatureParams, CubatureReport, optimize_cubature};
+pub use cubature::{
+    CubatureBudget, CubatureError, CubatureParams, CubatureReport, optimize_cubature,
+};
 pub use deformation_map::{DeformationMap, DeformationMapError};
+pub use elastic_cost::{ElasticCost, PlannedRun};
 pub use hessian_tangent::HessianTangent;
 pub use incremental_potential::IncrementalPotential;
 pub use mesh_collider::MeshShape;

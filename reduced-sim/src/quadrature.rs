@@ -8,6 +8,10 @@
 //!   default of a [`crate::ReducedModel`]);
 //! - a random subset, volumes rescaled to the total ([`ElasticQuadrature::random_subset`]);
 //! - an optimized cubature (An, Kim and James 2008; [`crate::cubature`]).
+//!
+//! [`QuadratureRule::Automatic`] chooses between the first and the last for a run of known
+//! length: a cubature only when its training pays for itself in the run's steps
+//! ([`crate::elastic_cost`]).
 
 use hyperelastic::HyperelasticMaterial;
 use rand::SeedableRng;
@@ -17,10 +21,14 @@ use serde::{Deserialize, Serialize};
 use thiserror::Error;
 
 use std::path::Path;
+use std::time::Instant;
 
+use crate::automatic_quadrature::{QuadratureChoice, cubature_if_it_pays};
 use crate::cubature::{
-    CubatureError, CubatureParams, CubatureReport, optimize_cubature, optimize_cubature_cached,
+    CubatureError, CubatureParams, CubatureReport, load_cached_cubature, optimize_cubature,
+    optimize_cubature_cached,
 };
+use crate::elastic_cost::{ElasticCost, PlannedRun};
 use crate::reduced_model::ReducedModel;
 
 /// A quadrature that cannot be used.
@@ -193,17 +201,32 @@ pub enum QuadratureRule {
     },
     /// An optimized cubature ([`crate::cubature`]).
     Cubature(CubatureParams),
+    /// Every point, or an optimized cubature with these options when it pays for itself
+    /// ([`crate::automatic_quadrature`]): a cached cubature is used as it is; otherwise the
+    /// elastic time of the run on every point is predicted and the cubature is trained with a
+    /// budget of half what it can still save, and if training runs past the budget, the run
+    /// uses every point (and a note in the cache spares a later run of about the same length
+    /// the attempt). [`QuadratureRule::apply_for_run`] predicts up front from timed
+    /// evaluations ([`ElasticCost`], [`PlannedRun`]); a caller that steps can predict better
+    /// from the first steps, as `freeform`'s runner does. With no planned run it is
+    /// [`QuadratureRule::Cubature`]. The choice depends on this machine's speed;
+    /// [`QuadratureReport::choice`] says what was predicted and chosen.
+    Automatic(CubatureParams),
 }
 
 /// Which quadrature a model integrates its elastic energy with, and what choosing it cost.
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
 pub struct QuadratureReport {
-    /// "full", "random_subset" or "cubature".
+    /// The quadrature used: "full", "random_subset" or "cubature" (an
+    /// [`QuadratureRule::Automatic`] rule reports the one it chose).
     pub kind: String,
     /// Points the elastic energy is evaluated at.
     pub points: usize,
     /// The cubature optimization's report, for a cubature.
     pub cubature: Option<CubatureReport>,
+    /// What [`QuadratureRule::Automatic`] predicted and chose (`None` for the other rules).
+    #[serde(default)]
+    pub choice: Option<QuadratureChoice>,
 }
 
 impl Default for QuadratureRule {
@@ -216,12 +239,13 @@ impl QuadratureRule {
     /// The paper's setting: every integration point with its volume.
     pub const PAPER: QuadratureRule = QuadratureRule::Full;
 
-    /// "full", "random_subset" or "cubature".
+    /// "full", "random_subset", "cubature" or "automatic".
     pub fn name(&self) -> &'static str {
         match self {
             QuadratureRule::Full => "full",
             QuadratureRule::RandomSubset { .. } => "random_subset",
             QuadratureRule::Cubature(_) => "cubature",
+            QuadratureRule::Automatic(_) => "automatic",
         }
     }
 
@@ -234,7 +258,7 @@ impl QuadratureRule {
         &self,
         model: ReducedModel<M>,
     ) -> Result<(ReducedModel<M>, QuadratureReport), CubatureError> {
-        self.apply_cached(model, None)
+        self.apply_for_run(model, None, None)
     }
 
     /// [`QuadratureRule::apply`], with a cubature loaded from (or saved to) `cache_dir` when
@@ -247,37 +271,107 @@ impl QuadratureRule {
         model: ReducedModel<M>,
         cache_dir: Option<&Path>,
     ) -> Result<(ReducedModel<M>, QuadratureReport), CubatureError> {
+        self.apply_for_run(model, cache_dir, None)
+    }
+
+    /// [`QuadratureRule::apply_cached`] for `planned` ([`PlannedRun`]), which
+    /// [`QuadratureRule::Automatic`] weighs (the other rules ignore it).
+    ///
+    /// # Errors
+    /// As [`QuadratureRule::apply`]; a cubature abandoned for its budget is not an error.
+    pub fn apply_for_run<M: HyperelasticMaterial>(
+        &self,
+        model: ReducedModel<M>,
+        cache_dir: Option<&Path>,
+        planned: Option<&PlannedRun>,
+    ) -> Result<(ReducedModel<M>, QuadratureReport), CubatureError> {
         if model.elastic_quadrature().is_some() {
             return Err(CubatureError::NotFull);
         }
-        let (quadrature, cubature) = match self {
-            QuadratureRule::Full => {
-                let points = model.elastic_point_count();
-                let report = QuadratureReport {
-                    kind: self.name().to_string(),
-                    points,
-                    cubature: None,
-                };
-                return Ok((model, report));
-            }
+        let every_point = |model: ReducedModel<M>, choice| {
+            let report = QuadratureReport {
+                kind: QuadratureRule::Full.name().to_string(),
+                points: model.elastic_point_count(),
+                cubature: None,
+                choice,
+            };
+            Ok((model, report))
+        };
+        let (quadrature, cubature, choice) = match self {
+            QuadratureRule::Full => return every_point(model, None),
             QuadratureRule::RandomSubset { points, seed } => (
                 ElasticQuadrature::random_subset(model.volumes(), *points, *seed)?,
                 None,
+                None,
             ),
             QuadratureRule::Cubature(params) => {
-                let (quadrature, report) = match cache_dir {
-                    Some(dir) => optimize_cubature_cached(&model, params, dir)?,
-                    None => optimize_cubature(&model, params)?,
+                let (quadrature, report) = cubature(&model, params, cache_dir)?;
+                (quadrature, Some(report), None)
+            }
+            QuadratureRule::Automatic(params) => {
+                let Some(planned) = planned else {
+                    let (quadrature, report) = cubature(&model, params, cache_dir)?;
+                    return finish(model, "cubature", quadrature, Some(report), None);
                 };
-                (quadrature, Some(report))
+                let start = Instant::now();
+                if let Some((quadrature, report)) =
+                    cache_dir.and_then(|dir| load_cached_cubature(&model, params, dir))
+                {
+                    let choice = QuadratureChoice {
+                        planned_steps: planned.steps,
+                        predicted_full_seconds: 0.0,
+                        budget_seconds: 0.0,
+                        spent_seconds: start.elapsed().as_secs_f64(),
+                        chose_cubature: true,
+                        noted_over_budget: false,
+                    };
+                    return finish(model, "cubature", quadrature, Some(report), Some(choice));
+                }
+                let predicted = ElasticCost::measure(&model).run(planned);
+                let outcome =
+                    cubature_if_it_pays(&model, params, cache_dir, planned.steps, predicted)?;
+                let mut choice = outcome.choice;
+                choice.spent_seconds = start.elapsed().as_secs_f64();
+                match outcome.cubature {
+                    Some((quadrature, report)) => (quadrature, Some(report), Some(choice)),
+                    None => return every_point(model, Some(choice)),
+                }
             }
         };
-        let report = QuadratureReport {
-            kind: self.name().to_string(),
-            points: quadrature.len(),
-            cubature,
+        let kind = match cubature {
+            Some(_) => "cubature",
+            None => self.name(),
         };
-        let model = model.with_elastic_quadrature(quadrature)?;
-        Ok((model, report))
+        finish(model, kind, quadrature, cubature, choice)
     }
+}
+
+/// The cubature of `params` on `model`, through the cache when there is one.
+fn cubature<M: HyperelasticMaterial>(
+    model: &ReducedModel<M>,
+    params: &CubatureParams,
+    cache_dir: Option<&Path>,
+) -> Result<(ElasticQuadrature, CubatureReport), CubatureError> {
+    match cache_dir {
+        Some(dir) => optimize_cubature_cached(model, params, dir),
+        None => optimize_cubature(model, params),
+    }
+}
+
+/// `model` with `quadrature` set, and the report naming its `kind`.
+fn finish<M: HyperelasticMaterial>(
+    model: ReducedModel<M>,
+    kind: &str,
+    quadrature: ElasticQuadrature,
+    cubature: Option<CubatureReport>,
+    choice: Option<QuadratureChoice>,
+) -> Result<(ReducedModel<M>, QuadratureReport), CubatureError> {
+    let report = QuadratureReport {
+        kind: kind.to_string(),
+        points: quadrature.len(),
+        cubature,
+        choice,
+    };
+    let model = model.with_elastic_quadrature(quadrature)?;
+    Ok((model, report))
 }

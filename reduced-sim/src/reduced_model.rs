@@ -234,23 +234,39 @@ impl<M: HyperelasticMaterial> ReducedModel<M> {
         mut self,
         quadrature: ElasticQuadrature,
     ) -> Result<Self, QuadratureError> {
+        self.set_elastic_quadrature(quadrature)?;
+        Ok(self)
+    }
+
+    /// [`ReducedModel::with_elastic_quadrature`] in place: the elastic energy is integrated by
+    /// `quadrature` from now on, whatever integrated it before.
+    ///
+    /// # Errors
+    /// As [`ReducedModel::with_elastic_quadrature`]; the model is unchanged then.
+    pub fn set_elastic_quadrature(
+        &mut self,
+        quadrature: ElasticQuadrature,
+    ) -> Result<(), QuadratureError> {
         let n = self.map.len();
         if let Some(&point) = quadrature.points().iter().find(|&&p| p >= n) {
             return Err(QuadratureError::OutOfRange { point, points: n });
         }
-        self.elastic = Some(ElasticSubset {
+        let previous = self.elastic.replace(ElasticSubset {
             map: self.map.subset(quadrature.points()),
             lame: quadrature.points().iter().map(|&i| self.lame[i]).collect(),
             quadrature,
         });
-        if let Some(dilatation) = self.dilatation.take() {
+        if let Some(dilatation) = &self.dilatation {
             let pressure = dilatation.pressure().clone();
-            self.dilatation = Some(
-                self.dilatation_on_elastic_points(pressure, dilatation.params())
-                    .map_err(QuadratureError::Dilatation)?,
-            );
+            match self.dilatation_on_elastic_points(pressure, dilatation.params()) {
+                Ok(moved) => self.dilatation = Some(moved),
+                Err(e) => {
+                    self.elastic = previous;
+                    return Err(QuadratureError::Dilatation(e));
+                }
+            }
         }
-        Ok(self)
+        Ok(())
     }
 
     /// The elastic quadrature set by [`ReducedModel::with_elastic_quadrature`], or `None` when

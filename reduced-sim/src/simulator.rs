@@ -301,6 +301,21 @@ impl<M: HyperelasticMaterial> Simulator<M> {
         kinetic + self.model.elastic_energy(z) + self.terms.energy(&self.model, z, &targets)
     }
 
+    /// Integrates the elastic energy by `quadrature` from the next step on
+    /// ([`ReducedModel::set_elastic_quadrature`]), e.g. a cubature trained while the first steps
+    /// ran on every point; a carried Hessian factorization is dropped.
+    ///
+    /// # Errors
+    /// As [`ReducedModel::set_elastic_quadrature`]; the simulator is unchanged then.
+    pub fn set_elastic_quadrature(
+        &mut self,
+        quadrature: crate::ElasticQuadrature,
+    ) -> Result<(), crate::QuadratureError> {
+        self.model.set_elastic_quadrature(quadrature)?;
+        self.carried = None;
+        Ok(())
+    }
+
     /// Replaces the state (e.g. to start with an initial velocity).
     ///
     /// # Errors

@@ -149,6 +149,11 @@ pub fn quadrature_rule_label(rule: QuadratureRule) -> String {
              training poses, at most {} points",
             p.tolerance, p.max_points
         ),
+        QuadratureRule::Automatic(p) => format!(
+            "optimized cubature (An et al. 2008) to relative force error {}, at most {} points, \
+             when it pays for itself over the run, otherwise every simulation point",
+            p.tolerance, p.max_points
+        ),
     }
 }
 
