@@ -1,0 +1,381 @@
+//! Python bindings of FreeForm: the extension module `freeform._native`, re-exported by the
+//! pure-Python package `freeform` (`python/freeform/__init__.py`).
+//!
+//! Conventions at the boundary: SI units, float64, points as `(n, 3)` arrays. Long calls
+//! (a basis, a simulation) release the GIL. Errors become `ValueError` (bad input, a failed
+//! algorithm) or `OSError` (a file that cannot be read or written), with the whole chain of
+//! causes in the message.
+
+use std::path::PathBuf;
+
+use freeform::{
+    Geometry, ObjectsFile, SceneFile, Silent, failure_chain, simulate_objects,
+    simulate_scene_file as run_scene_file,
+};
+use hyperelastic::MaterialSample;
+use nalgebra::{DMatrix, Vector3};
+use numpy::ndarray::{Array1, Array2, Array3};
+use numpy::{IntoPyArray, PyArray1, PyArray2, PyArray3, PyReadonlyArray2};
+use pyo3::exceptions::{PyOSError, PyValueError};
+use pyo3::prelude::*;
+use rkpm_core::{IntegrationPoints, PointCloud};
+use skin_eigen::{
+    BasisParams, SkinningBasis, SkinningWeights, build_basis as build_skinning_basis,
+};
+
+/// `ValueError` with `error`'s chain of causes.
+fn value_error(error: &dyn std::error::Error) -> PyErr {
+    PyValueError::new_err(failure_chain(error))
+}
+
+/// `OSError` with `error`'s chain of causes.
+fn os_error(error: &dyn std::error::Error) -> PyErr {
+    PyOSError::new_err(failure_chain(error))
+}
+
+/// Points of an `(n, 3)` float64 array, refused unless every coordinate is finite.
+fn points_of(array: &PyReadonlyArray2<'_, f64>, what: &str) -> PyResult<Vec<Vector3<f64>>> {
+    let view = array.as_array();
+    if view.ncols() != 3 {
+        return Err(PyValueError::new_err(format!(
+            "{what} must have shape (n, 3), got {:?}",
+            view.shape()
+        )));
+    }
+    let points: Vec<Vector3<f64>> = view
+        .rows()
+        .into_iter()
+        .map(|r| Vector3::new(r[0], r[1], r[2]))
+        .collect();
+    if let Some(i) = points.iter().position(|p| !p.iter().all(|c| c.is_finite())) {
+        return Err(PyValueError::new_err(format!(
+            "{what}: point {i} has a coordinate that is not finite"
+        )));
+    }
+    Ok(points)
+}
+
+/// An `(n, 3)` array of points.
+fn points_array<'py>(py: Python<'py>, points: &[Vector3<f64>]) -> Bound<'py, PyArray2<f64>> {
+    Array2::from_shape_fn((points.len(), 3), |(i, k)| points[i][k]).into_pyarray(py)
+}
+
+/// An `n × c` matrix as an `(n, c)` array.
+fn matrix_array<'py>(py: Python<'py>, m: &DMatrix<f64>) -> Bound<'py, PyArray2<f64>> {
+    Array2::from_shape_fn((m.nrows(), m.ncols()), |(i, j)| m[(i, j)]).into_pyarray(py)
+}
+
+/// A shape: a closed triangle surface or a point cloud (m).
+#[pyclass(module = "freeform._native", name = "Geometry", frozen)]
+struct PyGeometry {
+    inner: Geometry,
+}
+
+#[pymethods]
+impl PyGeometry {
+    /// Reads a closed mesh (OBJ, STL, PLY with faces) or, from a PLY without faces, a point
+    /// cloud (plain or 3DGS).
+    #[staticmethod]
+    fn read(path: PathBuf) -> PyResult<Self> {
+        Geometry::read(&path)
+            .map(|inner| PyGeometry { inner })
+            .map_err(|e| value_error(&e))
+    }
+
+    /// The axis-aligned box from corner `lo` to corner `hi` (m).
+    #[staticmethod]
+    #[pyo3(name = "box")]
+    fn cuboid(lo: [f64; 3], hi: [f64; 3]) -> PyResult<Self> {
+        if !(0..3).all(|k| lo[k].is_finite() && hi[k].is_finite() && lo[k] < hi[k]) {
+            return Err(PyValueError::new_err(format!(
+                "a box needs finite corners with lo < hi on every axis, got lo {lo:?}, hi {hi:?}"
+            )));
+        }
+        Ok(PyGeometry {
+            inner: Geometry::cuboid(Vector3::from(lo), Vector3::from(hi)),
+        })
+    }
+
+    /// A point cloud from an `(n, 3)` array of points (m).
+    #[staticmethod]
+    fn from_points(points: PyReadonlyArray2<'_, f64>) -> PyResult<Self> {
+        let points = points_of(&points, "points")?;
+        if points.is_empty() {
+            return Err(PyValueError::new_err(
+                "a point cloud needs at least one point",
+            ));
+        }
+        Ok(PyGeometry {
+            inner: Geometry::Cloud(PointCloud::new(points, None)),
+        })
+    }
+
+    /// About `n` integration points with their volumes: a grid inside a surface, or the
+    /// cloud's points (down-sampled) with volumes from the voxels they fill.
+    fn integration_points(&self, py: Python<'_>, n: usize) -> PyResult<PyIntegrationPoints> {
+        let geometry = &self.inner;
+        py.detach(|| geometry.integration_points(n))
+            .map(|inner| PyIntegrationPoints { inner })
+            .map_err(|e| value_error(&e))
+    }
+
+    /// `(n, 3)` points that show the shape: the surface's vertices or the cloud's points (m).
+    fn display_points<'py>(&self, py: Python<'py>) -> Bound<'py, PyArray2<f64>> {
+        points_array(py, self.inner.display_points())
+    }
+
+    fn __repr__(&self) -> String {
+        match &self.inner {
+            Geometry::Surface(mesh) => format!(
+                "Geometry(surface: {} vertices, {} triangles)",
+                mesh.vertices().len(),
+                mesh.triangles().len()
+            ),
+            Geometry::Cloud(cloud) => format!("Geometry(cloud: {} points)", cloud.len()),
+        }
+    }
+}
+
+/// Integration points x_i (m) with their volumes v_i (m³).
+#[pyclass(module = "freeform._native", name = "IntegrationPoints", frozen)]
+struct PyIntegrationPoints {
+    inner: IntegrationPoints,
+}
+
+#[pymethods]
+impl PyIntegrationPoints {
+    /// Integration points from an `(n, 3)` array of positions (m) and `n` volumes (m³).
+    #[new]
+    fn new(positions: PyReadonlyArray2<'_, f64>, volumes: Vec<f64>) -> PyResult<Self> {
+        let positions = points_of(&positions, "positions")?;
+        IntegrationPoints::new(positions, volumes)
+            .map(|inner| PyIntegrationPoints { inner })
+            .map_err(|e| value_error(&e))
+    }
+
+    /// `(n, 3)` positions (m).
+    #[getter]
+    fn positions<'py>(&self, py: Python<'py>) -> Bound<'py, PyArray2<f64>> {
+        points_array(py, self.inner.positions())
+    }
+
+    /// `(n,)` volumes (m³).
+    #[getter]
+    fn volumes<'py>(&self, py: Python<'py>) -> Bound<'py, PyArray1<f64>> {
+        Array1::from(self.inner.volumes().to_vec()).into_pyarray(py)
+    }
+
+    fn __len__(&self) -> usize {
+        self.inner.len()
+    }
+
+    fn __repr__(&self) -> String {
+        let volume: f64 = self.inner.volumes().iter().sum();
+        format!(
+            "IntegrationPoints({} points, volume {volume:.6} m³)",
+            self.inner.len()
+        )
+    }
+}
+
+/// A homogeneous material: Young's modulus E (Pa), Poisson ratio ν, density ρ (kg/m³).
+#[pyclass(module = "freeform._native", name = "Material", frozen)]
+struct PyMaterial {
+    inner: MaterialSample,
+}
+
+#[pymethods]
+impl PyMaterial {
+    #[new]
+    #[pyo3(signature = (youngs_modulus, poisson_ratio, density))]
+    fn new(youngs_modulus: f64, poisson_ratio: f64, density: f64) -> PyResult<Self> {
+        let inner = MaterialSample {
+            youngs_modulus,
+            poisson_ratio,
+            density,
+        };
+        inner.lame_parameters().map_err(|e| value_error(&e))?;
+        if !(density.is_finite() && density > 0.0) {
+            return Err(PyValueError::new_err(format!(
+                "the density must be finite and positive, got {density} kg/m³"
+            )));
+        }
+        Ok(PyMaterial { inner })
+    }
+
+    /// Young's modulus E (Pa).
+    #[getter]
+    fn youngs_modulus(&self) -> f64 {
+        self.inner.youngs_modulus
+    }
+
+    /// Poisson ratio ν.
+    #[getter]
+    fn poisson_ratio(&self) -> f64 {
+        self.inner.poisson_ratio
+    }
+
+    /// Density ρ (kg/m³).
+    #[getter]
+    fn density(&self) -> f64 {
+        self.inner.density
+    }
+
+    fn __repr__(&self) -> String {
+        format!(
+            "Material(E = {} Pa, ν = {}, ρ = {} kg/m³)",
+            self.inner.youngs_modulus, self.inner.poisson_ratio, self.inner.density
+        )
+    }
+}
+
+/// A skinning basis: m eigenmode weights plus the constant handle, evaluated anywhere in the
+/// shape.
+#[pyclass(module = "freeform._native", name = "Basis", frozen)]
+struct PyBasis {
+    inner: SkinningBasis,
+}
+
+impl PyBasis {
+    /// W and ∇W at `points`, evaluated without the GIL.
+    fn evaluate(
+        &self,
+        py: Python<'_>,
+        points: &PyReadonlyArray2<'_, f64>,
+    ) -> PyResult<SkinningWeights> {
+        let points = points_of(points, "points")?;
+        let basis = &self.inner;
+        py.detach(|| basis.evaluate(&points))
+            .map_err(|e| value_error(&e))
+    }
+}
+
+#[pymethods]
+impl PyBasis {
+    /// Modes m (the handles are m + 1 with the constant one).
+    #[getter]
+    fn modes(&self) -> usize {
+        self.inner.modes()
+    }
+
+    /// Handles m + 1 (the constant handle first).
+    #[getter]
+    fn handles(&self) -> usize {
+        self.inner.handles()
+    }
+
+    /// The m generalized eigenvalues of the modes, ascending.
+    #[getter]
+    fn eigenvalues(&self) -> Vec<f64> {
+        self.inner.eigenvalues().to_vec()
+    }
+
+    /// Weights W at `points` (`(n, 3)`, m): `(n, m + 1)`, column 0 the constant handle (1).
+    fn weights<'py>(
+        &self,
+        py: Python<'py>,
+        points: PyReadonlyArray2<'py, f64>,
+    ) -> PyResult<Bound<'py, PyArray2<f64>>> {
+        let evaluated = self.evaluate(py, &points)?;
+        Ok(matrix_array(py, &evaluated.weights))
+    }
+
+    /// Weight gradients ∇W at `points` (`(n, 3)`, m): `(n, m + 1, 3)` (1/m).
+    fn weight_gradients<'py>(
+        &self,
+        py: Python<'py>,
+        points: PyReadonlyArray2<'py, f64>,
+    ) -> PyResult<Bound<'py, PyArray3<f64>>> {
+        let evaluated = self.evaluate(py, &points)?;
+        let g = &evaluated.gradients;
+        let shape = (g[0].nrows(), self.inner.handles(), 3);
+        Ok(Array3::from_shape_fn(shape, |(i, j, k)| g[k][(i, j)]).into_pyarray(py))
+    }
+
+    /// Writes the basis to `path` (the library's versioned binary format).
+    fn save(&self, path: PathBuf) -> PyResult<()> {
+        self.inner.save(&path).map_err(|e| os_error(&e))
+    }
+
+    /// Reads a basis written by `save`.
+    #[staticmethod]
+    fn load(path: PathBuf) -> PyResult<Self> {
+        SkinningBasis::load(&path)
+            .map(|inner| PyBasis { inner })
+            .map_err(|e| os_error(&e))
+    }
+
+    fn __repr__(&self) -> String {
+        format!(
+            "Basis({} modes, {} kernels)",
+            self.inner.modes(),
+            self.inner.kernels().len()
+        )
+    }
+}
+
+/// Builds the skinning basis of `points` (Sec. 4–5): `kernels` RKPM kernels, the `modes`
+/// lowest generalized eigenmodes of the elastic Hessian at rest against the mass.
+#[pyfunction]
+#[pyo3(signature = (points, material, modes = 16, kernels = 1000))]
+fn build_basis(
+    py: Python<'_>,
+    points: &PyIntegrationPoints,
+    material: &PyMaterial,
+    modes: usize,
+    kernels: usize,
+) -> PyResult<PyBasis> {
+    let lame = material
+        .inner
+        .lame_parameters()
+        .map_err(|e| value_error(&e))?;
+    let lame = vec![lame; points.inner.len()];
+    let params = BasisParams::default()
+        .with_modes(modes)
+        .with_kernels(kernels);
+    let points = &points.inner;
+    py.detach(|| build_skinning_basis(points, &lame, &params))
+        .map(|(inner, _, _)| PyBasis { inner })
+        .map_err(|e| value_error(&e))
+}
+
+/// Runs a scene file (TOML or JSON, one object or several) and writes its frames and
+/// `summary.json` under `out_dir`; returns the summary as JSON text. Cubatures are cached
+/// under `cache_dir` when given.
+#[pyfunction]
+#[pyo3(signature = (path, out_dir, cache_dir = None))]
+fn simulate_scene_file(
+    py: Python<'_>,
+    path: PathBuf,
+    out_dir: PathBuf,
+    cache_dir: Option<PathBuf>,
+) -> PyResult<String> {
+    let cache = cache_dir.as_deref();
+    let summary = py.detach(|| -> PyResult<String> {
+        let json = if ObjectsFile::describes(&path) {
+            let file = ObjectsFile::load(&path).map_err(|e| value_error(&e))?;
+            let report =
+                simulate_objects(&file, &out_dir, cache, &Silent).map_err(|e| value_error(&e))?;
+            serde_json::to_string(&report)
+        } else {
+            let file = SceneFile::load(&path).map_err(|e| value_error(&e))?;
+            let report =
+                run_scene_file(&file, &out_dir, cache, &Silent).map_err(|e| value_error(&e))?;
+            serde_json::to_string(&report)
+        };
+        json.map_err(|e| value_error(&e))
+    })?;
+    Ok(summary)
+}
+
+/// The extension module.
+#[pymodule]
+fn _native(m: &Bound<'_, PyModule>) -> PyResult<()> {
+    m.add_class::<PyGeometry>()?;
+    m.add_class::<PyIntegrationPoints>()?;
+    m.add_class::<PyMaterial>()?;
+    m.add_class::<PyBasis>()?;
+    m.add_function(wrap_pyfunction!(build_basis, m)?)?;
+    m.add_function(wrap_pyfunction!(simulate_scene_file, m)?)?;
+    Ok(())
+}

@@ -1,0 +1,103 @@
+"""The Python bindings against properties of the method, not their own output: a basis
+partitions unity, its weights and gradients agree with finite differences, a free fall is
+exact backward Euler, and bad input is a named Python error."""
+
+import pathlib
+
+import numpy as np
+import pytest
+
+import freeform
+
+REPO = pathlib.Path(__file__).resolve().parents[2]
+RUBBER = freeform.Material(1e6, 0.45, 1000.0)
+
+
+@pytest.fixture(scope="module")
+def bar():
+    points = freeform.Geometry.box([0, 0, 0], [1.0, 0.25, 0.25]).integration_points(1500)
+    basis = freeform.build_basis(points, RUBBER, modes=6, kernels=120)
+    return points, basis
+
+
+def test_integration_points_fill_the_box_with_its_volume(bar):
+    points, _ = bar
+    x = points.positions
+    assert x.shape == (len(points), 3) and x.dtype == np.float64
+    assert np.all(x >= 0) and np.all(x <= [1.0, 0.25, 0.25])
+    assert points.volumes.sum() == pytest.approx(1.0 * 0.25 * 0.25, rel=1e-9)
+
+
+def test_the_weights_hold_the_constant_handle_and_m_modes(bar):
+    points, basis = bar
+    w = basis.weights(points.positions)
+    assert basis.modes == 6 and basis.handles == 7
+    assert w.shape == (len(points), 7)
+    np.testing.assert_allclose(w[:, 0], 1.0, atol=1e-12)
+    assert np.all(np.diff(basis.eigenvalues) >= 0)
+    # The modes are not constant: each varies over the bar.
+    assert np.all(w[:, 1:].std(axis=0) > 1e-3)
+
+
+def test_weight_gradients_match_central_differences(bar):
+    _, basis = bar
+    rng = np.random.default_rng(0)
+    x = rng.uniform([0.2, 0.07, 0.07], [0.8, 0.18, 0.18], size=(5, 3))
+    g = basis.weight_gradients(x)
+    assert g.shape == (5, 7, 3)
+    h = 1e-6
+    for k in range(3):
+        e = np.zeros(3)
+        e[k] = h
+        fd = (basis.weights(x + e) - basis.weights(x - e)) / (2 * h)
+        np.testing.assert_allclose(g[:, :, k], fd, rtol=1e-5, atol=1e-6 * np.abs(fd).max())
+
+
+def test_a_saved_basis_loads_with_the_same_weights(bar, tmp_path):
+    points, basis = bar
+    basis.save(tmp_path / "bar.basis")
+    again = freeform.Basis.load(tmp_path / "bar.basis")
+    np.testing.assert_array_equal(again.weights(points.positions), basis.weights(points.positions))
+
+
+def test_a_free_fall_scene_is_exact_backward_euler(tmp_path):
+    scene = tmp_path / "fall.toml"
+    scene.write_text(
+        "[geometry]\nbox = { min = [0, 0, 0], max = [0.4, 0.2, 0.2] }\n"
+        "[material]\nyoungs_modulus = 1e5\npoisson_ratio = 0.3\ndensity = 1000\n"
+        "[basis]\nmodes = 4\nkernels = 60\npoints = 800\n"
+        "[simulation]\nsteps = 10\npoints = 300\nquadrature = { kind = \"full\" }\n"
+        "[scene]\ngravity = [0, -9.8, 0]\n"
+    )
+    summary = freeform.simulate_scene_file(scene, tmp_path / "out")
+    assert summary["frames_written"] == 11
+    assert summary["unconverged_steps"] == 0
+    # Backward Euler from rest: x_n = x_0 - g h^2 n (n + 1) / 2, the same for every point.
+    drop = 9.8 * 0.01**2 * 10 * 11 / 2
+    assert summary["final_max_displacement"] == pytest.approx(drop, abs=1e-8)
+    assert (tmp_path / "out" / "frame_00010.ply").is_file()
+
+
+def test_a_shipped_scene_file_runs(tmp_path):
+    summary = freeform.simulate_scene_file(
+        REPO / "freeform" / "examples" / "scenes" / "minimal.toml", tmp_path / "out"
+    )
+    assert summary["unconverged_steps"] == 0
+    assert summary["quadrature"]["choice"] is not None
+
+
+def test_bad_input_is_a_named_error(tmp_path):
+    with pytest.raises(ValueError, match="not finite"):
+        freeform.Geometry.from_points(np.array([[0.0, 0.0, np.nan]]))
+    with pytest.raises(ValueError, match=r"shape \(n, 3\)"):
+        freeform.Geometry.from_points(np.zeros((4, 2)))
+    with pytest.raises(ValueError, match="lo < hi"):
+        freeform.Geometry.box([0, 0, 0], [0, 1, 1])
+    with pytest.raises(ValueError):
+        freeform.Material(1e6, 0.5, 1000)
+    with pytest.raises(ValueError, match="no such file"):
+        freeform.Geometry.read(tmp_path / "missing.obj")
+    with pytest.raises(ValueError):
+        freeform.simulate_scene_file(tmp_path / "missing.toml", tmp_path / "out")
+    with pytest.raises(OSError):
+        freeform.Basis.load(tmp_path / "missing.basis")
