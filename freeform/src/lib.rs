@@ -47,8 +47,8 @@ pub use pressure_space::{PressureSpace, PressureSpaceParams};
 pub use progress::{Progress, Silent};
 pub use recorded_run::{RecordError, RecordedRun, run_recorded};
 pub use runner::{
-    Frame, ObserverResult, RunError, RunReport, Simulation, StaticEquilibrium, pressure_inf_sup,
-    run, static_equilibrium,
+    Frame, ObserverResult, RunError, RunReport, Simulation, StaticEquilibrium, prepare_simulator,
+    pressure_inf_sup, run, static_equilibrium,
 };
 pub use scene::{Constraint, FloorSpec, Motion, Region, SceneSpec, SceneSpecError};
 pub use scene_file::{

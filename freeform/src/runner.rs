@@ -279,6 +279,25 @@ where
     })
 }
 
+/// The reduced simulator of `simulation` at rest, for a caller that steps it itself (the
+/// Python bindings, an interactive tool): what [`run`] steps, with the quadrature chosen up
+/// front for a run of `planned_steps` steps ([`QuadratureRule::apply_for_run`]), and the report
+/// of that quadrature.
+///
+/// # Errors
+/// [`RunError`] for a model, pressure space, quadrature or scene that cannot be built.
+pub fn prepare_simulator<B, M>(
+    simulation: &Simulation<'_, B, M>,
+    planned_steps: usize,
+) -> Result<(Simulator<M>, QuadratureReport), RunError>
+where
+    B: SkinningField + ?Sized,
+    M: HyperelasticMaterial + Clone,
+{
+    let prepared = simulator(simulation, planned_steps, false)?;
+    Ok((prepared.simulator, prepared.quadrature))
+}
+
 /// The static equilibrium of [`static_equilibrium`].
 #[derive(Clone, Debug)]
 pub struct StaticEquilibrium {

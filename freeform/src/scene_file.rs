@@ -588,7 +588,7 @@ impl SimulationSpec {
 
     /// The first problem as (field, what is wrong): a time step, floor stiffness factor or
     /// Newton tolerance that is not finite and positive, no steps, points or output.
-    pub(crate) fn defect(&self) -> Option<(String, String)> {
+    pub fn defect(&self) -> Option<(String, String)> {
         let field = |name: &str| format!("simulation.{name}");
         let positive = |name: &str, value: f64| {
             (!(value > 0.0 && value.is_finite()))

@@ -398,3 +398,37 @@ fn an_automatic_quadrature_decides_after_the_warm_up_and_reports_what_it_chose()
     assert_eq!(report.quadrature.points, cached.len());
     assert!(report.quadrature.cubature.unwrap().cached);
 }
+
+#[test]
+fn a_prepared_simulator_steps_exactly_as_the_runner() {
+    let geometry = Geometry::cuboid(Vector3::zeros(), Vector3::new(1.0, 0.25, 0.25));
+    let basis = small_basis(&geometry);
+    let points = geometry.integration_points(300).unwrap();
+    let scene = SceneSpec {
+        constraints: vec![Constraint {
+            region: Region::Below {
+                axis: 0,
+                value: 0.1,
+            },
+            motion: Motion::Rest,
+        }],
+        ..falling(&SceneSpec::default())
+    };
+    let simulation = Simulation {
+        quadrature: QuadratureRule::Full,
+        ..rubber(&basis, &points, &scene)
+    };
+    let mut last = Vec::new();
+    run(&simulation, 5, |frame| {
+        last = frame.simulator.state().z.clone();
+        Ok(())
+    })
+    .unwrap();
+    let (mut sim, quadrature) = freeform::prepare_simulator(&simulation, 5).unwrap();
+    assert_eq!(quadrature.kind, "full");
+    for _ in 0..5 {
+        assert!(sim.step().unwrap().converged());
+    }
+    assert_eq!(sim.state().z, last);
+    assert!(last.iter().any(|&z| z != 0.0), "the bar must move");
+}

@@ -8,11 +8,12 @@
 
 use std::path::PathBuf;
 
+use freeform::reduced_sim::{DeformationMap, Simulator};
 use freeform::{
-    Geometry, ObjectsFile, SceneFile, Silent, failure_chain, simulate_objects,
-    simulate_scene_file as run_scene_file,
+    Geometry, ObjectsFile, PinHold, SceneFile, SceneSpec, Silent, Simulation, SimulationSpec,
+    failure_chain, prepare_simulator, simulate_objects, simulate_scene_file as run_scene_file,
 };
-use hyperelastic::MaterialSample;
+use hyperelastic::{MaterialField, MaterialSample, StableNeoHookean};
 use nalgebra::{DMatrix, Vector3};
 use numpy::ndarray::{Array1, Array2, Array3};
 use numpy::{IntoPyArray, PyArray1, PyArray2, PyArray3, PyReadonlyArray2};
@@ -368,6 +369,137 @@ fn simulate_scene_file(
     Ok(summary)
 }
 
+/// A reduced simulation that Python steps: a basis, its integration points and material,
+/// a scene and the simulation settings, both in the scene-file format (`docs/scene-files.md`,
+/// the `[scene]` and `[simulation]` tables, as JSON text).
+#[pyclass(module = "freeform._native", name = "Simulation")]
+struct PySimulation {
+    simulator: Simulator<StableNeoHookean>,
+    basis: SkinningBasis,
+    quadrature: String,
+}
+
+#[pymethods]
+impl PySimulation {
+    /// `scene` and `simulation` are JSON text of the scene file's `[scene]` and `[simulation]`
+    /// tables (every key optional); `simulation.steps` is the run's planned length, which the
+    /// automatic quadrature weighs. Held (exact, weighted) pins and a pressure space need a
+    /// basis built for them: use `simulate_scene_file` for those.
+    #[new]
+    #[pyo3(signature = (basis, points, material, scene, simulation, cache_dir = None))]
+    fn new(
+        py: Python<'_>,
+        basis: &PyBasis,
+        points: &PyIntegrationPoints,
+        material: &PyMaterial,
+        scene: &str,
+        simulation: &str,
+        cache_dir: Option<PathBuf>,
+    ) -> PyResult<Self> {
+        let scene: SceneSpec = serde_json::from_str(scene)
+            .map_err(|e| PyValueError::new_err(format!("scene: {e}")))?;
+        scene.validate().map_err(|e| value_error(&e))?;
+        let spec: SimulationSpec = serde_json::from_str(simulation)
+            .map_err(|e| PyValueError::new_err(format!("simulation: {e}")))?;
+        if let Some((field, problem)) = spec.defect() {
+            return Err(PyValueError::new_err(format!("{field}: {problem}")));
+        }
+        if spec.pins != PinHold::Penalty || spec.pressure.is_some() {
+            return Err(PyValueError::new_err(
+                "simulation.pins other than \"penalty\" and simulation.pressure need a basis \
+                 built for them: use simulate_scene_file",
+            ));
+        }
+        let field = MaterialField::Uniform(material.inner);
+        let simulation = Simulation {
+            field: &basis.inner,
+            points: &points.inner,
+            material: &field,
+            material_model: StableNeoHookean,
+            scene: &scene,
+            params: spec.simulation_params(),
+            quadrature: spec.quadrature,
+            cache_dir: cache_dir.as_deref(),
+            pin_hold: spec.pins,
+            pressure: None,
+        };
+        let (simulator, quadrature) = py
+            .detach(|| prepare_simulator(&simulation, spec.steps))
+            .map_err(|e| value_error(&e))?;
+        let quadrature = serde_json::to_string(&quadrature).map_err(|e| value_error(&e))?;
+        Ok(PySimulation {
+            simulator,
+            basis: basis.inner.clone(),
+            quadrature,
+        })
+    }
+
+    /// Advances one backward-Euler step; returns the Newton report as JSON text
+    /// (`converged`, `iterations`, `hessian_assemblies`, `residual`, ...).
+    fn step(&mut self, py: Python<'_>) -> PyResult<String> {
+        let simulator = &mut self.simulator;
+        let report = py
+            .detach(|| simulator.step())
+            .map_err(|e| value_error(&e))?;
+        let json = serde_json::json!({
+            "converged": report.converged(),
+            "iterations": report.iterations,
+            "hessian_assemblies": report.hessian_assemblies,
+            "line_search_cuts": report.line_search_cuts,
+            "residual": report.residual,
+        });
+        Ok(json.to_string())
+    }
+
+    /// Simulated time t (s).
+    #[getter]
+    fn time(&self) -> f64 {
+        self.simulator.state().time
+    }
+
+    /// Reduced coordinates z, `(12(m + 1),)`: each handle's 3 × 4 affine transform minus the
+    /// identity, row-major by transform row.
+    #[getter]
+    fn coordinates<'py>(&self, py: Python<'py>) -> Bound<'py, PyArray1<f64>> {
+        Array1::from(self.simulator.state().z.clone()).into_pyarray(py)
+    }
+
+    /// Kinetic + elastic + gravitational + penalty energy at the current state (J).
+    #[getter]
+    fn mechanical_energy(&self) -> f64 {
+        self.simulator.mechanical_energy()
+    }
+
+    /// The elastic quadrature used, as JSON text (`kind`, `points`, `cubature`, `choice`).
+    #[getter]
+    fn quadrature(&self) -> String {
+        self.quadrature.clone()
+    }
+
+    /// Deformed positions `(n, 3)` (m) of rest `points` (`(n, 3)`, m; the integration points
+    /// when omitted).
+    #[pyo3(signature = (points = None))]
+    fn deformed_points<'py>(
+        &self,
+        py: Python<'py>,
+        points: Option<PyReadonlyArray2<'py, f64>>,
+    ) -> PyResult<Bound<'py, PyArray2<f64>>> {
+        let z = &self.simulator.state().z;
+        let deformed = match points {
+            None => self.simulator.model().deformation_map().positions(z),
+            Some(points) => {
+                let points = points_of(&points, "points")?;
+                let basis = &self.basis;
+                let map = py
+                    .detach(|| DeformationMap::new(basis, &points))
+                    .map_err(|e| value_error(&e))?;
+                map.positions(z)
+            }
+        };
+        Ok(points_array(py, &deformed))
+    }
+}
+
 /// The extension module.
 #[pymodule]
 fn _native(m: &Bound<'_, PyModule>) -> PyResult<()> {
@@ -375,6 +507,7 @@ fn _native(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add_class::<PyIntegrationPoints>()?;
     m.add_class::<PyMaterial>()?;
     m.add_class::<PyBasis>()?;
+    m.add_class::<PySimulation>()?;
     m.add_function(wrap_pyfunction!(build_basis, m)?)?;
     m.add_function(wrap_pyfunction!(simulate_scene_file, m)?)?;
     Ok(())

@@ -101,3 +101,63 @@ def test_bad_input_is_a_named_error(tmp_path):
         freeform.simulate_scene_file(tmp_path / "missing.toml", tmp_path / "out")
     with pytest.raises(OSError):
         freeform.Basis.load(tmp_path / "missing.basis")
+
+
+def test_a_stepped_free_fall_is_exact_backward_euler(bar):
+    points, basis = bar
+    sim = freeform.Simulation(
+        basis,
+        points,
+        RUBBER,
+        scene={"gravity": [0, -9.8, 0]},
+        simulation={"quadrature": {"kind": "full"}, "steps": 10},
+    )
+    reports = sim.run(10)
+    assert all(r["converged"] for r in reports)
+    assert sim.time == pytest.approx(0.1, abs=1e-12)
+    drop = 9.8 * 0.01**2 * 10 * 11 / 2
+    x = points.positions
+    np.testing.assert_allclose(sim.deformed_points(), x - [0, drop, 0], atol=1e-8)
+    corners = np.array([[0.0, 0.0, 0.0], [1.0, 0.25, 0.25]])
+    np.testing.assert_allclose(sim.deformed_points(corners), corners - [0, drop, 0], atol=1e-8)
+    assert sim.coordinates.shape == (12 * basis.handles,)
+    assert sim.quadrature["kind"] == "full"
+
+
+def test_a_cantilever_holds_its_clamped_end_and_its_tip_sags(bar):
+    points, basis = bar
+    sim = freeform.Simulation(
+        basis,
+        points,
+        RUBBER,
+        scene={
+            "gravity": [0, -9.8, 0],
+            "constraints": [
+                {"region": {"below": {"axis": 0, "value": 0.05}}, "motion": "rest"}
+            ],
+        },
+        simulation={"quadrature": {"kind": "full"}},
+    )
+    sim.run(20)
+    x = points.positions
+    u = sim.deformed_points() - x
+    clamped, tip = x[:, 0] <= 0.05, x[:, 0] >= 0.95
+    sag = -u[tip, 1].mean()
+    assert sag > 0.05, f"tip sag {sag} m"
+    # The penalty pins hold the clamped end to within 2% of the tip's sag.
+    assert np.abs(u[clamped]).max() < 0.02 * sag
+    assert np.isfinite(sim.mechanical_energy)
+
+
+def test_bad_simulation_settings_are_named_errors(bar):
+    points, basis = bar
+    with pytest.raises(ValueError, match="time_step"):
+        freeform.Simulation(basis, points, RUBBER, simulation={"time_step": -1.0})
+    with pytest.raises(ValueError, match="scene"):
+        freeform.Simulation(basis, points, RUBBER, scene={"gravity": [0, 1]})
+    with pytest.raises(ValueError, match="simulate_scene_file"):
+        freeform.Simulation(
+            basis, points, RUBBER, simulation={"pins": {"exact": {"inset": 0.01}}}
+        )
+    with pytest.raises(ValueError):
+        freeform.Simulation(basis, points, RUBBER, scene={"gravity": [0, float("nan"), 0]})

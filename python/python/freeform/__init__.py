@@ -16,6 +16,9 @@ import json
 from os import PathLike
 from typing import Any, Optional, Union
 
+import numpy as np
+
+from . import _native
 from ._native import Basis, Geometry, IntegrationPoints, Material, build_basis
 from ._native import simulate_scene_file as _simulate_scene_file
 
@@ -24,6 +27,7 @@ __all__ = [
     "Geometry",
     "IntegrationPoints",
     "Material",
+    "Simulation",
     "build_basis",
     "simulate_scene_file",
 ]
@@ -45,3 +49,83 @@ def simulate_scene_file(
         str(path), str(out_dir), None if cache_dir is None else str(cache_dir)
     )
     return json.loads(summary)
+
+
+class Simulation:
+    """A reduced simulation stepped from Python.
+
+    ``scene`` and ``simulation`` are dicts with the keys of a scene file's ``[scene]`` and
+    ``[simulation]`` tables (``docs/scene-files.md``; every key optional), e.g.::
+
+        scene = {
+            "gravity": [0, -9.8, 0],                                   # m/s²
+            "constraints": [{"region": {"below": {"axis": 0, "value": 0.05}}, "motion": "rest"}],
+            "floor": {"normal": [0, 1, 0], "offset": -0.5, "friction": 0.3},
+        }
+        simulation = {"time_step": 0.01, "steps": 100, "quadrature": {"kind": "full"}}
+
+    ``simulation["steps"]`` is the planned length of the run, which the automatic quadrature
+    weighs; ``points``, ``output_every`` and ``stress`` do not apply here. Held pins and a
+    pressure space need a basis built for them: use ``simulate_scene_file`` for those.
+    """
+
+    def __init__(
+        self,
+        basis: Basis,
+        points: IntegrationPoints,
+        material: Material,
+        scene: Optional[dict[str, Any]] = None,
+        simulation: Optional[dict[str, Any]] = None,
+        cache_dir: Optional[PathType] = None,
+    ) -> None:
+        self._native = _native.Simulation(
+            basis,
+            points,
+            material,
+            json.dumps(scene or {}, allow_nan=False),
+            json.dumps(simulation or {}, allow_nan=False),
+            None if cache_dir is None else str(cache_dir),
+        )
+
+    def step(self) -> dict[str, Any]:
+        """Advance one backward-Euler step; return Newton's report (``converged``,
+        ``iterations``, ``hessian_assemblies``, ``line_search_cuts``, ``residual``)."""
+        return json.loads(self._native.step())
+
+    def run(self, steps: int, on_frame=None) -> list[dict[str, Any]]:
+        """``steps`` steps; ``on_frame(simulation, report)`` after each (return ``False`` to
+        stop early). Returns the steps' reports."""
+        reports = []
+        for _ in range(steps):
+            report = self.step()
+            reports.append(report)
+            if on_frame is not None and on_frame(self, report) is False:
+                break
+        return reports
+
+    @property
+    def time(self) -> float:
+        """Simulated time (s)."""
+        return self._native.time
+
+    @property
+    def coordinates(self) -> np.ndarray:
+        """Reduced coordinates z, ``(12 (m + 1),)``."""
+        return self._native.coordinates
+
+    @property
+    def mechanical_energy(self) -> float:
+        """Kinetic, elastic, gravitational and penalty energy (J)."""
+        return self._native.mechanical_energy
+
+    @property
+    def quadrature(self) -> dict[str, Any]:
+        """The elastic quadrature used (``kind``, ``points``, ``cubature``, ``choice``)."""
+        return json.loads(self._native.quadrature)
+
+    def deformed_points(self, points: Optional[np.ndarray] = None) -> np.ndarray:
+        """Deformed positions ``(n, 3)`` (m) of rest ``points`` ``(n, 3)`` (m; the integration
+        points when omitted)."""
+        if points is None:
+            return self._native.deformed_points()
+        return self._native.deformed_points(np.ascontiguousarray(points, dtype=np.float64))
