@@ -11,10 +11,11 @@ use std::path::PathBuf;
 use freeform::reduced_sim::{DeformationMap, Simulator};
 use freeform::{
     Geometry, ObjectsFile, PinHold, SceneFile, SceneSpec, Silent, Simulation, SimulationSpec,
-    failure_chain, prepare_simulator, simulate_objects, simulate_scene_file as run_scene_file,
+    StressField, failure_chain, prepare_simulator, simulate_objects,
+    simulate_scene_file as run_scene_file,
 };
-use hyperelastic::{MaterialField, MaterialSample, StableNeoHookean};
-use nalgebra::{DMatrix, Vector3};
+use hyperelastic::{LameParameters, MaterialField, MaterialSample, StableNeoHookean};
+use nalgebra::{DMatrix, Matrix3, Vector3};
 use numpy::ndarray::{Array1, Array2, Array3};
 use numpy::{IntoPyArray, PyArray1, PyArray2, PyArray3, PyReadonlyArray2};
 use pyo3::exceptions::{PyOSError, PyValueError};
@@ -376,6 +377,8 @@ fn simulate_scene_file(
 struct PySimulation {
     simulator: Simulator<StableNeoHookean>,
     basis: SkinningBasis,
+    /// The material's Lamé parameters, for the stress.
+    lame: LameParameters,
     quadrature: String,
 }
 
@@ -410,6 +413,10 @@ impl PySimulation {
                  built for them: use simulate_scene_file",
             ));
         }
+        let lame = material
+            .inner
+            .lame_parameters()
+            .map_err(|e| value_error(&e))?;
         let field = MaterialField::Uniform(material.inner);
         let simulation = Simulation {
             field: &basis.inner,
@@ -430,6 +437,7 @@ impl PySimulation {
         Ok(PySimulation {
             simulator,
             basis: basis.inner.clone(),
+            lame,
             quadrature,
         })
     }
@@ -485,18 +493,89 @@ impl PySimulation {
         points: Option<PyReadonlyArray2<'py, f64>>,
     ) -> PyResult<Bound<'py, PyArray2<f64>>> {
         let z = &self.simulator.state().z;
-        let deformed = match points {
+        let deformed = match self.map_at(py, points)? {
             None => self.simulator.model().deformation_map().positions(z),
-            Some(points) => {
-                let points = points_of(&points, "points")?;
-                let basis = &self.basis;
-                let map = py
-                    .detach(|| DeformationMap::new(basis, &points))
-                    .map_err(|e| value_error(&e))?;
-                map.positions(z)
-            }
+            Some(map) => map.positions(z),
         };
         Ok(points_array(py, &deformed))
+    }
+
+    /// Deformation gradients F = ∂x/∂X `(n, 3, 3)` (row i, column j: ∂x_i/∂X_j) at rest
+    /// `points` (`(n, 3)`, m; the integration points when omitted).
+    #[pyo3(signature = (points = None))]
+    fn deformation_gradients<'py>(
+        &self,
+        py: Python<'py>,
+        points: Option<PyReadonlyArray2<'py, f64>>,
+    ) -> PyResult<Bound<'py, PyArray3<f64>>> {
+        let f = self.gradients_at(py, points)?;
+        Ok(Array3::from_shape_fn((f.len(), 3, 3), |(i, r, c)| f[i][(r, c)]).into_pyarray(py))
+    }
+
+    /// The stress at rest `points` (the integration points when omitted) of the simulation's
+    /// material: Cauchy σ `(n, 3, 3)`, principal stresses σ₁ ≥ σ₂ ≥ σ₃ `(n, 3)` and von
+    /// Mises `(n,)` (Pa), and the indices of inverted points (det F ≤ 0), whose stress is 0.
+    #[pyo3(signature = (points = None))]
+    #[allow(clippy::type_complexity)]
+    fn stress<'py>(
+        &self,
+        py: Python<'py>,
+        points: Option<PyReadonlyArray2<'py, f64>>,
+    ) -> PyResult<(
+        Bound<'py, PyArray3<f64>>,
+        Bound<'py, PyArray2<f64>>,
+        Bound<'py, PyArray1<f64>>,
+        Vec<usize>,
+    )> {
+        let f = self.gradients_at(py, points)?;
+        let lame = vec![self.lame; f.len()];
+        let field = StressField::new(&StableNeoHookean, &lame, &f).map_err(|e| value_error(&e))?;
+        let samples = &field.samples;
+        let n = samples.len();
+        let cauchy = Array3::from_shape_fn((n, 3, 3), |(i, r, c)| samples[i].cauchy[(r, c)]);
+        let principal = Array2::from_shape_fn((n, 3), |(i, k)| samples[i].principal[k]);
+        let von_mises = Array1::from_iter(samples.iter().map(|s| s.von_mises));
+        Ok((
+            cauchy.into_pyarray(py),
+            principal.into_pyarray(py),
+            von_mises.into_pyarray(py),
+            field.inverted,
+        ))
+    }
+}
+
+impl PySimulation {
+    /// The deformation map at `points`, or `None` for the integration points.
+    fn map_at(
+        &self,
+        py: Python<'_>,
+        points: Option<PyReadonlyArray2<'_, f64>>,
+    ) -> PyResult<Option<DeformationMap>> {
+        let Some(points) = points else {
+            return Ok(None);
+        };
+        let points = points_of(&points, "points")?;
+        let basis = &self.basis;
+        py.detach(|| DeformationMap::new(basis, &points))
+            .map(Some)
+            .map_err(|e| value_error(&e))
+    }
+
+    /// F at `points` (the integration points when `None`).
+    fn gradients_at(
+        &self,
+        py: Python<'_>,
+        points: Option<PyReadonlyArray2<'_, f64>>,
+    ) -> PyResult<Vec<Matrix3<f64>>> {
+        let z = &self.simulator.state().z;
+        Ok(match self.map_at(py, points)? {
+            None => self
+                .simulator
+                .model()
+                .deformation_map()
+                .deformation_gradients(z),
+            Some(map) => map.deformation_gradients(z),
+        })
     }
 }
 

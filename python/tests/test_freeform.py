@@ -161,3 +161,49 @@ def test_bad_simulation_settings_are_named_errors(bar):
         )
     with pytest.raises(ValueError):
         freeform.Simulation(basis, points, RUBBER, scene={"gravity": [0, float("nan"), 0]})
+
+
+def test_deformation_gradients_and_stress_agree_with_differences_and_linear_elasticity(bar):
+    points, basis = bar
+    sim = freeform.Simulation(
+        basis,
+        points,
+        RUBBER,
+        scene={
+            "gravity": [0, -9.8, 0],
+            "constraints": [
+                {"region": {"below": {"axis": 0, "value": 0.05}}, "motion": "rest"}
+            ],
+        },
+        simulation={"quadrature": {"kind": "full"}},
+    )
+    sim.run(5)
+    rng = np.random.default_rng(1)
+    x = rng.uniform([0.1, 0.05, 0.05], [0.9, 0.2, 0.2], size=(6, 3))
+    f = sim.deformation_gradients(x)
+    assert f.shape == (6, 3, 3)
+    h = 1e-6
+    for c in range(3):
+        e = np.zeros(3)
+        e[c] = h
+        column = (sim.deformed_points(x + e) - sim.deformed_points(x - e)) / (2 * h)
+        np.testing.assert_allclose(f[:, :, c], column, atol=1e-7)
+    s = sim.stress(x)
+    sigma = s["cauchy"]
+    assert s["inverted"] == []
+    np.testing.assert_allclose(sigma, np.transpose(sigma, (0, 2, 1)), atol=1e-9 * np.abs(sigma).max())
+    dev = sigma - np.trace(sigma, axis1=1, axis2=2)[:, None, None] * np.eye(3) / 3
+    von_mises = np.sqrt(1.5 * np.einsum("nij,nij->n", dev, dev))
+    np.testing.assert_allclose(s["von_mises"], von_mises, rtol=1e-9)
+    np.testing.assert_allclose(s["principal"], np.linalg.eigvalsh(sigma)[:, ::-1], rtol=1e-8, atol=1e-6)
+    # At small strain every isotropic hyperelastic law has the shear response of linear
+    # elasticity, dev σ ≈ 2 μ dev ε (the pressure, λ tr ε at ν = 0.45, also carries λ times
+    # the second-order terms of the rotation, so it is not compared).
+    E, nu = RUBBER.youngs_modulus, RUBBER.poisson_ratio
+    mu = E / (2 * (1 + nu))
+    eps = 0.5 * (f + np.transpose(f, (0, 2, 1))) - np.eye(3)
+    strain = np.abs(eps).max()
+    assert 1e-5 < strain < 0.05, strain
+    dev_eps = eps - np.trace(eps, axis1=1, axis2=2)[:, None, None] * np.eye(3) / 3
+    linear = 2 * mu * dev_eps
+    assert np.abs(dev - linear).max() <= 0.1 * np.abs(linear).max()

@@ -129,3 +129,27 @@ class Simulation:
         if points is None:
             return self._native.deformed_points()
         return self._native.deformed_points(np.ascontiguousarray(points, dtype=np.float64))
+
+    def deformation_gradients(self, points: Optional[np.ndarray] = None) -> np.ndarray:
+        """Deformation gradients F ``(n, 3, 3)``, ``F[i, r, c] = ∂x_r/∂X_c`` at point i, at rest
+        ``points`` ``(n, 3)`` (m; the integration points when omitted)."""
+        if points is None:
+            return self._native.deformation_gradients()
+        return self._native.deformation_gradients(np.ascontiguousarray(points, dtype=np.float64))
+
+    def stress(self, points: Optional[np.ndarray] = None) -> dict[str, Any]:
+        """The stress at rest ``points`` (the integration points when omitted): ``cauchy``
+        ``(n, 3, 3)``, ``principal`` ``(n, 3)`` (σ₁ ≥ σ₂ ≥ σ₃) and ``von_mises`` ``(n,)`` in Pa,
+        and ``inverted``, the indices of points with det F ≤ 0 (their stress is 0)."""
+        if points is None:
+            cauchy, principal, von_mises, inverted = self._native.stress()
+        else:
+            cauchy, principal, von_mises, inverted = self._native.stress(
+                np.ascontiguousarray(points, dtype=np.float64)
+            )
+        return {
+            "cauchy": cauchy,
+            "principal": principal,
+            "von_mises": von_mises,
+            "inverted": inverted,
+        }
