@@ -11,7 +11,7 @@ use std::path::PathBuf;
 use freeform::reduced_sim::{DeformationMap, Simulator};
 use freeform::{
     Geometry, ObjectsFile, PinHold, SceneFile, SceneSpec, Silent, Simulation, SimulationSpec,
-    StressField, failure_chain, prepare_simulator, simulate_objects,
+    SplatTable, StressField, failure_chain, prepare_simulator, simulate_objects,
     simulate_scene_file as run_scene_file,
 };
 use hyperelastic::{LameParameters, MaterialField, MaterialSample, StableNeoHookean};
@@ -370,6 +370,77 @@ fn simulate_scene_file(
     Ok(summary)
 }
 
+/// The vertex table of a 3DGS PLY file (binary little-endian), kept byte for byte: what a
+/// deformation rewrites (centres, scales, rotations, higher SH) is typed, the rest is carried.
+#[pyclass(module = "freeform._native", name = "Splats", frozen)]
+struct PySplats {
+    inner: SplatTable,
+}
+
+#[pymethods]
+impl PySplats {
+    /// Reads a 3DGS PLY file.
+    #[staticmethod]
+    fn read(path: PathBuf) -> PyResult<Self> {
+        SplatTable::read(&path)
+            .map(|inner| PySplats { inner })
+            .map_err(|e| value_error(&e))
+    }
+
+    /// Writes the table (atomically).
+    fn write(&self, path: PathBuf) -> PyResult<()> {
+        self.inner.write(&path).map_err(|e| os_error(&e))
+    }
+
+    /// Splat centres `(n, 3)` (file units, m for a simulated scene).
+    #[getter]
+    fn positions<'py>(&self, py: Python<'py>) -> Bound<'py, PyArray2<f64>> {
+        points_array(py, &self.inner.positions())
+    }
+
+    /// Covariances `Σ = R diag(exp(2 s)) Rᵀ` `(n, 3, 3)` (file units²).
+    #[getter]
+    fn covariances<'py>(&self, py: Python<'py>) -> Bound<'py, PyArray3<f64>> {
+        let c = self.inner.covariances();
+        Array3::from_shape_fn((c.len(), 3, 3), |(i, r, k)| c[i][(r, k)]).into_pyarray(py)
+    }
+
+    /// Covariances packed `(n, 6)` as `(xx, xy, xz, yy, yz, zz)`, the upper triangle that 3DGS
+    /// rasterizers take (file units²).
+    #[getter]
+    fn packed_covariances<'py>(&self, py: Python<'py>) -> Bound<'py, PyArray2<f64>> {
+        const UPPER: [(usize, usize); 6] = [(0, 0), (0, 1), (0, 2), (1, 1), (1, 2), (2, 2)];
+        let c = self.inner.covariances();
+        Array2::from_shape_fn((c.len(), 6), |(i, k)| c[i][UPPER[k]]).into_pyarray(py)
+    }
+
+    /// The property names of a splat, in file order.
+    #[getter]
+    fn properties(&self) -> Vec<String> {
+        self.inner
+            .property_names()
+            .into_iter()
+            .map(str::to_string)
+            .collect()
+    }
+
+    /// The values `(n,)` of property `name` (e.g. `opacity`, `f_dc_0`).
+    fn column<'py>(&self, py: Python<'py>, name: &str) -> PyResult<Bound<'py, PyArray1<f64>>> {
+        self.inner
+            .column(name)
+            .map(|c| Array1::from(c).into_pyarray(py))
+            .ok_or_else(|| PyValueError::new_err(format!("the splats have no property {name:?}")))
+    }
+
+    fn __len__(&self) -> usize {
+        self.inner.len()
+    }
+
+    fn __repr__(&self) -> String {
+        format!("Splats({} splats)", self.inner.len())
+    }
+}
+
 /// A reduced simulation that Python steps: a basis, its integration points and material,
 /// a scene and the simulation settings, both in the scene-file format (`docs/scene-files.md`,
 /// the `[scene]` and `[simulation]` tables, as JSON text).
@@ -512,6 +583,22 @@ impl PySimulation {
         Ok(Array3::from_shape_fn((f.len(), 3, 3), |(i, r, c)| f[i][(r, c)]).into_pyarray(py))
     }
 
+    /// `splats` (rest centres in m) deformed by the current state: each centre moved, its
+    /// covariance mapped to `F Σ Fᵀ` and its higher spherical harmonics rotated by F's
+    /// rotation, F taken at its rest centre; and the number of splats with det F ≤ 0.
+    fn deformed_splats(&self, py: Python<'_>, splats: &PySplats) -> PyResult<(PySplats, usize)> {
+        let basis = &self.basis;
+        let z = &self.simulator.state().z;
+        let table = &splats.inner;
+        let (deformed, inverted) = py
+            .detach(|| -> Result<_, Box<dyn std::error::Error + Send + Sync>> {
+                let map = DeformationMap::new(basis, &table.positions())?;
+                Ok(table.deformed(&map.positions(z), &map.deformation_gradients(z))?)
+            })
+            .map_err(|e| value_error(e.as_ref()))?;
+        Ok((PySplats { inner: deformed }, inverted))
+    }
+
     /// The stress at rest `points` (the integration points when omitted) of the simulation's
     /// material: Cauchy σ `(n, 3, 3)`, principal stresses σ₁ ≥ σ₂ ≥ σ₃ `(n, 3)` and von
     /// Mises `(n,)` (Pa), and the indices of inverted points (det F ≤ 0), whose stress is 0.
@@ -587,6 +674,7 @@ fn _native(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add_class::<PyMaterial>()?;
     m.add_class::<PyBasis>()?;
     m.add_class::<PySimulation>()?;
+    m.add_class::<PySplats>()?;
     m.add_function(wrap_pyfunction!(build_basis, m)?)?;
     m.add_function(wrap_pyfunction!(simulate_scene_file, m)?)?;
     Ok(())

@@ -207,3 +207,71 @@ def test_deformation_gradients_and_stress_agree_with_differences_and_linear_elas
     dev_eps = eps - np.trace(eps, axis1=1, axis2=2)[:, None, None] * np.eye(3) / 3
     linear = 2 * mu * dev_eps
     assert np.abs(dev - linear).max() <= 0.1 * np.abs(linear).max()
+
+
+DONUT = REPO / "data" / "splats" / "donut_mipsplatting_fused.ply"
+
+
+def quaternion_matrix(q):
+    """Rotation matrices of (w, x, y, z) quaternions, normalized."""
+    q = q / np.linalg.norm(q, axis=1, keepdims=True)
+    w, x, y, z = q.T
+    return np.stack(
+        [
+            np.stack([1 - 2 * (y * y + z * z), 2 * (x * y - w * z), 2 * (x * z + w * y)], -1),
+            np.stack([2 * (x * y + w * z), 1 - 2 * (x * x + z * z), 2 * (y * z - w * x)], -1),
+            np.stack([2 * (x * z - w * y), 2 * (y * z + w * x), 1 - 2 * (x * x + y * y)], -1),
+        ],
+        1,
+    )
+
+
+def test_splat_covariances_follow_the_files_scales_and_rotations():
+    splats = freeform.Splats.read(DONUT)
+    n = len(splats)
+    assert splats.positions.shape == (n, 3)
+    rotation = quaternion_matrix(np.stack([splats.column(f"rot_{k}") for k in range(4)], 1))
+    scales = np.exp(2 * np.stack([splats.column(f"scale_{k}") for k in range(3)], 1))
+    expected = np.einsum("nij,nj,nkj->nik", rotation, scales, rotation)
+    np.testing.assert_allclose(splats.covariances, expected, rtol=1e-6, atol=1e-12)
+    packed = splats.packed_covariances
+    assert packed.shape == (n, 6)
+    upper = splats.covariances[:, [0, 0, 0, 1, 1, 2], [0, 1, 2, 1, 2, 2]]
+    np.testing.assert_array_equal(packed, upper)
+    with pytest.raises(ValueError, match="no property"):
+        splats.column("not_a_property")
+
+
+def test_deformed_splats_move_their_centres_and_map_covariances_by_f(tmp_path):
+    splats = freeform.Splats.read(DONUT)
+    x = splats.positions
+    geometry = freeform.Geometry.from_points(x)
+    points = geometry.integration_points(1500)
+    basis = freeform.build_basis(points, RUBBER, modes=6, kernels=120)
+    lo = x[:, 0].min()
+    sim = freeform.Simulation(
+        basis,
+        points,
+        RUBBER,
+        scene={
+            "gravity": [0, -9.8, 0],
+            "constraints": [
+                {"region": {"below": {"axis": 0, "value": float(lo + 0.05 * np.ptp(x[:, 0]))}},
+                 "motion": "rest"}
+            ],
+        },
+        simulation={"quadrature": {"kind": "full"}},
+    )
+    sim.run(5)
+    deformed, inverted = sim.deformed_splats(splats)
+    assert inverted == 0 and len(deformed) == len(splats)
+    np.testing.assert_allclose(deformed.positions, sim.deformed_points(x), atol=1e-6)
+    f = sim.deformation_gradients(x)
+    mapped = np.einsum("nij,njk,nlk->nil", f, splats.covariances, f)
+    scale = np.abs(mapped).max(axis=(1, 2), keepdims=True)
+    assert np.abs(deformed.covariances - mapped).max() <= 1e-4 * scale.max()
+    # Untouched properties are carried byte for byte, and the written file reads back.
+    np.testing.assert_array_equal(deformed.column("opacity"), splats.column("opacity"))
+    deformed.write(tmp_path / "deformed.ply")
+    again = freeform.Splats.read(tmp_path / "deformed.ply")
+    np.testing.assert_array_equal(again.positions, deformed.positions)

@@ -19,7 +19,7 @@ from typing import Any, Optional, Union
 import numpy as np
 
 from . import _native
-from ._native import Basis, Geometry, IntegrationPoints, Material, build_basis
+from ._native import Basis, Geometry, IntegrationPoints, Material, Splats, build_basis
 from ._native import simulate_scene_file as _simulate_scene_file
 
 __all__ = [
@@ -28,6 +28,7 @@ __all__ = [
     "IntegrationPoints",
     "Material",
     "Simulation",
+    "Splats",
     "build_basis",
     "simulate_scene_file",
 ]
@@ -153,3 +154,9 @@ class Simulation:
             "von_mises": von_mises,
             "inverted": inverted,
         }
+
+    def deformed_splats(self, splats: Splats) -> tuple[Splats, int]:
+        """``splats`` (rest centres in m) deformed by the current state: centres moved,
+        covariances mapped to ``F Σ Fᵀ``, higher spherical harmonics rotated; and the number
+        of splats with det F ≤ 0. Write the result with ``Splats.write``."""
+        return self._native.deformed_splats(splats)
