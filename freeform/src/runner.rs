@@ -11,9 +11,9 @@ use optimize::NewtonReport;
 use reduced_sim::automatic_quadrature::cubature_if_it_pays;
 use reduced_sim::cubature::load_cached_cubature;
 use reduced_sim::{
-    CubatureError, CubatureParams, PlannedRun, QuadratureChoice, QuadratureReport, QuadratureRule,
-    ReducedModel, ReducedModelError, SceneError, SimulationParams, Simulator, SkinningField,
-    StepError,
+    CubatureError, CubatureParams, PinnedRegion, PlannedRun, QuadratureChoice, QuadratureReport,
+    QuadratureRule, ReducedModel, ReducedModelError, SceneError, SimulationParams, Simulator,
+    SkinningField, StepError,
 };
 use rkpm_core::IntegrationPoints;
 use thiserror::Error;
@@ -206,6 +206,7 @@ fn simulator<B, M>(
     simulation: &Simulation<'_, B, M>,
     planned_steps: usize,
     online: bool,
+    extra_pins: &[PinnedRegion],
 ) -> Result<Prepared<M>, RunError>
 where
     B: SkinningField + ?Sized,
@@ -260,9 +261,10 @@ where
             (model, report, None)
         }
     };
-    let scene = simulation
+    let mut scene = simulation
         .pin_hold
         .reduced_scene(simulation.scene, model.rest_positions())?;
+    scene.pins.extend_from_slice(extra_pins);
     let region_points = scene
         .pins
         .iter()
@@ -282,19 +284,22 @@ where
 /// The reduced simulator of `simulation` at rest, for a caller that steps it itself (the
 /// Python bindings, an interactive tool): what [`run`] steps, with the quadrature chosen up
 /// front for a run of `planned_steps` steps ([`QuadratureRule::apply_for_run`]), and the report
-/// of that quadrature.
+/// of that quadrature. `extra_pins` are penalized like the scene's constraints and follow them
+/// (indices of `simulation.points`, e.g. from a mask a caller computed).
 ///
 /// # Errors
-/// [`RunError`] for a model, pressure space, quadrature or scene that cannot be built.
+/// [`RunError`] for a model, pressure space, quadrature or scene that cannot be built (an
+/// extra pin's index out of range is a [`RunError::Simulator`]).
 pub fn prepare_simulator<B, M>(
     simulation: &Simulation<'_, B, M>,
     planned_steps: usize,
+    extra_pins: &[PinnedRegion],
 ) -> Result<(Simulator<M>, QuadratureReport), RunError>
 where
     B: SkinningField + ?Sized,
     M: HyperelasticMaterial + Clone,
 {
-    let prepared = simulator(simulation, planned_steps, false)?;
+    let prepared = simulator(simulation, planned_steps, false, extra_pins)?;
     Ok((prepared.simulator, prepared.quadrature))
 }
 
@@ -329,7 +334,7 @@ where
     M: HyperelasticMaterial + Clone,
 {
     // A static solve costs about what one step does.
-    let mut sim = simulator(simulation, 1, false)?.simulator;
+    let mut sim = simulator(simulation, 1, false, &[])?.simulator;
     let start = Instant::now();
     let newton = sim.solve_static(time).map_err(RunError::Static)?;
     Ok(StaticEquilibrium {
@@ -400,7 +405,7 @@ where
         mut quadrature,
         region_points,
         mut pending,
-    } = simulator(simulation, steps, true)?;
+    } = simulator(simulation, steps, true, &[])?;
     let mut setup_seconds = start.elapsed().as_secs_f64();
     let warmup = warmup_steps(steps);
     let mut first_step_elastic = 0.0;

@@ -424,7 +424,7 @@ fn a_prepared_simulator_steps_exactly_as_the_runner() {
         Ok(())
     })
     .unwrap();
-    let (mut sim, quadrature) = freeform::prepare_simulator(&simulation, 5).unwrap();
+    let (mut sim, quadrature) = freeform::prepare_simulator(&simulation, 5, &[]).unwrap();
     assert_eq!(quadrature.kind, "full");
     for _ in 0..5 {
         assert!(sim.step().unwrap().converged());

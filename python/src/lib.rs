@@ -8,7 +8,7 @@
 
 use std::path::PathBuf;
 
-use freeform::reduced_sim::{DeformationMap, Simulator};
+use freeform::reduced_sim::{DeformationMap, PinTarget, PinnedRegion, ReducedState, Simulator};
 use freeform::{
     Geometry, ObjectsFile, PinHold, SceneFile, SceneSpec, Silent, Simulation, SimulationSpec,
     SplatTable, StressField, failure_chain, prepare_simulator, simulate_objects,
@@ -459,8 +459,12 @@ impl PySimulation {
     /// tables (every key optional); `simulation.steps` is the run's planned length, which the
     /// automatic quadrature weighs. Held (exact, weighted) pins and a pressure space need a
     /// basis built for them: use `simulate_scene_file` for those.
+    ///
+    /// `pinned`: sets of integration-point indices held at rest by the same penalty as the
+    /// scene's constraints (e.g. from a mask over the points).
     #[new]
-    #[pyo3(signature = (basis, points, material, scene, simulation, cache_dir = None))]
+    #[pyo3(signature = (basis, points, material, scene, simulation, cache_dir = None, pinned = Vec::new()))]
+    #[allow(clippy::too_many_arguments)]
     fn new(
         py: Python<'_>,
         basis: &PyBasis,
@@ -469,6 +473,7 @@ impl PySimulation {
         scene: &str,
         simulation: &str,
         cache_dir: Option<PathBuf>,
+        pinned: Vec<Vec<usize>>,
     ) -> PyResult<Self> {
         let scene: SceneSpec = serde_json::from_str(scene)
             .map_err(|e| PyValueError::new_err(format!("scene: {e}")))?;
@@ -501,8 +506,21 @@ impl PySimulation {
             pin_hold: spec.pins,
             pressure: None,
         };
+        let n = points.inner.len();
+        if let Some(i) = pinned.iter().flatten().find(|&&i| i >= n) {
+            return Err(PyValueError::new_err(format!(
+                "pinned point {i} is not one of the {n} integration points"
+            )));
+        }
+        let pins: Vec<PinnedRegion> = pinned
+            .into_iter()
+            .map(|points| PinnedRegion {
+                points,
+                target: PinTarget::Rest,
+            })
+            .collect();
         let (simulator, quadrature) = py
-            .detach(|| prepare_simulator(&simulation, spec.steps))
+            .detach(|| prepare_simulator(&simulation, spec.steps, &pins))
             .map_err(|e| value_error(&e))?;
         let quadrature = serde_json::to_string(&quadrature).map_err(|e| value_error(&e))?;
         Ok(PySimulation {
@@ -534,6 +552,24 @@ impl PySimulation {
     #[getter]
     fn time(&self) -> f64 {
         self.simulator.state().time
+    }
+
+    /// Replaces the state: coordinates z and their velocity ż (`(12(m + 1),)` each) and the
+    /// time t (s).
+    fn set_state(&mut self, coordinates: Vec<f64>, velocity: Vec<f64>, time: f64) -> PyResult<()> {
+        self.simulator
+            .set_state(ReducedState {
+                z: coordinates,
+                velocity,
+                time,
+            })
+            .map_err(|e| value_error(&e))
+    }
+
+    /// Velocity ż of the reduced coordinates, `(12(m + 1),)`.
+    #[getter]
+    fn velocity<'py>(&self, py: Python<'py>) -> Bound<'py, PyArray1<f64>> {
+        Array1::from(self.simulator.state().velocity.clone()).into_pyarray(py)
     }
 
     /// Reduced coordinates z, `(12(m + 1),)`: each handle's 3 × 4 affine transform minus the

@@ -65,7 +65,9 @@ class Simulation:
         }
         simulation = {"time_step": 0.01, "steps": 100, "quadrature": {"kind": "full"}}
 
-    ``simulation["steps"]`` is the planned length of the run, which the automatic quadrature
+    ``pinned`` lists sets of integration-point indices (e.g. ``np.flatnonzero(mask)``) held
+    at rest by the same penalty as the scene's constraints. ``simulation["steps"]`` is the
+    planned length of the run, which the automatic quadrature
     weighs; ``points``, ``output_every`` and ``stress`` do not apply here. Held pins and a
     pressure space need a basis built for them: use ``simulate_scene_file`` for those.
     """
@@ -78,6 +80,7 @@ class Simulation:
         scene: Optional[dict[str, Any]] = None,
         simulation: Optional[dict[str, Any]] = None,
         cache_dir: Optional[PathType] = None,
+        pinned: Optional[list[np.ndarray]] = None,
     ) -> None:
         self._native = _native.Simulation(
             basis,
@@ -86,6 +89,7 @@ class Simulation:
             json.dumps(scene or {}, allow_nan=False),
             json.dumps(simulation or {}, allow_nan=False),
             None if cache_dir is None else str(cache_dir),
+            [np.asarray(p, dtype=np.int64).ravel().tolist() for p in (pinned or [])],
         )
 
     def step(self) -> dict[str, Any]:
@@ -111,8 +115,22 @@ class Simulation:
 
     @property
     def coordinates(self) -> np.ndarray:
-        """Reduced coordinates z, ``(12 (m + 1),)``."""
+        """Reduced coordinates z, ``(12 (m + 1),)``: handle j's 3 × 4 transform minus the
+        identity, ``Z_j[r, c] = z[4 (m + 1) r + 4 j + c]`` (handle 0 the constant one)."""
         return self._native.coordinates
+
+    @property
+    def velocity(self) -> np.ndarray:
+        """Velocity of the reduced coordinates, ``(12 (m + 1),)``."""
+        return self._native.velocity
+
+    def set_state(self, coordinates: np.ndarray, velocity: np.ndarray, time: float) -> None:
+        """Replace the state: coordinates z, their velocity and the time (s)."""
+        self._native.set_state(
+            np.asarray(coordinates, dtype=np.float64).tolist(),
+            np.asarray(velocity, dtype=np.float64).tolist(),
+            float(time),
+        )
 
     @property
     def mechanical_energy(self) -> float:
