@@ -20,6 +20,20 @@ def bar():
     return points, basis
 
 
+def cantilever(points, basis):
+    """The bar clamped at x <= 0.05 m under gravity, on every point."""
+    return freeform.Simulation(
+        basis,
+        points,
+        RUBBER,
+        scene={
+            "gravity": [0, -9.8, 0],
+            "constraints": [{"region": {"below": {"axis": 0, "value": 0.05}}, "motion": "rest"}],
+        },
+        simulation={"quadrature": {"kind": "full"}},
+    )
+
+
 def test_integration_points_fill_the_box_with_its_volume(bar):
     points, _ = bar
     x = points.positions
@@ -126,18 +140,7 @@ def test_a_stepped_free_fall_is_exact_backward_euler(bar):
 
 def test_a_cantilever_holds_its_clamped_end_and_its_tip_sags(bar):
     points, basis = bar
-    sim = freeform.Simulation(
-        basis,
-        points,
-        RUBBER,
-        scene={
-            "gravity": [0, -9.8, 0],
-            "constraints": [
-                {"region": {"below": {"axis": 0, "value": 0.05}}, "motion": "rest"}
-            ],
-        },
-        simulation={"quadrature": {"kind": "full"}},
-    )
+    sim = cantilever(points, basis)
     sim.run(20)
     x = points.positions
     u = sim.deformed_points() - x
@@ -165,18 +168,7 @@ def test_bad_simulation_settings_are_named_errors(bar):
 
 def test_deformation_gradients_and_stress_agree_with_differences_and_linear_elasticity(bar):
     points, basis = bar
-    sim = freeform.Simulation(
-        basis,
-        points,
-        RUBBER,
-        scene={
-            "gravity": [0, -9.8, 0],
-            "constraints": [
-                {"region": {"below": {"axis": 0, "value": 0.05}}, "motion": "rest"}
-            ],
-        },
-        simulation={"quadrature": {"kind": "full"}},
-    )
+    sim = cantilever(points, basis)
     sim.run(5)
     rng = np.random.default_rng(1)
     x = rng.uniform([0.1, 0.05, 0.05], [0.9, 0.2, 0.2], size=(6, 3))

@@ -4,22 +4,13 @@
 
 mod support;
 
-use hyperelastic::StableNeoHookean;
-use nalgebra::Vector3;
 use reduced_sim::automatic_quadrature::{SAVING_SHARE, cubature_if_it_pays};
 use reduced_sim::cubature::{optimize_cubature_cached, optimize_cubature_within};
 use reduced_sim::{
     CubatureBudget, CubatureError, CubatureParams, ElasticCost, PlannedRun, QuadratureRule,
-    ReducedModel, SimulationParams, Simulator, optimize_cubature,
+    SimulationParams, Simulator, optimize_cubature,
 };
-use support::BEAM_MATERIAL;
-
-/// A 3 × 1 × 1 m bar, 200 kernels, 6 modes, on a 0.1 m grid (3000 points).
-fn bar_model() -> ReducedModel<StableNeoHookean> {
-    let (basis, points) =
-        support::box_basis(Vector3::new(3.0, 1.0, 1.0), 0.1, 200, 6, &BEAM_MATERIAL);
-    support::uniform_model(&basis, &points, &BEAM_MATERIAL)
-}
+use support::bar_model;
 
 fn params() -> CubatureParams {
     CubatureParams {

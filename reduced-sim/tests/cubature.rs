@@ -4,23 +4,15 @@
 
 mod support;
 
-use hyperelastic::{StableNeoHookean, Tangent};
-use nalgebra::Vector3;
+use hyperelastic::Tangent;
 use reduced_sim::cubature::{
     cubature_cache_path, force_error, force_weights, optimize_cubature_cached, training_poses,
 };
 use reduced_sim::{
     CubatureError, CubatureParams, ElasticQuadrature, QuadratureError, QuadratureRule,
-    ReducedModel, SimulationParams, Simulator, optimize_cubature,
+    SimulationParams, Simulator, optimize_cubature,
 };
-use support::BEAM_MATERIAL;
-
-/// A 3 × 1 × 1 m bar, 200 kernels, 6 modes, on a 0.1 m grid (3000 points).
-fn bar_model() -> ReducedModel<StableNeoHookean> {
-    let (basis, points) =
-        support::box_basis(Vector3::new(3.0, 1.0, 1.0), 0.1, 200, 6, &BEAM_MATERIAL);
-    support::uniform_model(&basis, &points, &BEAM_MATERIAL)
-}
+use support::bar_model;
 
 fn cubature_params() -> CubatureParams {
     CubatureParams {

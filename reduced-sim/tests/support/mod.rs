@@ -68,3 +68,10 @@ pub fn cantilever_scene<M: hyperelastic::HyperelasticMaterial>(
         colliders: Vec::new(),
     }
 }
+
+/// A 3 × 1 × 1 m bar of [`BEAM_MATERIAL`], 200 kernels, 6 modes, on a 0.1 m grid (3000
+/// points), integrated on every point.
+pub fn bar_model() -> ReducedModel<StableNeoHookean> {
+    let (basis, points) = box_basis(Vector3::new(3.0, 1.0, 1.0), 0.1, 200, 6, &BEAM_MATERIAL);
+    uniform_model(&basis, &points, &BEAM_MATERIAL)
+}
