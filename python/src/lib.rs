@@ -10,8 +10,8 @@ use std::path::PathBuf;
 
 use freeform::reduced_sim::{DeformationMap, PinTarget, PinnedRegion, ReducedState, Simulator};
 use freeform::{
-    Geometry, ObjectsFile, PinHold, SceneFile, SceneSpec, Silent, Simulation, SimulationSpec,
-    SplatTable, StressField, failure_chain, prepare_simulator, simulate_objects,
+    Geometry, ObjectsFile, PinHold, Progress, SceneFile, SceneSpec, Silent, Simulation,
+    SimulationSpec, SplatTable, StressField, failure_chain, prepare_simulator, simulate_objects,
     simulate_scene_file as run_scene_file,
 };
 use hyperelastic::{LameParameters, MaterialField, MaterialSample, StableNeoHookean};
@@ -33,6 +33,61 @@ fn value_error(error: &dyn std::error::Error) -> PyErr {
 /// `OSError` with `error`'s chain of causes.
 fn os_error(error: &dyn std::error::Error) -> PyErr {
     PyOSError::new_err(failure_chain(error))
+}
+
+/// Runs `work` on a rayon pool of `threads` threads (all cores when `None`).
+fn with_threads<T: Send>(threads: Option<usize>, work: impl FnOnce() -> T + Send) -> PyResult<T> {
+    match threads {
+        None => Ok(work()),
+        Some(0) => Err(PyValueError::new_err("threads must be at least 1")),
+        Some(n) => rayon::ThreadPoolBuilder::new()
+            .num_threads(n)
+            .build()
+            .map(|pool| pool.install(work))
+            .map_err(|e| value_error(&e)),
+    }
+}
+
+/// Progress handed to a Python callable `progress(label, done, total)`: a stage's label with
+/// the units done and its length, or a status line with `done` and `total` None. An exception
+/// the callable raises is printed and the work goes on.
+struct PythonProgress {
+    callable: Py<PyAny>,
+    /// The current stage's label, units done and length.
+    stage: std::sync::Mutex<(String, usize, usize)>,
+}
+
+impl PythonProgress {
+    fn call(&self, label: &str, done: Option<usize>, total: Option<usize>) {
+        Python::attach(|py| {
+            if let Err(e) = self.callable.call1(py, (label, done, total)) {
+                e.print(py);
+            }
+        });
+    }
+}
+
+impl Progress for PythonProgress {
+    fn begin(&self, len: usize, label: &str) {
+        if let Ok(mut stage) = self.stage.lock() {
+            *stage = (label.to_string(), 0, len);
+        }
+        self.call(label, Some(0), Some(len));
+    }
+
+    fn advance(&self) {
+        let Ok(mut stage) = self.stage.lock() else {
+            return;
+        };
+        stage.1 += 1;
+        let (label, done, len) = stage.clone();
+        drop(stage);
+        self.call(&label, Some(done), Some(len));
+    }
+
+    fn status(&self, line: &str) {
+        self.call(line, None, None);
+    }
 }
 
 /// Points of an `(n, 3)` float64 array, refused unless every coordinate is finite.
@@ -318,14 +373,16 @@ impl PyBasis {
 
 /// Builds the skinning basis of `points` (Sec. 4–5): `kernels` RKPM kernels, the `modes`
 /// lowest generalized eigenmodes of the elastic Hessian at rest against the mass.
+/// `threads`: the threads it may use (all cores when None).
 #[pyfunction]
-#[pyo3(signature = (points, material, modes = 16, kernels = 1000))]
+#[pyo3(signature = (points, material, modes = 16, kernels = 1000, threads = None))]
 fn build_basis(
     py: Python<'_>,
     points: &PyIntegrationPoints,
     material: &PyMaterial,
     modes: usize,
     kernels: usize,
+    threads: Option<usize>,
 ) -> PyResult<PyBasis> {
     let lame = material
         .inner
@@ -336,37 +393,50 @@ fn build_basis(
         .with_modes(modes)
         .with_kernels(kernels);
     let points = &points.inner;
-    py.detach(|| build_skinning_basis(points, &lame, &params))
+    py.detach(|| with_threads(threads, || build_skinning_basis(points, &lame, &params)))?
         .map(|(inner, _, _)| PyBasis { inner })
         .map_err(|e| value_error(&e))
 }
 
 /// Runs a scene file (TOML or JSON, one object or several) and writes its frames and
 /// `summary.json` under `out_dir`; returns the summary as JSON text. Cubatures are cached
-/// under `cache_dir` when given.
+/// under `cache_dir` when given. `threads`: the threads it may use (all cores when None);
+/// `progress`: a callable `progress(label, done, total)` (see [`PythonProgress`]).
 #[pyfunction]
-#[pyo3(signature = (path, out_dir, cache_dir = None))]
+#[pyo3(signature = (path, out_dir, cache_dir = None, threads = None, progress = None))]
 fn simulate_scene_file(
     py: Python<'_>,
     path: PathBuf,
     out_dir: PathBuf,
     cache_dir: Option<PathBuf>,
+    threads: Option<usize>,
+    progress: Option<Py<PyAny>>,
 ) -> PyResult<String> {
     let cache = cache_dir.as_deref();
-    let summary = py.detach(|| -> PyResult<String> {
-        let json = if ObjectsFile::describes(&path) {
-            let file = ObjectsFile::load(&path).map_err(|e| value_error(&e))?;
-            let report =
-                simulate_objects(&file, &out_dir, cache, &Silent).map_err(|e| value_error(&e))?;
-            serde_json::to_string(&report)
-        } else {
-            let file = SceneFile::load(&path).map_err(|e| value_error(&e))?;
-            let report =
-                run_scene_file(&file, &out_dir, cache, &Silent).map_err(|e| value_error(&e))?;
-            serde_json::to_string(&report)
-        };
-        json.map_err(|e| value_error(&e))
-    })?;
+    let progress: Box<dyn Progress> = match progress {
+        None => Box::new(Silent),
+        Some(callable) => Box::new(PythonProgress {
+            callable,
+            stage: Default::default(),
+        }),
+    };
+    let progress = progress.as_ref();
+    let summary = py.detach(|| {
+        with_threads(threads, || -> PyResult<String> {
+            let json = if ObjectsFile::describes(&path) {
+                let file = ObjectsFile::load(&path).map_err(|e| value_error(&e))?;
+                let report = simulate_objects(&file, &out_dir, cache, progress)
+                    .map_err(|e| value_error(&e))?;
+                serde_json::to_string(&report)
+            } else {
+                let file = SceneFile::load(&path).map_err(|e| value_error(&e))?;
+                let report = run_scene_file(&file, &out_dir, cache, progress)
+                    .map_err(|e| value_error(&e))?;
+                serde_json::to_string(&report)
+            };
+            json.map_err(|e| value_error(&e))
+        })
+    })??;
     Ok(summary)
 }
 

@@ -92,6 +92,30 @@ def test_a_free_fall_scene_is_exact_backward_euler(tmp_path):
     assert (tmp_path / "out" / "frame_00010.ply").is_file()
 
 
+def test_progress_reports_every_step_and_one_thread_falls_as_all_do(tmp_path):
+    scene = tmp_path / "fall.toml"
+    scene.write_text(
+        "[geometry]\nbox = { min = [0, 0, 0], max = [0.4, 0.2, 0.2] }\n"
+        "[material]\nyoungs_modulus = 1e5\npoisson_ratio = 0.3\ndensity = 1000\n"
+        "[basis]\nmodes = 4\nkernels = 60\npoints = 800\n"
+        "[simulation]\nsteps = 6\npoints = 300\nquadrature = { kind = \"full\" }\n"
+        "[scene]\ngravity = [0, -9.8, 0]\n"
+    )
+    events = []
+    summary = freeform.simulate_scene_file(
+        scene, tmp_path / "one", threads=1, progress=lambda *e: events.append(e)
+    )
+    steps = [done for label, done, total in events if label == "simulate"]
+    assert steps == list(range(7)), events
+    assert any(done is None for _, done, _ in events)  # status lines
+    default = freeform.simulate_scene_file(scene, tmp_path / "all")
+    drop = 9.8 * 0.01**2 * 6 * 7 / 2
+    for run in (summary, default):
+        assert run["final_max_displacement"] == pytest.approx(drop, abs=1e-8)
+    with pytest.raises(ValueError, match="threads"):
+        freeform.simulate_scene_file(scene, tmp_path / "none", threads=0)
+
+
 def test_a_shipped_scene_file_runs(tmp_path):
     summary = freeform.simulate_scene_file(
         REPO / "freeform" / "examples" / "scenes" / "minimal.toml", tmp_path / "out"

@@ -14,7 +14,7 @@ A basis for a bar, evaluated at its own points::
 
 import json
 from os import PathLike
-from typing import Any, Optional, Union
+from typing import Any, Callable, Optional, Union
 
 import numpy as np
 
@@ -37,17 +37,29 @@ PathType = Union[str, "PathLike[str]"]
 
 
 def simulate_scene_file(
-    path: PathType, out_dir: PathType = "freeform-out", cache_dir: Optional[PathType] = None
+    path: PathType,
+    out_dir: PathType = "freeform-out",
+    cache_dir: Optional[PathType] = None,
+    threads: Optional[int] = None,
+    progress: Optional[Callable[[str, Optional[int], Optional[int]], Any]] = None,
 ) -> dict[str, Any]:
     """Run a scene file (TOML or JSON; ``docs/scene-files.md``) and write its frames and
     ``summary.json`` under ``out_dir``; return the summary as a dict (times in ms and s,
     lengths in m, energies in J). Cubatures are cached under ``cache_dir`` when given.
 
+    ``threads`` caps the threads it uses (all cores by default). ``progress(label, done,
+    total)`` is called as work advances: a stage's label with units done and its length
+    (``"simulate"``: steps), or a status line with ``done`` and ``total`` None.
+
     Raises ``ValueError`` naming the file and field for a bad scene, and the stage for a run
     that fails.
     """
     summary = _simulate_scene_file(
-        str(path), str(out_dir), None if cache_dir is None else str(cache_dir)
+        str(path),
+        str(out_dir),
+        None if cache_dir is None else str(cache_dir),
+        threads,
+        progress,
     )
     return json.loads(summary)
 
