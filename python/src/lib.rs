@@ -10,9 +10,9 @@ use std::path::PathBuf;
 
 use freeform::reduced_sim::{DeformationMap, PinTarget, PinnedRegion, ReducedState, Simulator};
 use freeform::{
-    Geometry, ObjectsFile, PinHold, Progress, SceneFile, SceneSpec, Silent, Simulation,
-    SimulationSpec, SplatTable, StressField, failure_chain, prepare_simulator, simulate_objects,
-    simulate_scene_file as run_scene_file,
+    FrameWriter, Geometry, ObjectsFile, PinHold, Progress, SceneFile, SceneSpec, Silent,
+    Simulation, SimulationSpec, SplatTable, StressField, failure_chain, prepare_simulator,
+    simulate_objects, simulate_scene_file as run_scene_file,
 };
 use hyperelastic::{LameParameters, MaterialField, MaterialSample, StableNeoHookean};
 use nalgebra::{DMatrix, Matrix3, Vector3};
@@ -190,6 +190,54 @@ impl PyGeometry {
             ),
             Geometry::Cloud(cloud) => format!("Geometry(cloud: {} points)", cloud.len()),
         }
+    }
+}
+
+/// Writes frames of a geometry's display points (its surface's vertices, or its cloud) as PLY
+/// and VTK files (`frame_NNNNN.ply` / `.vtk`), for ParaView, Blender or MeshLab.
+#[pyclass(module = "freeform._native", name = "FrameWriter", frozen)]
+struct PyFrameWriter {
+    inner: FrameWriter,
+}
+
+#[pymethods]
+impl PyFrameWriter {
+    /// A writer into folder `out_dir` for `geometry`.
+    #[new]
+    fn new(out_dir: PathBuf, geometry: &PyGeometry) -> Self {
+        PyFrameWriter {
+            inner: FrameWriter::new(out_dir, &geometry.inner),
+        }
+    }
+
+    /// The rest positions `(n, 3)` (m) the frames deform: pass these to
+    /// `Simulation.deformed_points` and write what it returns.
+    #[getter]
+    fn rest_positions<'py>(&self, py: Python<'py>) -> Bound<'py, PyArray2<f64>> {
+        points_array(py, self.inner.rest_positions())
+    }
+
+    /// Writes frame `index` at `time` (s) with the display points at `positions` (`(n, 3)`, m,
+    /// in the order of `rest_positions`); returns the PLY and VTK paths.
+    fn write(
+        &self,
+        index: usize,
+        positions: PyReadonlyArray2<'_, f64>,
+        time: f64,
+    ) -> PyResult<(PathBuf, PathBuf)> {
+        let positions = points_of(&positions, "positions")?;
+        let expected = self.inner.rest_positions().len();
+        if positions.len() != expected {
+            return Err(PyValueError::new_err(format!(
+                "{} positions for {expected} display points",
+                positions.len()
+            )));
+        }
+        let [ply, vtk] = self
+            .inner
+            .write(index, &positions, time)
+            .map_err(|e| os_error(&e))?;
+        Ok((ply, vtk))
     }
 }
 
@@ -781,6 +829,7 @@ fn _native(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add_class::<PyBasis>()?;
     m.add_class::<PySimulation>()?;
     m.add_class::<PySplats>()?;
+    m.add_class::<PyFrameWriter>()?;
     m.add_function(wrap_pyfunction!(build_basis, m)?)?;
     m.add_function(wrap_pyfunction!(simulate_scene_file, m)?)?;
     Ok(())

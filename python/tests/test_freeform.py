@@ -291,3 +291,20 @@ def test_deformed_splats_move_their_centres_and_map_covariances_by_f(tmp_path):
     deformed.write(tmp_path / "deformed.ply")
     again = freeform.Splats.read(tmp_path / "deformed.ply")
     np.testing.assert_array_equal(again.positions, deformed.positions)
+
+
+def test_frames_of_a_surface_hold_its_deformed_vertices(bar, tmp_path):
+    points, basis = bar
+    geometry = freeform.Geometry.box([0, 0, 0], [1.0, 0.25, 0.25])
+    writer = freeform.FrameWriter(tmp_path / "frames", geometry)
+    sim = cantilever(points, basis)
+    sim.run(3)
+    x = sim.deformed_points(writer.rest_positions)
+    ply, vtk = writer.write(3, x, sim.time)
+    lines = pathlib.Path(ply).read_text().splitlines()
+    assert f"element vertex {len(x)}" in lines and pathlib.Path(vtk).is_file()
+    start = lines.index("end_header") + 1
+    written = np.array([[float(v) for v in line.split()] for line in lines[start : start + len(x)]])
+    np.testing.assert_allclose(written, x, rtol=1e-6, atol=1e-7)  # the PLY holds float32
+    with pytest.raises(ValueError, match="display points"):
+        writer.write(4, x[:-1], sim.time)

@@ -19,11 +19,20 @@ from typing import Any, Callable, Optional, Union
 import numpy as np
 
 from . import _native
-from ._native import Basis, Geometry, IntegrationPoints, Material, Splats, build_basis
+from ._native import (
+    Basis,
+    FrameWriter,
+    Geometry,
+    IntegrationPoints,
+    Material,
+    Splats,
+    build_basis,
+)
 from ._native import simulate_scene_file as _simulate_scene_file
 
 __all__ = [
     "Basis",
+    "FrameWriter",
     "Geometry",
     "IntegrationPoints",
     "Material",
