@@ -5,11 +5,10 @@ use std::path::Path;
 use anyhow::Result;
 use freeform::terminal_progress::{BarProgress, TerminalProgress};
 use freeform::{
-    Camera, Geometry, ObjectsFile, PreviewParams, SceneFile, SimulateReport, point_splats,
-    render_preview, simulate_objects, simulate_scene_file,
+    Geometry, ObjectsFile, SceneFile, SimulateReport, points_preview, simulate_objects,
+    simulate_scene_file,
 };
 use nalgebra::Vector3;
-use rkpm_core::Aabb;
 
 use crate::render::write_png;
 
@@ -220,7 +219,7 @@ fn write_preview(report: &SimulateReport, file: &SceneFile, png: &Path) -> Resul
 }
 
 /// `write_preview` of `points` (m) with their `values` (colour scale) or grey, opaque or
-/// with the given opacities (0 … 1).
+/// with the given opacities (0 … 1), seen about the scene's up (against gravity, else +y).
 fn write_points_preview(
     points: &[Vector3<f64>],
     values: Option<&[f64]>,
@@ -228,24 +227,8 @@ fn write_points_preview(
     gravity: Option<Vector3<f64>>,
     png: &Path,
 ) -> Result<()> {
-    let extent = Aabb::from_points(points).map_or(Vector3::repeat(1.0), |b| b.extent());
-    // Points on a surface: spacing about sqrt(area / n), the area taken from the box.
-    let area = 2.0 * (extent.x * extent.y + extent.y * extent.z + extent.z * extent.x);
-    let radius = 0.3 * (area / points.len().max(1) as f64).sqrt();
     let up = gravity
         .filter(|g| g.norm() > 0.0)
         .map_or(Vector3::y(), |g| -g.normalize());
-    let mut splats = point_splats(points, values, radius);
-    if let Some(opacity) = opacity {
-        for (splat, &alpha) in splats.iter_mut().zip(opacity) {
-            splat.opacity = alpha;
-        }
-    }
-    let params = PreviewParams {
-        width: 512,
-        height: 512,
-        camera: Camera::framing(points, up, 30.0, 20.0),
-        background: [1.0, 1.0, 1.0],
-    };
-    write_png(&render_preview(&splats, &params)?, png)
+    write_png(&points_preview(points, values, opacity, up, 512, 512)?, png)
 }

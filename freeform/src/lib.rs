@@ -57,8 +57,8 @@ pub use scene_file::{
 };
 pub use simulate::{SimulateError, SimulateReport, StressSummary, simulate_scene_file};
 pub use splat_preview::{
-    Camera, PreviewError, PreviewImage, PreviewParams, PreviewSplat, point_splats, preview_splats,
-    render_preview,
+    Camera, PreviewError, PreviewImage, PreviewParams, PreviewSplat, point_splats, points_preview,
+    preview_splats, render_preview,
 };
 pub use splats::{SplatFileError, SplatTable};
 pub use stress_field::{StressField, StressFieldError};

@@ -95,6 +95,57 @@ pub struct PreviewParams {
     pub background: [f64; 3],
 }
 
+/// A `width × height` preview of `points` (m) seen from 30° about and 20° above `up`
+/// ([`Camera::framing`]), on white: each point a round splat of radius `0.3 · sqrt(A / n)` (A
+/// the surface area of the points' bounding box, so about the spacing of n points on a
+/// surface), coloured by `values` on [`point_splats`]' scale (grey without), with `opacity`
+/// per point in [0, 1] (opaque without).
+///
+/// # Errors
+/// [`PreviewError::Params`] for a `values` or `opacity` that does not hold one entry per
+/// point, an empty size, or an `up` that is zero or not finite.
+pub fn points_preview(
+    points: &[Vector3<f64>],
+    values: Option<&[f64]>,
+    opacity: Option<&[f64]>,
+    up: Vector3<f64>,
+    width: usize,
+    height: usize,
+) -> Result<PreviewImage, PreviewError> {
+    for (what, given) in [("values", values), ("opacity", opacity)] {
+        if let Some(given) = given
+            && given.len() != points.len()
+        {
+            return Err(PreviewError::Params(format!(
+                "{} {what} for {} points",
+                given.len(),
+                points.len()
+            )));
+        }
+    }
+    if !(up.iter().all(|c| c.is_finite()) && up.norm() > 0.0) {
+        return Err(PreviewError::Params(format!(
+            "the up direction must be finite and non-zero, got {up:?}"
+        )));
+    }
+    let extent = Aabb::from_points(points).map_or(Vector3::repeat(1.0), |b| b.extent());
+    let area = 2.0 * (extent.x * extent.y + extent.y * extent.z + extent.z * extent.x);
+    let radius = 0.3 * (area / points.len().max(1) as f64).sqrt();
+    let mut splats = point_splats(points, values, radius);
+    if let Some(opacity) = opacity {
+        for (splat, &alpha) in splats.iter_mut().zip(opacity) {
+            splat.opacity = alpha;
+        }
+    }
+    let params = PreviewParams {
+        width,
+        height,
+        camera: Camera::framing(points, up, 30.0, 20.0),
+        background: [1.0, 1.0, 1.0],
+    };
+    render_preview(&splats, &params)
+}
+
 /// An RGB image, rows from the top, 8 bits per channel.
 #[derive(Clone, Debug, PartialEq)]
 pub struct PreviewImage {

@@ -11,8 +11,8 @@ use std::path::PathBuf;
 use freeform::reduced_sim::{DeformationMap, PinTarget, PinnedRegion, ReducedState, Simulator};
 use freeform::{
     FrameWriter, Geometry, ObjectsFile, PinHold, Progress, SceneFile, SceneSpec, Silent,
-    Simulation, SimulationSpec, SplatTable, StressField, failure_chain, prepare_simulator,
-    simulate_objects, simulate_scene_file as run_scene_file,
+    Simulation, SimulationSpec, SplatTable, StressField, failure_chain, points_preview,
+    prepare_simulator, simulate_objects, simulate_scene_file as run_scene_file,
 };
 use hyperelastic::{LameParameters, MaterialField, MaterialSample, StableNeoHookean};
 use nalgebra::{DMatrix, Matrix3, Vector3};
@@ -820,6 +820,37 @@ impl PySimulation {
     }
 }
 
+/// A `(height, width, 3)` uint8 RGB preview of `points` (`(n, 3)`, m) seen from 30° about and
+/// 20° above `up`, each point a round splat, coloured by `values` (`(n,)`, e.g. von Mises
+/// stress; grey without) with `opacity` (`(n,)` in [0, 1]; opaque without), on white.
+#[pyfunction]
+#[pyo3(signature = (points, values = None, opacity = None, up = [0.0, 1.0, 0.0], width = 512, height = 512))]
+fn render_preview<'py>(
+    py: Python<'py>,
+    points: PyReadonlyArray2<'py, f64>,
+    values: Option<Vec<f64>>,
+    opacity: Option<Vec<f64>>,
+    up: [f64; 3],
+    width: usize,
+    height: usize,
+) -> PyResult<Bound<'py, PyArray3<u8>>> {
+    let points = points_of(&points, "points")?;
+    let image = py
+        .detach(|| {
+            points_preview(
+                &points,
+                values.as_deref(),
+                opacity.as_deref(),
+                Vector3::from(up),
+                width,
+                height,
+            )
+        })
+        .map_err(|e| value_error(&e))?;
+    let shape = (image.height, image.width, 3);
+    Ok(Array3::from_shape_fn(shape, |(y, x, c)| image.pixel(x, y)[c]).into_pyarray(py))
+}
+
 /// The extension module.
 #[pymodule]
 fn _native(m: &Bound<'_, PyModule>) -> PyResult<()> {
@@ -832,5 +863,6 @@ fn _native(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add_class::<PyFrameWriter>()?;
     m.add_function(wrap_pyfunction!(build_basis, m)?)?;
     m.add_function(wrap_pyfunction!(simulate_scene_file, m)?)?;
+    m.add_function(wrap_pyfunction!(render_preview, m)?)?;
     Ok(())
 }

@@ -308,3 +308,22 @@ def test_frames_of_a_surface_hold_its_deformed_vertices(bar, tmp_path):
     np.testing.assert_allclose(written, x, rtol=1e-6, atol=1e-7)  # the PLY holds float32
     with pytest.raises(ValueError, match="display points"):
         writer.write(4, x[:-1], sim.time)
+
+
+def test_a_preview_draws_the_points_coloured_on_white():
+    geometry = freeform.Geometry.box([0, 0, 0], [1.0, 0.25, 0.25])
+    x = geometry.integration_points(2000).positions
+    image = freeform.render_preview(x, width=200, height=100)
+    assert image.shape == (100, 200, 3) and image.dtype == np.uint8
+    assert np.all(image[0, 0] == 255)  # the corner is background
+    drawn = np.any(image < 250, axis=2)
+    assert drawn[40:60, 80:120].mean() > 0.5  # the box fills the middle
+    grey = image[drawn]
+    assert np.all(np.abs(grey[:, 0].astype(int) - grey[:, 2]) <= 2)  # no values: grey
+    coloured = freeform.render_preview(x, values=x[:, 0], width=200, height=100)
+    c = coloured[np.any(coloured < 250, axis=2)].astype(int)
+    assert np.abs(c[:, 0] - c[:, 2]).max() > 50  # a colour scale, not grey
+    with pytest.raises(ValueError, match="values"):
+        freeform.render_preview(x, values=[1.0, 2.0])
+    with pytest.raises(ValueError, match="up"):
+        freeform.render_preview(x, up=[0, 0, 0])

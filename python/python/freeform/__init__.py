@@ -27,6 +27,7 @@ from ._native import (
     Material,
     Splats,
     build_basis,
+    render_preview,
 )
 from ._native import simulate_scene_file as _simulate_scene_file
 
@@ -39,6 +40,7 @@ __all__ = [
     "Simulation",
     "Splats",
     "build_basis",
+    "render_preview",
     "simulate_scene_file",
 ]
 
