@@ -220,19 +220,11 @@ where
         {
             match cache_dir.and_then(|dir| load_cached_cubature(&model, &params, dir)) {
                 Some((cubature, report)) => {
-                    let choice = QuadratureChoice {
-                        planned_steps,
-                        predicted_full_seconds: 0.0,
-                        budget_seconds: 0.0,
-                        spent_seconds: 0.0,
-                        chose_cubature: true,
-                        noted_over_budget: false,
-                    };
                     let report = QuadratureReport {
                         kind: "cubature".to_string(),
                         points: cubature.len(),
                         cubature: Some(report),
-                        choice: Some(choice),
+                        choice: Some(QuadratureChoice::cached(planned_steps, 0.0)),
                     };
                     let model = model
                         .with_elastic_quadrature(cubature)

@@ -20,6 +20,35 @@ def bar():
     return points, basis
 
 
+def fall_scene(folder, steps):
+    """A scene file of a small rubber box falling freely for `steps` steps of 0.01 s."""
+    scene = folder / "fall.toml"
+    scene.write_text(
+        "[geometry]\nbox = { min = [0, 0, 0], max = [0.4, 0.2, 0.2] }\n"
+        "[material]\nyoungs_modulus = 1e5\npoisson_ratio = 0.3\ndensity = 1000\n"
+        "[basis]\nmodes = 4\nkernels = 60\npoints = 800\n"
+        f"[simulation]\nsteps = {steps}\npoints = 300\nquadrature = {{ kind = \"full\" }}\n"
+        "[scene]\ngravity = [0, -9.8, 0]\n"
+    )
+    return scene
+
+
+def fall_drop(steps, h=0.01):
+    """Backward Euler's free fall from rest: x_n = x_0 - g h² n (n + 1) / 2 (m)."""
+    return 9.8 * h**2 * steps * (steps + 1) / 2
+
+
+def central_differences(function, x, h=1e-6):
+    """``∂function/∂x`` at the points ``x`` ``(n, 3)`` by central differences, with the axis of
+    the derivative last: ``(n, ..., 3)``."""
+    columns = []
+    for k in range(3):
+        e = np.zeros(3)
+        e[k] = h
+        columns.append((function(x + e) - function(x - e)) / (2 * h))
+    return np.stack(columns, axis=-1)
+
+
 def cantilever(points, basis):
     """The bar clamped at x <= 0.05 m under gravity, on every point."""
     return freeform.Simulation(
@@ -59,12 +88,8 @@ def test_weight_gradients_match_central_differences(bar):
     x = rng.uniform([0.2, 0.07, 0.07], [0.8, 0.18, 0.18], size=(5, 3))
     g = basis.weight_gradients(x)
     assert g.shape == (5, 7, 3)
-    h = 1e-6
-    for k in range(3):
-        e = np.zeros(3)
-        e[k] = h
-        fd = (basis.weights(x + e) - basis.weights(x - e)) / (2 * h)
-        np.testing.assert_allclose(g[:, :, k], fd, rtol=1e-5, atol=1e-6 * np.abs(fd).max())
+    fd = central_differences(basis.weights, x)
+    np.testing.assert_allclose(g, fd, rtol=1e-5, atol=1e-6 * np.abs(fd).max())
 
 
 def test_a_saved_basis_loads_with_the_same_weights(bar, tmp_path):
@@ -75,32 +100,16 @@ def test_a_saved_basis_loads_with_the_same_weights(bar, tmp_path):
 
 
 def test_a_free_fall_scene_is_exact_backward_euler(tmp_path):
-    scene = tmp_path / "fall.toml"
-    scene.write_text(
-        "[geometry]\nbox = { min = [0, 0, 0], max = [0.4, 0.2, 0.2] }\n"
-        "[material]\nyoungs_modulus = 1e5\npoisson_ratio = 0.3\ndensity = 1000\n"
-        "[basis]\nmodes = 4\nkernels = 60\npoints = 800\n"
-        "[simulation]\nsteps = 10\npoints = 300\nquadrature = { kind = \"full\" }\n"
-        "[scene]\ngravity = [0, -9.8, 0]\n"
-    )
+    scene = fall_scene(tmp_path, 10)
     summary = freeform.simulate_scene_file(scene, tmp_path / "out")
     assert summary["frames_written"] == 11
     assert summary["unconverged_steps"] == 0
-    # Backward Euler from rest: x_n = x_0 - g h^2 n (n + 1) / 2, the same for every point.
-    drop = 9.8 * 0.01**2 * 10 * 11 / 2
-    assert summary["final_max_displacement"] == pytest.approx(drop, abs=1e-8)
+    assert summary["final_max_displacement"] == pytest.approx(fall_drop(10), abs=1e-8)
     assert (tmp_path / "out" / "frame_00010.ply").is_file()
 
 
 def test_progress_reports_every_step_and_one_thread_falls_as_all_do(tmp_path):
-    scene = tmp_path / "fall.toml"
-    scene.write_text(
-        "[geometry]\nbox = { min = [0, 0, 0], max = [0.4, 0.2, 0.2] }\n"
-        "[material]\nyoungs_modulus = 1e5\npoisson_ratio = 0.3\ndensity = 1000\n"
-        "[basis]\nmodes = 4\nkernels = 60\npoints = 800\n"
-        "[simulation]\nsteps = 6\npoints = 300\nquadrature = { kind = \"full\" }\n"
-        "[scene]\ngravity = [0, -9.8, 0]\n"
-    )
+    scene = fall_scene(tmp_path, 6)
     events = []
     summary = freeform.simulate_scene_file(
         scene, tmp_path / "one", threads=1, progress=lambda *e: events.append(e)
@@ -109,9 +118,8 @@ def test_progress_reports_every_step_and_one_thread_falls_as_all_do(tmp_path):
     assert steps == list(range(7)), events
     assert any(done is None for _, done, _ in events)  # status lines
     default = freeform.simulate_scene_file(scene, tmp_path / "all")
-    drop = 9.8 * 0.01**2 * 6 * 7 / 2
     for run in (summary, default):
-        assert run["final_max_displacement"] == pytest.approx(drop, abs=1e-8)
+        assert run["final_max_displacement"] == pytest.approx(fall_drop(6), abs=1e-8)
     with pytest.raises(ValueError, match="threads"):
         freeform.simulate_scene_file(scene, tmp_path / "none", threads=0)
 
@@ -153,7 +161,7 @@ def test_a_stepped_free_fall_is_exact_backward_euler(bar):
     reports = sim.run(10)
     assert all(r["converged"] for r in reports)
     assert sim.time == pytest.approx(0.1, abs=1e-12)
-    drop = 9.8 * 0.01**2 * 10 * 11 / 2
+    drop = fall_drop(10)
     x = points.positions
     np.testing.assert_allclose(sim.deformed_points(), x - [0, drop, 0], atol=1e-8)
     corners = np.array([[0.0, 0.0, 0.0], [1.0, 0.25, 0.25]])
@@ -198,12 +206,7 @@ def test_deformation_gradients_and_stress_agree_with_differences_and_linear_elas
     x = rng.uniform([0.1, 0.05, 0.05], [0.9, 0.2, 0.2], size=(6, 3))
     f = sim.deformation_gradients(x)
     assert f.shape == (6, 3, 3)
-    h = 1e-6
-    for c in range(3):
-        e = np.zeros(3)
-        e[c] = h
-        column = (sim.deformed_points(x + e) - sim.deformed_points(x - e)) / (2 * h)
-        np.testing.assert_allclose(f[:, :, c], column, atol=1e-7)
+    np.testing.assert_allclose(f, central_differences(sim.deformed_points, x), atol=1e-7)
     s = sim.stress(x)
     sigma = s["cauchy"]
     assert s["inverted"] == []

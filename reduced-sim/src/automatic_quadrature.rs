@@ -45,6 +45,21 @@ pub struct QuadratureChoice {
     pub noted_over_budget: bool,
 }
 
+impl QuadratureChoice {
+    /// The choice of a run of `planned_steps` steps that found its cubature in the cache:
+    /// nothing predicted or trained, `spent_seconds` spent looking.
+    pub fn cached(planned_steps: usize, spent_seconds: f64) -> Self {
+        QuadratureChoice {
+            planned_steps,
+            predicted_full_seconds: 0.0,
+            budget_seconds: 0.0,
+            spent_seconds,
+            chose_cubature: true,
+            noted_over_budget: false,
+        }
+    }
+}
+
 /// The share of what a cubature can still save that its training may spend.
 pub const SAVING_SHARE: f64 = 0.5;
 

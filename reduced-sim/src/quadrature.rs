@@ -317,14 +317,8 @@ impl QuadratureRule {
                 if let Some((quadrature, report)) =
                     cache_dir.and_then(|dir| load_cached_cubature(&model, params, dir))
                 {
-                    let choice = QuadratureChoice {
-                        planned_steps: planned.steps,
-                        predicted_full_seconds: 0.0,
-                        budget_seconds: 0.0,
-                        spent_seconds: start.elapsed().as_secs_f64(),
-                        chose_cubature: true,
-                        noted_over_budget: false,
-                    };
+                    let choice =
+                        QuadratureChoice::cached(planned.steps, start.elapsed().as_secs_f64());
                     return finish(model, "cubature", quadrature, Some(report), Some(choice));
                 }
                 let predicted = ElasticCost::measure(&model).run(planned);
