@@ -76,3 +76,10 @@ pub(crate) fn analytic_model_with_spacing(
     .expect("valid model");
     (model, points)
 }
+
+/// A deterministic z of length `len` and moderate amplitude (|F − I| about 0.1 at 0.02).
+pub(crate) fn probe_z(len: usize, amplitude: f64) -> Vec<f64> {
+    (0..len)
+        .map(|i| amplitude * ((i as f64 * 1.37).sin() + 0.3 * (i as f64 * 0.71).cos()))
+        .collect()
+}

@@ -24,7 +24,7 @@ use crate::cubature::{
 use crate::quadrature::ElasticQuadrature;
 use crate::reduced_model::ReducedModel;
 
-/// What [`QuadratureRule::Automatic`] predicted and chose.
+/// What [`crate::QuadratureRule::Automatic`] predicted and chose.
 #[derive(Clone, Copy, Debug, PartialEq, Serialize, Deserialize)]
 pub struct QuadratureChoice {
     /// Steps the choice was made for (the rest of the run).

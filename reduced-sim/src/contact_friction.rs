@@ -28,9 +28,10 @@
 //! Hessian in z are `B_iᵀ g_i` and `B_iᵀ H_i B_i`.
 
 use faer::Mat;
+use hyperelastic::Tangent;
 use nalgebra::{Matrix3, Vector3};
 
-use crate::deformation_map::DeformationMap;
+use crate::terms::step_term::{StepTerm, TermPoint};
 
 /// One contact of a step's friction, lagged.
 #[derive(Clone, Copy, Debug)]
@@ -113,37 +114,6 @@ impl ContactFriction {
         d - self.normals[k] * self.normals[k].dot(&d)
     }
 
-    /// D(z) (J).
-    pub(crate) fn energy(&self, map: &DeformationMap, z: &[f64]) -> f64 {
-        let x = map.subset(&self.points).positions(z);
-        x.iter()
-            .enumerate()
-            .map(|(k, x)| self.limit[k] * f0(self.slip(k, x).norm(), self.epsilon))
-            .sum()
-    }
-
-    /// Adds ∂D/∂z to `gradient` and, when given, ∂²D/∂z² to `hessian`.
-    pub(crate) fn add_derivatives(
-        &self,
-        map: &DeformationMap,
-        z: &[f64],
-        gradient: &mut [f64],
-        hessian: Option<&mut Mat<f64>>,
-    ) {
-        let mut forces = Vec::with_capacity(self.points.len());
-        let mut stiffnesses = Vec::with_capacity(self.points.len());
-        for (k, &i) in self.points.iter().enumerate() {
-            let u = self.slip(k, &map.position(i, z));
-            let (g, h) = slip_derivatives(&u, &self.normals[k], self.limit[k], self.epsilon);
-            forces.push(g);
-            stiffnesses.push(h);
-        }
-        map.add_point_gradients(&self.points, &forces, gradient);
-        if let Some(hessian) = hessian {
-            map.add_point_hessians(&self.points, &stiffnesses, hessian);
-        }
-    }
-
     /// Contact points of this step.
     #[cfg(test)]
     pub(crate) fn points(&self) -> &[usize] {
@@ -193,9 +163,72 @@ fn slope_and_curvature(y: f64, epsilon: f64) -> (f64, f64) {
     }
 }
 
+/// `D(z) = Σ_k μλ_k f₀(|T_k (x_k(z) − x̄_k)|)` (J), the lagged friction of one step (IPC's
+/// smoothed Coulomb friction, see the module docs).
+impl StepTerm for ContactFriction {
+    fn name(&self) -> &str {
+        "friction"
+    }
+
+    fn add_energy(&self, at: &TermPoint<'_>, energy: &mut f64) {
+        let x = at.map.subset(&self.points).positions(at.z);
+        *energy += x
+            .iter()
+            .enumerate()
+            .map(|(k, x)| self.limit[k] * f0(self.slip(k, x).norm(), self.epsilon))
+            .sum::<f64>();
+    }
+
+    fn add_derivatives(
+        &self,
+        at: &TermPoint<'_>,
+        _tangent: Tangent,
+        gradient: &mut [f64],
+        hessian: Option<&mut Mat<f64>>,
+    ) {
+        let (map, z) = (at.map, at.z);
+        let mut forces = Vec::with_capacity(self.points.len());
+        let mut stiffnesses = Vec::with_capacity(self.points.len());
+        for (k, &i) in self.points.iter().enumerate() {
+            let u = self.slip(k, &map.position(i, z));
+            let (g, h) = slip_derivatives(&u, &self.normals[k], self.limit[k], self.epsilon);
+            forces.push(g);
+            stiffnesses.push(h);
+        }
+        map.add_point_gradients(&self.points, &forces, gradient);
+        if let Some(hessian) = hessian {
+            map.add_point_hessians(&self.points, &stiffnesses, hessian);
+        }
+    }
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::analytic_field::{analytic_model, probe_z};
+    use crate::scene_terms::term_point;
+    use crate::terms::term_check::{TermCheckParams, check_term};
+
+    /// Contacts on every fourth point with turned normals, slips both below and beyond ε.
+    #[test]
+    fn lagged_friction_passes_the_term_check() {
+        let (model, _) = analytic_model();
+        let map = model.deformation_map();
+        let z = probe_z(map.layout().len(), 0.02);
+        let contacts: Vec<FrictionContact> = (0..map.len())
+            .step_by(4)
+            .map(|i| FrictionContact {
+                point: i,
+                previous: map.rest_positions()[i]
+                    + Vector3::new(0.002 * (i % 7) as f64, 0.0, 0.001),
+                limit: 10.0 + i as f64,
+                normal: Vector3::new(0.1 * (i % 3) as f64, 1.0, 0.0).normalize(),
+            })
+            .collect();
+        let friction = ContactFriction::new(&contacts, 5e-3).unwrap();
+        let at = term_point(&model, &z, 0.0);
+        check_term(&friction, &at, &TermCheckParams::default()).unwrap();
+    }
 
     #[test]
     fn the_smoothing_is_continuous_with_its_slope_at_the_threshold_and_reaches_coulomb() {

@@ -252,7 +252,7 @@ impl DeformationMap {
     }
 
     /// Deformation gradients `F_i(z) = I + Zᵀ G_i` (dimensionless), each formed by
-    /// [`deformation_gradient_of_block`]: the same bits as the `F_i` the one-pass elastic
+    /// `deformation_gradient_of_block`: the same bits as the `F_i` the one-pass elastic
     /// energy and gradient form, so a gradient taken at these F equals
     /// [`crate::ReducedModel::elastic_gradient`] at z to the bit.
     ///

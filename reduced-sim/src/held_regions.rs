@@ -20,7 +20,7 @@
 use nalgebra::{Matrix3x4, Matrix4, Vector3, Vector4};
 
 use crate::reduced_coordinates::ReducedLayout;
-use crate::scene_terms::SceneError;
+use crate::scene_error::SceneError;
 
 /// How far (absolute, dimensionless) the basis's weights on a region may be from 1/0 for the
 /// region to count as held by it. The weights of [`skin_eigen::build_basis_with_regions`] are

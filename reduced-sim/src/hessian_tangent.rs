@@ -1,7 +1,7 @@
 //! Which material tangent the Newton Hessian of a step uses.
 //!
 //! Projected Newton clamps each point's negative tangent eigenvalues to zero
-//! ([`Tangent::ProjectedPsd`]), which keeps every Hessian positive semidefinite but makes it
+//! ([`hyperelastic::Tangent::ProjectedPsd`]), which keeps every Hessian positive semidefinite but makes it
 //! *stiffer* than the true one wherever the material is compressed or buckling, so the solve
 //! converges only linearly. [`HessianTangent::ExactWhenDefinite`] (the default) takes the exact
 //! Hessian of the whole step (inertia included) and projects only when its Cholesky

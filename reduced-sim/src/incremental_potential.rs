@@ -23,7 +23,8 @@ use optimize::NewtonObjective;
 use crate::contact_friction::ContactFriction;
 use crate::hessian_tangent::{HessianTangent, StepTangents};
 use crate::reduced_model::{ReducedModel, add_block_diagonal_product};
-use crate::scene_terms::{SceneTerms, StepTargets};
+use crate::scene_terms::{SceneTerms, term_point};
+use crate::terms::step_term::StepTerm;
 
 /// `1/(2h²) (z - ẑ)ᵀ M_z (z - ẑ)`.
 pub(crate) struct Inertia<'a> {
@@ -37,7 +38,8 @@ pub(crate) struct Inertia<'a> {
 pub struct IncrementalPotential<'a, M: HyperelasticMaterial> {
     pub(crate) model: &'a ReducedModel<M>,
     pub(crate) terms: &'a SceneTerms,
-    pub(crate) targets: StepTargets,
+    /// The time (s) the scene's terms are evaluated at: the end of the step.
+    pub(crate) time: f64,
     pub(crate) inertia: Option<Inertia<'a>>,
     pub(crate) tangent: HessianTangent,
     /// With held regions ([`crate::Scene::held`]): the entries of z Newton solves
@@ -50,9 +52,10 @@ pub struct IncrementalPotential<'a, M: HyperelasticMaterial> {
 impl<M: HyperelasticMaterial> IncrementalPotential<'_, M> {
     /// E(z) (J, up to a constant). Non-finite when some term is.
     pub fn energy(&self, z: &[f64]) -> f64 {
-        let mut e = self.model.elastic_energy(z) + self.terms.energy(self.model, z, &self.targets);
+        let at = term_point(self.model, z, self.time);
+        let mut e = self.model.elastic_energy(z) + self.terms.energy(&at);
         if let Some(friction) = &self.friction {
-            e += friction.energy(self.model.deformation_map(), z);
+            friction.add_energy(&at, &mut e);
         }
         if let Some(inertia) = &self.inertia {
             let d: Vec<f64> = z
@@ -88,21 +91,11 @@ impl<M: HyperelasticMaterial> IncrementalPotential<'_, M> {
         let mut gradient = self.model.elastic_gradient_at(&f);
         let mut hessian = Mat::zeros(z.len(), z.len());
         self.model.add_elastic_hessian_at(&f, tangent, &mut hessian);
-        self.terms.add_derivatives(
-            self.model,
-            z,
-            &self.targets,
-            tangent,
-            &mut gradient,
-            Some(&mut hessian),
-        );
+        let at = term_point(self.model, z, self.time);
+        self.terms
+            .add_derivatives(&at, tangent, &mut gradient, Some(&mut hessian));
         if let Some(friction) = &self.friction {
-            friction.add_derivatives(
-                self.model.deformation_map(),
-                z,
-                &mut gradient,
-                Some(&mut hessian),
-            );
+            friction.add_derivatives(&at, tangent, &mut gradient, Some(&mut hessian));
         }
         self.add_inertia(z, &mut gradient, Some(&mut hessian));
         (gradient, hessian)
@@ -111,16 +104,12 @@ impl<M: HyperelasticMaterial> IncrementalPotential<'_, M> {
     /// `∂E/∂z` alone (no Hessian work).
     pub fn gradient(&self, z: &[f64]) -> Vec<f64> {
         let mut gradient = self.model.elastic_gradient(z);
-        self.terms.add_derivatives(
-            self.model,
-            z,
-            &self.targets,
-            self.tangent.first_try(),
-            &mut gradient,
-            None,
-        );
+        let at = term_point(self.model, z, self.time);
+        let tangent = self.tangent.first_try();
+        self.terms
+            .add_derivatives(&at, tangent, &mut gradient, None);
         if let Some(friction) = &self.friction {
-            friction.add_derivatives(self.model.deformation_map(), z, &mut gradient, None);
+            friction.add_derivatives(&at, tangent, &mut gradient, None);
         }
         self.add_inertia(z, &mut gradient, None);
         gradient
@@ -230,27 +219,11 @@ impl<M: HyperelasticMaterial> NewtonObjective for IncrementalPotential<'_, M> {
         }
     }
 
-    /// With a mesh collider: the largest α ≤ 1 that moves no point by more than half the
-    /// collider's band, so no point can cross the band (beyond which the mesh is not looked
-    /// up) into a wall in one iteration; with the floor's barrier also within its safe step
-    /// ([`crate::FloorContact::Barrier`]); 1 otherwise.
+    /// The largest α ≤ 1 every term allows ([`crate::StepTerm::max_step`]): a mesh collider
+    /// keeps every point within half its band, the barrier keeps points out of contact.
     fn max_step(&self, z: &[f64], step: &[f64]) -> f64 {
-        let barrier = self.terms.barrier_step(self.model, z, step, &self.targets);
-        let Some(band) = self.terms.mesh_band() else {
-            return barrier;
-        };
-        let largest = self
-            .model
-            .deformation_map()
-            .displacements(step)
-            .iter()
-            .map(|d| d.norm())
-            .fold(0.0, f64::max);
-        if largest > 0.0 {
-            (0.5 * band / largest).min(barrier)
-        } else {
-            barrier
-        }
+        self.terms
+            .max_step(&term_point(self.model, z, self.time), step)
     }
 
     fn directional_derivative(&self, gradient: &[f64], step: &[f64]) -> f64 {
@@ -286,17 +259,10 @@ mod tests {
     use test_support::finite_difference;
 
     use super::*;
-    use crate::analytic_field::analytic_model;
+    use crate::analytic_field::{analytic_model, probe_z};
     use crate::collider::{Collider, ColliderShape, Keyframe};
     use crate::scene::{Floor, FloorContact, PenaltyParams, PinTarget, PinnedRegion, Scene};
     use nalgebra::UnitQuaternion;
-
-    /// A deterministic z of moderate amplitude (|F - I| about 0.1).
-    fn probe_z(len: usize, amplitude: f64) -> Vec<f64> {
-        (0..len)
-            .map(|i| amplitude * ((i as f64 * 1.37).sin() + 0.3 * (i as f64 * 0.71).cos()))
-            .collect()
-    }
 
     /// Every term at once: inertia, elasticity, gravity, a moving pin, an active floor, a moving
     /// sphere and a turned box collider, and their friction (lagged at another z, with contacts
@@ -359,7 +325,7 @@ mod tests {
         let potential = IncrementalPotential {
             model: &model,
             terms: &terms,
-            targets: terms.step_targets(0.5),
+            time: 0.5,
             inertia: Some(Inertia {
                 predicted: &predicted,
                 inverse_step_squared: 1e4,
@@ -371,7 +337,7 @@ mod tests {
         let friction = potential.friction.as_ref().expect("points touch the floor");
         assert!(friction.points().len() > 10);
         let inside_colliders = terms
-            .contacts(&model, &probe_z(len, 0.03), 0.5)
+            .contacts(&term_point(&model, &probe_z(len, 0.03), 0.5))
             .iter()
             .filter(|&&c| c >= model.volumes().len())
             .count();
@@ -462,7 +428,7 @@ mod tests {
         let potential = IncrementalPotential {
             model: &model,
             terms: &terms,
-            targets: terms.step_targets(0.0),
+            time: 0.0,
             inertia: Some(Inertia {
                 predicted: &predicted,
                 inverse_step_squared: 1e4,
@@ -472,7 +438,7 @@ mod tests {
             friction: terms.contact_friction(&model, &lag, &lag, 0.0, 0.01),
         };
         let n = model.volumes().len();
-        let contacts = terms.contacts(&model, &z, 0.0);
+        let contacts = terms.contacts(&term_point(&model, &z, 0.0));
         let (on_floor, near_sphere) = (
             contacts.iter().filter(|&&c| c < n).count(),
             contacts.iter().filter(|&&c| c >= n).count(),
@@ -482,7 +448,7 @@ mod tests {
             "{on_floor}, {near_sphere}"
         );
         assert!(potential.friction.is_some());
-        assert!(terms.closest_gap(&model, &z, 0.0) > 0.0);
+        assert!(-terms.deepest(&term_point(&model, &z, 0.0)) > 0.0);
 
         let (gradient, hessian) = potential.derivatives(&z);
         let numeric = finite_difference::gradient(|z| potential.energy(z), &z, 1e-7);
@@ -513,7 +479,7 @@ mod tests {
             alpha > 0.0 && alpha <= 0.9 * floor_gap * (1.0 + 1e-12),
             "safe step {alpha} for a gap of {floor_gap} m"
         );
-        assert!(terms.closest_gap(&model, &at(alpha), 0.0) > 0.0);
+        assert!(-terms.deepest(&term_point(&model, &at(alpha), 0.0)) > 0.0);
         assert!(potential.energy(&at(alpha)).is_finite());
         assert_eq!(potential.energy(&at(1.01 * floor_gap)), f64::INFINITY);
     }
@@ -531,7 +497,7 @@ mod tests {
         let potential = |tangent: HessianTangent, inverse_step_squared: f64| IncrementalPotential {
             model: &model,
             terms: &terms,
-            targets: terms.step_targets(0.0),
+            time: 0.0,
             inertia: Some(Inertia {
                 predicted: &predicted,
                 inverse_step_squared,

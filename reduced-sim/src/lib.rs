@@ -22,9 +22,11 @@ pub mod quadrature;
 pub mod reduced_coordinates;
 pub mod reduced_model;
 pub mod scene;
+mod scene_error;
 mod scene_terms;
 pub mod simulator;
 pub mod skinning_field;
+pub mod terms;
 
 pub use automatic_quadrature::QuadratureChoice;
 pub use body_contact::{BodyContactModel, BodyContactParams};
@@ -49,6 +51,9 @@ pub use reduced_model::{ReducedModel, ReducedModelError};
 pub use scene::{
     Floor, FloorContact, PenaltyParams, PinModulus, PinTarget, PinnedRegion, Scene, TargetFunction,
 };
-pub use scene_terms::SceneError;
+pub use scene_error::SceneError;
 pub use simulator::{ReducedState, SimulationParams, Simulator, StateError, StepError};
 pub use skinning_field::SkinningField;
+pub use terms::{
+    StepTerm, TermCheckError, TermCheckParams, TermCheckReport, TermPoint, check_term,
+};

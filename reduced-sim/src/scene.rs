@@ -10,7 +10,8 @@ use serde::{Deserialize, Serialize};
 
 use crate::collider::Collider;
 use crate::reduced_model::ReducedModel;
-use crate::scene_terms::{SceneError, SceneTerms};
+use crate::scene_error::SceneError;
+use crate::scene_terms::SceneTerms;
 
 /// A target position (m) as a function of rest position X (m) and time t (s).
 pub type TargetFunction = Arc<dyn Fn(&Vector3<f64>, f64) -> Vector3<f64> + Send + Sync>;

@@ -16,7 +16,9 @@ use crate::hessian_tangent::{HessianTangent, StepTangents};
 use crate::incremental_potential::{IncrementalPotential, Inertia};
 use crate::reduced_model::ReducedModel;
 use crate::scene::{PenaltyParams, Scene};
-use crate::scene_terms::{SceneError, SceneTerms};
+use crate::scene_error::SceneError;
+use crate::scene_terms::{SceneTerms, term_point};
+use crate::terms::step_term::StepTerm;
 
 /// Minimizes `objective` from z (updated in place), carrying `factor` across when `newton`
 /// reuses Hessians. A solve that does not converge with the library's shortcuts (Hessian reuse,
@@ -254,7 +256,7 @@ impl<M: HyperelasticMaterial> Simulator<M> {
     /// With held regions: sets the held handles' entries of `z` (length 12(m + 1)) to the
     /// regions' transforms at time `time` (s); does nothing with penalty pins.
     pub fn prescribe(&self, z: &mut [f64], time: f64) {
-        self.terms.prescribe(z, &self.terms.step_targets(time));
+        self.terms.prescribe(z, time);
     }
 
     /// The pin penalty stiffness κ_pin in use (Pa/m², see [`PenaltyParams`]).
@@ -262,13 +264,24 @@ impl<M: HyperelasticMaterial> Simulator<M> {
         self.terms.pin_stiffness()
     }
 
+    /// Adds `term` to every step's incremental potential, after the scene's own terms (a
+    /// spring, a muscle, a magnetic force: see [`StepTerm`], and check it with
+    /// [`crate::check_term`] first). A carried Hessian factorization is dropped.
+    pub fn add_term(&mut self, term: Box<dyn StepTerm>) {
+        self.terms.add_term(term);
+        self.carried = None;
+    }
+
+    /// The current state as a term point.
+    fn now(&self) -> crate::TermPoint<'_> {
+        term_point(&self.model, &self.state.z, self.state.time)
+    }
+
     /// How far the pinned and held points are from their targets now: the largest distance (m),
     /// or `None` without pins. The penalty lets them deviate; this is the number to watch when
     /// choosing [`PenaltyParams::pin_factor`].
     pub fn max_pin_deviation(&self) -> Option<f64> {
-        let targets = self.terms.step_targets(self.state.time);
-        self.terms
-            .max_pin_deviation(&self.model, &self.state.z, &targets, false)
+        self.terms.max_pin_deviation(&self.now(), false)
     }
 
     /// How far the exactly held points ([`crate::Scene::held`]) are from their targets now: the
@@ -276,17 +289,13 @@ impl<M: HyperelasticMaterial> Simulator<M> {
     /// an affine transform to targets that are not an affine motion.
     pub fn max_held_deviation(&self) -> Option<f64> {
         // Without held regions, skip evaluating every pin's targets (callers ask every step).
-        self.terms.free_coordinates()?;
-        let targets = self.terms.step_targets(self.state.time);
-        self.terms
-            .max_pin_deviation(&self.model, &self.state.z, &targets, true)
+        self.terms.max_pin_deviation(&self.now(), true)
     }
 
     /// The deepest penetration (m) of an integration point into the floor or a collider at
     /// the current state (0 without contact): how far the penalty lets the object in.
     pub fn max_penetration(&self) -> f64 {
-        self.terms
-            .max_penetration(&self.model, &self.state.z, self.state.time)
+        self.terms.deepest(&self.now()).max(0.0)
     }
 
     /// The mechanical energy now (J): kinetic `½ żᵀ M_z ż`, elastic, and the scene's potentials
@@ -297,8 +306,7 @@ impl<M: HyperelasticMaterial> Simulator<M> {
         let (z, velocity) = (&self.state.z, &self.state.velocity);
         let kinetic =
             0.5 * crate::incremental_potential::mass_inner(&self.model, velocity, velocity);
-        let targets = self.terms.step_targets(self.state.time);
-        kinetic + self.model.elastic_energy(z) + self.terms.energy(&self.model, z, &targets)
+        kinetic + self.model.elastic_energy(z) + self.terms.energy(&self.now())
     }
 
     /// Integrates the elastic energy by `quadrature` from the next step on
@@ -333,7 +341,9 @@ impl<M: HyperelasticMaterial> Simulator<M> {
         if !finite || !state.time.is_finite() {
             return Err(StateError::NonFinite);
         }
-        self.contacts = self.terms.contacts(&self.model, &state.z, state.time);
+        self.contacts = self
+            .terms
+            .contacts(&term_point(&self.model, &state.z, state.time));
         self.state = state;
         self.carried = None;
         Ok(())
@@ -371,7 +381,7 @@ impl<M: HyperelasticMaterial> Simulator<M> {
                 *z = s + alpha * t;
             }
         }
-        self.terms.prescribe(&mut z, &potential.targets);
+        self.terms.prescribe(&mut z, potential.time);
         let mut report = solve_step(&mut potential, &mut z, &self.params.newton, &mut factor)?;
         // Friction lagging (IPC): the floor's contacts and normal forces taken again from the
         // solution, the slip still measured from the start of the step, and solved again from
@@ -411,9 +421,7 @@ impl<M: HyperelasticMaterial> Simulator<M> {
         if !self.terms.has_barrier() {
             return Ok(());
         }
-        let gap = self
-            .terms
-            .closest_gap(&self.model, &self.state.z, self.state.time);
+        let gap = -self.terms.deepest(&self.now());
         if gap > 0.0 {
             Ok(())
         } else {
@@ -442,7 +450,7 @@ impl<M: HyperelasticMaterial> Simulator<M> {
     fn finish_step(&mut self, z: Vec<f64>, carried: Option<CarriedFactor<Llt<f64>>>) {
         let h = self.params.time_step;
         let time = self.state.time + h;
-        let contacts = self.terms.contacts(&self.model, &z, time);
+        let contacts = self.terms.contacts(&term_point(&self.model, &z, time));
         self.contacts_changed = contacts != self.contacts;
         self.carried = carried.filter(|_| !self.contacts_changed);
         self.contacts = contacts;
@@ -490,7 +498,7 @@ impl<M: HyperelasticMaterial> Simulator<M> {
         IncrementalPotential {
             model: &self.model,
             terms: &self.terms,
-            targets: self.terms.step_targets(self.state.time + h),
+            time: self.state.time + h,
             inertia: Some(Inertia {
                 predicted,
                 inverse_step_squared: 1.0 / (h * h),
@@ -518,18 +526,18 @@ impl<M: HyperelasticMaterial> Simulator<M> {
         let potential = IncrementalPotential {
             model: &self.model,
             terms: &self.terms,
-            targets: self.terms.step_targets(time),
+            time,
             inertia: None,
             tangent: self.params.tangent,
             free: self.terms.free_coordinates(),
             friction: None,
         };
         let mut z = self.state.z.clone();
-        self.terms.prescribe(&mut z, &potential.targets);
+        self.terms.prescribe(&mut z, time);
         let report = minimize(&potential, &mut z, &self.params.newton)?;
         let layout = self.model.deformation_map().layout();
         self.carried = None;
-        self.contacts = self.terms.contacts(&self.model, &z, time);
+        self.contacts = self.terms.contacts(&term_point(&self.model, &z, time));
         self.state = ReducedState {
             z,
             velocity: layout.rest(),
