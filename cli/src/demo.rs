@@ -153,30 +153,17 @@ pub(crate) fn run(
     let material = MaterialField::Uniform(beam_material());
     let scene = bend_scene();
     // The library's defaults (cubature, Hessian reuse), then the paper's setting beside them.
-    let library = Simulation {
-        field: &basis,
-        points: &points,
-        material: &material,
-        material_model: StableNeoHookean,
-        scene: &scene,
-        params: SimulationParams::default(),
-        quadrature: QuadratureRule::default(),
-        cache_dir: Some(cache),
-        pin_hold: freeform::PinHold::default(),
-        pressure: None,
-    };
-    let paper = Simulation {
-        params: SimulationParams {
+    let library = Simulation::new(&basis, &points, &material, StableNeoHookean, &scene)
+        .with_cache_dir(Some(cache));
+    let paper = Simulation::new(&basis, &points, &material, StableNeoHookean, &scene)
+        .with_params(SimulationParams {
             newton: NewtonParams {
                 hessian_reuse: HessianReuse::Never,
                 ..SimulationParams::default().newton
             },
             ..SimulationParams::default()
-        },
-        quadrature: QuadratureRule::PAPER,
-        cache_dir: None,
-        ..library
-    };
+        })
+        .with_quadrature(QuadratureRule::PAPER);
     let vertices = reference.vertices().to_vec();
     let label = |what: &str| format!("FreeForm Bend m={} {what}", size.modes);
     let ours = run_recorded(&library, &vertices, steps, &label("defaults"), &bars)?;

@@ -783,18 +783,12 @@ fn static_row(
         .simulation_sampling
         .beam_points(settings.simulation_points)?;
     let material = MaterialField::Uniform(material);
-    let simulation = Simulation {
-        field: basis,
-        points: &points,
-        material: &material,
-        material_model: StableNeoHookean,
-        scene,
-        params: settings.simulation_params(BEAM_TIME_STEP),
-        quadrature: settings.quadrature,
-        cache_dir: Some(&config.cache_dir),
-        pin_hold: settings.pins,
-        pressure,
-    };
+    let simulation = Simulation::new(basis, &points, &material, StableNeoHookean, scene)
+        .with_params(settings.simulation_params(BEAM_TIME_STEP))
+        .with_quadrature(settings.quadrature)
+        .with_cache_dir(Some(&config.cache_dir))
+        .with_pin_hold(settings.pins)
+        .with_pressure(pressure);
     let equilibrium = static_equilibrium(&simulation, 0.0)?;
     let map = DeformationMap::new(basis, &reference.nodes).map_err(EvalError::OutputMap)?;
     let ours = map.displacements(&equilibrium.z);
@@ -822,10 +816,7 @@ fn static_row(
     row.best_l2 = Some(field_errors(&best_l2, &reference.displacements).0);
     row.best_energy = Some(field_errors(&best_energy, &reference.displacements).0);
     if let Some((space, candidates)) = inf_sup {
-        let candidates_space = Simulation {
-            pressure: Some(space),
-            ..simulation
-        };
+        let candidates_space = simulation.with_pressure(Some(space));
         if let Some(betas) = pressure_inf_sup(&candidates_space, candidates)? {
             row.inf_sup = candidates.iter().copied().zip(betas).collect();
         }

@@ -35,18 +35,9 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
         }), // 0.3 m below the cow
         ..Default::default()
     };
-    let simulation = Simulation {
-        field: &basis,
-        points: &points,
-        material: &MaterialField::Uniform(rubber),
-        material_model: StableNeoHookean,
-        scene: &scene,
-        params: Default::default(), // h = 0.01 s
-        quadrature: Default::default(),
-        cache_dir: None,
-        pin_hold: Default::default(),
-        pressure: None,
-    };
+    let material = MaterialField::Uniform(rubber);
+    // The library's defaults: h = 0.01 s, an optimized cubature.
+    let simulation = Simulation::new(&basis, &points, &material, StableNeoHookean, &scene);
     let frames = FrameWriter::new(&out, &geometry);
     let surface = DeformationMap::new(&basis, frames.rest_positions())?;
     let report = run(&simulation, 60, |frame| {

@@ -21,7 +21,10 @@ pub mod frames;
 pub mod geometry;
 pub mod metrics;
 pub mod object_scene;
+mod object_setup;
 pub mod pin_hold;
+pub mod placement;
+pub mod prelude;
 pub mod pressure_space;
 pub mod progress;
 pub mod recorded_run;
@@ -43,12 +46,13 @@ pub use frames::FrameWriter;
 pub use geometry::{Geometry, GeometryError};
 pub use object_scene::{ObjectSpec, ObjectSummary, ObjectsFile, ObjectsReport, simulate_objects};
 pub use pin_hold::{HeldBasisError, PinHold};
+pub use placement::Placement;
 pub use pressure_space::{PressureSpace, PressureSpaceParams};
 pub use progress::{Progress, Silent};
 pub use recorded_run::{RecordError, RecordedRun, run_recorded};
 pub use runner::{
     Frame, ObserverResult, RunError, RunReport, Simulation, StaticEquilibrium, prepare_simulator,
-    pressure_inf_sup, run, static_equilibrium,
+    prepare_simulator_for, pressure_inf_sup, run, static_equilibrium,
 };
 pub use scene::{Constraint, FloorSpec, Motion, Region, SceneSpec, SceneSpecError};
 pub use scene_file::{

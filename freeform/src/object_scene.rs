@@ -26,33 +26,37 @@
 //! basis = { modes = 16, kernels = 300, points = 10000 }
 //! position = [0, 1, 0]             # x = R X + position (m); R from rotation = [i, j, k, w]
 //! velocity = [0, 0, 0]             # m/s
+//!
+//! [[objects.constraints]]          # this object's held or moving regions, in its rest frame
+//! region = { below = { axis = 1, value = 0.05 } }
+//! motion = "rest"                  # held where it starts
 //! ```
 //!
-//! Constraints (`[[scene.constraints]]`) and exact pins are for one object; stress output is
-//! not written for several objects yet.
+//! Everything else of `[simulation]` applies to every object as to one (`stress`, `pins`,
+//! `pressure`, `quadrature`); each object is prepared as a one-object scene file is
+//! (`ObjectSetup`), then they step together.
 
 use std::path::Path;
 use std::time::Instant;
 
-use hyperelastic::{StableNeoHookean, lame_parameters_of};
+use hyperelastic::StableNeoHookean;
 use nalgebra::{UnitQuaternion, Vector3};
 use reduced_sim::{
     Body, BodyContactParams, DeformationMap, MultiBodySimulator, PlannedRun, QuadratureReport,
-    ReducedModel, ReducedState, Simulator,
 };
 use serde::{Deserialize, Serialize};
-use skin_eigen::{BasisParams, build_basis};
 
-use crate::frames::FrameWriter;
+use crate::object_setup::{ObjectDescription, ObjectOutput, ObjectSetup};
+use crate::pin_hold::PinHold;
+use crate::placement::Placement;
 use crate::progress::Progress;
-use crate::runner::RunError;
-use crate::scene::SceneSpec;
+use crate::runner::prepare_simulator_for;
+use crate::scene::{Constraint, SceneSpec};
 use crate::scene_file::{
     BasisSpec, GeometrySpec, MaterialSpec, SceneFileError, SimulationSpec, load_collider_meshes,
     read_document,
 };
-use crate::simulate::{SimulateError, read_shape, write_summary};
-use crate::splats::SplatTable;
+use crate::simulate::{SimulateError, StressSummary, write_summary};
 
 /// One object of a scene.
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
@@ -80,6 +84,31 @@ pub struct ObjectSpec {
     /// Its initial velocity (m/s, default 0).
     #[serde(default)]
     pub velocity: Vector3<f64>,
+    /// Its held and moving regions (default none), in its rest frame (after `scale`, before
+    /// `position` and `rotation`, which move the targets with it), as `[[scene.constraints]]`
+    /// of a one-object file: `[[objects.constraints]]`.
+    #[serde(default)]
+    pub constraints: Vec<Constraint>,
+}
+
+impl ObjectSpec {
+    /// Where it starts ([`Placement`]).
+    pub fn placement(&self) -> Placement {
+        Placement {
+            rotation: self.rotation,
+            position: self.position,
+            velocity: self.velocity,
+        }
+    }
+
+    /// The scene that acts on it: `shared`'s gravity, floor and colliders, and its own
+    /// constraints.
+    pub fn scene(&self, shared: &SceneSpec) -> SceneSpec {
+        SceneSpec {
+            constraints: self.constraints.clone(),
+            ..shared.clone()
+        }
+    }
 }
 
 fn unit_scale() -> f64 {
@@ -174,13 +203,7 @@ impl ObjectsFile {
                     "a splat file keeps its scale (the frames are the file's splats)".into(),
                 ));
             }
-            let finite = object
-                .position
-                .iter()
-                .chain(&object.velocity)
-                .chain(object.rotation.coords.iter())
-                .all(|v| v.is_finite());
-            if !finite {
+            if !object.placement().is_finite() {
                 return prefixed((
                     "position / rotation / velocity".into(),
                     "must be finite".into(),
@@ -190,30 +213,17 @@ impl ObjectsFile {
         if let Some(defect) = self.simulation.defect() {
             return Some(defect);
         }
-        if self.simulation.stress {
-            return Some((
-                "simulation.stress".into(),
-                "stress output is not written for several objects yet".into(),
-            ));
-        }
-        if self.simulation.pressure.is_some() {
-            return Some((
-                "simulation.pressure".into(),
-                "the projected volumetric term is not available for several objects yet".into(),
-            ));
-        }
-        if self.simulation.pins != crate::PinHold::default() {
-            return Some((
-                "simulation.pins".into(),
-                "several objects have no constraints to hold".into(),
-            ));
-        }
         if !self.scene.constraints.is_empty() {
             return Some((
                 "scene.constraints".into(),
-                "constraints are for one object; several objects take gravity, floor and colliders"
+                "with several objects, give each object its own constraints ([[objects.constraints]])"
                     .into(),
             ));
+        }
+        for (k, object) in self.objects.iter().enumerate() {
+            if let Err(e) = object.scene(&self.scene).validate() {
+                return Some((format!("objects[{k}].constraints"), e.to_string()));
+            }
         }
         if let Err(e) = self.scene.validate() {
             return Some(("scene".into(), e.to_string()));
@@ -237,6 +247,13 @@ pub struct ObjectSummary {
     pub contact_samples: usize,
     /// Basis build time (s).
     pub basis_seconds: f64,
+    /// Its stress over the frames written (with `simulation.stress`).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub stress: Option<StressSummary>,
+    /// The largest distance of its exactly held points from their targets over the run (m;
+    /// with held regions).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub max_held_deviation: Option<f64>,
 }
 
 /// What [`simulate_objects`] did (`summary.json`).
@@ -293,30 +310,6 @@ pub struct ObjectsReport {
     pub final_positions: Vec<Vector3<f64>>,
 }
 
-/// An object's output: its frame writer, the map to its written points, its splat file.
-struct ObjectOutput {
-    writer: FrameWriter,
-    map: DeformationMap,
-    splats: Option<SplatTable>,
-}
-
-impl ObjectOutput {
-    /// Writes frame `index` of this object at z.
-    fn write(&self, index: usize, z: &[f64], time: f64) -> Result<(), SimulateError> {
-        let x = self.map.positions(z);
-        match &self.splats {
-            Some(table) => {
-                let (deformed, _) = table.deformed(&x, &self.map.deformation_gradients(z))?;
-                deformed.write(&self.writer.dir().join(format!("frame_{index:05}.ply")))?;
-            }
-            None => {
-                self.writer.write(index, &x, time)?;
-            }
-        }
-        Ok(())
-    }
-}
-
 /// Runs a scene of several objects with stable Neo-Hookean elasticity and writes each
 /// object's frames (`<out_dir>/<name>/frame_NNNNN.ply` / `.vtk`, every `output_every` steps
 /// and the last), `<out_dir>/colliders_NNNNN.ply` with the colliders' surfaces at the same
@@ -332,7 +325,6 @@ pub fn simulate_objects(
     progress: &dyn Progress,
 ) -> Result<ObjectsReport, SimulateError> {
     let start = Instant::now();
-    let params = file.simulation.simulation_params();
     let mut bodies = Vec::with_capacity(file.objects.len());
     let mut outputs = Vec::with_capacity(file.objects.len());
     let mut summaries = Vec::with_capacity(file.objects.len());
@@ -343,76 +335,45 @@ pub fn simulate_objects(
         _ => PlannedRun::multibody(file.simulation.steps),
     };
     for object in &file.objects {
-        let basis_start = Instant::now();
-        progress.status(&format!(
-            "{}: basis m = {}, K = {}, ≈{} grid points",
-            object.name, object.basis.modes, object.basis.kernels, object.basis.points
-        ));
-        // A splat file keeps its scale (validated), so scaling by 1 leaves it as it is.
-        let (geometry, splats) = read_shape(&object.geometry)?;
-        let geometry = if splats.is_some() {
-            geometry
-        } else {
-            geometry.scaled(object.scale)
+        let scene = object.scene(&file.scene);
+        // An object with nothing to hold is held by nothing, whatever the file's pins say.
+        let simulation_spec = SimulationSpec {
+            pins: if object.constraints.is_empty() {
+                PinHold::Penalty
+            } else {
+                file.simulation.pins
+            },
+            ..file.simulation
         };
-        let material = object.material.field();
-        let fill = object.geometry.fill_interior;
-        let basis_points = geometry.integration_points_filling(object.basis.points, fill)?;
-        let points = geometry.integration_points_filling(file.simulation.points, fill)?;
-        let lame = lame_parameters_of(&material.sample(basis_points.positions()))
-            .map_err(|(_, e)| SimulateError::Material(e))?;
-        let basis_params = BasisParams::default()
-            .with_modes(object.basis.modes)
-            .with_kernels(object.basis.kernels);
-        let (basis, _, _) =
-            build_basis(&basis_points, &lame, &basis_params).map_err(SimulateError::Basis)?;
-        let basis_seconds = basis_start.elapsed().as_secs_f64();
+        let description = ObjectDescription {
+            geometry: &object.geometry,
+            scale: object.scale,
+            material: &object.material,
+            basis: &object.basis,
+            simulation: &simulation_spec,
+            scene: &scene,
+            label: format!("{}: ", object.name),
+        };
+        let (setup, splats) = ObjectSetup::prepare(&description, progress)?;
         progress.status(&format!("{}: elastic quadrature", object.name));
-        let model = ReducedModel::new(
-            &basis,
-            &points,
-            &material.sample(points.positions()),
-            StableNeoHookean,
-        )
-        .map_err(|e| SimulateError::Run(RunError::Model(e)))?;
-        let (model, quadrature) = file
-            .simulation
-            .quadrature
-            .apply_for_run(model, cache_dir, Some(&planned))
-            .map_err(|e| SimulateError::Run(RunError::Quadrature(e)))?;
-        let scene = file
-            .scene
-            .reduced_scene(model.rest_positions())
-            .map_err(|e| SimulateError::Run(RunError::Scene(e)))?;
-        let layout = model.deformation_map().layout();
-        let mut simulator = Simulator::new(model, &scene, params)
-            .map_err(|e| SimulateError::Run(RunError::Simulator(e)))?;
-        let rotation = object.rotation.to_rotation_matrix().into_inner();
-        simulator
-            .set_state(ReducedState {
-                z: layout.rigid_motion(&rotation, &object.position),
-                velocity: layout.uniform_velocity(&object.velocity),
-                time: 0.0,
-            })
-            .expect("a finite pose and velocity (validated)");
-        let samples = geometry.contact_samples(file.contact.radius);
+        let simulation = setup
+            .simulation(&scene, &simulation_spec, cache_dir)
+            .with_placement(Some(object.placement()));
+        let (simulator, quadrature) = prepare_simulator_for(&simulation, planned, &[])?;
+        let samples = setup.geometry.contact_samples(file.contact.radius);
         let contact_samples = samples.len();
-        let samples = DeformationMap::new(&basis, &samples).map_err(SimulateError::OutputMap)?;
+        let samples =
+            DeformationMap::new(&setup.basis, &samples).map_err(SimulateError::OutputMap)?;
         bodies.push(Body::new(simulator, samples).map_err(SimulateError::Objects)?);
-        let writer = FrameWriter::new(out_dir.join(&object.name), &geometry);
-        let map = DeformationMap::new(&basis, writer.rest_positions())
-            .map_err(SimulateError::OutputMap)?;
-        outputs.push(ObjectOutput {
-            writer,
-            map,
-            splats,
-        });
+        outputs.push(setup.output(&out_dir.join(&object.name), splats, file.simulation.stress)?);
         summaries.push(ObjectSummary {
             name: object.name.clone(),
-            simulation_points: points.len(),
+            simulation_points: setup.points.len(),
             quadrature,
             contact_samples,
-            basis_seconds,
+            basis_seconds: setup.basis_seconds,
+            stress: None,
+            max_held_deviation: None,
         });
     }
     let mut sim = MultiBodySimulator::new(bodies, file.contact).map_err(SimulateError::Objects)?;
@@ -420,17 +381,18 @@ pub fn simulate_objects(
 
     let steps = file.simulation.steps;
     let collider_frames = crate::ColliderFrames::new(out_dir, &file.scene.colliders);
-    let write_all = |sim: &MultiBodySimulator<StableNeoHookean>, index: usize| {
-        for (body, output) in sim.bodies().iter().zip(&outputs) {
-            let state = body.simulator().state();
-            output.write(index, &state.z, state.time)?;
-        }
-        if let Some(body) = sim.bodies().first() {
-            collider_frames.write(index, body.simulator().state().time)?;
-        }
-        Ok::<(), SimulateError>(())
-    };
-    write_all(&sim, 0)?;
+    let write_all =
+        |sim: &MultiBodySimulator<StableNeoHookean>, outputs: &mut [ObjectOutput], index: usize| {
+            for (body, output) in sim.bodies().iter().zip(outputs.iter_mut()) {
+                let state = body.simulator().state();
+                output.write(index, &state.z, state.time)?;
+            }
+            if let Some(body) = sim.bodies().first() {
+                collider_frames.write(index, body.simulator().state().time)?;
+            }
+            Ok::<(), SimulateError>(())
+        };
+    write_all(&sim, &mut outputs, 0)?;
     let start_energy = sim.mechanical_energy();
     let (mut energy, mut max_energy_rise) = (start_energy, 0.0_f64);
     let mut frames_written = 1;
@@ -457,6 +419,11 @@ pub fn simulate_objects(
         joint += report.joint_groups;
         unconverged += usize::from(!report.converged());
         max_penetration = max_penetration.max(sim.max_penetration());
+        for (summary, body) in summaries.iter_mut().zip(sim.bodies()) {
+            if let Some(d) = body.simulator().max_held_deviation() {
+                summary.max_held_deviation = Some(summary.max_held_deviation.unwrap_or(0.0).max(d));
+            }
+        }
         max_overlap = max_overlap.max(sim.contact_overlap());
         let now = sim.mechanical_energy();
         max_energy_rise = max_energy_rise.max(now - energy);
@@ -465,12 +432,15 @@ pub fn simulate_objects(
             min_gap = Some(min_gap.map_or(gap, |g| g.min(gap)));
         }
         if step % file.simulation.output_every == 0 || step == steps {
-            write_all(&sim, step)?;
+            write_all(&sim, &mut outputs, step)?;
             frames_written += 1;
         }
         progress.advance();
     }
     progress.finish();
+    for (summary, output) in summaries.iter_mut().zip(&outputs) {
+        summary.stress.clone_from(&output.summary);
+    }
     let n = steps as f64;
     let report = ObjectsReport {
         objects: summaries,

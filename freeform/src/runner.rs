@@ -19,10 +19,15 @@ use rkpm_core::IntegrationPoints;
 use thiserror::Error;
 
 use crate::pin_hold::PinHold;
+use crate::placement::Placement;
 use crate::pressure_space::PressureSpace;
 use crate::scene::{SceneSpec, SceneSpecError};
 
-/// Everything one reduced run needs.
+/// Everything one reduced run needs: made by [`Simulation::new`] with the library's defaults
+/// and changed by its `with_…` methods (or by assigning a field), so that a new option does
+/// not break a caller: `Simulation::new(&basis, &points, &material, StableNeoHookean,
+/// &scene).with_quadrature(QuadratureRule::PAPER)` (the crate docs run one end to end).
+#[non_exhaustive]
 pub struct Simulation<'a, B: SkinningField + ?Sized, M> {
     /// The skinning field (an RKPM eigenbasis, or a baseline's network).
     pub field: &'a B,
@@ -49,6 +54,67 @@ pub struct Simulation<'a, B: SkinningField + ?Sized, M> {
     /// ([`reduced_sim::ReducedModel::with_projected_dilatation`]); `None` (the paper's setting)
     /// integrates the material's own volumetric term at every point.
     pub pressure: Option<&'a PressureSpace>,
+    /// Where the object starts in the world and how fast ([`Placement`]: its constraints'
+    /// targets move with it); `None` (the default) starts it at rest where it was made.
+    pub placement: Option<Placement>,
+}
+
+impl<'a, B: SkinningField + ?Sized, M> Simulation<'a, B, M> {
+    /// A run of `field` on `points` with `material` and `material_model` in `scene`, with the
+    /// defaults: [`SimulationParams::default`] (h = 0.01 s), [`QuadratureRule::default`] (an
+    /// optimized cubature), no cache, pins by the penalty ([`PinHold::Penalty`]) and the
+    /// material's own volumetric term at every point (no pressure space).
+    pub fn new(
+        field: &'a B,
+        points: &'a IntegrationPoints,
+        material: &'a MaterialField,
+        material_model: M,
+        scene: &'a SceneSpec,
+    ) -> Self {
+        Simulation {
+            field,
+            points,
+            material,
+            material_model,
+            scene,
+            params: SimulationParams::default(),
+            quadrature: QuadratureRule::default(),
+            cache_dir: None,
+            pin_hold: PinHold::default(),
+            pressure: None,
+            placement: None,
+        }
+    }
+
+    /// With time step, Newton, tangent and penalty options `params`.
+    pub fn with_params(self, params: SimulationParams) -> Self {
+        Simulation { params, ..self }
+    }
+
+    /// With the elastic energy integrated by `quadrature`.
+    pub fn with_quadrature(self, quadrature: QuadratureRule) -> Self {
+        Simulation { quadrature, ..self }
+    }
+
+    /// With optimized cubatures cached under `cache_dir` (`None`: optimized every run).
+    pub fn with_cache_dir(self, cache_dir: Option<&'a Path>) -> Self {
+        Simulation { cache_dir, ..self }
+    }
+
+    /// With the constrained regions held by `pin_hold`.
+    pub fn with_pin_hold(self, pin_hold: PinHold) -> Self {
+        Simulation { pin_hold, ..self }
+    }
+
+    /// With the locking-free volumetric term on `pressure` (`None`: the material's own).
+    pub fn with_pressure(self, pressure: Option<&'a PressureSpace>) -> Self {
+        Simulation { pressure, ..self }
+    }
+
+    /// Starting from `placement` (`None`: at rest where it was made).
+    pub fn with_placement(self, placement: Option<Placement>) -> Self {
+        Simulation { placement, ..self }
+    }
 }
 
 /// The state after frame `index`, handed to the observer of [`run`].
@@ -124,6 +190,9 @@ pub enum RunError {
     /// The simulator refused the scene (e.g. a penalty that is not positive).
     #[error("setting up the simulator failed")]
     Simulator(#[source] SceneError),
+    /// The placement's state does not fit the simulator (a non-finite pose or velocity).
+    #[error("placing the object failed")]
+    Placement(#[source] reduced_sim::StateError),
     /// A step failed (non-finite energy, a Hessian that is not positive definite, ...).
     #[error("step {step} failed")]
     Step {
@@ -199,12 +268,12 @@ struct Prepared<M: HyperelasticMaterial> {
     pending: Option<CubatureParams>,
 }
 
-/// The reduced simulator of `simulation` at rest for a run of `planned_steps` steps; an
-/// automatic quadrature with no cached cubature is left to be chosen after the warm-up steps
-/// when `online`.
+/// The reduced simulator of `simulation` at its start for the run `planned`; an automatic
+/// quadrature with no cached cubature is left to be chosen after the warm-up steps when
+/// `online`.
 fn simulator<B, M>(
     simulation: &Simulation<'_, B, M>,
-    planned_steps: usize,
+    planned: PlannedRun,
     online: bool,
     extra_pins: &[PinnedRegion],
 ) -> Result<Prepared<M>, RunError>
@@ -212,6 +281,7 @@ where
     B: SkinningField + ?Sized,
     M: HyperelasticMaterial + Clone,
 {
+    let planned_steps = planned.steps;
     let model = reduced_model(simulation)?;
     let cache_dir = simulation.cache_dir;
     let (model, quadrature, pending) = match simulation.quadrature {
@@ -244,11 +314,7 @@ where
         }
         rule => {
             let (model, report) = rule
-                .apply_for_run(
-                    model,
-                    cache_dir,
-                    Some(&PlannedRun::single_body(planned_steps)),
-                )
+                .apply_for_run(model, cache_dir, Some(&planned))
                 .map_err(RunError::Quadrature)?;
             (model, report, None)
         }
@@ -263,8 +329,18 @@ where
         .chain(&scene.held)
         .map(|p| p.points.len())
         .collect();
-    let simulator =
+    let placement = simulation.placement;
+    if let Some(placement) = &placement {
+        scene = placement.place(scene);
+    }
+    let layout = model.deformation_map().layout();
+    let mut simulator =
         Simulator::new(model, &scene, simulation.params).map_err(RunError::Simulator)?;
+    if let Some(placement) = placement {
+        simulator
+            .set_state(placement.state(&layout))
+            .map_err(RunError::Placement)?;
+    }
     Ok(Prepared {
         simulator,
         quadrature,
@@ -291,7 +367,28 @@ where
     B: SkinningField + ?Sized,
     M: HyperelasticMaterial + Clone,
 {
-    let prepared = simulator(simulation, planned_steps, false, extra_pins)?;
+    prepare_simulator_for(
+        simulation,
+        PlannedRun::single_body(planned_steps),
+        extra_pins,
+    )
+}
+
+/// [`prepare_simulator`] for the run `planned` (e.g. [`PlannedRun::multibody`] for one of
+/// several objects in contact, whose automatic quadrature weighs their costlier steps).
+///
+/// # Errors
+/// As [`prepare_simulator`].
+pub fn prepare_simulator_for<B, M>(
+    simulation: &Simulation<'_, B, M>,
+    planned: PlannedRun,
+    extra_pins: &[PinnedRegion],
+) -> Result<(Simulator<M>, QuadratureReport), RunError>
+where
+    B: SkinningField + ?Sized,
+    M: HyperelasticMaterial + Clone,
+{
+    let prepared = simulator(simulation, planned, false, extra_pins)?;
     Ok((prepared.simulator, prepared.quadrature))
 }
 
@@ -326,7 +423,7 @@ where
     M: HyperelasticMaterial + Clone,
 {
     // A static solve costs about what one step does.
-    let mut sim = simulator(simulation, 1, false, &[])?.simulator;
+    let mut sim = simulator(simulation, PlannedRun::single_body(1), false, &[])?.simulator;
     let start = Instant::now();
     let newton = sim.solve_static(time).map_err(RunError::Static)?;
     Ok(StaticEquilibrium {
@@ -397,7 +494,7 @@ where
         mut quadrature,
         region_points,
         mut pending,
-    } = simulator(simulation, steps, true, &[])?;
+    } = simulator(simulation, PlannedRun::single_body(steps), true, &[])?;
     let mut setup_seconds = start.elapsed().as_secs_f64();
     let warmup = warmup_steps(steps);
     let mut first_step_elastic = 0.0;

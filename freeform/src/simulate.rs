@@ -1,30 +1,24 @@
 //! A scene file, run end to end: geometry → basis → simulation → frames on disk.
 
 use std::path::Path;
-use std::time::Instant;
 
 use artifact::{ArtifactError, write_atomically};
-use hyperelastic::{MaterialParameterError, StableNeoHookean, lame_parameters_of};
+use hyperelastic::MaterialParameterError;
 use nalgebra::Vector3;
 use reduced_sim::{
-    DeformationMap, DeformationMapError, MultiBodyError, MultiBodyStepError, QuadratureReport,
-    QuadratureRule,
+    DeformationMapError, MultiBodyError, MultiBodyStepError, QuadratureReport, QuadratureRule,
 };
 use rkpm_core::PointCloud;
 use serde::{Deserialize, Serialize};
-use skin_eigen::{BasisError, BasisParams};
+use skin_eigen::BasisError;
 use thiserror::Error;
 
-use crate::frames::FrameWriter;
 use crate::geometry::{Geometry, GeometryError};
-use crate::pin_hold::HeldBasisError;
-use crate::pressure_space::PressureSpace;
+use crate::object_setup::{ObjectDescription, ObjectSetup};
 use crate::progress::Progress;
-use crate::runner::RunError;
-use crate::runner::{Simulation, run};
+use crate::runner::{RunError, run};
 use crate::scene_file::{GeometrySpec, SceneFile};
 use crate::splats::{SplatFileError, SplatTable};
-use crate::stress_field::StressField;
 
 /// What [`simulate_scene_file`] did.
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
@@ -121,6 +115,9 @@ pub enum SimulateError {
     /// The 3DGS file could not be read or a deformed frame written.
     #[error(transparent)]
     Splats(#[from] SplatFileError),
+    /// The stress at a frame could not be evaluated.
+    #[error(transparent)]
+    Stress(#[from] crate::StressFieldError),
     /// The objects of a scene do not fit together ([`crate::simulate_objects`]).
     #[error("the objects do not make a scene")]
     Objects(#[source] MultiBodyError),
@@ -179,92 +176,23 @@ pub fn simulate_scene_file(
     cache_dir: Option<&Path>,
     progress: &dyn Progress,
 ) -> Result<SimulateReport, SimulateError> {
-    let (geometry, splats) = read_shape(&file.geometry)?;
-    let material = file.material.field();
-    let lame_at = |positions: &[Vector3<f64>]| {
-        lame_parameters_of(&material.sample(positions)).map_err(|(_, e)| SimulateError::Material(e))
-    };
-    let start = Instant::now();
-    progress.status(&format!(
-        "basis: m = {}, K = {}, ≈{} grid points",
-        file.basis.modes, file.basis.kernels, file.basis.points
-    ));
-    let fill = file.geometry.fill_interior;
-    let basis_points = geometry.integration_points_filling(file.basis.points, fill)?;
-    let points = geometry.integration_points_filling(file.simulation.points, fill)?;
-    let hold = file.simulation.pins;
-    let writer = FrameWriter::new(out_dir, &geometry);
-    let (basis, _) = hold
-        .build_basis(
-            &file.scene,
-            &basis_points,
-            &lame_at(basis_points.positions())?,
-            points.positions(),
-            writer.rest_positions(),
-            BasisParams::default()
-                .with_modes(file.basis.modes)
-                .with_kernels(file.basis.kernels),
-        )
-        .map_err(|e| match e {
-            HeldBasisError::Scene(e) => SimulateError::Run(RunError::Scene(e)),
-            HeldBasisError::Basis(e) => SimulateError::Basis(e),
-        })?;
-    let pressure = match &file.simulation.pressure {
-        None => None,
-        Some(params) => Some(
-            PressureSpace::build(
-                &file.scene,
-                hold,
-                &basis_points,
-                &lame_at(basis_points.positions())?,
-                BasisParams::default()
-                    .with_modes(file.basis.modes)
-                    .with_kernels(file.basis.kernels),
-                file.basis.modes,
-                params,
-            )
-            .map_err(SimulateError::Basis)?,
-        ),
-    };
-    let basis_seconds = start.elapsed().as_secs_f64();
-
-    let collider_frames = crate::ColliderFrames::new(out_dir, &file.scene.colliders);
-    let output =
-        DeformationMap::new(&basis, writer.rest_positions()).map_err(SimulateError::OutputMap)?;
-    let mut inverted_splats = 0;
-    // The stress needs F at the integration points too, and the Lamé parameters of both sets.
-    let stress_maps = if file.simulation.stress {
-        let point_map =
-            DeformationMap::new(&basis, points.positions()).map_err(SimulateError::OutputMap)?;
-        Some((
-            point_map,
-            lame_at(points.positions())?,
-            lame_at(writer.rest_positions())?,
-        ))
-    } else {
-        None
-    };
-    let mut stress_summary = stress_maps.as_ref().map(|_| StressSummary {
-        max_von_mises: 0.0,
-        max_von_mises_output: 0.0,
-        most_inverted: 0,
-    });
-    let steps = file.simulation.steps;
-    let simulation = Simulation {
-        field: &basis,
-        points: &points,
-        material: &material,
-        material_model: StableNeoHookean,
+    let description = ObjectDescription {
+        geometry: &file.geometry,
+        scale: 1.0,
+        material: &file.material,
+        basis: &file.basis,
+        simulation: &file.simulation,
         scene: &file.scene,
-        params: file.simulation.simulation_params(),
-        quadrature: file.simulation.quadrature,
-        cache_dir,
-        pin_hold: hold,
-        pressure: pressure.as_ref(),
+        label: String::new(),
     };
+    let (setup, splats) = ObjectSetup::prepare(&description, progress)?;
+    let basis_seconds = setup.basis_seconds;
+    let collider_frames = crate::ColliderFrames::new(out_dir, &file.scene.colliders);
+    let mut output = setup.output(out_dir, splats, file.simulation.stress)?;
+    let steps = file.simulation.steps;
+    let simulation = setup.simulation(&file.scene, &file.simulation, cache_dir);
     let mut frames_written = 0;
     let mut last_z = Vec::new();
-    let mut final_von_mises = None;
     match &file.simulation.quadrature {
         QuadratureRule::Cubature(p) => progress.status(&format!(
             "elastic quadrature: optimizing a cubature to force error {} (at most {} points)",
@@ -281,57 +209,7 @@ pub fn simulate_scene_file(
     let report = run(&simulation, steps, |frame| {
         let z = &frame.simulator.state().z;
         if frame.index % file.simulation.output_every == 0 || frame.index == steps {
-            let x = output.positions(z);
-            let output_stress = match (&stress_maps, &mut stress_summary) {
-                (Some((point_map, point_lame, output_lame)), Some(summary)) => {
-                    let at_points = StressField::new(
-                        &StableNeoHookean,
-                        point_lame,
-                        &point_map.deformation_gradients(z),
-                    )?;
-                    writer.write_points(
-                        frame.index,
-                        &point_map.positions(z),
-                        points.positions(),
-                        frame.time,
-                        Some(&at_points),
-                    )?;
-                    let at_output = StressField::new(
-                        &StableNeoHookean,
-                        output_lame,
-                        &output.deformation_gradients(z),
-                    )?;
-                    summary.max_von_mises = summary.max_von_mises.max(at_points.max_von_mises());
-                    summary.max_von_mises_output =
-                        summary.max_von_mises_output.max(at_output.max_von_mises());
-                    summary.most_inverted = summary
-                        .most_inverted
-                        .max(at_points.inverted.len() + at_output.inverted.len());
-                    Some(at_output)
-                }
-                _ => None,
-            };
-            if frame.index == steps {
-                final_von_mises = output_stress
-                    .as_ref()
-                    .map(|s| s.samples.iter().map(|s| s.von_mises).collect());
-            }
-            match &splats {
-                Some(table) => {
-                    let (deformed, inverted) =
-                        table.deformed(&x, &output.deformation_gradients(z))?;
-                    deformed.write(&out_dir.join(format!("frame_{:05}.ply", frame.index)))?;
-                    inverted_splats = inverted_splats.max(inverted);
-                }
-                None => {
-                    writer.write_with_stress(
-                        frame.index,
-                        &x,
-                        frame.time,
-                        output_stress.as_ref(),
-                    )?;
-                }
-            }
+            output.write(frame.index, z, frame.time)?;
             collider_frames.write(frame.index, frame.time)?;
             frames_written += 1;
         }
@@ -362,17 +240,18 @@ pub fn simulate_scene_file(
         energy: report.energy,
         max_energy_rise: report.max_energy_rise,
         frames_written,
-        simulation_points: points.len(),
+        simulation_points: setup.points.len(),
         final_max_displacement: output
+            .map
             .displacements(&last_z)
             .iter()
             .map(|d| d.norm())
             .fold(0.0, f64::max),
-        inverted_splats,
+        inverted_splats: output.inverted_splats,
         quadrature: Some(report.quadrature.clone()),
-        stress: stress_summary,
-        final_positions: output.positions(&last_z),
-        final_von_mises,
+        stress: output.summary.clone(),
+        final_positions: output.map.positions(&last_z),
+        final_von_mises: output.last_von_mises.clone(),
     };
     write_summary(out_dir, &report)?;
     Ok(report)

@@ -37,21 +37,12 @@ fn rubber<'a>(
 ) -> Simulation<'a, SkinningBasis, StableNeoHookean> {
     static MATERIAL: std::sync::LazyLock<MaterialField> =
         std::sync::LazyLock::new(|| MaterialField::Uniform(RUBBER));
-    Simulation {
-        field: basis,
-        points,
-        material: &MATERIAL,
-        material_model: StableNeoHookean,
-        scene,
-        params: SimulationParams {
+    Simulation::new(basis, points, &MATERIAL, StableNeoHookean, scene).with_params(
+        SimulationParams {
             time_step: H,
             ..Default::default()
         },
-        quadrature: Default::default(),
-        cache_dir: None,
-        pin_hold: Default::default(),
-        pressure: None,
-    }
+    )
 }
 
 fn falling(scene: &SceneSpec) -> SceneSpec {
@@ -286,10 +277,8 @@ fn weighted_bar() -> WeightedBar {
 fn a_weighted_basis_holds_a_fixed_and_a_turning_end_exactly() {
     let bar = weighted_bar();
     assert_eq!(bar.max_mode_value_on_regions, 0.0);
-    let simulation = Simulation {
-        pin_hold: freeform::PinHold::WEIGHTED,
-        ..rubber(&bar.basis, &bar.points, &bar.scene)
-    };
+    let simulation =
+        rubber(&bar.basis, &bar.points, &bar.scene).with_pin_hold(freeform::PinHold::WEIGHTED);
     let run_report = run(&simulation, 10, |_| Ok(())).unwrap();
     assert!(run_report.region_points.iter().all(|&n| n > 0));
     assert!(
@@ -324,11 +313,9 @@ fn a_projected_volumetric_term_runs_holds_its_regions_and_reports_inf_sup_consta
         let held = x.x <= 0.2 || x.x >= 1.8;
         assert_eq!(values[(i, 0)], if held { 0.0 } else { 1.0 });
     }
-    let simulation = Simulation {
-        pin_hold: hold,
-        pressure: Some(&space),
-        ..rubber(&bar.basis, &bar.points, &bar.scene)
-    };
+    let simulation = rubber(&bar.basis, &bar.points, &bar.scene)
+        .with_pin_hold(hold)
+        .with_pressure(Some(&space));
     let report = run(&simulation, 5, |_| Ok(())).unwrap();
     assert!(report.max_held_deviation < 1e-12);
     let betas = freeform::pressure_inf_sup(&simulation, &[0, 2, 4])
@@ -350,11 +337,9 @@ fn an_automatic_quadrature_decides_after_the_warm_up_and_reports_what_it_chose()
         ..Default::default()
     };
     let cache = scratch_dir("freeform-automatic-quadrature");
-    let simulation = Simulation {
-        quadrature: QuadratureRule::Automatic(cubature),
-        cache_dir: Some(&cache),
-        ..rubber(&basis, &points, &scene)
-    };
+    let simulation = rubber(&basis, &points, &scene)
+        .with_quadrature(QuadratureRule::Automatic(cubature))
+        .with_cache_dir(Some(&cache));
     let steps = 40;
     let mut largest_error: f64 = 0.0;
     let map = DeformationMap::new(&basis, points.positions()).unwrap();
@@ -414,10 +399,7 @@ fn a_prepared_simulator_steps_exactly_as_the_runner() {
         }],
         ..falling(&SceneSpec::default())
     };
-    let simulation = Simulation {
-        quadrature: QuadratureRule::Full,
-        ..rubber(&basis, &points, &scene)
-    };
+    let simulation = rubber(&basis, &points, &scene).with_quadrature(QuadratureRule::Full);
     let mut last = Vec::new();
     run(&simulation, 5, |frame| {
         last = frame.simulator.state().z.clone();

@@ -612,18 +612,17 @@ impl PySimulation {
             .lame_parameters()
             .map_err(|e| value_error(&e))?;
         let field = MaterialField::Uniform(material.inner);
-        let simulation = Simulation {
-            field: &basis.inner,
-            points: &points.inner,
-            material: &field,
-            material_model: StableNeoHookean,
-            scene: &scene,
-            params: spec.simulation_params(),
-            quadrature: spec.quadrature,
-            cache_dir: cache_dir.as_deref(),
-            pin_hold: spec.pins,
-            pressure: None,
-        };
+        let simulation = Simulation::new(
+            &basis.inner,
+            &points.inner,
+            &field,
+            StableNeoHookean,
+            &scene,
+        )
+        .with_params(spec.simulation_params())
+        .with_quadrature(spec.quadrature)
+        .with_cache_dir(cache_dir.as_deref())
+        .with_pin_hold(spec.pins);
         let n = points.inner.len();
         if let Some(i) = pinned.iter().flatten().find(|&&i| i >= n) {
             return Err(PyValueError::new_err(format!(

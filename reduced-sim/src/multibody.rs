@@ -123,13 +123,6 @@ pub enum MultiBodyError {
         /// Object 0's (s).
         first: f64,
     },
-    /// An object holds regions exactly ([`crate::Scene::held`]); objects in contact are solved
-    /// together over all their coordinates, so only penalty pins are supported.
-    #[error("object {body} holds regions exactly; in a scene of several objects use penalty pins")]
-    HeldRegions {
-        /// The object.
-        body: usize,
-    },
     /// The contact options are invalid.
     #[error("contact between objects: invalid {0}")]
     Contact(String),
@@ -207,9 +200,6 @@ impl<M: HyperelasticMaterial> MultiBodySimulator<M> {
                     time_step,
                     first: h,
                 });
-            }
-            if b.simulator.free_coordinates().is_some() {
-                return Err(MultiBodyError::HeldRegions { body });
             }
         }
         if let Some(why) = contact.defect() {
@@ -580,6 +570,12 @@ impl<M: HyperelasticMaterial> MultiBodySimulator<M> {
             // carried samples through each other's contact planes, where no force pulls them
             // back (IPC starts there too).
             let mut z = start_z;
+            // Objects holding regions exactly start the solve with them on their targets.
+            for (slot, &b) in group.iter().enumerate() {
+                let range = objective.range(slot);
+                let time = objective.potentials[slot].time;
+                self.bodies[b].simulator.prescribe(&mut z[range], time);
+            }
             // One factorization carried through the step's solves (the lagged re-solves
             // change the objective little) and, while the group stays together, into its next
             // step.
@@ -716,12 +712,28 @@ impl<M: HyperelasticMaterial> MultiBodySimulator<M> {
                 .len();
             offsets.push(offsets.last().unwrap() + len);
         }
-        GroupPotential {
-            potentials: group
+        let potentials: Vec<IncrementalPotential<'a, M>> = group
+            .iter()
+            .zip(predicted)
+            .map(|(&b, predicted)| self.bodies[b].simulator.step_potential(predicted))
+            .collect();
+        let free = potentials.iter().any(|p| p.free.is_some()).then(|| {
+            potentials
                 .iter()
-                .zip(predicted)
-                .map(|(&b, predicted)| self.bodies[b].simulator.step_potential(predicted))
-                .collect(),
+                .enumerate()
+                .flat_map(|(s, p)| {
+                    let (offset, end) = (offsets[s], offsets[s + 1]);
+                    let own: Vec<usize> = match p.free {
+                        Some(free) => free.iter().map(|i| offset + i).collect(),
+                        None => (offset..end).collect(),
+                    };
+                    own
+                })
+                .collect()
+        });
+        GroupPotential {
+            potentials,
+            free,
             offsets,
             samples: group
                 .iter()
@@ -811,6 +823,9 @@ struct PairEnds {
 /// The joint incremental potential of a contact-connected group (module docs).
 struct GroupPotential<'a, M: HyperelasticMaterial> {
     potentials: Vec<IncrementalPotential<'a, M>>,
+    /// With objects holding regions exactly: the entries of the joint z Newton solves for
+    /// (ascending); `None` when all are free.
+    free: Option<Vec<usize>>,
     /// Start of each object's coordinates in the joint z, then its length.
     offsets: Vec<usize>,
     /// Each object's deformation map at its samples that take part.
@@ -1004,7 +1019,10 @@ impl<M: HyperelasticMaterial> NewtonObjective for GroupPotential<'_, M> {
             .collect();
         let mut gradient = own.concat();
         self.add_pair_derivatives(z, &mut gradient, None);
-        gradient
+        match &self.free {
+            None => gradient,
+            Some(free) => free.iter().map(|&i| gradient[i]).collect(),
+        }
     }
 
     fn gradient_and_hessian(&self, z: &[f64], _gradient: Option<Vec<f64>>) -> (Vec<f64>, Mat<f64>) {
@@ -1025,7 +1043,13 @@ impl<M: HyperelasticMaterial> NewtonObjective for GroupPotential<'_, M> {
             }
         }
         self.add_pair_derivatives(z, &mut gradient, Some(&mut hessian));
-        (gradient, hessian)
+        match &self.free {
+            None => (gradient, hessian),
+            Some(free) => (
+                free.iter().map(|&i| gradient[i]).collect(),
+                Mat::from_fn(free.len(), free.len(), |a, b| hessian[(free[a], free[b])]),
+            ),
+        }
     }
 
     fn factor(&self, hessian: Mat<f64>) -> Option<Llt<f64>> {
@@ -1035,7 +1059,23 @@ impl<M: HyperelasticMaterial> NewtonObjective for GroupPotential<'_, M> {
     fn solve(&self, factor: &Llt<f64>, gradient: &[f64]) -> Vec<f64> {
         let mut step = Mat::<f64>::from_fn(gradient.len(), 1, |i, _| -gradient[i]);
         factor.solve_in_place(step.as_mut());
-        (0..gradient.len()).map(|i| step[(i, 0)]).collect()
+        match &self.free {
+            None => (0..gradient.len()).map(|i| step[(i, 0)]).collect(),
+            Some(free) => {
+                let mut full = vec![0.0; *self.offsets.last().expect("offsets")];
+                for (a, &i) in free.iter().enumerate() {
+                    full[i] = step[(a, 0)];
+                }
+                full
+            }
+        }
+    }
+
+    fn directional_derivative(&self, gradient: &[f64], step: &[f64]) -> f64 {
+        match &self.free {
+            None => gradient.iter().zip(step).map(|(g, s)| g * s).sum(),
+            Some(free) => free.iter().zip(gradient).map(|(&i, g)| g * step[i]).sum(),
+        }
     }
 
     /// The largest of the objects' step norms.

@@ -445,18 +445,18 @@ pub fn run_reduced_beam_with_pressure<B: SkinningField + ?Sized>(
         .beam_points(settings.simulation_points)?;
     run_reduced(
         &ReducedProblem {
-            simulation: Simulation {
-                field: basis,
-                points: &points,
-                material: &MaterialField::Uniform(material),
-                material_model: StableNeoHookean,
-                scene: &test.scene(),
-                params: settings.simulation_params(BEAM_TIME_STEP),
-                quadrature: settings.quadrature,
-                cache_dir,
-                pin_hold: settings.pins,
-                pressure,
-            },
+            simulation: Simulation::new(
+                basis,
+                &points,
+                &MaterialField::Uniform(material),
+                StableNeoHookean,
+                &test.scene(),
+            )
+            .with_params(settings.simulation_params(BEAM_TIME_STEP))
+            .with_quadrature(settings.quadrature)
+            .with_cache_dir(cache_dir)
+            .with_pin_hold(settings.pins)
+            .with_pressure(pressure),
             output_points,
             steps,
         },

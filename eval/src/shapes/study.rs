@@ -901,18 +901,17 @@ impl BoundaryRun<'_> {
     ) -> Result<(MethodScores, Vec<usize>), EvalError> {
         let run = run_reduced(
             &ReducedProblem {
-                simulation: Simulation {
+                simulation: Simulation::new(
                     field,
-                    points: self.points,
-                    material: &MaterialField::Uniform(self.material),
-                    material_model: StableNeoHookean,
-                    scene: self.scene,
-                    params: self.params,
-                    quadrature: self.quadrature,
-                    cache_dir: Some(self.cache_dir),
-                    pin_hold,
-                    pressure: None,
-                },
+                    self.points,
+                    &MaterialField::Uniform(self.material),
+                    StableNeoHookean,
+                    self.scene,
+                )
+                .with_params(self.params)
+                .with_quadrature(self.quadrature)
+                .with_cache_dir(Some(self.cache_dir))
+                .with_pin_hold(pin_hold),
                 output_points: self.fem.vertices(),
                 steps: self.steps,
             },

@@ -33,21 +33,12 @@ pub fn run_cube(
     let params = BasisParams::default().with_modes(4).with_kernels(60);
     let (basis, _, _) = build_basis(&points, &lame, &params).unwrap();
     let material = MaterialField::Uniform(material);
-    let simulation = Simulation {
-        field: &basis,
-        points: &points,
-        material: &material,
-        material_model: StableNeoHookean,
-        scene,
-        params: SimulationParams {
+    let simulation = Simulation::new(&basis, &points, &material, StableNeoHookean, scene)
+        .with_params(SimulationParams {
             time_step: H,
             ..Default::default()
-        },
-        quadrature: QuadratureRule::Full,
-        cache_dir: None,
-        pin_hold: Default::default(),
-        pressure: None,
-    };
+        })
+        .with_quadrature(QuadratureRule::Full);
     let report = run(&simulation, steps, |frame| {
         let map = frame.simulator.model().deformation_map();
         observe(&map.positions(&frame.simulator.state().z), points.volumes());
