@@ -3,7 +3,7 @@
 //!
 //! A [`SceneSpec`] says what acts on the object: gravity, constrained regions with a motion, a
 //! floor. [`SceneSpec::reduced_scene`] selects the reduced model's integration points in each
-//! region and [`SceneSpec::fem_scene`] selects the FEM nodes; both receive the same target
+//! region and `SceneSpec::fem_scene` (feature `fem`) selects the FEM nodes; both receive the same target
 //! function [`Motion::at`], so every method sees the same problem.
 
 use std::sync::Arc;

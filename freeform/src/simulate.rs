@@ -164,7 +164,7 @@ pub(crate) fn read_shape(
 /// Runs a scene file with stable Neo-Hookean elasticity and writes `frame_NNNNN.ply` / `.vtk`
 /// (the deformed surface or cloud, every `output_every` steps and the last) and `summary.json`
 /// under `out_dir`; with `simulation.stress`, the VTK frames carry the stress at the output
-/// points and `points_NNNNN.vtk` the integration points with theirs ([`StressField`]); with
+/// points and `points_NNNNN.vtk` the integration points with theirs ([`crate::StressField`]); with
 /// colliders, `colliders_NNNNN.ply` their surfaces at each frame ([`crate::ColliderFrames`]).
 /// A cubature (`simulation.quadrature`) is cached under `cache_dir` when one is given.
 ///
