@@ -22,6 +22,7 @@ pub mod geometry;
 pub mod metrics;
 pub mod object_scene;
 mod object_setup;
+mod objects_statistics;
 pub mod pin_hold;
 pub mod placement;
 pub mod prelude;

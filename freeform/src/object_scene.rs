@@ -47,6 +47,7 @@ use reduced_sim::{
 use serde::{Deserialize, Serialize};
 
 use crate::object_setup::{ObjectDescription, ObjectOutput, ObjectSetup};
+use crate::objects_statistics::ObjectsStatistics;
 use crate::pin_hold::PinHold;
 use crate::placement::Placement;
 use crate::progress::Progress;
@@ -328,53 +329,11 @@ pub fn simulate_objects(
     let mut bodies = Vec::with_capacity(file.objects.len());
     let mut outputs = Vec::with_capacity(file.objects.len());
     let mut summaries = Vec::with_capacity(file.objects.len());
-    // Bodies in contact with each other take many more Newton iterations per step, which
-    // the automatic quadrature weighs.
-    let planned = match file.objects.len() {
-        1 => PlannedRun::single_body(file.simulation.steps),
-        _ => PlannedRun::multibody(file.simulation.steps),
-    };
     for object in &file.objects {
-        let scene = object.scene(&file.scene);
-        // An object with nothing to hold is held by nothing, whatever the file's pins say.
-        let simulation_spec = SimulationSpec {
-            pins: if object.constraints.is_empty() {
-                PinHold::Penalty
-            } else {
-                file.simulation.pins
-            },
-            ..file.simulation
-        };
-        let description = ObjectDescription {
-            geometry: &object.geometry,
-            scale: object.scale,
-            material: &object.material,
-            basis: &object.basis,
-            simulation: &simulation_spec,
-            scene: &scene,
-            label: format!("{}: ", object.name),
-        };
-        let (setup, splats) = ObjectSetup::prepare(&description, progress)?;
-        progress.status(&format!("{}: elastic quadrature", object.name));
-        let simulation = setup
-            .simulation(&scene, &simulation_spec, cache_dir)
-            .with_placement(Some(object.placement()));
-        let (simulator, quadrature) = prepare_simulator_for(&simulation, planned, &[])?;
-        let samples = setup.geometry.contact_samples(file.contact.radius);
-        let contact_samples = samples.len();
-        let samples =
-            DeformationMap::new(&setup.basis, &samples).map_err(SimulateError::OutputMap)?;
-        bodies.push(Body::new(simulator, samples).map_err(SimulateError::Objects)?);
-        outputs.push(setup.output(&out_dir.join(&object.name), splats, file.simulation.stress)?);
-        summaries.push(ObjectSummary {
-            name: object.name.clone(),
-            simulation_points: setup.points.len(),
-            quadrature,
-            contact_samples,
-            basis_seconds: setup.basis_seconds,
-            stress: None,
-            max_held_deviation: None,
-        });
+        let (body, output, summary) = prepare_object(file, object, out_dir, cache_dir, progress)?;
+        bodies.push(body);
+        outputs.push(output);
+        summaries.push(summary);
     }
     let mut sim = MultiBodySimulator::new(bodies, file.contact).map_err(SimulateError::Objects)?;
     let setup_seconds = start.elapsed().as_secs_f64();
@@ -393,43 +352,19 @@ pub fn simulate_objects(
             Ok::<(), SimulateError>(())
         };
     write_all(&sim, &mut outputs, 0)?;
-    let start_energy = sim.mechanical_energy();
-    let (mut energy, mut max_energy_rise) = (start_energy, 0.0_f64);
+    let mut statistics = ObjectsStatistics::new(&sim);
     let mut frames_written = 1;
     progress.begin(steps, "simulate");
-    let (mut stepping, mut split) = (0.0, [0.0; 4]);
-    let (mut iterations, mut hessians, mut cuts, mut joint, mut unconverged) = (0, 0, 0, 0, 0);
-    let (mut max_penetration, mut max_overlap, mut min_gap): (f64, f64, Option<f64>) =
-        (0.0, 0.0, None);
     for step in 1..=steps {
         let t = Instant::now();
         let report = sim
             .step()
             .map_err(|source| SimulateError::ObjectStep { step, source })?;
-        stepping += t.elapsed().as_secs_f64();
-        for solve in &report.solves {
-            split[0] += solve.timings.assembly;
-            split[1] += solve.timings.solve;
-            split[2] += solve.timings.line_search;
-            iterations += solve.iterations;
-            hessians += solve.hessian_assemblies;
-            cuts += solve.line_search_cuts;
-        }
-        split[3] += report.contact_search_seconds;
-        joint += report.joint_groups;
-        unconverged += usize::from(!report.converged());
-        max_penetration = max_penetration.max(sim.max_penetration());
+        statistics.record(&report, t.elapsed().as_secs_f64(), &sim);
         for (summary, body) in summaries.iter_mut().zip(sim.bodies()) {
             if let Some(d) = body.simulator().max_held_deviation() {
                 summary.max_held_deviation = Some(summary.max_held_deviation.unwrap_or(0.0).max(d));
             }
-        }
-        max_overlap = max_overlap.max(sim.contact_overlap());
-        let now = sim.mechanical_energy();
-        max_energy_rise = max_energy_rise.max(now - energy);
-        energy = now;
-        if let Some(gap) = sim.contact_gap() {
-            min_gap = Some(min_gap.map_or(gap, |g| g.min(gap)));
         }
         if step % file.simulation.output_every == 0 || step == steps {
             write_all(&sim, &mut outputs, step)?;
@@ -442,21 +377,22 @@ pub fn simulate_objects(
         summary.stress.clone_from(&output.summary);
     }
     let n = steps as f64;
+    let s = statistics;
     let report = ObjectsReport {
         objects: summaries,
         steps,
-        ms_per_step: 1e3 * stepping / n,
-        ms_split_per_step: split.map(|s| 1e3 * s / n),
-        iterations_per_step: iterations as f64 / n,
-        hessians_per_step: hessians as f64 / n,
-        line_search_cuts_per_step: cuts as f64 / n,
-        joint_solves_per_step: joint as f64 / n,
-        unconverged_steps: unconverged,
-        max_penetration,
-        max_contact_overlap: max_overlap,
-        min_contact_gap: min_gap,
-        energy: [start_energy, energy],
-        max_energy_rise,
+        ms_per_step: 1e3 * s.stepping / n,
+        ms_split_per_step: s.split.map(|x| 1e3 * x / n),
+        iterations_per_step: s.iterations as f64 / n,
+        hessians_per_step: s.hessians as f64 / n,
+        line_search_cuts_per_step: s.line_search_cuts as f64 / n,
+        joint_solves_per_step: s.joint_groups as f64 / n,
+        unconverged_steps: s.unconverged,
+        max_penetration: s.max_penetration,
+        max_contact_overlap: s.max_overlap,
+        min_contact_gap: s.min_gap,
+        energy: s.energy,
+        max_energy_rise: s.max_energy_rise,
         frames_written,
         setup_seconds,
         final_positions: sim
@@ -468,4 +404,64 @@ pub fn simulate_objects(
     };
     write_summary(out_dir, &report)?;
     Ok(report)
+}
+
+/// One object of `file` prepared as a one-object file is ([`ObjectSetup`]), placed, with its
+/// contact samples, frames under `<out_dir>/<name>/` and the start of its summary.
+///
+/// # Errors
+/// [`SimulateError`] naming the stage.
+fn prepare_object(
+    file: &ObjectsFile,
+    object: &ObjectSpec,
+    out_dir: &Path,
+    cache_dir: Option<&Path>,
+    progress: &dyn Progress,
+) -> Result<(Body<StableNeoHookean>, ObjectOutput, ObjectSummary), SimulateError> {
+    // Bodies in contact with each other take many more Newton iterations per step, which
+    // the automatic quadrature weighs.
+    let planned = match file.objects.len() {
+        1 => PlannedRun::single_body(file.simulation.steps),
+        _ => PlannedRun::multibody(file.simulation.steps),
+    };
+    let scene = object.scene(&file.scene);
+    // An object with nothing to hold is held by nothing, whatever the file's pins say.
+    let simulation_spec = SimulationSpec {
+        pins: if object.constraints.is_empty() {
+            PinHold::Penalty
+        } else {
+            file.simulation.pins
+        },
+        ..file.simulation
+    };
+    let description = ObjectDescription {
+        geometry: &object.geometry,
+        scale: object.scale,
+        material: &object.material,
+        basis: &object.basis,
+        simulation: &simulation_spec,
+        scene: &scene,
+        label: format!("{}: ", object.name),
+    };
+    let (setup, splats) = ObjectSetup::prepare(&description, progress)?;
+    progress.status(&format!("{}: elastic quadrature", object.name));
+    let simulation = setup
+        .simulation(&scene, &simulation_spec, cache_dir)
+        .with_placement(Some(object.placement()));
+    let (simulator, quadrature) = prepare_simulator_for(&simulation, planned, &[])?;
+    let samples = setup.geometry.contact_samples(file.contact.radius);
+    let contact_samples = samples.len();
+    let samples = DeformationMap::new(&setup.basis, &samples).map_err(SimulateError::OutputMap)?;
+    let body = Body::new(simulator, samples).map_err(SimulateError::Objects)?;
+    let output = setup.output(&out_dir.join(&object.name), splats, file.simulation.stress)?;
+    let summary = ObjectSummary {
+        name: object.name.clone(),
+        simulation_points: setup.points.len(),
+        quadrature,
+        contact_samples,
+        basis_seconds: setup.basis_seconds,
+        stress: None,
+        max_held_deviation: None,
+    };
+    Ok((body, output, summary))
 }
