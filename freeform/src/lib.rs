@@ -33,10 +33,12 @@ pub mod runner;
 pub mod scene;
 pub mod scene_file;
 pub mod simulate;
+pub mod simulate_error;
 pub mod spherical_harmonics;
 pub mod splat_preview;
 pub mod splats;
 pub mod stress_field;
+pub mod stress_summary;
 #[cfg(feature = "terminal")]
 pub mod terminal_progress;
 
@@ -60,10 +62,12 @@ pub use scene_file::{
     BasisSpec, BoxSpec, GeometrySpec, MaterialRegion, MaterialSpec, SceneFile, SceneFileError,
     SimulationSpec,
 };
-pub use simulate::{SimulateError, SimulateReport, StressSummary, simulate_scene_file};
+pub use simulate::{SimulateReport, simulate_scene_file};
+pub use simulate_error::SimulateError;
 pub use splat_preview::{
     Camera, PreviewError, PreviewImage, PreviewParams, PreviewSplat, point_splats, points_preview,
     preview_splats, render_preview,
 };
 pub use splats::{SplatFileError, SplatTable};
 pub use stress_field::{StressField, StressFieldError};
+pub use stress_summary::StressSummary;

@@ -57,7 +57,9 @@ use crate::scene_file::{
     BasisSpec, GeometrySpec, MaterialSpec, SceneFileError, SimulationSpec, load_collider_meshes,
     read_document,
 };
-use crate::simulate::{SimulateError, StressSummary, write_summary};
+use crate::simulate::write_summary;
+use crate::simulate_error::SimulateError;
+use crate::stress_summary::StressSummary;
 
 /// One object of a scene.
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]

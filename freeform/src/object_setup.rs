@@ -19,9 +19,11 @@ use crate::progress::Progress;
 use crate::runner::{RunError, Simulation};
 use crate::scene::SceneSpec;
 use crate::scene_file::{BasisSpec, GeometrySpec, MaterialSpec, SimulationSpec};
-use crate::simulate::{SimulateError, StressSummary, read_shape};
+use crate::simulate_error::SimulateError;
 use crate::splats::SplatTable;
 use crate::stress_field::StressField;
+use crate::stress_summary::StressSummary;
+use rkpm_core::PointCloud;
 
 /// What one object is: the parts of a scene file that describe it.
 pub(crate) struct ObjectDescription<'a> {
@@ -281,4 +283,20 @@ impl ObjectOutput {
         }
         Ok(())
     }
+}
+
+/// The shape of `spec`, and for a 3DGS file its table: a splat scene reads its file once, the
+/// splat centres being the cloud.
+///
+/// # Errors
+/// [`SimulateError::Geometry`] or [`SimulateError::Splats`] naming the file.
+pub(crate) fn read_shape(
+    spec: &GeometrySpec,
+) -> Result<(Geometry, Option<SplatTable>), SimulateError> {
+    let splats = spec.splats.as_deref().map(SplatTable::read).transpose()?;
+    let geometry = match &splats {
+        Some(table) => Geometry::Cloud(PointCloud::new(table.positions(), None)),
+        None => spec.read()?,
+    };
+    Ok((geometry, splats))
 }

@@ -3,22 +3,16 @@
 use std::path::Path;
 
 use artifact::{ArtifactError, write_atomically};
-use hyperelastic::MaterialParameterError;
 use nalgebra::Vector3;
-use reduced_sim::{
-    DeformationMapError, MultiBodyError, MultiBodyStepError, QuadratureReport, QuadratureRule,
-};
-use rkpm_core::PointCloud;
+use reduced_sim::{QuadratureReport, QuadratureRule};
 use serde::{Deserialize, Serialize};
-use skin_eigen::BasisError;
-use thiserror::Error;
 
-use crate::geometry::{Geometry, GeometryError};
 use crate::object_setup::{ObjectDescription, ObjectSetup};
 use crate::progress::Progress;
-use crate::runner::{RunError, run};
-use crate::scene_file::{GeometrySpec, SceneFile};
-use crate::splats::{SplatFileError, SplatTable};
+use crate::runner::run;
+use crate::scene_file::SceneFile;
+use crate::simulate_error::SimulateError;
+use crate::stress_summary::StressSummary;
 
 /// What [`simulate_scene_file`] did.
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
@@ -80,58 +74,6 @@ pub struct SimulateReport {
     pub final_von_mises: Option<Vec<f64>>,
 }
 
-/// The stress of a run over its written frames (`simulation.stress = true`).
-#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
-pub struct StressSummary {
-    /// Largest von Mises stress at an integration point (Pa).
-    pub max_von_mises: f64,
-    /// Largest von Mises stress at an output vertex or cloud point (Pa).
-    pub max_von_mises_output: f64,
-    /// The most points (integration and output together) with det F ≤ 0 in one frame.
-    pub most_inverted: usize,
-}
-
-/// A scene file could not be run to the end.
-#[derive(Debug, Error)]
-pub enum SimulateError {
-    /// The geometry could not be read or sampled.
-    #[error(transparent)]
-    Geometry(#[from] GeometryError),
-    /// E or ν is out of range.
-    #[error("invalid material")]
-    Material(#[source] MaterialParameterError),
-    /// The basis could not be built.
-    #[error("building the basis failed")]
-    Basis(#[source] BasisError),
-    /// The deformation map at the written points could not be built.
-    #[error("the deformation map at the output points failed")]
-    OutputMap(#[source] DeformationMapError),
-    /// The simulation stopped (frames already written stay valid files).
-    #[error(transparent)]
-    Run(#[from] RunError),
-    /// A file could not be written.
-    #[error(transparent)]
-    Write(#[from] ArtifactError),
-    /// The 3DGS file could not be read or a deformed frame written.
-    #[error(transparent)]
-    Splats(#[from] SplatFileError),
-    /// The stress at a frame could not be evaluated.
-    #[error(transparent)]
-    Stress(#[from] crate::StressFieldError),
-    /// The objects of a scene do not fit together ([`crate::simulate_objects`]).
-    #[error("the objects do not make a scene")]
-    Objects(#[source] MultiBodyError),
-    /// A step of several objects failed (frames already written stay valid files).
-    #[error("step {step} failed")]
-    ObjectStep {
-        /// The step (1-based).
-        step: usize,
-        /// Why.
-        #[source]
-        source: MultiBodyStepError,
-    },
-}
-
 /// Writes `report` as `<out_dir>/summary.json` (pretty JSON, atomically).
 ///
 /// # Errors
@@ -143,22 +85,6 @@ pub(crate) fn write_summary(out_dir: &Path, report: &impl Serialize) -> Result<(
             .unwrap_or_default()
             .as_bytes(),
     )
-}
-
-/// The shape of `spec`, and for a 3DGS file its table: a splat scene reads its file once, the
-/// splat centres being the cloud.
-///
-/// # Errors
-/// [`SimulateError::Geometry`] or [`SimulateError::Splats`] naming the file.
-pub(crate) fn read_shape(
-    spec: &GeometrySpec,
-) -> Result<(Geometry, Option<SplatTable>), SimulateError> {
-    let splats = spec.splats.as_deref().map(SplatTable::read).transpose()?;
-    let geometry = match &splats {
-        Some(table) => Geometry::Cloud(PointCloud::new(table.positions(), None)),
-        None => spec.read()?,
-    };
-    Ok((geometry, splats))
 }
 
 /// Runs a scene file with stable Neo-Hookean elasticity and writes `frame_NNNNN.ply` / `.vtk`

@@ -21,7 +21,7 @@ use crate::cubature::{
     CubatureBudget, CubatureError, CubatureParams, CubatureReport, cubature_cache_path,
     optimize_cubature_within, save_cached_cubature,
 };
-use crate::quadrature::ElasticQuadrature;
+use crate::elastic_quadrature::ElasticQuadrature;
 use crate::reduced_model::ReducedModel;
 
 /// What [`crate::QuadratureRule::Automatic`] predicted and chose.

@@ -22,6 +22,7 @@ use rayon::prelude::*;
 use serde::{Deserialize, Serialize};
 
 use crate::mesh_collider::MeshShape;
+pub use crate::signed_distance::SignedDistance;
 
 /// A shape in the collider's frame (m): a half-space, three convex primitives and closed
 /// triangle meshes.
@@ -51,17 +52,6 @@ pub enum ColliderShape {
     },
     /// A closed triangle mesh (a container, a ramp); see [`MeshShape`].
     Mesh(MeshShape),
-}
-
-/// The signed distance of a shape at one point, with its derivatives (frame of the point).
-#[derive(Clone, Copy, Debug, PartialEq)]
-pub struct SignedDistance {
-    /// φ (m), negative inside.
-    pub distance: f64,
-    /// ∇φ (unit length where φ is differentiable).
-    pub gradient: Vector3<f64>,
-    /// ∇²φ (1/m).
-    pub hessian: Matrix3<f64>,
 }
 
 impl ColliderShape {

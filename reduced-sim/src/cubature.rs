@@ -45,7 +45,7 @@ use thiserror::Error;
 use crate::cubature_gram::ForceGramFactors;
 use crate::deformation_map::DeformationMap;
 use crate::elastic_energy::weighted_elastic_gradient;
-use crate::quadrature::{ElasticQuadrature, QuadratureError};
+use crate::elastic_quadrature::{ElasticQuadrature, QuadratureError};
 use crate::reduced_model::ReducedModel;
 
 /// Options of the cubature optimization.

@@ -6,7 +6,7 @@
 //! ```
 //!
 //! with E_floor including the kinematic colliders' penalties, and D the lagged friction
-//! potential of the floor and the colliders (`contact_friction`, when one has μ > 0).
+//! potential of the floor and the colliders (`terms::friction_term`, when one has μ > 0).
 //!
 //! with `ẑ = z_t + h ż_t`. Without the inertia term it is the static equilibrium problem.
 //!
@@ -20,10 +20,10 @@ use faer::{Mat, Par, Side};
 use hyperelastic::{HyperelasticMaterial, Tangent};
 use optimize::NewtonObjective;
 
-use crate::contact_friction::ContactFriction;
 use crate::hessian_tangent::{HessianTangent, StepTangents};
 use crate::reduced_model::{ReducedModel, add_block_diagonal_product};
 use crate::scene_terms::{SceneTerms, term_point};
+use crate::terms::friction_term::ContactFriction;
 use crate::terms::step_term::StepTerm;
 
 /// `1/(2h²) (z - ẑ)ᵀ M_z (z - ẑ)`.

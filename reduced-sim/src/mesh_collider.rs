@@ -25,7 +25,7 @@ use rkpm_core::surface_distance::closest_point_on_triangle;
 use rkpm_core::{GeometryReadError, TriangleMesh, read_triangle_mesh};
 use serde::{Deserialize, Serialize};
 
-use crate::collider::SignedDistance;
+use crate::signed_distance::SignedDistance;
 
 /// The queries of one loaded mesh.
 struct MeshSurface {

@@ -9,10 +9,10 @@ use rkpm_core::{Aabb, IntegrationPoints};
 use thiserror::Error;
 
 use crate::deformation_map::{DeformationMap, DeformationMapError};
+use crate::elastic_quadrature::{ElasticQuadrature, QuadratureError};
 use crate::projected_dilatation::{
     ProjectedDilatation, ProjectedDilatationError, ProjectedDilatationParams,
 };
-use crate::quadrature::{ElasticQuadrature, QuadratureError};
 use crate::skinning_field::SkinningField;
 
 /// The model could not be built.

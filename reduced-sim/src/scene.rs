@@ -4,14 +4,10 @@
 use std::fmt;
 use std::sync::Arc;
 
-use hyperelastic::HyperelasticMaterial;
 use nalgebra::Vector3;
 use serde::{Deserialize, Serialize};
 
 use crate::collider::Collider;
-use crate::reduced_model::ReducedModel;
-use crate::scene_error::SceneError;
-use crate::scene_terms::SceneTerms;
 
 /// A target position (m) as a function of rest position X (m) and time t (s).
 pub type TargetFunction = Arc<dyn Fn(&Vector3<f64>, f64) -> Vector3<f64> + Send + Sync>;
@@ -95,22 +91,6 @@ pub struct Scene {
     /// (penalty on their signed distance, with the floor's stiffness) and rub it (their
     /// friction coefficient, the floor's friction model); empty by default.
     pub colliders: Vec<Collider>,
-}
-
-impl Scene {
-    /// Checks that the scene fits `model` (what [`crate::Simulator::new`] checks), without
-    /// giving the model away: pin indices in range and non-empty, finite gravity, a valid floor,
-    /// valid penalty factors.
-    ///
-    /// # Errors
-    /// The first [`SceneError`] found.
-    pub fn validate<M: HyperelasticMaterial>(
-        &self,
-        model: &ReducedModel<M>,
-        penalty: &PenaltyParams,
-    ) -> Result<(), SceneError> {
-        SceneTerms::new(model, self, penalty).map(|_| ())
-    }
 }
 
 /// Penalty stiffnesses, scale-aware: with `L` the largest side of the object's rest bounding

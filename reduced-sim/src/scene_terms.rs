@@ -7,13 +7,13 @@ use hyperelastic::{HyperelasticMaterial, Tangent};
 use nalgebra::Vector3;
 
 use crate::collider::ColliderShape;
-use crate::contact_friction::ContactFriction;
 use crate::held_regions::HeldRegions;
 use crate::reduced_model::ReducedModel;
 use crate::scene::{Floor, FloorContact, PenaltyParams, PinModulus, Scene};
 use crate::scene_error::SceneError;
 use crate::terms::collider_term::ColliderTerm;
 use crate::terms::floor_term::{ContactLaw, FloorTerm};
+use crate::terms::friction_term::ContactFriction;
 use crate::terms::gravity_term::GravityTerm;
 use crate::terms::pin_penalty::PinPenalty;
 use crate::terms::pinned_points::PinnedPoints;
@@ -287,6 +287,22 @@ impl SceneTerms {
             contacts.extend(colliders.contacts(at));
         }
         contacts
+    }
+}
+
+impl Scene {
+    /// Checks that the scene fits `model` (what [`crate::Simulator::new`] checks), without
+    /// giving the model away: pin indices in range and non-empty, finite gravity, a valid floor,
+    /// valid penalty factors.
+    ///
+    /// # Errors
+    /// The first [`SceneError`] found.
+    pub fn validate<M: HyperelasticMaterial>(
+        &self,
+        model: &ReducedModel<M>,
+        penalty: &PenaltyParams,
+    ) -> Result<(), SceneError> {
+        SceneTerms::new(model, self, penalty).map(|_| ())
     }
 }
 

@@ -11,13 +11,13 @@ use optimize::{
 use serde::{Deserialize, Serialize};
 use thiserror::Error;
 
-use crate::contact_friction::ContactFriction;
 use crate::hessian_tangent::{HessianTangent, StepTangents};
 use crate::incremental_potential::{IncrementalPotential, Inertia};
 use crate::reduced_model::ReducedModel;
 use crate::scene::{PenaltyParams, Scene};
 use crate::scene_error::SceneError;
 use crate::scene_terms::{SceneTerms, term_point};
+use crate::terms::friction_term::ContactFriction;
 use crate::terms::step_term::StepTerm;
 
 /// Minimizes `objective` from z (updated in place), carrying `factor` across when `newton`

@@ -5,9 +5,9 @@ use nalgebra::Vector3;
 use optimize::{CarriedFactor, NewtonReport};
 
 use crate::body_contact::{PairFriction, SamplePair};
-use crate::contact_friction::{LAG_TOLERANCE, same_lagged_forces};
 use crate::incremental_potential::IncrementalPotential;
 use crate::simulator::{StepError, solve_step};
+use crate::terms::friction_term::{LAG_TOLERANCE, same_lagged_forces};
 
 use super::MultiBodySimulator;
 use super::group_potential::GroupPotential;

@@ -8,8 +8,8 @@ use hyperelastic::Tangent;
 use nalgebra::{Isometry3, Matrix3, Vector3};
 
 use crate::collider::{Collider, ColliderShape, SignedDistance};
-use crate::contact_friction::FrictionContact;
 use crate::terms::floor_term::ContactLaw;
+use crate::terms::friction_term::FrictionContact;
 use crate::terms::step_term::{StepTerm, TermPoint};
 
 /// `E_col(z, t) = Σ_k Σ_i κ v_i ψ(φ_k(x_i(z), t))` (J) over the colliders k, with φ_k the

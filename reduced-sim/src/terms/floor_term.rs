@@ -4,8 +4,8 @@ use faer::{Accum, Mat, MatRef, Par};
 use hyperelastic::Tangent;
 use nalgebra::Vector3;
 
-use crate::contact_friction::FrictionContact;
 use crate::scene::{Floor, FloorContact};
+use crate::terms::friction_term::FrictionContact;
 use crate::terms::step_term::{StepTerm, TermPoint};
 
 /// How hard the floor and the colliders push a point at gap g: `e(g) = κ v ψ(g)` with the

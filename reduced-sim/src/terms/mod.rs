@@ -5,6 +5,7 @@
 
 pub(crate) mod collider_term;
 pub(crate) mod floor_term;
+pub(crate) mod friction_term;
 pub(crate) mod gravity_term;
 pub(crate) mod pin_penalty;
 pub(crate) mod pinned_points;
