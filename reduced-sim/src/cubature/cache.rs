@@ -1,0 +1,124 @@
+//! Cubatures cached by content, so one optimization serves every later run of the same model.
+
+use std::path::{Path, PathBuf};
+
+use artifact::{ContentKeyBuilder, load_framed, save_framed};
+use hyperelastic::HyperelasticMaterial;
+use serde::{Deserialize, Serialize};
+
+use crate::elastic_quadrature::ElasticQuadrature;
+use crate::reduced_model::ReducedModel;
+
+use super::{CubatureError, CubatureParams, CubatureReport, optimize_cubature};
+
+/// File kind and format version of cached cubatures. The version is part of the cache key:
+/// bump it whenever the optimization changes its result (2: zero-weight candidates leave the
+/// greedy set; 3: the targets from the one-pass elastic gradient and the residual as one
+/// product, which round differently; 4: the approximations' F from the targets' SIMD kernel
+/// and the Gram columns from per-point factors, which round differently again).
+const CUBATURE_MAGIC: &[u8] = b"FREEFORM-CUBATURE";
+const CUBATURE_FORMAT_VERSION: u32 = 4;
+
+/// A cached cubature: its points, weights and the report of its optimization.
+#[derive(Serialize, Deserialize)]
+struct CachedCubature {
+    points: Vec<usize>,
+    weights: Vec<f64>,
+    report: CubatureReport,
+}
+
+/// Where [`optimize_cubature_cached`] keeps the cubature of `model` and `params`:
+/// `<cache_dir>/cubature/cubature-<hash>.bin`, the hash of everything that determines it (the
+/// deformation map's G at every point, volumes, densities, Lamé parameters, the material's
+/// name, every option).
+pub fn cubature_cache_path<M: HyperelasticMaterial>(
+    model: &ReducedModel<M>,
+    params: &CubatureParams,
+    cache_dir: &Path,
+) -> PathBuf {
+    let mut key = ContentKeyBuilder::new(CUBATURE_MAGIC, u64::from(CUBATURE_FORMAT_VERSION));
+    let map = model.deformation_map();
+    key.u64(map.layout().handles() as u64)
+        .f64s(map.gradient_matrix_slice())
+        .f64s(model.volumes())
+        .f64s(model.densities())
+        .str(model.material().name())
+        .str(&format!("{params:?}"));
+    for l in model.lame_parameters() {
+        key.f64s(&[l.lambda(), l.mu()]);
+    }
+    cache_dir
+        .join("cubature")
+        .join(format!("cubature-{}.bin", key.finish().hex()))
+}
+
+/// [`optimize_cubature`], cached under `cache_dir` by content ([`cubature_cache_path`]): a
+/// cached cubature is loaded (its report says `cached`), a missing or unreadable one is
+/// optimized and saved. A cubature that cannot be saved is still returned, with the reason in
+/// its report's `cache_warning`.
+///
+/// # Errors
+/// As [`optimize_cubature`].
+pub fn optimize_cubature_cached<M: HyperelasticMaterial>(
+    model: &ReducedModel<M>,
+    params: &CubatureParams,
+    cache_dir: &Path,
+) -> Result<(ElasticQuadrature, CubatureReport), CubatureError> {
+    if let Some(cached) = load_cached_cubature(model, params, cache_dir) {
+        return Ok(cached);
+    }
+    let (quadrature, report) = optimize_cubature(model, params)?;
+    Ok(save_cached_cubature(
+        model, params, cache_dir, quadrature, report,
+    ))
+}
+
+/// The cubature of `model` and `params` cached under `cache_dir`, if there is a readable one
+/// that fits the model (its report says `cached`).
+pub fn load_cached_cubature<M: HyperelasticMaterial>(
+    model: &ReducedModel<M>,
+    params: &CubatureParams,
+    cache_dir: &Path,
+) -> Option<(ElasticQuadrature, CubatureReport)> {
+    let path = cubature_cache_path(model, params, cache_dir);
+    let n = model.volumes().len();
+    let cached = load_framed::<CachedCubature>(&path, CUBATURE_MAGIC, CUBATURE_FORMAT_VERSION)
+        .ok()
+        .flatten()
+        .filter(|cached| cached.points.iter().all(|&p| p < n))?;
+    let quadrature = ElasticQuadrature::new(cached.points, cached.weights).ok()?;
+    let report = CubatureReport {
+        cached: true,
+        ..cached.report
+    };
+    Some((quadrature, report))
+}
+
+/// Saves a freshly optimized cubature of `model` and `params` under `cache_dir` and returns
+/// it; when it cannot be saved, the reason goes into the report's `cache_warning`.
+pub fn save_cached_cubature<M: HyperelasticMaterial>(
+    model: &ReducedModel<M>,
+    params: &CubatureParams,
+    cache_dir: &Path,
+    quadrature: ElasticQuadrature,
+    mut report: CubatureReport,
+) -> (ElasticQuadrature, CubatureReport) {
+    let path = cubature_cache_path(model, params, cache_dir);
+    let entry = CachedCubature {
+        points: quadrature.points().to_vec(),
+        weights: quadrature.weights().to_vec(),
+        report: report.clone(),
+    };
+    let saved = path
+        .parent()
+        .map_or(Ok(()), std::fs::create_dir_all)
+        .map_err(|e| e.to_string())
+        .and_then(|()| {
+            save_framed(&path, CUBATURE_MAGIC, CUBATURE_FORMAT_VERSION, &entry)
+                .map_err(|e| e.to_string())
+        });
+    if let Err(why) = saved {
+        report.cache_warning = Some(format!("{}: {why}", path.display()));
+    }
+    (quadrature, report)
+}

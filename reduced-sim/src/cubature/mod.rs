@@ -1,0 +1,500 @@
+//! Optimized cubature for the reduced elastic forces (An, Kim and James 2008, "Optimizing
+//! cubature for efficient integration of subspace deformations"; design §3.7).
+//!
+//! Training poses `z_p` are drawn from the basis alone ([`training_poses`]): every handle gets a
+//! random rotation (up to [`CubatureParams::max_rotation`]) and a random stretch, scaled so the
+//! root-mean-square Green strain over the points is one of [`CubatureParams::amplitudes`]
+//! (geometric levels from the smallest to the largest amplitude). For
+//! each pose the full-quadrature reduced elastic force `f_p = Σ_i v_i g_i(z_p)` is the target,
+//! with `g_i(z) = ∂Ψ(F_i(z))/∂z` the force density of point i (length 12(m+1)). Poses are
+//! weighted by `1/‖f_p‖` so each counts equally. A cubature `(Q, w)` must satisfy
+//!
+//! ```text
+//! Σ_{q ∈ Q} w_q g_q(z_p) ≈ f_p   for every p,   w ≥ 0,
+//! ```
+//!
+//! found greedily: the candidates (a seeded pool of the points) most aligned with the residual
+//! join Q a batch at a time, and w is re-solved by non-negative least squares
+//! ([`optimize::nnls_normal`], warm-started) after each batch; candidates the solve leaves at
+//! zero weight leave Q for good. Selection stops when the relative residual
+//! `‖Σ_q w_q g_q − f‖ / ‖f‖` over all poses is at most [`CubatureParams::tolerance`] or Q holds
+//! [`CubatureParams::max_points`] points. Candidates are ranked on an f32 copy of their force
+//! columns (ranking only; weights, residual and errors are f64), and the Gram matrix of the
+//! chosen columns is formed from small per-point factors instead of the columns
+//! (`cubature_gram`: 4.6× fewer flops at m = 32).
+//!
+//! One cubature serves every scene on that shape and material; a scene may add poses of its own
+//! ([`optimize_cubature_on`]).
+
+use std::time::Instant;
+
+use hyperelastic::{HyperelasticMaterial, LameParameters};
+use optimize::NnlsError;
+use rand::SeedableRng;
+use rand::seq::index::sample;
+use rand_chacha::ChaCha8Rng;
+use serde::{Deserialize, Serialize};
+use thiserror::Error;
+
+use crate::elastic_energy::weighted_elastic_gradient;
+use crate::elastic_quadrature::{ElasticQuadrature, QuadratureError};
+use crate::reduced_model::ReducedModel;
+
+mod cache;
+mod candidates;
+mod greedy;
+mod training;
+
+pub use cache::{
+    cubature_cache_path, load_cached_cubature, optimize_cubature_cached, save_cached_cubature,
+};
+pub use training::training_poses;
+
+use candidates::CandidateForces;
+use greedy::select_greedily;
+
+/// Options of the cubature optimization.
+#[derive(Clone, Copy, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(default)]
+pub struct CubatureParams {
+    /// Smallest root-mean-square Green strain of a group of training poses (default 0.02).
+    pub smallest_amplitude: f64,
+    /// Largest one (default 0.6: a 648° twist of the beam shears it about this much).
+    pub largest_amplitude: f64,
+    /// Groups of poses, at amplitudes spaced geometrically between the two (default 4).
+    pub amplitude_levels: usize,
+    /// Training poses per amplitude (default 10).
+    pub poses_per_amplitude: usize,
+    /// Largest rotation angle of a handle's random transform (rad, default π).
+    pub max_rotation: f64,
+    /// Training poses that are smooth twists and bends of the whole body about random axes
+    /// through its centre, projected onto the subspace (mass-weighted least squares), half of
+    /// each (default 20): they carry the large local rotations that random handle transforms
+    /// do not.
+    pub field_poses: usize,
+    /// Largest total twist across the body's extent (rad, default 4π: the beam Twist turns its
+    /// end by 3.6π).
+    pub max_twist: f64,
+    /// Largest total bend across the body's extent (rad, default π).
+    pub max_bend: f64,
+    /// Time step (s, default 0.01) of the step system `H = M_z/h² + K₀` whose diagonal weighs
+    /// the force components: component k is scaled by `1/sqrt(H_kk)`, so errors in soft
+    /// directions, which move the solution most, count most.
+    pub time_step: f64,
+    /// Points the greedy selection chooses from, drawn at random (default 5000; every point
+    /// when the model has fewer). Too few limit the error reachable with non-negative weights
+    /// (`results/RESULTS.md`, "The cubature's candidate pool"). Memory:
+    /// 4 · 12(m+1) · poses · candidates bytes (0.48 GB at m = 32).
+    pub candidates: usize,
+    /// Relative force error over the training poses (in the weighted norm of
+    /// [`force_weights`]) at which selection stops (default 0.001). Lower values keep more points
+    /// and follow the full quadrature more closely; the measurements that chose the default are in
+    /// `results/RESULTS.md` ("The cubature's tolerance").
+    pub tolerance: f64,
+    /// Most points with positive weight the cubature may hold (default 2000).
+    pub max_points: usize,
+    /// Points added between weight solves while the cubature is small (default 16; later an
+    /// eighth of the points it holds).
+    pub batch: usize,
+    /// Poses per amplitude not used for training, on which the error is also reported
+    /// (default 3).
+    pub validation_poses_per_amplitude: usize,
+    /// Seed of poses and candidates (default 0).
+    pub seed: u64,
+}
+
+impl CubatureParams {
+    /// The documented defaults, usable in constants.
+    pub const DEFAULT: CubatureParams = CubatureParams {
+        smallest_amplitude: 0.02,
+        largest_amplitude: 0.6,
+        amplitude_levels: 4,
+        poses_per_amplitude: 10,
+        max_rotation: std::f64::consts::PI,
+        field_poses: 20,
+        max_twist: 4.0 * std::f64::consts::PI,
+        max_bend: std::f64::consts::PI,
+        time_step: 0.01,
+        candidates: 5000,
+        tolerance: 0.001,
+        max_points: 2000,
+        batch: 16,
+        validation_poses_per_amplitude: 3,
+        seed: 0,
+    };
+
+    /// The amplitudes of the pose groups: `amplitude_levels` values from the smallest to the
+    /// largest, geometrically spaced.
+    pub fn amplitudes(&self) -> Vec<f64> {
+        let levels = self.amplitude_levels;
+        if levels <= 1 {
+            return vec![self.largest_amplitude; levels];
+        }
+        let ratio = self.largest_amplitude / self.smallest_amplitude;
+        (0..levels)
+            .map(|k| self.smallest_amplitude * ratio.powf(k as f64 / (levels - 1) as f64))
+            .collect()
+    }
+}
+
+impl Default for CubatureParams {
+    fn default() -> Self {
+        CubatureParams::DEFAULT
+    }
+}
+
+/// What the optimization found and what it cost.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+pub struct CubatureReport {
+    /// Points in the cubature (those with positive weight).
+    pub points: usize,
+    /// Training poses used.
+    pub training_poses: usize,
+    /// Relative force error over the training poses, `‖Σ_q w_q g_q − f‖ / ‖f‖` with every pose
+    /// normalized to `‖f_p‖ = 1`.
+    pub training_error: f64,
+    /// The same error on poses drawn independently of the training poses.
+    pub validation_error: f64,
+    /// Whether the tolerance was met (otherwise the point budget stopped selection).
+    pub reached_tolerance: bool,
+    /// Σ w_q over Σ v_i: how far the weights are from a volume-preserving quadrature.
+    pub weight_over_volume: f64,
+    /// Wall time of pose generation, selection and weight solves (s), as first optimized.
+    pub seconds: f64,
+    /// Whether this cubature was loaded from a cache ([`optimize_cubature_cached`]).
+    #[serde(default)]
+    pub cached: bool,
+    /// Why a freshly optimized cubature could not be saved to the cache, if it could not (it
+    /// is still used).
+    #[serde(default)]
+    pub cache_warning: Option<String>,
+}
+
+/// The cubature could not be optimized.
+#[derive(Debug, Error)]
+pub enum CubatureError {
+    /// An option is out of range.
+    #[error("invalid cubature option: {0}")]
+    Params(String),
+    /// The model already integrates over a cubature or subset: train on the full model.
+    #[error("the model already has an elastic quadrature; optimize a cubature on the full model")]
+    NotFull,
+    /// Every training pose has zero elastic force (a basis with no deformable handle).
+    #[error("the training poses have no elastic force: the basis has no deformable handle")]
+    NoForce,
+    /// The optimization ran past its time budget ([`optimize_cubature_within`]) and stopped.
+    #[error(
+        "the cubature optimization stopped after {seconds:.2} s, past its budget of {budget:.2} s"
+    )]
+    OverBudget {
+        /// Time spent when it stopped (s).
+        seconds: f64,
+        /// The budget for the points it held then (s).
+        budget: f64,
+    },
+    /// The weight solve failed.
+    #[error("cubature weights: {0}")]
+    Nnls(#[from] NnlsError),
+    /// The weights do not make a valid quadrature (no positive weight).
+    #[error(transparent)]
+    Quadrature(#[from] QuadratureError),
+}
+
+/// Optimizes a cubature on the basis's own training poses ([`training_poses`] with `params`).
+///
+/// # Errors
+/// [`CubatureError`]: invalid options, a model that already has a quadrature, no force, or a
+/// failed weight solve.
+pub fn optimize_cubature<M: HyperelasticMaterial>(
+    model: &ReducedModel<M>,
+    params: &CubatureParams,
+) -> Result<(ElasticQuadrature, CubatureReport), CubatureError> {
+    optimize_cubature_on(model, &[], params)
+}
+
+/// Optimizes a cubature on the basis's training poses plus `extra_poses` (e.g. frames of a
+/// scene, each of length 12(m+1)).
+///
+/// # Errors
+/// [`CubatureError`]: invalid options or pose lengths, a model that already has a quadrature,
+/// no force, or a failed weight solve.
+pub fn optimize_cubature_on<M: HyperelasticMaterial>(
+    model: &ReducedModel<M>,
+    extra_poses: &[Vec<f64>],
+    params: &CubatureParams,
+) -> Result<(ElasticQuadrature, CubatureReport), CubatureError> {
+    optimize(model, extra_poses, params, None)
+}
+
+/// How long a cubature's training may run: no longer than the cubature can still save over a
+/// run, `T(S) = full_run_seconds · (1 − S/N)` with S the points it holds so far (a cubature
+/// only grows while training, so S bounds its final size from below) and N the model's points.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct CubatureBudget {
+    /// Predicted elastic time of the run on every point (s), e.g.
+    /// [`crate::ElasticCost::run`].
+    pub full_run_seconds: f64,
+    /// Points of the full quadrature, N.
+    pub full_points: usize,
+}
+
+impl CubatureBudget {
+    /// `T(S)` in s for a cubature of `points` points (0 once it holds N or more).
+    pub fn seconds(&self, points: usize) -> f64 {
+        let kept = points as f64 / self.full_points.max(1) as f64;
+        self.full_run_seconds * (1.0 - kept).max(0.0)
+    }
+}
+
+/// [`optimize_cubature`] that gives up once it has spent more than `budget` allows for the
+/// points it holds: it looks at the clock between its stages and between greedy batches, so
+/// it stops within one batch of the budget.
+///
+/// # Errors
+/// [`CubatureError::OverBudget`] when the budget runs out, otherwise as [`optimize_cubature`].
+pub fn optimize_cubature_within<M: HyperelasticMaterial>(
+    model: &ReducedModel<M>,
+    params: &CubatureParams,
+    budget: &CubatureBudget,
+) -> Result<(ElasticQuadrature, CubatureReport), CubatureError> {
+    optimize(model, &[], params, Some(budget))
+}
+
+/// The optimization of the module docs, stopped with [`CubatureError::OverBudget`] once it has
+/// spent more than `budget` allows, if one is given.
+fn optimize<M: HyperelasticMaterial>(
+    model: &ReducedModel<M>,
+    extra_poses: &[Vec<f64>],
+    params: &CubatureParams,
+    budget: Option<&CubatureBudget>,
+) -> Result<(ElasticQuadrature, CubatureReport), CubatureError> {
+    let start = Instant::now();
+    let check_budget = |points: usize| match budget {
+        Some(budget) if start.elapsed().as_secs_f64() > budget.seconds(points) => {
+            Err(CubatureError::OverBudget {
+                seconds: start.elapsed().as_secs_f64(),
+                budget: budget.seconds(points),
+            })
+        }
+        _ => Ok(()),
+    };
+    check_params(params)?;
+    if model.elastic_quadrature().is_some() {
+        return Err(CubatureError::NotFull);
+    }
+    let layout = model.deformation_map().layout();
+    if let Some(p) = extra_poses.iter().find(|p| p.len() != layout.len()) {
+        return Err(CubatureError::Params(format!(
+            "a scene pose has length {}, expected {}",
+            p.len(),
+            layout.len()
+        )));
+    }
+    let mut poses = training_poses(model, params)?;
+    poses.extend_from_slice(extra_poses);
+    let validation = training_poses(
+        model,
+        &CubatureParams {
+            poses_per_amplitude: params.validation_poses_per_amplitude,
+            field_poses: 2 * params.validation_poses_per_amplitude,
+            seed: params.seed.wrapping_add(0x9e37_79b9_7f4a_7c15),
+            ..*params
+        },
+    )?;
+
+    let n = model.deformation_map().len();
+    let mut rng = ChaCha8Rng::seed_from_u64(params.seed.wrapping_add(1));
+    let mut pool: Vec<usize> = if params.candidates >= n {
+        (0..n).collect()
+    } else {
+        sample(&mut rng, n, params.candidates).into_vec()
+    };
+    pool.sort_unstable();
+
+    // Targets, weighted and normalized per pose, and the candidates' force columns with the
+    // same scaling.
+    let omega = force_weights(model, params.time_step);
+    let weigh = |f: Vec<f64>| -> Vec<f64> { f.iter().zip(&omega).map(|(f, w)| f * w).collect() };
+    let targets: Vec<Vec<f64>> = poses
+        .iter()
+        .map(|z| weigh(model.elastic_gradient(z)))
+        .collect();
+    check_budget(0)?;
+    let norms: Vec<f64> = targets.iter().map(|f| norm(f)).collect();
+    let kept: Vec<usize> = (0..poses.len()).filter(|&p| norms[p] > 0.0).collect();
+    if kept.is_empty() {
+        return Err(CubatureError::NoForce);
+    }
+    let b: Vec<f64> = kept
+        .iter()
+        .flat_map(|&p| {
+            let scale = norms[p];
+            targets[p].iter().map(move |f| f / scale)
+        })
+        .collect();
+    let kept_poses: Vec<&[f64]> = kept.iter().map(|&p| poses[p].as_slice()).collect();
+    let kept_norms: Vec<f64> = kept.iter().map(|&p| norms[p]).collect();
+    let candidates = CandidateForces::new(model, &pool, &kept_poses, &kept_norms, &omega);
+    let (columns, column_norms) = candidates.ranking_columns();
+    check_budget(0)?;
+    let pose_scales: Vec<f64> = kept_norms.iter().map(|norm| 1.0 / norm).collect();
+    let selection = select_greedily(
+        &candidates,
+        &columns,
+        &column_norms,
+        &b,
+        &omega,
+        &pose_scales,
+        params,
+        &check_budget,
+    )?;
+    let training_error = norm(&selection.residual) / norm(&b);
+    let (points, weights): (Vec<usize>, Vec<f64>) = selection
+        .selected
+        .iter()
+        .zip(&selection.weights)
+        .filter(|&(_, &w)| w > 0.0)
+        .map(|(&c, &w)| (pool[c], w))
+        .unzip();
+    let quadrature = ElasticQuadrature::new(points, weights)?;
+    let validation_error = force_error(model, &quadrature, &validation, &omega);
+    let total_volume: f64 = model.volumes().iter().sum();
+    let report = CubatureReport {
+        points: quadrature.len(),
+        training_poses: kept.len(),
+        training_error,
+        validation_error,
+        reached_tolerance: training_error <= params.tolerance,
+        weight_over_volume: quadrature.total_weight() / total_volume,
+        seconds: start.elapsed().as_secs_f64(),
+        cached: false,
+        cache_warning: None,
+    };
+    Ok((quadrature, report))
+}
+
+/// The weights `ω_k = 1/sqrt(H_kk)` of the force components, with `H = M_z/h² + K₀` the
+/// step system at rest (K₀ the exact elastic Hessian at z = 0, M_z the reduced mass matrix,
+/// h = `time_step` in s): a force error δf moves a Newton step by about `H⁻¹ δf`, whose
+/// Jacobi approximation is `diag(ω)² δf`.
+pub fn force_weights<M: HyperelasticMaterial>(model: &ReducedModel<M>, time_step: f64) -> Vec<f64> {
+    let layout = model.deformation_map().layout();
+    let stiffness = model.elastic_hessian(&layout.rest(), hyperelastic::Tangent::Exact);
+    let mass = model.mass_block();
+    let n4 = layout.block_len();
+    (0..layout.len())
+        .map(|k| {
+            let h = stiffness[(k, k)] + mass[(k % n4, k % n4)] / (time_step * time_step);
+            if h > 0.0 { 1.0 / h.sqrt() } else { 0.0 }
+        })
+        .collect()
+}
+
+/// The relative force error of `quadrature` on `poses` in the `weights` norm (one weight per
+/// component of z, e.g. [`force_weights`]; all ones for the plain norm), each pose normalized
+/// to unit force: `sqrt(Σ_p ‖ω∘(f̃_p − f_p)‖² / ‖ω∘f_p‖² / #poses)` with f the full-quadrature
+/// force and f̃ the quadrature's. Poses with zero force are skipped.
+///
+/// # Panics
+/// If `model` already has a quadrature, or a quadrature point is out of range.
+pub fn force_error<M: HyperelasticMaterial>(
+    model: &ReducedModel<M>,
+    quadrature: &ElasticQuadrature,
+    poses: &[Vec<f64>],
+    weights: &[f64],
+) -> f64 {
+    assert!(
+        model.elastic_quadrature().is_none(),
+        "force errors are measured against the full model"
+    );
+    let map = model.deformation_map().subset(quadrature.points());
+    let lame: Vec<LameParameters> = quadrature
+        .points()
+        .iter()
+        .map(|&i| model.lame_parameters()[i])
+        .collect();
+    let mut sum = 0.0;
+    let mut count = 0usize;
+    for z in poses {
+        let full: Vec<f64> = model
+            .elastic_gradient(z)
+            .iter()
+            .zip(weights)
+            .map(|(f, w)| f * w)
+            .collect();
+        let reference = norm(&full);
+        if reference == 0.0 {
+            continue;
+        }
+        let approx = weighted_elastic_gradient(
+            model.material(),
+            &map,
+            &lame,
+            quadrature.weights(),
+            &map.deformation_gradients(z),
+        );
+        let diff: Vec<f64> = approx
+            .iter()
+            .zip(&full)
+            .zip(weights)
+            .map(|((a, f), w)| a * w - f)
+            .collect();
+        sum += (norm(&diff) / reference).powi(2);
+        count += 1;
+    }
+    if count == 0 {
+        0.0
+    } else {
+        (sum / count as f64).sqrt()
+    }
+}
+
+/// The ranges the pose generator samples from must be finite (and amplitudes positive, angles
+/// non-negative): checked before any is drawn.
+fn check_pose_ranges(params: &CubatureParams, amplitudes: &[f64]) -> Result<(), CubatureError> {
+    if let Some(a) = amplitudes.iter().find(|a| !(a.is_finite() && **a > 0.0)) {
+        return Err(CubatureError::Params(format!(
+            "amplitudes must be finite and positive, got {a}"
+        )));
+    }
+    let angles = [
+        ("max_rotation", params.max_rotation),
+        ("max_twist", params.max_twist),
+        ("max_bend", params.max_bend),
+    ];
+    match angles.iter().find(|(_, v)| !(v.is_finite() && *v >= 0.0)) {
+        Some((name, value)) => Err(CubatureError::Params(format!(
+            "{name} must be finite and non-negative, got {value} rad"
+        ))),
+        None => Ok(()),
+    }
+}
+
+fn check_params(params: &CubatureParams) -> Result<(), CubatureError> {
+    let problem = if params.amplitude_levels == 0 || params.poses_per_amplitude == 0 {
+        Some("at least one amplitude and one pose per amplitude are needed".to_string())
+    } else if !(params.tolerance.is_finite() && params.tolerance > 0.0) {
+        Some(format!(
+            "the tolerance must be positive, got {}",
+            params.tolerance
+        ))
+    } else if params.max_points == 0 || params.batch == 0 || params.candidates == 0 {
+        Some("max_points, batch and candidates must be at least 1".to_string())
+    } else if !(params.time_step.is_finite() && params.time_step > 0.0) {
+        Some(format!(
+            "time_step must be positive, got {} s",
+            params.time_step
+        ))
+    } else {
+        None
+    };
+    problem.map_or(Ok(()), |p| Err(CubatureError::Params(p)))
+}
+
+fn dot(a: &[f64], b: &[f64]) -> f64 {
+    a.iter().zip(b).map(|(x, y)| x * y).sum()
+}
+
+fn norm(a: &[f64]) -> f64 {
+    dot(a, a).sqrt()
+}
