@@ -1,16 +1,14 @@
 //! Backward Euler with Newton on the full FEM model, exact Dirichlet conditions, per-step
 //! reports (design §3.8).
 
-use std::ops::ControlFlow;
 use std::path::PathBuf;
-use std::sync::{Mutex, PoisonError};
-use std::time::{Duration, Instant};
+use std::time::Duration;
 
 use hyperelastic::{HessianTangent, HyperelasticMaterial, Tangent};
 use nalgebra::Vector3;
 use optimize::{
-    CarriedFactor, HessianReuse, NewtonError, NewtonObjective, NewtonParams, NewtonReport,
-    minimize, minimize_reusing,
+    CarriedFactor, HessianReuse, NewtonError, NewtonParams, NewtonReport, minimize,
+    minimize_reusing,
 };
 use rayon::prelude::*;
 use serde::{Deserialize, Serialize};
@@ -19,11 +17,15 @@ use thiserror::Error;
 use crate::factor_memory::FactorMemoryLimit;
 use crate::fem_model::FemModel;
 use crate::fill_reducing_ordering::FillReducingOrdering;
-use crate::run_checkpoint::RunCheckpoint;
-use crate::run_keys::KeyInputs;
 use crate::scene::{FemFloor, FemScene};
 use crate::sparse_system::{NumericFactor, SparseSystem, SystemSetupError};
-use crate::trajectory_cache::{Trajectory, TrajectoryCache, TrajectoryCacheError, TrajectoryKey};
+use crate::trajectory_cache::{Trajectory, TrajectoryCacheError};
+
+mod run_management;
+mod step_objective;
+
+pub use run_management::{CachedRun, RunProgress};
+use step_objective::StepObjective;
 
 /// Options of a FEM simulation.
 #[derive(Clone, Copy, Debug, PartialEq, Serialize, Deserialize)]
@@ -208,46 +210,6 @@ pub fn reusing_reference_newton() -> NewtonParams {
 /// The most steps one factorization of the FEM is carried across with Hessian reuse.
 pub const FEM_FACTOR_MAX_AGE: usize = 50;
 
-/// What [`FemSimulator::run_cached`] tells its progress callback.
-#[derive(Clone, Copy, Debug, PartialEq, Eq)]
-pub enum RunProgress {
-    /// The run goes on from a checkpoint holding this many steps (reported once, before any
-    /// step is computed).
-    Resumed {
-        /// Steps the checkpoint holds.
-        steps_done: usize,
-    },
-    /// A step was computed.
-    Stepped {
-        /// The step (1-based): the steps done.
-        step: usize,
-    },
-}
-
-impl RunProgress {
-    /// The steps done so far.
-    pub fn steps_done(self) -> usize {
-        match self {
-            RunProgress::Resumed { steps_done } => steps_done,
-            RunProgress::Stepped { step } => step,
-        }
-    }
-}
-
-/// What [`FemSimulator::run_cached`] returns.
-#[derive(Debug)]
-pub struct CachedRun {
-    /// The trajectory (frames 0..=steps).
-    pub trajectory: Trajectory,
-    /// Whether it was read from the cache whole (nothing computed).
-    pub from_cache: bool,
-    /// Steps taken from a checkpoint of an earlier, stopped run (0 when it started afresh).
-    pub resumed_steps: usize,
-    /// The first checkpoint that could not be written or removed: the run went on, and only
-    /// the work since the last good save was at risk.
-    pub checkpoint_error: Option<TrajectoryCacheError>,
-}
-
 /// Backward-Euler FEM simulation.
 pub struct FemSimulator<M: HyperelasticMaterial> {
     model: FemModel<M>,
@@ -406,242 +368,6 @@ impl<M: HyperelasticMaterial> FemSimulator<M> {
     /// Stored entries of its Cholesky factor L (the fill left by [`FemParams::ordering`]).
     pub fn factor_nonzeros(&self) -> usize {
         self.system.factor_nonzeros()
-    }
-
-    /// The cache key of `steps` steps from the rest state: a hash of the mesh, element order,
-    /// mass kind, material model and per-element parameters, gravity, Dirichlet node sets,
-    /// floor, time step, Newton options and `steps`. Moving Dirichlet targets are closures and
-    /// cannot be hashed: `scene_label` must name them uniquely (e.g. "twist 2160 deg/s to 720
-    /// deg about y = z = 0.5").
-    pub fn trajectory_key(&self, scene_label: &str, steps: usize) -> TrajectoryKey {
-        self.key_inputs().builder(scene_label, steps).finish()
-    }
-
-    /// The cache key of a run of `steps` steps some of whose steps were split
-    /// ([`FemParams::failed_step_halvings`]): [`Self::trajectory_key`]'s inputs and the
-    /// splitting depth.
-    pub fn split_trajectory_key(&self, scene_label: &str, steps: usize) -> TrajectoryKey {
-        self.key_inputs().split_key(scene_label, steps)
-    }
-
-    /// The key the checkpoint of a run of `steps` steps is saved under
-    /// ([`TrajectoryCache::checkpoint_path`]): [`Self::split_trajectory_key`] where the run may
-    /// split steps, [`Self::trajectory_key`] otherwise.
-    pub fn checkpoint_key(&self, scene_label: &str, steps: usize) -> TrajectoryKey {
-        self.key_inputs().keys(scene_label, steps).checkpoint()
-    }
-
-    fn key_inputs(&self) -> KeyInputs<'_, M> {
-        KeyInputs {
-            model: &self.model,
-            scene: &self.scene,
-            floor: self.floor.as_ref(),
-            params: &self.params,
-        }
-    }
-
-    /// The trajectory [`Self::run_cached`] would load from `cache` for the simulator
-    /// `FemSimulator::new(model.clone(), scene.clone(), *params)` at rest, found without
-    /// building it: no fill-reducing ordering, no symbolic factorization (seconds at 100k DOFs,
-    /// a fifth of a warm-cache Table 2). `None` when the run must be computed, or when `new`
-    /// would refuse the scene (it then names why).
-    ///
-    /// # Errors
-    /// [`TrajectoryCacheError`]: the cache could not be read.
-    pub fn load_cached(
-        model: &FemModel<M>,
-        scene: &FemScene,
-        params: &FemParams,
-        steps: usize,
-        scene_label: &str,
-        cache: &TrajectoryCache,
-    ) -> Result<Option<Trajectory>, TrajectoryCacheError> {
-        let Ok(floor) = penalized_floor(model, scene, length_scale(model)) else {
-            return Ok(None);
-        };
-        let inputs = KeyInputs {
-            model,
-            scene,
-            floor: floor.as_ref(),
-            params,
-        };
-        inputs.keys(scene_label, steps).load(cache)
-    }
-
-    /// `steps` steps from the current state, recording all node positions per frame (frame 0 =
-    /// the current state) — or the cached trajectory when `cache` holds one. A fresh run is
-    /// stored. `progress` hears [`RunProgress::Stepped`] after each computed step, and
-    /// [`RunProgress::Resumed`] once before the first when the run resumes from a checkpoint;
-    /// returning [`ControlFlow::Break`] stops the run there ([`FemRunError::Stopped`]).
-    ///
-    /// A run is stored under [`Self::trajectory_key`], or under
-    /// [`Self::split_trajectory_key`] when it split a step
-    /// ([`FemParams::failed_step_halvings`]). With splitting allowed, a trajectory under the
-    /// first key is taken only when every step converged (it is then what splitting computes
-    /// too); one with unconverged steps was run without splitting and is run again.
-    ///
-    /// While it runs, the run so far is saved every [`FemParams::checkpoint_interval`] and
-    /// when it is stopped ([`crate::RunCheckpoint`], under the key it may finish under); a
-    /// later call for the same run goes on from there and the checkpoint is deleted once the
-    /// trajectory is stored. Without Hessian reuse ([`HessianReuse::Never`], every shape and
-    /// beam reference) the resumed trajectory is bit for bit the uninterrupted one; with
-    /// reuse the carried factorization is not saved, so it differs within the Newton
-    /// tolerance.
-    ///
-    /// Only meaningful from the rest state at t = 0 (what the key describes).
-    ///
-    /// # Errors
-    /// [`FemRunError`]: a step failed (nothing is stored; the last checkpoint stays), the run
-    /// was stopped, a checkpoint under its key does not fit it, or the cache could not be
-    /// read or written (the computed trajectory is still returned inside the error).
-    pub fn run_cached(
-        &mut self,
-        steps: usize,
-        scene_label: &str,
-        cache: &TrajectoryCache,
-        mut progress: impl FnMut(RunProgress) -> ControlFlow<()>,
-    ) -> Result<CachedRun, FemRunError> {
-        let keys = self.key_inputs().keys(scene_label, steps);
-        if let Some(trajectory) = keys.load(cache).map_err(FemRunError::Cache)? {
-            return Ok(CachedRun {
-                trajectory,
-                from_cache: true,
-                resumed_steps: 0,
-                checkpoint_error: None,
-            });
-        }
-        let checkpoint_key = keys.checkpoint();
-        let split_before = self.split_steps;
-        let mut trajectory = match cache
-            .load_checkpoint(checkpoint_key)
-            .map_err(FemRunError::Cache)?
-        {
-            Some(checkpoint) => {
-                self.resume(checkpoint, steps, cache.checkpoint_path(checkpoint_key))?
-            }
-            None => Trajectory {
-                times: vec![self.time],
-                frames: vec![self.frame()],
-                iterations: Vec::with_capacity(steps),
-                converged: Vec::with_capacity(steps),
-                seconds: 0.0,
-            },
-        };
-        let resumed_steps = trajectory.frames.len() - 1;
-        if resumed_steps > 0
-            && resumed_steps < steps
-            && progress(RunProgress::Resumed {
-                steps_done: resumed_steps,
-            })
-            .is_break()
-        {
-            return Err(FemRunError::Stopped {
-                step: resumed_steps,
-                steps,
-                checkpoint: cache.checkpoint_path(checkpoint_key),
-            });
-        }
-        let seconds_before = trajectory.seconds;
-        let start = Instant::now();
-        let mut last_save = (Instant::now(), Duration::ZERO);
-        let mut checkpoint_error = None;
-        for step in resumed_steps + 1..=steps {
-            let report = self
-                .step()
-                .map_err(|source| FemRunError::Step { step, source })?;
-            trajectory.times.push(self.time);
-            trajectory.frames.push(self.frame());
-            trajectory.iterations.push(report.iterations);
-            trajectory.converged.push(report.converged());
-            let stopped = progress(RunProgress::Stepped { step }).is_break();
-            let due = self
-                .params
-                .checkpoint_interval
-                .is_some_and(|interval| last_save.0.elapsed() >= interval.max(10 * last_save.1));
-            if step == steps || !(stopped || due) {
-                continue;
-            }
-            trajectory.seconds = seconds_before + start.elapsed().as_secs_f64();
-            let saving = Instant::now();
-            let checkpoint = RunCheckpoint {
-                trajectory: trajectory.clone(),
-                velocities: self.v.clone(),
-                split_steps: self.split_steps - split_before,
-            };
-            let saved = cache.store_checkpoint(checkpoint_key, &checkpoint);
-            last_save = (Instant::now(), saving.elapsed());
-            if stopped {
-                return Err(match saved {
-                    Ok(checkpoint) => FemRunError::Stopped {
-                        step,
-                        steps,
-                        checkpoint,
-                    },
-                    Err(e) => FemRunError::Cache(e),
-                });
-            }
-            if let Err(e) = saved {
-                checkpoint_error.get_or_insert(e);
-            }
-        }
-        trajectory.seconds = seconds_before + start.elapsed().as_secs_f64();
-        let key = match keys.split {
-            Some(split_key) if self.split_steps > split_before => split_key,
-            _ => keys.whole,
-        };
-        if let Err(e) = cache.store(key, &trajectory) {
-            return Err(FemRunError::CacheWrite {
-                error: e,
-                trajectory: Box::new(trajectory),
-            });
-        }
-        if let Err(e) = cache.remove_checkpoint(checkpoint_key) {
-            checkpoint_error.get_or_insert(e);
-        }
-        Ok(CachedRun {
-            trajectory,
-            from_cache: false,
-            resumed_steps,
-            checkpoint_error,
-        })
-    }
-
-    /// The current node positions as one trajectory frame.
-    fn frame(&self) -> Vec<[f64; 3]> {
-        self.x.chunks_exact(3).map(|c| [c[0], c[1], c[2]]).collect()
-    }
-
-    /// Sets the state to a checkpoint's last frame and returns its trajectory so far.
-    fn resume(
-        &mut self,
-        checkpoint: RunCheckpoint,
-        steps: usize,
-        path: PathBuf,
-    ) -> Result<Trajectory, FemRunError> {
-        let nodes = self.x.len() / 3;
-        let mismatch = checkpoint.mismatch(nodes, steps).or_else(|| {
-            (checkpoint.trajectory.frames[0] != self.frame()
-                || checkpoint.trajectory.times[0] != self.time)
-                .then(|| "its first frame is not this simulator's state".to_string())
-        });
-        if let Some(reason) = mismatch {
-            return Err(FemRunError::CheckpointMismatch { path, reason });
-        }
-        let RunCheckpoint {
-            trajectory,
-            velocities,
-            split_steps,
-        } = checkpoint;
-        let last = trajectory
-            .frames
-            .last()
-            .expect("a checkpoint holds frame 0");
-        self.x = last.iter().flatten().copied().collect();
-        self.v = velocities;
-        self.time = *trajectory.times.last().expect("as many times as frames");
-        self.split_steps += split_steps;
-        self.carried = None;
-        Ok(trajectory)
     }
 
     /// Sets Dirichlet nodes to their targets at `t`.
@@ -898,82 +624,5 @@ impl<M: HyperelasticMaterial> FemSimulator<M> {
         let mut step: Vec<f64> = gradient_free.iter().map(|g| -g).collect();
         self.system.solve_in_place(factor, &mut step);
         self.scatter_step(&step)
-    }
-}
-
-/// One step's minimization problem for [`optimize::minimize`]: x holds every node (Dirichlet
-/// nodes at their targets), the gradient and the sparse Hessian only the free DOFs.
-struct StepObjective<'a, M: HyperelasticMaterial> {
-    sim: &'a FemSimulator<M>,
-    problem: StepProblem<'a>,
-    /// Where the last exact Hessian was assembled, for the definite one a failed
-    /// factorization falls back to ([`HessianTangent::fallback`]).
-    exact_at: Mutex<Option<Vec<f64>>>,
-}
-
-impl<'a, M: HyperelasticMaterial> StepObjective<'a, M> {
-    fn new(sim: &'a FemSimulator<M>, problem: StepProblem<'a>) -> Self {
-        StepObjective {
-            sim,
-            problem,
-            exact_at: Mutex::new(None),
-        }
-    }
-}
-
-impl<M: HyperelasticMaterial> NewtonObjective for StepObjective<'_, M> {
-    type Hessian = Vec<f64>;
-    type Factor = NumericFactor;
-
-    fn energy(&self, x: &[f64]) -> f64 {
-        self.sim.energy(&self.problem, x)
-    }
-
-    fn gradient(&self, x: &[f64]) -> Vec<f64> {
-        self.sim.free_part(&self.sim.gradient(&self.problem, x))
-    }
-
-    fn gradient_and_hessian(&self, x: &[f64], gradient: Option<Vec<f64>>) -> (Vec<f64>, Vec<f64>) {
-        let gradient = gradient.unwrap_or_else(|| self.gradient(x));
-        let tangent = self.sim.params.tangent;
-        if tangent.fallback().is_some() {
-            *self.exact_at.lock().unwrap_or_else(PoisonError::into_inner) = Some(x.to_vec());
-        }
-        (
-            gradient,
-            self.sim.hessian(&self.problem, x, tangent.first_try()),
-        )
-    }
-
-    fn factor(&self, values: Vec<f64>) -> Option<Self::Factor> {
-        let factor = self.sim.system.factorize(&values);
-        if factor.is_some() {
-            return factor;
-        }
-        let fallback = self.sim.params.tangent.fallback()?;
-        let x = self
-            .exact_at
-            .lock()
-            .unwrap_or_else(PoisonError::into_inner)
-            .take()?;
-        let definite = self.sim.hessian(&self.problem, &x, fallback);
-        self.sim.system.factorize(&definite)
-    }
-
-    fn solve(&self, factor: &Self::Factor, gradient: &[f64]) -> Vec<f64> {
-        self.sim.solve(factor, gradient)
-    }
-
-    fn step_norm(&self, step: &[f64]) -> f64 {
-        self.sim.step_norm(step)
-    }
-
-    fn directional_derivative(&self, gradient: &[f64], step: &[f64]) -> f64 {
-        self.sim
-            .free_part(step)
-            .iter()
-            .zip(gradient)
-            .map(|(s, g)| s * g)
-            .sum()
     }
 }
