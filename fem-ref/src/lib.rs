@@ -3,6 +3,8 @@
 pub mod element;
 pub mod factor_memory;
 pub mod fem_model;
+pub mod fem_params;
+pub mod fem_setup_error;
 pub mod fem_simulator;
 pub mod fill_reducing_ordering;
 mod kuhn_bisection;

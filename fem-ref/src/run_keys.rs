@@ -5,7 +5,7 @@ use artifact::ContentKeyBuilder;
 use hyperelastic::HyperelasticMaterial;
 
 use crate::fem_model::FemModel;
-use crate::fem_simulator::FemParams;
+use crate::fem_params::FemParams;
 use crate::scene::{FemFloor, FemScene, NodeTarget};
 use crate::trajectory_cache::{
     Trajectory, TrajectoryCache, TrajectoryCacheError, TrajectoryKey, trajectory_key_builder,

@@ -6,7 +6,7 @@ use std::sync::Arc;
 use nalgebra::Vector3;
 use serde::{Deserialize, Serialize};
 
-use crate::fem_simulator::FemSetupError;
+use crate::fem_setup_error::FemSetupError;
 
 /// A target position (m) as a function of rest position X (m) and time t (s).
 pub type NodeTargetFunction = Arc<dyn Fn(&Vector3<f64>, f64) -> Vector3<f64> + Send + Sync>;

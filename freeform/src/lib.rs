@@ -19,6 +19,7 @@ pub mod failure_chain;
 pub mod fem_reference;
 pub mod frames;
 pub mod geometry;
+pub mod material_spec;
 pub mod metrics;
 pub mod object_scene;
 mod object_setup;

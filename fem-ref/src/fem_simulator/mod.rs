@@ -2,151 +2,29 @@
 //! reports (design §3.8).
 
 use std::path::PathBuf;
-use std::time::Duration;
 
-use hyperelastic::{HessianTangent, HyperelasticMaterial, Tangent};
+use hyperelastic::{HyperelasticMaterial, Tangent};
 use nalgebra::Vector3;
 use optimize::{
     CarriedFactor, HessianReuse, NewtonError, NewtonParams, NewtonReport, minimize,
     minimize_reusing,
 };
 use rayon::prelude::*;
-use serde::{Deserialize, Serialize};
 use thiserror::Error;
 
-use crate::factor_memory::FactorMemoryLimit;
 use crate::fem_model::FemModel;
-use crate::fill_reducing_ordering::FillReducingOrdering;
 use crate::scene::{FemFloor, FemScene};
 use crate::sparse_system::{NumericFactor, SparseSystem, SystemSetupError};
 use crate::trajectory_cache::{Trajectory, TrajectoryCacheError};
+
+pub use crate::fem_params::{DEFAULT_CHECKPOINT_INTERVAL, FemParams};
+pub use crate::fem_setup_error::FemSetupError;
 
 mod run_management;
 mod step_objective;
 
 pub use run_management::{CachedRun, RunProgress};
 use step_objective::StepObjective;
-
-/// Options of a FEM simulation.
-#[derive(Clone, Copy, Debug, PartialEq, Serialize, Deserialize)]
-pub struct FemParams {
-    /// Time step h (s, default 0.01).
-    pub time_step: f64,
-    /// Newton options (the workspace's one solver, [`optimize::minimize`]); its convergence
-    /// test is `sqrt(Δxᵀ M Δx / mass) / L < tolerance`, L the largest rest bounding-box side:
-    /// the same scale-invariant test as the reduced simulator. With
-    /// [`HessianReuse::WhileContracting`] the sparse Cholesky factor is carried from step to
-    /// step (chord steps while they contract, at most [`FEM_FACTOR_MAX_AGE`] steps), and a
-    /// step that does not converge that way is solved again with fresh Hessians; the default,
-    /// [`HessianReuse::Never`], factors afresh every iteration.
-    pub newton: NewtonParams,
-    /// Element tangent (default PSD-projected, the references' setting; `Exact` is only safe
-    /// while the system stays positive definite, and a failed factorization is then reported;
-    /// `ExactWhenDefinite` assembles the exact Hessian and the projected one only when the
-    /// exact one fails to factor, which converges in fewer iterations at large rotations;
-    /// `ExactElseAbsolute` falls back to the absolute-eigenvalue tangent instead: on the
-    /// Twist beam 182 instead of 189 Newton iterations, on the soft skull's Fix side sag (10
-    /// cells, 65k P2 DOFs, steps 1–33) 398 instead of 276, one step 151 instead of 42; always
-    /// projected took 416 there).
-    pub tangent: HessianTangent,
-    /// Elimination order of the sparse Cholesky factorization (default: nested dissection or
-    /// minimum degree, whichever leaves the smaller factor).
-    /// Only round-off depends on it, so it is not part of [`FemSimulator::trajectory_key`].
-    #[serde(default)]
-    pub ordering: FillReducingOrdering,
-    /// The most memory the sparse Cholesky factors may take (default
-    /// [`FactorMemoryLimit::Available`]: what the operating system reports available at
-    /// setup); a larger need is refused at setup. Not part of the trajectory key.
-    #[serde(default)]
-    pub factor_memory: FactorMemoryLimit,
-    /// How deep a step whose Newton solve does not converge (iteration cap, stalled line
-    /// search, a failed factorization or a non-finite value) is split: the step of h is taken
-    /// again from its start as two backward-Euler steps of h/2, each of which may be split
-    /// again, at most this many halvings deep (default 0: the step is kept unconverged and
-    /// reported so, the first tables' setting). Frames stay at multiples of h; a step that
-    /// still fails at the deepest level is reported unconverged (or its error returned).
-    /// Not part of [`FemSimulator::trajectory_key`]: a trajectory whose every step converged
-    /// whole is what any depth computes, and [`FemSimulator::run_cached`] stores one that
-    /// needed a split under its own key ([`FemSimulator::split_trajectory_key`]).
-    #[serde(default)]
-    pub failed_step_halvings: usize,
-    /// How often [`FemSimulator::run_cached`] saves the run so far
-    /// ([`crate::RunCheckpoint`]; default [`DEFAULT_CHECKPOINT_INTERVAL`], `None`: only when
-    /// the caller stops the run): after the first whole step at least this long after the
-    /// last save, and at least ten times as long as the last save took, so that saving the
-    /// frames of a large mesh never costs more than a tenth of the run. Not part of the
-    /// trajectory key.
-    #[serde(default = "default_checkpoint_interval")]
-    pub checkpoint_interval: Option<Duration>,
-}
-
-/// [`FemParams::checkpoint_interval`]'s default: a killed run loses at most about five
-/// minutes.
-pub const DEFAULT_CHECKPOINT_INTERVAL: Duration = Duration::from_secs(300);
-
-fn default_checkpoint_interval() -> Option<Duration> {
-    Some(DEFAULT_CHECKPOINT_INTERVAL)
-}
-
-impl Default for FemParams {
-    fn default() -> Self {
-        FemParams {
-            time_step: 0.01,
-            newton: NewtonParams::default(),
-            tangent: HessianTangent::ProjectedPsd,
-            ordering: FillReducingOrdering::default(),
-            factor_memory: FactorMemoryLimit::default(),
-            failed_step_halvings: 0,
-            checkpoint_interval: default_checkpoint_interval(),
-        }
-    }
-}
-
-/// The scene does not fit the model, or the system cannot be set up.
-#[derive(Clone, Debug, Error, PartialEq)]
-pub enum FemSetupError {
-    /// A Dirichlet node index is out of range.
-    #[error("Dirichlet region {region} names node {node}, but the mesh has {nodes} nodes")]
-    NodeOutOfRange {
-        /// Region.
-        region: usize,
-        /// Bad index.
-        node: usize,
-        /// Node count.
-        nodes: usize,
-    },
-    /// Gravity or the floor is not finite, or the floor normal is zero.
-    #[error("invalid scene: {0}")]
-    InvalidScene(String),
-    /// Every node is fixed.
-    #[error("every node is fixed by Dirichlet conditions: nothing to solve")]
-    NothingFree,
-    /// The time step is not finite and positive.
-    #[error("the time step must be finite and positive, got {0} s")]
-    InvalidTimeStep(f64),
-    /// The sparse symbolic analysis failed (out of memory).
-    #[error("sparse symbolic analysis failed: {0}")]
-    Symbolic(String),
-    /// The sparse Cholesky factors would need more memory than [`FemParams::factor_memory`]
-    /// allows (found by the symbolic analysis, before any numeric work).
-    #[error(
-        "the FEM's Cholesky factors of {dofs} DOFs ({factor_nonzeros} nonzeros) need {:.1} GB, \
-         more than the {:.1} GB allowed (FemParams::factor_memory)",
-        *.bytes as f64 / 1e9,
-        *.limit as f64 / 1e9
-    )]
-    FactorTooLarge {
-        /// Free DOFs.
-        dofs: usize,
-        /// Nonzeros of one factor.
-        factor_nonzeros: usize,
-        /// Bytes needed: two factors (a carried or previous one and the fresh one) and the
-        /// factorization's workspace.
-        bytes: u64,
-        /// The limit (bytes).
-        limit: u64,
-    },
-}
 
 /// A cached run failed.
 #[derive(Debug, Error)]

@@ -131,7 +131,7 @@ impl<M: HyperelasticMaterial> FemSimulator<M> {
     /// While it runs, the run so far is saved every [`FemParams::checkpoint_interval`] and
     /// when it is stopped ([`crate::RunCheckpoint`], under the key it may finish under); a
     /// later call for the same run goes on from there and the checkpoint is deleted once the
-    /// trajectory is stored. Without Hessian reuse ([`HessianReuse::Never`], every shape and
+    /// trajectory is stored. Without Hessian reuse ([`optimize::HessianReuse::Never`], every shape and
     /// beam reference) the resumed trajectory is bit for bit the uninterrupted one; with
     /// reuse the carried factorization is not saved, so it differs within the Newton
     /// tolerance.
