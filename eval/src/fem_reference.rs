@@ -14,7 +14,7 @@ use hyperelastic::{HessianTangent, MaterialSample};
 use serde::{Deserialize, Serialize};
 
 use crate::EvalError;
-use crate::beam::{BEAM_MAX, BEAM_MIN, BEAM_TIME_STEP, BeamTest, beam_material};
+use crate::beam_scenario::{BEAM_MAX, BEAM_MIN, BEAM_TIME_STEP, BeamTest, beam_material};
 
 /// Resolution and element order of a FEM beam run.
 #[derive(Clone, Copy, Debug, PartialEq, Serialize, Deserialize)]

@@ -6,6 +6,7 @@ use thiserror::Error;
 
 pub mod ablation;
 pub mod beam;
+pub mod beam_scenario;
 pub mod bench;
 pub mod convergence;
 pub mod fem_reference;

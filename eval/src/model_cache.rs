@@ -10,8 +10,7 @@ use fem_ref::trajectory_key_builder;
 use rkpm_core::IntegrationPoints;
 
 use crate::EvalError;
-use crate::beam::beam_material;
-use crate::beam::reduced::beam_basis_grid;
+use crate::beam_scenario::{beam_basis_grid, beam_material};
 use freeform::terminal_progress::TerminalProgress;
 
 /// `<cache>/<folder>/<folder>-<hash>.model` for a model of the beam grid of about

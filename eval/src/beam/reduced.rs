@@ -5,7 +5,7 @@ use std::path::Path;
 use std::time::Instant;
 
 use freeform::{PinHold, PressureSpace, PressureSpaceParams, Simulation};
-use hyperelastic::{LameParameters, MaterialField, MaterialSample, StableNeoHookean};
+use hyperelastic::{MaterialField, MaterialSample, StableNeoHookean};
 use nalgebra::Vector3;
 use optimize::{HessianReuse, NewtonParams};
 use reduced_sim::{
@@ -20,6 +20,7 @@ use skin_eigen::{BasisError, BasisParams, BasisReport, SkinningBasis, build_basi
 
 use crate::EvalError;
 use crate::beam::{BEAM_MAX, BEAM_MIN, BEAM_TIME_STEP, BeamTest, beam_grid_spacing, beam_material};
+use crate::beam_scenario::beam_basis_grid;
 use crate::reduced_run::{ReducedProblem, ReducedRun, run_reduced};
 use freeform::terminal_progress::TerminalProgress;
 
@@ -271,28 +272,6 @@ pub struct BeamBasis {
     pub report: BasisReport,
     /// Wall time including grid sampling (s).
     pub seconds: f64,
-}
-
-/// The grid of about `points` cells the beam's basis (or a baseline) is built on, with the
-/// beam's Lamé parameters at every point.
-///
-/// # Errors
-/// [`EvalError::Sampling`] for an invalid count, [`EvalError::Material`] for an invalid
-/// material.
-pub fn beam_basis_grid(
-    points: usize,
-) -> Result<(IntegrationPoints, Vec<LameParameters>), EvalError> {
-    let grid =
-        sample_box_grid(BEAM_MIN, BEAM_MAX, beam_grid_spacing(points)).map_err(|source| {
-            EvalError::Sampling {
-                what: "basis points",
-                source,
-            }
-        })?;
-    let material = beam_material();
-    let lame = material.lame_parameters().map_err(EvalError::Material)?;
-    let lame = vec![lame; grid.len()];
-    Ok((grid, lame))
 }
 
 /// Builds the beam's skinning basis for `settings` (modes, kernels, basis points).

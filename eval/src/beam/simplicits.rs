@@ -9,7 +9,7 @@ use hyperelastic::LameParameters;
 use rkpm_core::IntegrationPoints;
 
 use crate::EvalError;
-use crate::beam::reduced::beam_basis_grid;
+use crate::beam_scenario::beam_basis_grid;
 use crate::model_cache::{beam_model_path, load_or_train};
 use freeform::terminal_progress::TerminalProgress;
 
