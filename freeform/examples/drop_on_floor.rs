@@ -1,11 +1,11 @@
 //! Drops Spot the cow onto a floor and writes PLY + VTK frames, using only the library layer.
 //!
 //! `cargo run --release -p freeform --example drop_on_floor [MESH] [OUT]`
-use freeform::{FloorSpec, FrameWriter, Geometry, SceneSpec, Simulation, run};
+use freeform::{FloorSpec, FrameWriter, Geometry, SceneSpec, Simulation, build_basis, run};
 use hyperelastic::{MaterialField, MaterialSample, StableNeoHookean};
 use nalgebra::Vector3;
 use reduced_sim::DeformationMap;
-use skin_eigen::{BasisParams, build_basis};
+use skin_eigen::BasisParams;
 
 fn main() -> Result<(), Box<dyn std::error::Error>> {
     let mut args = std::env::args().skip(1);
@@ -19,11 +19,11 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
         poisson_ratio: 0.45,
         density: 1000.0,
     };
+    let material = MaterialField::Uniform(rubber);
     let points = geometry.integration_points(5000)?;
-    let lame = vec![rubber.lame_parameters()?; points.len()];
-    let (basis, _, _) = build_basis(
+    let (basis, _) = build_basis(
         &points,
-        &lame,
+        &material,
         &BasisParams::default().with_modes(16).with_kernels(400),
     )?;
     let scene = SceneSpec {
@@ -35,7 +35,6 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
         }), // 0.3 m below the cow
         ..Default::default()
     };
-    let material = MaterialField::Uniform(rubber);
     // The library's defaults: h = 0.01 s, an optimized cubature.
     let simulation = Simulation::new(&basis, &points, &material, StableNeoHookean, &scene);
     let frames = FrameWriter::new(&out, &geometry);
