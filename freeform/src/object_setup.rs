@@ -188,7 +188,7 @@ impl ObjectSetup {
             }),
             stress,
             inverted_splats: 0,
-            last_von_mises: None,
+            last_stress: None,
         })
     }
 }
@@ -220,8 +220,8 @@ pub(crate) struct ObjectOutput {
     pub(crate) summary: Option<StressSummary>,
     /// The most inverted splats in one frame.
     pub(crate) inverted_splats: usize,
-    /// The von Mises stress (Pa) at the output points of the last frame written.
-    pub(crate) last_von_mises: Option<Vec<f64>>,
+    /// The stress at the output points of the last frame written.
+    last_stress: Option<StressField>,
 }
 
 impl ObjectOutput {
@@ -266,9 +266,6 @@ impl ObjectOutput {
             }
             _ => None,
         };
-        self.last_von_mises = output_stress
-            .as_ref()
-            .map(|s| s.samples.iter().map(|s| s.von_mises).collect());
         match &self.splats {
             Some(table) => {
                 let (deformed, inverted) =
@@ -281,7 +278,16 @@ impl ObjectOutput {
                     .write_with_stress(index, &x, time, output_stress.as_ref())?;
             }
         }
+        self.last_stress = output_stress;
         Ok(())
+    }
+
+    /// The von Mises stress (Pa) at the output points of the last frame written (with stress
+    /// output).
+    pub(crate) fn last_von_mises(&self) -> Option<Vec<f64>> {
+        self.last_stress
+            .as_ref()
+            .map(|s| s.samples.iter().map(|s| s.von_mises).collect())
     }
 }
 

@@ -177,7 +177,7 @@ pub fn simulate_scene_file(
         quadrature: Some(report.quadrature.clone()),
         stress: output.summary.clone(),
         final_positions: output.map.positions(&last_z),
-        final_von_mises: output.last_von_mises.clone(),
+        final_von_mises: output.last_von_mises(),
     };
     write_summary(out_dir, &report)?;
     Ok(report)
