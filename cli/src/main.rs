@@ -10,8 +10,11 @@ mod basis;
 mod demo;
 mod line_plot;
 mod mesh;
+mod output_frames;
+mod preview;
 mod render;
 mod simulate;
+mod viewer_page;
 
 #[derive(Parser)]
 #[command(
@@ -105,6 +108,18 @@ enum Command {
         /// principal and von Mises stress, Pa), whatever the scene file's `simulation.stress`.
         #[arg(long)]
         stress: bool,
+        /// The largest `view.html` to write (MB); frames are dropped evenly past it.
+        #[arg(long, default_value_t = 100.0)]
+        view_max_mb: f64,
+    },
+    /// Write `OUT_DIR/view.html`: one file that plays a `simulate` run's frames in a browser,
+    /// offline (surfaces, points or splats, the floor and colliders, a colour bar).
+    View {
+        /// The run's output folder (`<out>/<scene stem>`).
+        dir: PathBuf,
+        /// The largest file to write (MB); frames are dropped evenly past it.
+        #[arg(long, default_value_t = 100.0)]
+        max_mb: f64,
     },
 }
 
@@ -166,9 +181,35 @@ fn run(cli: Cli) -> Result<()> {
             },
             &cli.out,
         ),
-        Command::Simulate { scene, stress } => {
-            simulate::run(&scene, stress, &cli.out, &cache, progress)
+        Command::Simulate {
+            scene,
+            stress,
+            view_max_mb,
+        } => simulate::run(
+            &scene,
+            &simulate::SimulateOptions {
+                stress,
+                viewer: viewer_params(view_max_mb)?,
+            },
+            &cli.out,
+            &cache,
+            progress,
+        ),
+        Command::View { dir, max_mb } => {
+            let report = viewer_page::view(&dir, &viewer_params(max_mb)?)?;
+            simulate::print_viewer(&report);
+            Ok(())
         }
         Command::Render { files, options } => render::run(&files, &options, &cli.out),
     }
+}
+
+/// The viewer's parameters for a limit of `max_mb` MB.
+fn viewer_params(max_mb: f64) -> Result<viewer_page::ViewerParams> {
+    if !(max_mb.is_finite() && max_mb > 0.0) {
+        anyhow::bail!("the page's size limit must be a positive number of MB, not {max_mb}");
+    }
+    Ok(viewer_page::ViewerParams {
+        max_bytes: (max_mb * 1e6) as usize,
+    })
 }

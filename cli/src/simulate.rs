@@ -4,19 +4,26 @@ use std::path::Path;
 
 use anyhow::Result;
 use freeform::terminal_progress::{BarProgress, TerminalProgress};
-use freeform::{
-    Geometry, ObjectsFile, SceneFile, SimulateReport, points_preview, simulate_objects,
-    simulate_scene_file,
-};
-use nalgebra::Vector3;
+use freeform::{ObjectsFile, SceneFile, simulate_objects, simulate_scene_file};
 
-use crate::render::write_png;
+use crate::output_frames::{RunOutput, SceneInfo};
+use crate::preview::write_preview;
+use crate::viewer_page::{ViewerParams, ViewerReport, write_viewer};
+
+/// What `simulate` writes besides the frames.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub(crate) struct SimulateOptions {
+    /// Write the stress whatever the scene file says.
+    pub stress: bool,
+    /// The viewer page's limits.
+    pub viewer: ViewerParams,
+}
 
 /// Runs `scene` and writes its frames under `<out>/<scene stem>/`, with the stress when
 /// `stress` (or the file) asks for it.
 pub(crate) fn run(
     scene: &Path,
-    stress: bool,
+    options: &SimulateOptions,
     out: &Path,
     cache: &Path,
     progress: TerminalProgress,
@@ -24,13 +31,16 @@ pub(crate) fn run(
     let stem = scene.file_stem().unwrap_or_default().to_string_lossy();
     let out = out.join(stem.as_ref());
     if ObjectsFile::describes(scene) {
-        if stress {
+        if options.stress {
             anyhow::bail!("--stress: stress output is not written for several objects yet");
         }
-        return run_objects(&ObjectsFile::load(scene)?, &out, cache, progress);
+        let file = ObjectsFile::load(scene)?;
+        run_objects(&file, &out, cache, progress)?;
+        let info = SceneInfo::new(&file.scene, file.simulation.time_step);
+        return write_views(&out, &info, &options.viewer);
     }
     let mut file = SceneFile::load(scene)?;
-    file.simulation.stress |= stress;
+    file.simulation.stress |= options.stress;
     let report = simulate_scene_file(&file, &out, Some(cache), &BarProgress::new(progress))?;
     println!(
         "{} frames written to {}; basis {:.2} s, {:.2} ms/step (assembly {:.2}, solve {:.2}, \
@@ -97,19 +107,6 @@ pub(crate) fn run(
             println!("  (automatic quadrature: every point, since {why})");
         }
     }
-    if !report.final_positions.is_empty() {
-        let png = out.join("preview.png");
-        write_preview(&report, &file, &png)?;
-        println!(
-            "preview of the last frame{}: {}",
-            if report.final_von_mises.is_some() {
-                " coloured by von Mises stress (blue 0, white half, red the 98th percentile)"
-            } else {
-                ""
-            },
-            png.display()
-        );
-    }
     if let Some(stress) = &report.stress {
         println!(
             "stress written: largest von Mises {:.4e} Pa (output points {:.4e} Pa); {} inverted \
@@ -117,7 +114,43 @@ pub(crate) fn run(
             stress.max_von_mises, stress.max_von_mises_output, stress.most_inverted
         );
     }
+    let info = SceneInfo::new(&file.scene, file.simulation.time_step);
+    write_views(&out, &info, &options.viewer)
+}
+
+/// Writes `scene.json`, `preview.png` and `view.html` beside the frames in `out`.
+fn write_views(out: &Path, info: &SceneInfo, viewer: &ViewerParams) -> Result<()> {
+    info.write(out)?;
+    let run = RunOutput::read(out)?;
+    let png = out.join("preview.png");
+    let colouring = write_preview(&run, &png)?;
+    println!(
+        "preview (the most stressed or last frame, and five across the run; coloured by {}): {}",
+        colouring.scalar.map_or_else(
+            || "the splats' own colours".to_string(),
+            |s| format!("{} from 0 to {:.3e} {}", s.label(), colouring.max, s.unit())
+        ),
+        png.display()
+    );
+    print_viewer(&write_viewer(&run, viewer)?);
     Ok(())
+}
+
+/// Says where the viewer page is and what it holds.
+pub(crate) fn print_viewer(report: &ViewerReport) {
+    let dropped = if report.frames < report.frames_written {
+        format!(
+            " ({} of {} frames, the rest dropped to stay under the size limit)",
+            report.frames, report.frames_written
+        )
+    } else {
+        format!(" ({} frames)", report.frames)
+    };
+    println!(
+        "viewer: {}, {:.1} MB{dropped}; open it in a browser",
+        report.path.display(),
+        report.bytes as f64 / 1e6
+    );
 }
 
 /// Runs a scene of several objects and writes their frames under `out/<object>/`.
@@ -171,64 +204,5 @@ fn run_objects(
             o.name, o.simulation_points, o.quadrature.points, o.contact_samples, o.basis_seconds
         );
     }
-    // The objects (red) with the surfaces of the colliders at the last frame (blue).
-    let end = file.simulation.steps as f64 * file.simulation.time_step;
-    let mut points = report.final_positions.clone();
-    let mut values = vec![1.0; points.len()];
-    let colliders = freeform::ColliderFrames::new(out, &file.scene.colliders);
-    for surface in colliders.surfaces_at(end) {
-        if let Ok(mesh) = rkpm_core::TriangleMesh::new(surface.vertices, surface.triangles) {
-            let spacing = 0.02 * mesh.bounding_box().largest_side();
-            for p in Geometry::Surface(mesh).contact_samples(spacing) {
-                points.push(p);
-                values.push(0.0);
-            }
-        }
-    }
-    let png = out.join("preview.png");
-    // The colliders faint, so the objects inside show through.
-    let opacity: Vec<f64> = values
-        .iter()
-        .map(|&v| if v > 0.0 { 1.0 } else { 0.06 })
-        .collect();
-    write_points_preview(
-        &points,
-        Some(&values),
-        Some(&opacity),
-        file.scene.gravity,
-        &png,
-    )?;
-    println!(
-        "preview of the last frame (objects red, colliders blue): {}",
-        png.display()
-    );
     Ok(())
-}
-
-/// Draws the last frame's output points (512² pixels) as round splats about as wide as their
-/// spacing on the surface, coloured by their von Mises stress when the run computed it, seen
-/// from 30° about and 20° above the scene's up (against gravity, else +y).
-fn write_preview(report: &SimulateReport, file: &SceneFile, png: &Path) -> Result<()> {
-    write_points_preview(
-        &report.final_positions,
-        report.final_von_mises.as_deref(),
-        None,
-        file.scene.gravity,
-        png,
-    )
-}
-
-/// `write_preview` of `points` (m) with their `values` (colour scale) or grey, opaque or
-/// with the given opacities (0 … 1), seen about the scene's up (against gravity, else +y).
-fn write_points_preview(
-    points: &[Vector3<f64>],
-    values: Option<&[f64]>,
-    opacity: Option<&[f64]>,
-    gravity: Option<Vector3<f64>>,
-    png: &Path,
-) -> Result<()> {
-    let up = gravity
-        .filter(|g| g.norm() > 0.0)
-        .map_or(Vector3::y(), |g| -g.normalize());
-    write_png(&points_preview(points, values, opacity, up, 512, 512)?, png)
 }

@@ -132,10 +132,32 @@ fn simulate_writes_ply_and_vtk_frames_of_the_deformed_surface() {
         summary["hessians_per_step"].as_f64().unwrap()
     );
     assert!(stdout.contains(&expected), "{expected} not in {stdout}");
-    // A 512² picture of the last frame.
+    // An 800 × 600 picture of the run, and a page that plays its three frames.
     let png = std::fs::read(out.join("preview.png")).unwrap();
     assert_eq!(&png[1..4], b"PNG");
-    assert_eq!(u32::from_be_bytes(png[16..20].try_into().unwrap()), 512);
+    assert_eq!(u32::from_be_bytes(png[16..20].try_into().unwrap()), 800);
+    assert_eq!(u32::from_be_bytes(png[20..24].try_into().unwrap()), 600);
+    let page = std::fs::read_to_string(out.join("view.html")).unwrap();
+    assert!(
+        page.contains(r#""frames":[0,3,6]"#),
+        "the page lists the frames"
+    );
+    assert!(
+        stdout.contains("view.html, ") && stdout.contains("(3 frames)"),
+        "{stdout}"
+    );
+}
+
+#[test]
+fn view_of_a_folder_without_frames_says_so() {
+    let dir = scratch("view-empty");
+    let run = freeform(&["view", dir.to_str().unwrap()], &dir);
+    assert!(!run.status.success());
+    let stderr = String::from_utf8_lossy(&run.stderr);
+    assert!(
+        stderr.contains("no frames") && stderr.contains("freeform simulate"),
+        "{stderr}"
+    );
 }
 
 #[test]
@@ -278,4 +300,7 @@ fn a_scene_file_runs_the_shared_donut_as_a_plain_point_cloud_filled_inside() {
     let ply = std::fs::read(dir.join("out/donut_points/frame_00003.ply")).unwrap();
     let header = String::from_utf8_lossy(&ply[..ply.len().min(400)]).to_string();
     assert!(header.contains("element vertex 45624"), "{header}");
+    // The viewer page reads the deformed splats back.
+    let page = std::fs::read_to_string(dir.join("out/donut_points/view.html")).unwrap();
+    assert!(page.contains(r#""points":45624"#));
 }
