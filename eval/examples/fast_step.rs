@@ -20,12 +20,10 @@
 //! `freeform-cache/` (or `$FREEFORM_CACHE`).
 
 use clap::Parser;
-use eval::beam::reduced::{
-    ReducedSettings, build_beam_basis_for, exact_pin_hold, run_reduced_beam_with,
-};
-use eval::beam::study::beam_length_scale;
-use eval::beam::{BeamTest, beam_material};
+use eval::beam_scenario::reduced::{build_beam_basis_for, exact_pin_hold, run_reduced_beam_with};
+use eval::beam_scenario::{BeamTest, beam_length_scale, beam_material};
 use eval::fem_reference::{FemResolution, run_fem_beam};
+use eval::reduced_settings::ReducedSettings;
 use freeform::metrics::trajectory_errors;
 use freeform::terminal_progress::TerminalProgress;
 use optimize::{HessianReuse, NewtonParams};

@@ -5,7 +5,7 @@
 //! [fixed-corotated|stable-neo-hookean] [seconds, default 0.6]`
 
 use baselines::mpm::{MpmMaterial, MpmParams, MpmSimulator};
-use eval::beam::{BEAM_MAX, BEAM_MIN, BeamTest, beam_material};
+use eval::beam_scenario::{BEAM_MAX, BEAM_MIN, BeamTest, beam_material};
 use nalgebra::Vector3;
 use rkpm_core::sample_box_grid;
 

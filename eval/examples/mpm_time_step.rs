@@ -9,11 +9,12 @@
 
 use std::path::PathBuf;
 
-use eval::beam::mpm::{MpmStudyConfig, run_mpm_beam};
-use eval::beam::particle_baseline::ParticleBeamRun;
-use eval::beam::sph::{SphStudyConfig, run_sph_beam};
-use eval::beam::study::beam_length_scale;
-use eval::beam::{BEAM_MAX, BEAM_MIN, BEAM_TIME_STEP, BeamTest, beam_material};
+use eval::beam_scenario::{
+    BEAM_MAX, BEAM_MIN, BEAM_TIME_STEP, BeamTest, beam_length_scale, beam_material,
+};
+use eval::particle_baselines::mpm::{MpmStudyConfig, run_mpm_beam};
+use eval::particle_baselines::particle_baseline::ParticleBeamRun;
+use eval::particle_baselines::sph::{SphStudyConfig, run_sph_beam};
 use fem_ref::{ElementOrder, FillReducingOrdering, TetMesh};
 use freeform::fem_reference::{FemProblem, run_fem};
 use freeform::metrics::trajectory_errors;

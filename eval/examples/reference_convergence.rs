@@ -10,8 +10,7 @@
 //! 8), `--steps N` (default the test's). Both runs are cached under `freeform-cache/`.
 
 use clap::Parser;
-use eval::beam::BeamTest;
-use eval::beam::study::beam_length_scale;
+use eval::beam_scenario::{BeamTest, beam_length_scale};
 use eval::fem_reference::{FemResolution, run_fem_beam};
 use fem_ref::ElementOrder;
 use freeform::metrics::trajectory_errors;

@@ -5,7 +5,7 @@
 //! [α, default 0.1] [seconds, default 0.5] [volume tolerance, default 1e-4]`
 
 use baselines::sph::{SphParams, SphSimulator};
-use eval::beam::{BEAM_MAX, BEAM_MIN, BeamTest, beam_material};
+use eval::beam_scenario::{BEAM_MAX, BEAM_MIN, BeamTest, beam_material};
 use nalgebra::Vector3;
 use rkpm_core::sample_box_grid;
 

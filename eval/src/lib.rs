@@ -11,11 +11,14 @@ pub mod bench;
 pub mod convergence;
 pub mod fem_reference;
 pub mod model_cache;
+pub mod particle_baselines;
 pub mod pins;
 pub mod presets;
 pub mod reduced_run;
+pub mod reduced_settings;
 pub mod report;
 pub mod shapes;
+pub mod simplicits_cache;
 pub mod stress;
 
 /// An experiment failed. Every variant that wraps another error keeps it as its `source`.

@@ -13,14 +13,14 @@ use serde::{Deserialize, Serialize};
 use skin_eigen::SkinningBasis;
 
 use crate::EvalError;
-use crate::beam::reduced::{
-    EXACT_INSET_KERNEL_RADII, ReducedSettings, build_beam_basis, build_beam_basis_for,
-    exact_pin_hold, run_reduced_beam_with,
+use crate::beam_scenario::evaluation::region_drift;
+use crate::beam_scenario::reduced::{
+    build_beam_basis, build_beam_basis_for, exact_pin_hold, run_reduced_beam_with,
 };
-use crate::beam::study::{beam_length_scale, region_drift};
-use crate::beam::{BeamTest, beam_material};
+use crate::beam_scenario::{BeamTest, beam_length_scale, beam_material};
 use crate::fem_reference::{FemResolution, run_fem_beam_with};
 use crate::reduced_run::ReducedRun;
+use crate::reduced_settings::{EXACT_INSET_KERNEL_RADII, ReducedSettings};
 use freeform::failure_chain;
 use freeform::metrics::{TrajectoryErrors, trajectory_errors};
 use freeform::terminal_progress::TerminalProgress;

@@ -1,8 +1,8 @@
 //! Committed experiment presets: each of the paper's studies described by a TOML file under
 //! `eval/presets/` (compiled into the binary), chosen by name, read from a file
 //! (`--config FILE`), and changed key by key (`--set key=value`) before it is turned into the
-//! study's typed configuration ([`crate::beam::study::BeamStudyConfig`],
-//! [`crate::ablation::study::AblationStudyConfig`], [`crate::shapes::study::ShapeStudyConfig`],
+//! study's typed configuration ([`crate::beam_scenario::study_config::BeamStudyConfig`],
+//! [`crate::ablation::study::AblationStudyConfig`], [`crate::shapes::config::ShapeStudyConfig`],
 //! [`crate::bench::BenchConfig`], [`crate::pins::PinSweepConfig`],
 //! [`crate::stress::StressConfig`]).
 //!
@@ -64,11 +64,11 @@ pub const PRESETS: &[(&str, &str)] = &[
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, Deserialize)]
 #[serde(rename_all = "snake_case")]
 pub enum StudyKind {
-    /// Tables 1, 5 and 6 ([`crate::beam::study::BeamStudyConfig`]).
+    /// Tables 1, 5 and 6 ([`crate::beam_scenario::study_config::BeamStudyConfig`]).
     Beam,
     /// Tables 3 and 4 ([`crate::ablation::study::AblationStudyConfig`]).
     Ablation,
-    /// Tables 2 and 7 ([`crate::shapes::study::ShapeStudyConfig`]).
+    /// Tables 2 and 7 ([`crate::shapes::config::ShapeStudyConfig`]).
     Shapes,
     /// The error-vs-time sweep ([`crate::bench::BenchConfig`]).
     Bench,
@@ -382,8 +382,8 @@ fn remove_folders(table: &mut toml::Table) {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::beam::study::BeamStudyConfig;
-    use crate::shapes::study::ShapeStudyConfig;
+    use crate::beam_scenario::study_config::BeamStudyConfig;
+    use crate::shapes::config::ShapeStudyConfig;
 
     #[test]
     fn a_set_assigns_typed_values_at_dotted_paths_and_none_removes_a_key() {

@@ -6,10 +6,10 @@
 use baselines::SimplicitsParams;
 use eval::ablation::study::{AblationStudyConfig, run_ablation_study};
 use eval::ablation::tables::{table3, table4};
-use eval::beam::BeamTest;
-use eval::beam::reduced::{ReducedSettings, SimulationSampling};
-use eval::beam::study::BeamStudyConfig;
+use eval::beam_scenario::BeamTest;
+use eval::beam_scenario::study_config::BeamStudyConfig;
 use eval::fem_reference::FemResolution;
+use eval::reduced_settings::{ReducedSettings, SimulationSampling};
 use fem_ref::ElementOrder;
 use freeform::terminal_progress::TerminalProgress;
 use optimize::NewtonParams;

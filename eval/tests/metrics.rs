@@ -1,8 +1,9 @@
 //! The basis fitting residual on a real basis: zero for motions the basis spans, positive for
 //! one it cannot.
 
-use eval::beam::reduced::{ReducedSettings, build_beam_basis};
-use eval::beam::{BEAM_MAX, BEAM_MIN};
+use eval::beam_scenario::reduced::build_beam_basis;
+use eval::beam_scenario::{BEAM_MAX, BEAM_MIN};
+use eval::reduced_settings::ReducedSettings;
 use freeform::metrics::basis_fitting_residual;
 use nalgebra::{Matrix3, Vector3};
 use reduced_sim::DeformationMap;

@@ -7,14 +7,14 @@
 use std::path::{Path, PathBuf};
 
 use eval::ablation::study::AblationStudyConfig;
-use eval::beam::reduced::ReducedSettings;
-use eval::beam::study::BeamStudyConfig;
+use eval::beam_scenario::study_config::BeamStudyConfig;
 use eval::bench::BenchConfig;
 use eval::convergence::ConvergenceConfig;
 use eval::pins::PinSweepConfig;
 use eval::presets::{PRESETS, Preset, StudyKind, render_preset, set_folder};
+use eval::reduced_settings::ReducedSettings;
+use eval::shapes::config::ShapeStudyConfig;
 use eval::shapes::reference::ShapeFemParams;
-use eval::shapes::study::ShapeStudyConfig;
 use eval::stress::StressConfig;
 use serde::Serialize;
 use serde::de::DeserializeOwned;

@@ -1,6 +1,6 @@
 //! One scene description gives both solvers the same constrained set and the same targets.
 
-use eval::beam::{BEAM_TIME_STEP, BeamTest};
+use eval::beam_scenario::{BEAM_TIME_STEP, BeamTest};
 use fem_ref::{ElementOrder, FemMesh, TetMesh};
 use freeform::scene::{SceneSpec, SceneSpecError};
 use nalgebra::Vector3;

@@ -2,8 +2,9 @@
 //! regions (the end-to-end `freeform-paper table 2 7 --quick` run is in `cli.rs`).
 
 use eval::shapes::boundary::{ShapeBoundary, ShapeBoundaryParams};
+use eval::shapes::config::ShapeStudyConfig;
 use eval::shapes::reference::ShapeFemParams;
-use eval::shapes::study::{ShapeStudyConfig, run_shape_study};
+use eval::shapes::study::run_shape_study;
 use fem_ref::{InteriorFeature, tetrahedralize};
 use freeform::scene::{Motion, SceneSpec};
 use freeform::terminal_progress::TerminalProgress;

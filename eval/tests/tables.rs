@@ -2,14 +2,15 @@
 //! numbers sit beside ours, and Table 5's ratio is FEM time over ours.
 
 use baselines::SimplicitsParams;
-use eval::beam::BeamTest;
-use eval::beam::mpm::MpmStudyConfig;
-use eval::beam::particle_baseline::ParticleMethod;
-use eval::beam::reduced::ReducedSettings;
-use eval::beam::sph::SphStudyConfig;
-use eval::beam::study::{BeamStudyConfig, run_beam_study};
+use eval::beam::study::run_beam_study;
 use eval::beam::tables::{table1, table5, table6, twist_error_plot};
+use eval::beam_scenario::BeamTest;
+use eval::beam_scenario::study_config::BeamStudyConfig;
 use eval::fem_reference::FemResolution;
+use eval::particle_baselines::mpm::MpmStudyConfig;
+use eval::particle_baselines::particle_baseline::ParticleMethod;
+use eval::particle_baselines::sph::SphStudyConfig;
+use eval::reduced_settings::ReducedSettings;
 use eval::report::table::write_table;
 use fem_ref::ElementOrder;
 use freeform::terminal_progress::TerminalProgress;

@@ -9,12 +9,12 @@ use skin_eigen::BasisParams;
 
 use crate::EvalError;
 use crate::ablation::coefficients::train_beam_coefficients;
-use crate::beam::BeamTest;
-use crate::beam::reduced::{ReducedSettings, SimulationSampling, build_beam_basis};
-use crate::beam::simplicits::train_beam_simplicits;
-use crate::beam::study::{
-    BeamStudyConfig, FemReference, FemSummary, evaluate_field, fem_references,
-};
+use crate::beam_scenario::BeamTest;
+use crate::beam_scenario::evaluation::{FemReference, FemSummary, evaluate_field, fem_references};
+use crate::beam_scenario::reduced::build_beam_basis;
+use crate::beam_scenario::study_config::BeamStudyConfig;
+use crate::reduced_settings::{ReducedSettings, SimulationSampling};
+use crate::simplicits_cache::train_beam_simplicits;
 use freeform::terminal_progress::TerminalProgress;
 
 /// What the ablation study runs.

@@ -5,74 +5,13 @@ use std::fmt::Write as _;
 
 use serde_json::{Value, json};
 
-use crate::beam::particle_baseline::ParticleMethod;
-use crate::beam::study::{BeamStudy, BeamStudyConfig, FemSummary, beam_length_scale};
-use crate::beam::{BEAM_TIME_STEP, BeamTest};
+use crate::beam::study::BeamStudy;
+use crate::beam_scenario::{BEAM_TIME_STEP, BeamTest};
+use crate::particle_baselines::particle_baseline::ParticleMethod;
+use crate::report::beam_preamble::settings_lines;
 use crate::report::paper;
 use crate::report::plot::{AxisScale, PlotSpec, Series};
 use crate::report::table::{RenderedTable, not_run_or, sci};
-
-/// The settings preamble of a beam table: the reduced settings and each FEM reference.
-pub(crate) fn settings_lines(config: &BeamStudyConfig, fem: &[FemSummary]) -> String {
-    let s = &config.settings;
-    let mut out = format!(
-        "Settings: beam 5×1×1 m, E = 5 MPa, ν = 0.45, ρ = 1000 kg/m³, h = 0.01 s; K = {} kernels, \
-         basis on ≈{} grid points, simulation on ≈{} grid points, Newton tolerance {:e}, pin \
-         penalty {}. Elastic quadrature: {}; Hessians: {}.\n",
-        s.kernels,
-        s.basis_points,
-        s.simulation_points,
-        s.tolerance,
-        s.pin_rule_label(),
-        s.quadrature_label(),
-        s.hessian_reuse_label(),
-    );
-    for f in fem {
-        let _ = writeln!(
-            out,
-            "FEM ground truth ({}): {}, {} steps, {} DOFs, {} vertices, {:.3} s/step, {:.1} Newton \
-             it./step (largest {}), {} unconverged steps{}.{}",
-            f.test.name(),
-            f.resolution,
-            f.steps,
-            f.dofs,
-            f.vertices,
-            f.seconds_per_step,
-            f.iterations_per_step,
-            f.max_iterations,
-            f.unconverged_steps,
-            if f.cached {
-                format!(
-                    " (cached; s/step timed over {} fresh steps in this run)",
-                    f.timed_steps
-                )
-            } else {
-                String::new()
-            },
-            f.not_scored.as_ref().map_or(String::new(), |why| format!(
-                " **{} not scored**: {why}.",
-                f.test.name()
-            ))
-        );
-    }
-    let _ = writeln!(
-        out,
-        "Metrics (design §4.3) at the FEM vertices over frames 1..T, L = {} m: MSE = mean |x − x*|² / L², \
-         max = max |x − x*| / L, fitting residual = mean |x(z*) − x*| / L.",
-        beam_length_scale()
-    );
-    out
-}
-
-/// A score, or "not scored" when `test`'s reference in `fem` was refused (a step stopped
-/// unconverged), or "not run".
-pub(crate) fn score_or_why(v: Option<f64>, fem: &[FemSummary], test: BeamTest) -> String {
-    match v {
-        Some(v) => format!("{v:.2e}"),
-        None if fem.iter().any(|f| f.test == test && f.not_scored.is_some()) => "not scored".into(),
-        None => "not run".into(),
-    }
-}
 
 fn optional(v: Option<f64>) -> String {
     v.map_or(String::new(), |v| format!("{v:e}"))

@@ -1,12 +1,19 @@
-//! Tables 2 and 7 (design §4.2): every mesh of a folder under Drop and Fix side, ours and
+//! Tables 2 and 7 (design §4.2): every mesh of a folder under its boundary conditions, ours and
 //! Simplicits against a FEM reference of the same mesh.
 //!
-//! - [`catalog`]: the shared meshes' names and materials; [`boundary`]: the two boundary
-//!   conditions on any shape; [`reference`](mod@reference): the FEM mesh of a shape; [`study`]: the run;
-//!   [`tables`]: the rendering.
+//! - [`catalog`]: the shared meshes' names and materials; [`boundary`]: the boundary
+//!   conditions on any shape; [`reference`](mod@reference): the FEM mesh of a shape;
+//! - [`config`]: what the study runs; [`result`]: what it measures;
+//! - [`study`]: the run over the shapes, [`shape_run`] one shape stage by stage,
+//!   [`boundary_run`] one condition's reduced runs;
+//! - [`tables`]: the rendering.
 
 pub mod boundary;
+pub(crate) mod boundary_run;
 pub mod catalog;
+pub mod config;
 pub mod reference;
+pub mod result;
+pub(crate) mod shape_run;
 pub mod study;
 pub mod tables;

@@ -1,6 +1,6 @@
 //! One stress case on the FEM reference.
 
-use crate::beam::{BEAM_MAX, BEAM_MIN, beam_material};
+use crate::beam_scenario::{BEAM_MAX, BEAM_MIN, beam_material};
 use hyperelastic::StableNeoHookean;
 
 use super::reduced_case::{case_object, material};

@@ -1,7 +1,7 @@
 //! One stress case on the reduced simulator: the object, the run, and the diagnostics
 //! (finiteness, Newton convergence, min det F, energy balance).
 
-use crate::beam::{BEAM_MAX, BEAM_MIN, BeamTest, beam_material};
+use crate::beam_scenario::{BEAM_MAX, BEAM_MIN, BeamTest, beam_material};
 use freeform::scene::{Constraint, FloorSpec, Motion, Region, SceneSpec};
 use hyperelastic::MaterialSample;
 use hyperelastic::{LameParameters, StableNeoHookean};

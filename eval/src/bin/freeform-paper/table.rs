@@ -7,12 +7,15 @@ use std::path::{Path, PathBuf};
 use anyhow::{Result, bail};
 use eval::ablation::study::{AblationStudyConfig, run_ablation_study};
 use eval::ablation::tables::{table3, table4};
-use eval::beam::BeamTest;
-use eval::beam::study::{BeamStudyConfig, run_beam_study};
+use eval::beam::study::run_beam_study;
 use eval::beam::tables::{table1, table5, table6, twist_error_plot};
+use eval::beam_scenario::BeamTest;
+use eval::beam_scenario::study_config::BeamStudyConfig;
 use eval::presets::{StudyKind, set_folder};
 use eval::report::table::{RenderedTable, write_table};
-use eval::shapes::study::{ShapeStudy, ShapeStudyConfig, mesh_files, run_shape_study};
+use eval::shapes::config::ShapeStudyConfig;
+use eval::shapes::result::ShapeStudy;
+use eval::shapes::study::{mesh_files, run_shape_study};
 use eval::shapes::tables::{table2, table7};
 use freeform::terminal_progress::TerminalProgress;
 

@@ -15,11 +15,11 @@ use rkpm_core::sample_box_grid;
 use serde::{Deserialize, Serialize};
 
 use crate::EvalError;
-use crate::beam::particle_baseline::{
+use crate::beam_scenario::{BEAM_MAX, BEAM_MIN, BEAM_TIME_STEP, BeamTest, beam_material};
+use crate::particle_baselines::particle_baseline::{
     ParticleBeamRun, ParticleMethod, ParticleTrajectory, as_arrays, load_cached_run, record_frames,
     score_particle_run, store_cached_run,
 };
-use crate::beam::{BEAM_MAX, BEAM_MIN, BEAM_TIME_STEP, BeamTest, beam_material};
 use freeform::fem_reference::FemRun;
 use freeform::terminal_progress::TerminalProgress;
 

@@ -9,8 +9,7 @@ use serde::de::DeserializeOwned;
 use serde::{Deserialize, Serialize};
 
 use crate::EvalError;
-use crate::beam::BeamTest;
-use crate::beam::study::beam_length_scale;
+use crate::beam_scenario::{BeamTest, beam_length_scale};
 use crate::report::paper;
 use freeform::fem_reference::FemRun;
 use freeform::metrics::{per_frame_mse, trajectory_errors};

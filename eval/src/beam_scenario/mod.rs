@@ -1,7 +1,15 @@
 //! The beam scenario of design §4.1 that every experiment shares: the 5 m × 1 m × 1 m beam,
 //! its material and time step, the Bend and Twist tests, and the grids its bases are built on.
-//! The experiments (beam, ablation, pins, convergence, bench) and the shared layers (the model
-//! cache, the FEM references) import it from here.
+//! The experiments (beam, ablation, pins, convergence, bench, stress) and the shared layers (the
+//! model cache, the FEM references) import it from here.
+//!
+//! - [`study_config`]: a beam study's settings (m, tests, steps, FEM, baselines);
+//! - [`reduced`]: the beam's basis and reduced runs;
+//! - [`evaluation`]: the FEM references and a skinning field scored against them.
+
+pub mod evaluation;
+pub mod reduced;
+pub mod study_config;
 
 use hyperelastic::LameParameters;
 use rkpm_core::{IntegrationPoints, sample_box_grid};
@@ -130,4 +138,9 @@ pub fn beam_basis_grid(
     let lame = material.lame_parameters().map_err(EvalError::Material)?;
     let lame = vec![lame; grid.len()];
     Ok((grid, lame))
+}
+
+/// Largest side of the beam's rest box, the normalization length L (m).
+pub fn beam_length_scale() -> f64 {
+    (BEAM_MAX - BEAM_MIN).max()
 }

@@ -4,10 +4,10 @@
 use std::path::Path;
 
 use crate::EvalError;
-use crate::beam::mpm::{MpmStudyConfig, run_mpm_beam};
-use crate::beam::particle_baseline::{ParticleBeamRun, ParticleMethod};
-use crate::beam::sph::{SphStudyConfig, run_sph_beam};
-use crate::beam::{BEAM_TIME_STEP, BeamTest};
+use crate::beam_scenario::{BEAM_TIME_STEP, BeamTest};
+use crate::particle_baselines::mpm::{MpmStudyConfig, run_mpm_beam};
+use crate::particle_baselines::particle_baseline::{ParticleBeamRun, ParticleMethod};
+use crate::particle_baselines::sph::{SphStudyConfig, run_sph_beam};
 use freeform::fem_reference::FemRun;
 use freeform::terminal_progress::TerminalProgress;
 

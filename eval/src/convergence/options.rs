@@ -1,0 +1,111 @@
+//! What the convergence study varies besides m, K and ν: the test, the boundary treatment and
+//! the volumetric term.
+
+use freeform::PinHold;
+use serde::{Deserialize, Serialize};
+
+use crate::EvalError;
+use crate::beam_scenario::BeamTest;
+use crate::beam_scenario::reduced::exact_pin_hold;
+use crate::reduced_settings::{EXACT_INSET_KERNEL_RADII, ReducedSettings};
+
+/// A test of the study.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, Deserialize)]
+#[serde(rename_all = "snake_case")]
+pub enum ConvergenceTest {
+    /// The Bend's clamp and gravity scaled by [`ConvergenceConfig::static_gravity_scale`],
+    /// solved for static equilibrium: a linear problem whose Galerkin solution obeys the Ritz
+    /// bounds.
+    StaticBend,
+    /// Table 1's dynamic Bend.
+    Bend,
+    /// Table 1's Twist.
+    Twist,
+}
+
+impl ConvergenceTest {
+    /// "static_bend", "bend" or "twist".
+    pub fn name(self) -> &'static str {
+        match self {
+            ConvergenceTest::StaticBend => "static_bend",
+            ConvergenceTest::Bend => "bend",
+            ConvergenceTest::Twist => "twist",
+        }
+    }
+
+    /// The beam test whose scene it runs.
+    pub fn beam_test(self) -> BeamTest {
+        match self {
+            ConvergenceTest::StaticBend | ConvergenceTest::Bend => BeamTest::Bend,
+            ConvergenceTest::Twist => BeamTest::Twist,
+        }
+    }
+}
+
+/// How the pinned and twisted ends are held.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, Deserialize)]
+#[serde(rename_all = "snake_case")]
+pub enum BoundaryTreatment {
+    /// The penalty with the settings' factor ([`PinHold::Penalty`]; the paper's treatment).
+    Penalty,
+    /// Exact on the regions shrunk by [`EXACT_INSET_KERNEL_RADII`], penalty on the band
+    /// ([`PinHold::Exact`]).
+    ExactInset,
+    /// The weighted basis ([`PinHold::WEIGHTED`]): exact on the whole regions, no parameter.
+    Weighted,
+}
+
+impl BoundaryTreatment {
+    /// "penalty", "exact_inset" or "weighted".
+    pub fn name(self) -> &'static str {
+        match self {
+            BoundaryTreatment::Penalty => "penalty",
+            BoundaryTreatment::ExactInset => "exact_inset",
+            BoundaryTreatment::Weighted => "weighted",
+        }
+    }
+
+    /// `base` with this treatment's hold.
+    ///
+    /// # Errors
+    /// [`EvalError`] when the exact inset's kernels cannot be placed.
+    pub fn settings(self, base: &ReducedSettings) -> Result<ReducedSettings, EvalError> {
+        let pins = match self {
+            BoundaryTreatment::Penalty => PinHold::Penalty,
+            BoundaryTreatment::ExactInset => exact_pin_hold(base, EXACT_INSET_KERNEL_RADII)?,
+            BoundaryTreatment::Weighted => PinHold::WEIGHTED,
+        };
+        Ok(ReducedSettings { pins, ..*base })
+    }
+
+    /// Whether this is the library's default hold ([`PinHold::default`]).
+    pub fn is_library_default(self) -> bool {
+        matches!(
+            (self, PinHold::default()),
+            (BoundaryTreatment::Penalty, PinHold::Penalty)
+                | (BoundaryTreatment::Weighted, PinHold::Weighted { .. })
+                | (BoundaryTreatment::ExactInset, PinHold::Exact { .. })
+        )
+    }
+}
+
+/// How the volumetric term of the material is integrated.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, Deserialize)]
+#[serde(rename_all = "snake_case")]
+pub enum VolumetricTerm {
+    /// At every quadrature point, as the material defines it (the paper's setting).
+    Pointwise,
+    /// Projected onto a pressure space ([`freeform::PressureSpace`],
+    /// [`ConvergenceConfig::pressure`]): the locking-free term.
+    Projected,
+}
+
+impl VolumetricTerm {
+    /// "pointwise" or "projected".
+    pub fn name(self) -> &'static str {
+        match self {
+            VolumetricTerm::Pointwise => "pointwise",
+            VolumetricTerm::Projected => "projected",
+        }
+    }
+}

@@ -1,0 +1,72 @@
+//! What the convergence study measures: one [`ConvergenceRow`] per (test, ν, K, m, treatment,
+//! volumetric term), the coarse FEM points, the references it refused.
+
+use serde::{Deserialize, Serialize};
+
+use crate::convergence::options::{BoundaryTreatment, ConvergenceTest, VolumetricTerm};
+
+/// One (test, ν, K, m, treatment) result.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+pub struct ConvergenceRow {
+    /// The test.
+    pub test: ConvergenceTest,
+    /// Poisson ratio.
+    pub nu: f64,
+    /// Modes m.
+    pub m: usize,
+    /// Kernels K.
+    pub kernels: usize,
+    /// Boundary treatment.
+    pub treatment: BoundaryTreatment,
+    /// Volumetric term.
+    pub volumetric: VolumetricTerm,
+    /// Pressure functions P of the projected term (0 for the pointwise one).
+    pub pressure_functions: usize,
+    /// Whether this is the library's default treatment.
+    pub default: bool,
+    /// Normalized MSE against the FEM, `mean |x − x*|² / L²` over the output points (and frames).
+    pub mse: f64,
+    /// Relative L2 error of the displacements, `sqrt(Σ|u − u*|² / Σ|u*|²)` over points (and
+    /// frames).
+    pub relative_error: f64,
+    /// Tip error: `max_t |x_tip − x*_tip| / max_t |u*_tip|` at the node nearest the tip corner
+    /// (5, 1, 1).
+    pub tip_error: f64,
+    /// Static Bend: `u_tip,y / u*_tip,y − 1` (+ too soft, − too stiff); NaN for dynamic tests.
+    pub tip_ratio: f64,
+    /// Largest distance of an FEM node in a constrained region from its target (m).
+    pub held_drift: f64,
+    /// Milliseconds per step (the static solve's for the static test).
+    pub ms_per_step: f64,
+    /// Normalized MSE of the L2 projection of the FEM field onto the subspace (static only).
+    pub best_l2: Option<f64>,
+    /// Normalized MSE of the energy projection of the FEM field onto the subspace (static only).
+    pub best_energy: Option<f64>,
+    /// Static projected rows: the discrete inf-sup constant β of the pressure space with each
+    /// candidate count of Neumann modes ([`ConvergenceConfig::inf_sup_fractions`]).
+    pub inf_sup: Vec<(usize, f64)>,
+    /// Why the run stopped, when it did (then the errors are NaN).
+    pub failure: Option<String>,
+}
+
+/// A coarse FEM's dynamic Bend at ν = 0.45.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+pub struct CoarseFemRow {
+    /// "P2 res 4".
+    pub resolution: String,
+    /// Normalized MSE against the reference.
+    pub mse: f64,
+    /// Seconds per step as run (or as cached).
+    pub ms_per_step: f64,
+}
+
+/// The study's results.
+#[derive(Clone, Debug, Default, PartialEq, Serialize, Deserialize)]
+pub struct ConvergenceStudy {
+    /// One row per run.
+    pub rows: Vec<ConvergenceRow>,
+    /// The coarse FEM points.
+    pub coarse_fem: Vec<CoarseFemRow>,
+    /// References that failed their own check, and so scored nothing.
+    pub refused_references: Vec<String>,
+}

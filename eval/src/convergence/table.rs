@@ -1,0 +1,88 @@
+//! The convergence study as Markdown.
+
+use std::fmt::Write as _;
+
+use crate::convergence::config::ConvergenceConfig;
+use crate::convergence::options::{BoundaryTreatment, ConvergenceTest, VolumetricTerm};
+use crate::convergence::result::ConvergenceStudy;
+
+/// The study as Markdown: per (test, ν, K), MSE against m for every treatment (and the static
+/// projections), then the coarse FEM points.
+pub fn convergence_table(config: &ConvergenceConfig, study: &ConvergenceStudy) -> String {
+    let mut md = format!(
+        "## Convergence in m: beam against the FEM ({})\n\n\
+         E = 5 MPa, ρ = 1000 kg/m³, {} simulation points, {}; static Bend at {} g. Cells: \
+         normalized MSE (static: tip error in %, + too soft; and the MSE of the energy \
+         projection of the FEM field onto the same subspace).\n\n",
+        config.fem.label(),
+        config.settings.simulation_points,
+        config.settings.quadrature_label(),
+        config.static_gravity_scale
+    );
+    for why in &study.refused_references {
+        let _ = writeln!(md, "Not scored: {why}.\n");
+    }
+    for &test in &config.tests {
+        for &nu in &config.poisson_ratios {
+            for &kernels in &config.kernels {
+                let _ = write!(md, "### {} ν = {nu} K = {kernels}\n\n| m |", test.name());
+                let columns: Vec<(BoundaryTreatment, VolumetricTerm)> = config
+                    .treatments
+                    .iter()
+                    .flat_map(|&t| config.volumetric.iter().map(move |&v| (t, v)))
+                    .collect();
+                for (t, v) in &columns {
+                    let _ = write!(md, " {} {} |", t.name(), v.name());
+                }
+                md += "\n|---|";
+                for _ in &columns {
+                    md += "---|";
+                }
+                md += "\n";
+                for &m in &config.modes {
+                    let _ = write!(md, "| {m} |");
+                    for &(t, v) in &columns {
+                        let row = study.rows.iter().find(|r| {
+                            r.test == test
+                                && r.nu == nu
+                                && r.kernels == kernels
+                                && r.m == m
+                                && r.treatment == t
+                                && r.volumetric == v
+                        });
+                        match row {
+                            Some(r) if r.failure.is_none() => {
+                                if test == ConvergenceTest::StaticBend {
+                                    let _ = write!(
+                                        md,
+                                        " {:.3e} ({:+.2}%; best E {:.2e}) |",
+                                        r.mse,
+                                        100.0 * r.tip_ratio,
+                                        r.best_energy.unwrap_or(f64::NAN)
+                                    );
+                                } else {
+                                    let _ = write!(md, " {:.3e} |", r.mse);
+                                }
+                            }
+                            Some(_) => md += " failed |",
+                            None => md += " — |",
+                        }
+                    }
+                    md += "\n";
+                }
+                md += "\n";
+            }
+        }
+    }
+    if !study.coarse_fem.is_empty() {
+        md += "### Coarse FEM, dynamic Bend ν = 0.45\n\n| FEM | MSE | ms/step |\n|---|---|---|\n";
+        for c in &study.coarse_fem {
+            let _ = writeln!(
+                md,
+                "| {} | {:.3e} | {:.1} |",
+                c.resolution, c.mse, c.ms_per_step
+            );
+        }
+    }
+    md
+}

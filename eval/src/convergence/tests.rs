@@ -1,0 +1,58 @@
+//! The static projections on a small basis.
+
+use fem_ref::ElementOrder;
+use reduced_sim::DeformationMap;
+use skin_eigen::SkinningBasis;
+
+use super::static_reference::{
+    StaticReference, field_errors, projections, static_reference, static_scene,
+};
+use crate::beam_scenario::beam_material;
+use crate::beam_scenario::reduced::build_beam_basis;
+use crate::fem_reference::FemResolution;
+use crate::reduced_settings::ReducedSettings;
+
+fn small_basis() -> SkinningBasis {
+    let settings = ReducedSettings {
+        modes: 4,
+        kernels: 120,
+        basis_points: 3000,
+        ..ReducedSettings::default()
+    };
+    build_beam_basis(&settings).unwrap().basis
+}
+
+fn coarse_reference() -> StaticReference {
+    let resolution = FemResolution {
+        order: ElementOrder::Linear,
+        cells_per_metre: 2,
+    };
+    static_reference(&static_scene(1e-3), resolution, beam_material()).unwrap()
+}
+
+#[test]
+fn both_projections_reproduce_a_field_the_subspace_contains() {
+    let basis = small_basis();
+    let mut reference = coarse_reference();
+    let map = DeformationMap::new(&basis, &reference.nodes).unwrap();
+    let z: Vec<f64> = (0..map.layout().len())
+        .map(|i| 1e-3 * ((i * 7919) % 13) as f64 / 13.0 - 5e-4)
+        .collect();
+    reference.displacements = map.displacements(&z);
+    let (l2, energy) = projections(&basis, &reference).unwrap();
+    for field in [l2, energy] {
+        let (_, relative) = field_errors(&field, &reference.displacements);
+        assert!(relative < 1e-7, "relative error {relative}");
+    }
+}
+
+#[test]
+fn the_l2_projection_has_the_smallest_mse_in_the_subspace() {
+    let basis = small_basis();
+    let reference = coarse_reference();
+    let (l2, energy) = projections(&basis, &reference).unwrap();
+    let (best, _) = field_errors(&l2, &reference.displacements);
+    let (other, _) = field_errors(&energy, &reference.displacements);
+    assert!(best > 0.0, "the FEM field is not in a 4-mode subspace");
+    assert!(best <= other, "L2 {best:e} above energy {other:e}");
+}
