@@ -20,7 +20,7 @@
 //! `freeform-cache/` (or `$FREEFORM_CACHE`).
 
 use clap::Parser;
-use eval::beam_scenario::reduced::{build_beam_basis_for, exact_pin_hold, run_reduced_beam_with};
+use eval::beam_protocol::reduced::{build_beam_basis_for, exact_pin_hold, run_reduced_beam_with};
 use eval::beam_scenario::{BeamTest, beam_length_scale, beam_material};
 use eval::fem_reference::{FemResolution, run_fem_beam};
 use eval::reduced_settings::ReducedSettings;

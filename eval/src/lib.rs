@@ -6,6 +6,7 @@ use thiserror::Error;
 
 pub mod ablation;
 pub mod beam;
+pub mod beam_protocol;
 pub mod beam_scenario;
 pub mod bench;
 pub mod convergence;
@@ -108,7 +109,7 @@ pub enum EvalError {
         /// Why.
         source: std::io::Error,
     },
-    /// A cached-only run ([`shapes::study::ShapeStudyConfig::cached_only`]) needed something
+    /// A cached-only run ([`shapes::config::ShapeStudyConfig::cached_only`]) needed something
     /// the cache does not hold; nothing was computed for it.
     #[error("{what} is not in the cache (a cached-only run computes nothing)")]
     NotCached {

@@ -13,8 +13,8 @@ use serde::{Deserialize, Serialize};
 use skin_eigen::SkinningBasis;
 
 use crate::EvalError;
-use crate::beam_scenario::evaluation::region_drift;
-use crate::beam_scenario::reduced::{
+use crate::beam_protocol::evaluation::region_drift;
+use crate::beam_protocol::reduced::{
     build_beam_basis, build_beam_basis_for, exact_pin_hold, run_reduced_beam_with,
 };
 use crate::beam_scenario::{BeamTest, beam_length_scale, beam_material};
@@ -206,81 +206,14 @@ pub fn run_pin_sweep(
                     ..config.settings
                 };
                 if let Some(radii) = config.exact_inset_radii {
-                    let exact = ReducedSettings {
-                        pins: exact_pin_hold(&base, radii)?,
-                        ..base
-                    };
-                    let basis = build_beam_basis_for(test, &exact)?;
-                    let mut row = ExactSweepRow {
-                        poisson_ratio: nu,
-                        test,
-                        m,
-                        mse: f64::NAN,
-                        max: f64::NAN,
-                        max_held_deviation: f64::NAN,
-                        region_drift: f64::NAN,
-                        unconverged_steps: 0,
-                        failure: None,
-                    };
-                    match scored.run(&basis.basis, &exact)? {
-                        Ok((errors, run)) => {
-                            row.mse = errors.normalized_mse;
-                            row.max = errors.normalized_max;
-                            row.max_held_deviation = run.report.max_held_deviation;
-                            row.region_drift = region_drift(test, fem.vertices(), &run.frames);
-                            row.unconverged_steps = run.report.unconverged_steps;
-                        }
-                        Err(why) => row.failure = Some(why),
-                    }
-                    progress.status(format!(
-                        "ν = {nu} {} m = {m} exact: MSE {:.3e}, held drift {:.2e} m",
-                        test.name(),
-                        row.mse,
-                        row.max_held_deviation
-                    ));
-                    exact_rows.push(row);
+                    exact_rows.push(scored.exact_row(&base, radii)?);
                 }
                 // A uniform material scales the weight-space Hessian, not its eigenvectors: the
                 // basis is the same at every ν.
                 let basis = build_beam_basis(&base)?;
                 for &modulus in &config.moduli {
                     for &factor in &config.factors {
-                        let settings = ReducedSettings {
-                            pin_factor: factor,
-                            pin_modulus: modulus,
-                            ..base
-                        };
-                        let mut row = PinSweepRow {
-                            poisson_ratio: nu,
-                            test,
-                            m,
-                            modulus,
-                            factor,
-                            mse: f64::NAN,
-                            max: f64::NAN,
-                            max_pin_deviation: f64::NAN,
-                            unconverged_steps: 0,
-                            failure: None,
-                        };
-                        match scored.run(&basis.basis, &settings)? {
-                            Ok((errors, run)) => {
-                                row.mse = errors.normalized_mse;
-                                row.max = errors.normalized_max;
-                                row.max_pin_deviation = run.report.max_pin_deviation;
-                                row.unconverged_steps = run.report.unconverged_steps;
-                            }
-                            // A pin too soft or too stiff for the step: reported in its row.
-                            Err(why) => row.failure = Some(why),
-                        }
-                        progress.status(format!(
-                            "ν = {nu} {} m = {m} {} factor {factor:e}: MSE {:.3e}, pin drift \
-                             {:.2e} m",
-                            test.name(),
-                            modulus_name(modulus),
-                            row.mse,
-                            row.max_pin_deviation
-                        ));
-                        rows.push(row);
+                        rows.push(scored.factor_row(&basis.basis, &base, modulus, factor)?);
                     }
                 }
             }
@@ -305,6 +238,101 @@ struct ScoredRuns<'a> {
 }
 
 impl ScoredRuns<'_> {
+    /// The row of the exact pins at `base`'s m, the regions shrunk by `radii` kernel radii.
+    fn exact_row(&self, base: &ReducedSettings, radii: f64) -> Result<ExactSweepRow, EvalError> {
+        let (test, nu, m, progress) = (
+            self.test,
+            self.material.poisson_ratio,
+            base.modes,
+            self.progress,
+        );
+        let exact = ReducedSettings {
+            pins: exact_pin_hold(base, radii)?,
+            ..*base
+        };
+        let basis = build_beam_basis_for(test, &exact)?;
+        let mut row = ExactSweepRow {
+            poisson_ratio: nu,
+            test,
+            m,
+            mse: f64::NAN,
+            max: f64::NAN,
+            max_held_deviation: f64::NAN,
+            region_drift: f64::NAN,
+            unconverged_steps: 0,
+            failure: None,
+        };
+        match self.run(&basis.basis, &exact)? {
+            Ok((errors, run)) => {
+                row.mse = errors.normalized_mse;
+                row.max = errors.normalized_max;
+                row.max_held_deviation = run.report.max_held_deviation;
+                row.region_drift = region_drift(test, self.vertices, &run.frames);
+                row.unconverged_steps = run.report.unconverged_steps;
+            }
+            Err(why) => row.failure = Some(why),
+        }
+        progress.status(format!(
+            "ν = {nu} {} m = {m} exact: MSE {:.3e}, held drift {:.2e} m",
+            test.name(),
+            row.mse,
+            row.max_held_deviation
+        ));
+        Ok(row)
+    }
+
+    /// The row of the penalty `factor` on `modulus` at `base`'s m, on `basis`.
+    fn factor_row(
+        &self,
+        basis: &SkinningBasis,
+        base: &ReducedSettings,
+        modulus: PinModulus,
+        factor: f64,
+    ) -> Result<PinSweepRow, EvalError> {
+        let (test, nu, m, progress) = (
+            self.test,
+            self.material.poisson_ratio,
+            base.modes,
+            self.progress,
+        );
+        let settings = ReducedSettings {
+            pin_factor: factor,
+            pin_modulus: modulus,
+            ..*base
+        };
+        let mut row = PinSweepRow {
+            poisson_ratio: nu,
+            test,
+            m,
+            modulus,
+            factor,
+            mse: f64::NAN,
+            max: f64::NAN,
+            max_pin_deviation: f64::NAN,
+            unconverged_steps: 0,
+            failure: None,
+        };
+        match self.run(basis, &settings)? {
+            Ok((errors, run)) => {
+                row.mse = errors.normalized_mse;
+                row.max = errors.normalized_max;
+                row.max_pin_deviation = run.report.max_pin_deviation;
+                row.unconverged_steps = run.report.unconverged_steps;
+            }
+            // A pin too soft or too stiff for the step: reported in its row.
+            Err(why) => row.failure = Some(why),
+        }
+        progress.status(format!(
+            "ν = {nu} {} m = {m} {} factor {factor:e}: MSE {:.3e}, pin drift \
+             {:.2e} m",
+            test.name(),
+            modulus_name(modulus),
+            row.mse,
+            row.max_pin_deviation
+        ));
+        Ok(row)
+    }
+
     /// `basis` under `settings`, with its errors against the reference; `Ok(Err(why))` when the
     /// run stopped (a pin too soft or too stiff for the step), which the sweep reports in its
     /// row.

@@ -1,7 +1,7 @@
 //! Committed experiment presets: each of the paper's studies described by a TOML file under
 //! `eval/presets/` (compiled into the binary), chosen by name, read from a file
 //! (`--config FILE`), and changed key by key (`--set key=value`) before it is turned into the
-//! study's typed configuration ([`crate::beam_scenario::study_config::BeamStudyConfig`],
+//! study's typed configuration ([`crate::beam_protocol::study_config::BeamStudyConfig`],
 //! [`crate::ablation::study::AblationStudyConfig`], [`crate::shapes::config::ShapeStudyConfig`],
 //! [`crate::bench::BenchConfig`], [`crate::pins::PinSweepConfig`],
 //! [`crate::stress::StressConfig`]).
@@ -64,7 +64,7 @@ pub const PRESETS: &[(&str, &str)] = &[
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, Deserialize)]
 #[serde(rename_all = "snake_case")]
 pub enum StudyKind {
-    /// Tables 1, 5 and 6 ([`crate::beam_scenario::study_config::BeamStudyConfig`]).
+    /// Tables 1, 5 and 6 ([`crate::beam_protocol::study_config::BeamStudyConfig`]).
     Beam,
     /// Tables 3 and 4 ([`crate::ablation::study::AblationStudyConfig`]).
     Ablation,
@@ -382,7 +382,7 @@ fn remove_folders(table: &mut toml::Table) {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::beam_scenario::study_config::BeamStudyConfig;
+    use crate::beam_protocol::study_config::BeamStudyConfig;
     use crate::shapes::config::ShapeStudyConfig;
 
     #[test]

@@ -49,7 +49,7 @@ pub struct ReducedSettings {
     #[serde(default)]
     pub pin_modulus: PinModulus,
     /// How the pinned and twisted ends are held (default [`PinHold::Penalty`], the paper's
-    /// treatment; [`exact_pin_hold`] gives the exact holding the tables run beside it).
+    /// treatment; [`crate::beam_protocol::reduced::exact_pin_hold`] gives the exact holding the tables run beside it).
     #[serde(default)]
     pub pins: PinHold,
     /// The material tangent of Newton's Hessians (default [`HessianTangent::ProjectedPsd`],
@@ -64,7 +64,7 @@ fn paper_tangent() -> HessianTangent {
 }
 
 /// The inset of exactly held regions, in kernel radii (the median radius of the basis's
-/// kernels): [`exact_pin_hold`]'s rule.
+/// kernels): [`crate::beam_protocol::reduced::exact_pin_hold`]'s rule.
 ///
 /// Chosen against the converged FEM on the beam Bend (`results/RESULTS.md`, "The exact pins'
 /// inset").

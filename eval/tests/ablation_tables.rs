@@ -6,8 +6,8 @@
 use baselines::SimplicitsParams;
 use eval::ablation::study::{AblationStudyConfig, run_ablation_study};
 use eval::ablation::tables::{table3, table4};
+use eval::beam_protocol::study_config::BeamStudyConfig;
 use eval::beam_scenario::BeamTest;
-use eval::beam_scenario::study_config::BeamStudyConfig;
 use eval::fem_reference::FemResolution;
 use eval::reduced_settings::{ReducedSettings, SimulationSampling};
 use fem_ref::ElementOrder;

@@ -7,8 +7,8 @@
 //! (`skin-eigen/tests/eigenmodes.rs`); the basis is not across thread counts (≈1e-13 relative)
 //! because faer's dense eigensolver blocks its work by the thread count.
 
+use eval::beam_protocol::reduced::{build_beam_basis, run_reduced_beam};
 use eval::beam_scenario::BeamTest;
-use eval::beam_scenario::reduced::{build_beam_basis, run_reduced_beam};
 use eval::fem_reference::{FemResolution, run_fem_beam};
 use eval::reduced_settings::ReducedSettings;
 use fem_ref::ElementOrder;

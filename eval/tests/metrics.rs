@@ -1,7 +1,7 @@
 //! The basis fitting residual on a real basis: zero for motions the basis spans, positive for
 //! one it cannot.
 
-use eval::beam_scenario::reduced::build_beam_basis;
+use eval::beam_protocol::reduced::build_beam_basis;
 use eval::beam_scenario::{BEAM_MAX, BEAM_MIN};
 use eval::reduced_settings::ReducedSettings;
 use freeform::metrics::basis_fitting_residual;

@@ -7,7 +7,7 @@
 use std::path::{Path, PathBuf};
 
 use eval::ablation::study::AblationStudyConfig;
-use eval::beam_scenario::study_config::BeamStudyConfig;
+use eval::beam_protocol::study_config::BeamStudyConfig;
 use eval::bench::BenchConfig;
 use eval::convergence::ConvergenceConfig;
 use eval::pins::PinSweepConfig;

@@ -4,8 +4,8 @@
 use baselines::SimplicitsParams;
 use eval::beam::study::run_beam_study;
 use eval::beam::tables::{table1, table5, table6, twist_error_plot};
+use eval::beam_protocol::study_config::BeamStudyConfig;
 use eval::beam_scenario::BeamTest;
-use eval::beam_scenario::study_config::BeamStudyConfig;
 use eval::fem_reference::FemResolution;
 use eval::particle_baselines::mpm::MpmStudyConfig;
 use eval::particle_baselines::particle_baseline::ParticleMethod;

@@ -9,10 +9,10 @@ use skin_eigen::BasisParams;
 
 use crate::EvalError;
 use crate::ablation::coefficients::train_beam_coefficients;
+use crate::beam_protocol::evaluation::{FemReference, FemSummary, evaluate_field, fem_references};
+use crate::beam_protocol::reduced::build_beam_basis;
+use crate::beam_protocol::study_config::BeamStudyConfig;
 use crate::beam_scenario::BeamTest;
-use crate::beam_scenario::evaluation::{FemReference, FemSummary, evaluate_field, fem_references};
-use crate::beam_scenario::reduced::build_beam_basis;
-use crate::beam_scenario::study_config::BeamStudyConfig;
 use crate::reduced_settings::{ReducedSettings, SimulationSampling};
 use crate::simplicits_cache::train_beam_simplicits;
 use freeform::terminal_progress::TerminalProgress;

@@ -6,8 +6,8 @@ use std::fmt::Write as _;
 use serde_json::json;
 
 use crate::ablation::study::AblationStudy;
+use crate::beam_protocol::preamble::{score_or_why, settings_lines};
 use crate::beam_scenario::BeamTest;
-use crate::report::beam_preamble::{score_or_why, settings_lines};
 use crate::report::paper;
 use crate::report::table::{RenderedTable, sci};
 

@@ -7,16 +7,16 @@ use reduced_sim::QuadratureReport;
 use serde::{Deserialize, Serialize};
 
 use crate::EvalError;
-use crate::beam_scenario::BeamTest;
-use crate::beam_scenario::evaluation::{
+use crate::beam_protocol::evaluation::{
     FemReference, FemSummary, evaluate_field, fem_references, region_drift,
 };
-use crate::beam_scenario::reduced::{build_beam_basis, build_beam_basis_for, exact_pin_hold};
-use crate::beam_scenario::study_config::BeamStudyConfig;
+use crate::beam_protocol::reduced::{build_beam_basis, build_beam_basis_for, exact_pin_hold};
+use crate::beam_protocol::study_config::BeamStudyConfig;
+use crate::beam_scenario::BeamTest;
 use crate::particle_baselines::particle_baseline::ParticleBaselineRow;
 use crate::particle_baselines::particle_config::ParticleConfig;
 use crate::reduced_settings::ReducedSettings;
-use crate::simplicits_cache::train_beam_simplicits;
+use crate::simplicits_cache::{CachedSimplicits, train_beam_simplicits};
 use freeform::fem_reference::FemRun;
 use freeform::terminal_progress::TerminalProgress;
 
@@ -164,26 +164,9 @@ pub fn run_beam_study(
                 progress,
             )?;
             let simplicits = match &simplicits {
-                Some(net) => {
-                    let e = evaluate_field(
-                        *test,
-                        &net.trained.field,
-                        &settings,
-                        reference,
-                        steps,
-                        &config.cache_dir,
-                        progress,
-                    )?;
-                    Some(BaselineRow {
-                        mse: e.errors.normalized_mse,
-                        max: e.errors.normalized_max,
-                        per_frame_mse: e.per_frame_mse,
-                        fitting_residual: e.fitting_residual,
-                        ms_per_step: e.run.report.ms_per_step,
-                        training_seconds: net.trained.report.seconds,
-                        unconverged_steps: e.run.report.unconverged_steps,
-                    })
-                }
+                Some(net) => Some(baseline_row(
+                    *test, net, &settings, reference, steps, config, progress,
+                )?),
                 None => None,
             };
             rows.push(BeamRow {
@@ -212,6 +195,52 @@ pub fn run_beam_study(
         }
     }
     rows.sort_by_key(|r| (r.test != BeamTest::Bend, r.m));
+    let particle_baselines = particle_baseline_rows(config, &references, progress)?;
+    Ok(BeamStudy {
+        config: config.clone(),
+        rows,
+        fem,
+        particle_baselines,
+    })
+}
+
+/// Simplicits' row of `test`: its network simulated and scored against the reference.
+fn baseline_row(
+    test: BeamTest,
+    net: &CachedSimplicits,
+    settings: &ReducedSettings,
+    reference: &FemRun,
+    steps: usize,
+    config: &BeamStudyConfig,
+    progress: &TerminalProgress,
+) -> Result<BaselineRow, EvalError> {
+    let e = evaluate_field(
+        test,
+        &net.trained.field,
+        settings,
+        reference,
+        steps,
+        &config.cache_dir,
+        progress,
+    )?;
+    Ok(BaselineRow {
+        mse: e.errors.normalized_mse,
+        max: e.errors.normalized_max,
+        per_frame_mse: e.per_frame_mse,
+        fitting_residual: e.fitting_residual,
+        ms_per_step: e.run.report.ms_per_step,
+        training_seconds: net.trained.report.seconds,
+        unconverged_steps: e.run.report.unconverged_steps,
+    })
+}
+
+/// The particle baselines' rows: every (method, test, spacing) run cheapest first, so that the
+/// long runs come last, and reported by method, test, then coarsest first.
+fn particle_baseline_rows(
+    config: &BeamStudyConfig,
+    references: &[FemReference],
+    progress: &TerminalProgress,
+) -> Result<Vec<ParticleBaselineRow>, EvalError> {
     let mut particle_baselines = Vec::new();
     // Every (method, test, spacing), cheapest first, so that the long runs come last.
     let configs: Vec<ParticleConfig> = config
@@ -261,12 +290,7 @@ pub fn run_beam_study(
             .cmp(&(b.method, b.test != BeamTest::Bend))
             .then(b.spacing.total_cmp(&a.spacing))
     });
-    Ok(BeamStudy {
-        config: config.clone(),
-        rows,
-        fem,
-        particle_baselines,
-    })
+    Ok(particle_baselines)
 }
 
 /// `test` with the regions held exactly (`exact.pins`): a basis built for the test's regions,

@@ -5,10 +5,10 @@ use std::fmt::Write as _;
 
 use serde_json::{Value, json};
 
-use crate::beam::study::BeamStudy;
+use crate::beam::study::{BeamRow, BeamStudy};
+use crate::beam_protocol::preamble::settings_lines;
 use crate::beam_scenario::{BEAM_TIME_STEP, BeamTest};
 use crate::particle_baselines::particle_baseline::ParticleMethod;
-use crate::report::beam_preamble::settings_lines;
 use crate::report::paper;
 use crate::report::plot::{AxisScale, PlotSpec, Series};
 use crate::report::table::{RenderedTable, not_run_or, sci};
@@ -45,6 +45,33 @@ fn simplicits_line(study: &BeamStudy) -> String {
     }
 }
 
+/// A particle method's cell of `r`: the particle methods do not depend on m, so each one's
+/// finest scored spacing goes beside the paper's m = 9 value (empty on other rows, or when the
+/// study did not run the method).
+fn particle_cell(
+    study: &BeamStudy,
+    r: &BeamRow,
+    method: ParticleMethod,
+    configured: bool,
+) -> String {
+    if r.m != 9 || !configured {
+        return String::new();
+    }
+    study
+        .particle_baselines
+        .iter()
+        .filter(|p| p.method == method && p.test == r.test && p.mse.is_some())
+        .min_by(|a, b| a.spacing.total_cmp(&b.spacing))
+        .map_or("not scored".into(), |p| {
+            format!(
+                "{:.2e} ({} {} m)",
+                p.mse.unwrap_or(f64::NAN),
+                method.spacing_name(),
+                p.spacing
+            )
+        })
+}
+
 /// Table 1: normalized MSE of ours against FEM for each (test, m), beside the paper's columns,
 /// with both pin treatments (penalty, and exact when the study ran it) and their drifts.
 pub fn table1(study: &BeamStudy) -> RenderedTable {
@@ -65,28 +92,8 @@ pub fn table1(study: &BeamStudy) -> RenderedTable {
             .iter()
             .find(|p| p.0 == name && r.m == 9);
         let exact = r.exact.as_ref();
-        // The particle methods do not depend on m: each one's finest scored spacing goes
-        // beside the paper's m = 9 value.
-        let particle_ours = |method: ParticleMethod, configured: bool| -> String {
-            if r.m != 9 || !configured {
-                return String::new();
-            }
-            study
-                .particle_baselines
-                .iter()
-                .filter(|p| p.method == method && p.test == r.test && p.mse.is_some())
-                .min_by(|a, b| a.spacing.total_cmp(&b.spacing))
-                .map_or("not scored".into(), |p| {
-                    format!(
-                        "{:.2e} ({} {} m)",
-                        p.mse.unwrap_or(f64::NAN),
-                        method.spacing_name(),
-                        p.spacing
-                    )
-                })
-        };
-        let mpm = particle_ours(ParticleMethod::Mpm, study.config.mpm.is_some());
-        let sph = particle_ours(ParticleMethod::Sph, study.config.sph.is_some());
+        let mpm = particle_cell(study, r, ParticleMethod::Mpm, study.config.mpm.is_some());
+        let sph = particle_cell(study, r, ParticleMethod::Sph, study.config.sph.is_some());
         let _ = writeln!(
             md,
             "| {name} | {} | {:.2e} | {:.2e} | {:.1} / {:.1} | {} | {} | {} | {} | {} | {} | {mpm} | {} | {sph} | {} |",

@@ -2,14 +2,7 @@
 //! its material and time step, the Bend and Twist tests, and the grids its bases are built on.
 //! The experiments (beam, ablation, pins, convergence, bench, stress) and the shared layers (the
 //! model cache, the FEM references) import it from here.
-//!
-//! - [`study_config`]: a beam study's settings (m, tests, steps, FEM, baselines);
-//! - [`reduced`]: the beam's basis and reduced runs;
-//! - [`evaluation`]: the FEM references and a skinning field scored against them.
-
-pub mod evaluation;
-pub mod reduced;
-pub mod study_config;
+//! What the beam experiments share beyond these constants is in [`crate::beam_protocol`].
 
 use hyperelastic::LameParameters;
 use rkpm_core::{IntegrationPoints, sample_box_grid};

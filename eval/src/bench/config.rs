@@ -55,17 +55,17 @@ pub enum BenchMethod {
     /// FreeForm with these settings.
     FreeForm(ReducedSettings),
     /// FreeForm with these settings and the clamped end held exactly, on the end shrunk by this
-    /// many median kernel radii ([`exact_pin_hold`]).
+    /// many median kernel radii ([`crate::beam_protocol::reduced::exact_pin_hold`]).
     FreeFormExact(ReducedSettings, f64),
     /// The FEM at a coarser resolution than the ground truth.
     Fem(FemResolution),
     /// The Simplicits baseline (network trained on the basis grid of the settings, cached),
     /// simulated with these settings.
     Simplicits(ReducedSettings, SimplicitsParams),
-    /// The MPM baseline at this grid spacing (m), otherwise [`MpmStudyConfig::default`]
+    /// The MPM baseline at this grid spacing (m), otherwise [`crate::particle_baselines::mpm::MpmStudyConfig::default`]
     /// (trajectories cached, shared with Table 1).
     Mpm(f64),
-    /// The SPH baseline at this particle spacing (m), otherwise [`SphStudyConfig::default`]
+    /// The SPH baseline at this particle spacing (m), otherwise [`crate::particle_baselines::sph::SphStudyConfig::default`]
     /// (trajectories cached, shared with Table 1).
     Sph(f64),
 }

@@ -8,8 +8,8 @@ use baselines::SimplicitsParams;
 use reduced_sim::QuadratureRule;
 
 use crate::EvalError;
-use crate::beam_scenario::evaluation::region_drift;
-use crate::beam_scenario::reduced::{
+use crate::beam_protocol::evaluation::region_drift;
+use crate::beam_protocol::reduced::{
     build_beam_basis_for, exact_pin_hold, run_reduced_beam, run_reduced_beam_with,
 };
 use crate::beam_scenario::{BeamTest, beam_length_scale, beam_material};

@@ -5,15 +5,15 @@ use freeform::PinHold;
 use serde::{Deserialize, Serialize};
 
 use crate::EvalError;
+use crate::beam_protocol::reduced::exact_pin_hold;
 use crate::beam_scenario::BeamTest;
-use crate::beam_scenario::reduced::exact_pin_hold;
 use crate::reduced_settings::{EXACT_INSET_KERNEL_RADII, ReducedSettings};
 
 /// A test of the study.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, Deserialize)]
 #[serde(rename_all = "snake_case")]
 pub enum ConvergenceTest {
-    /// The Bend's clamp and gravity scaled by [`ConvergenceConfig::static_gravity_scale`],
+    /// The Bend's clamp and gravity scaled by [`crate::convergence::ConvergenceConfig::static_gravity_scale`],
     /// solved for static equilibrium: a linear problem whose Galerkin solution obeys the Ritz
     /// bounds.
     StaticBend,
@@ -96,7 +96,7 @@ pub enum VolumetricTerm {
     /// At every quadrature point, as the material defines it (the paper's setting).
     Pointwise,
     /// Projected onto a pressure space ([`freeform::PressureSpace`],
-    /// [`ConvergenceConfig::pressure`]): the locking-free term.
+    /// [`crate::convergence::ConvergenceConfig::pressure`]): the locking-free term.
     Projected,
 }
 

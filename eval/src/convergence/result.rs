@@ -43,7 +43,7 @@ pub struct ConvergenceRow {
     /// Normalized MSE of the energy projection of the FEM field onto the subspace (static only).
     pub best_energy: Option<f64>,
     /// Static projected rows: the discrete inf-sup constant β of the pressure space with each
-    /// candidate count of Neumann modes ([`ConvergenceConfig::inf_sup_fractions`]).
+    /// candidate count of Neumann modes ([`crate::convergence::ConvergenceConfig::inf_sup_fractions`]).
     pub inf_sup: Vec<(usize, f64)>,
     /// Why the run stopped, when it did (then the errors are NaN).
     pub failure: Option<String>,

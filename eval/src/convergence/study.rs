@@ -16,8 +16,8 @@ use reduced_sim::DeformationMap;
 use skin_eigen::SkinningBasis;
 
 use crate::EvalError;
-use crate::beam_scenario::evaluation::region_drift;
-use crate::beam_scenario::reduced::{
+use crate::beam_protocol::evaluation::region_drift;
+use crate::beam_protocol::reduced::{
     beam_pressure_space, build_beam_basis_for, run_reduced_beam_with_pressure,
 };
 use crate::beam_scenario::{BEAM_TIME_STEP, BeamTest, beam_length_scale, beam_material};

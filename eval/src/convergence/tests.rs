@@ -7,8 +7,8 @@ use skin_eigen::SkinningBasis;
 use super::static_reference::{
     StaticReference, field_errors, projections, static_reference, static_scene,
 };
+use crate::beam_protocol::reduced::build_beam_basis;
 use crate::beam_scenario::beam_material;
-use crate::beam_scenario::reduced::build_beam_basis;
 use crate::fem_reference::FemResolution;
 use crate::reduced_settings::ReducedSettings;
 

@@ -12,7 +12,8 @@ use std::time::Instant;
 
 use baselines::mpm::{MpmError, MpmMaterial, MpmParams, MpmSimulator, MpmTimings};
 use fem_ref::trajectory_key_builder;
-use rkpm_core::sample_box_grid;
+use nalgebra::Vector3;
+use rkpm_core::{IntegrationPoints, sample_box_grid};
 use serde::{Deserialize, Serialize};
 
 use crate::EvalError;
@@ -22,6 +23,7 @@ use crate::particle_baselines::particle_baseline::{
     score_particle_run, store_cached_run,
 };
 use freeform::fem_reference::FemRun;
+use freeform::scene::SceneSpec;
 use freeform::terminal_progress::TerminalProgress;
 
 /// Cache file kind and format version of an MPM beam trajectory.
@@ -126,36 +128,9 @@ pub fn run_mpm_beam(
     let (run, was_cached) = match cached {
         Some(run) => (run, true),
         None => {
-            let reduced_scene = scene.reduced_scene(particles.positions())?;
-            let tracer_regions = scene.reduced_scene(vertices)?.pins;
-            let mut sim =
-                MpmSimulator::new(&particles, &[beam_material()], &reduced_scene, params)?
-                    .with_tracers(vertices, &tracer_regions)?;
-            let start = Instant::now();
-            let recorded = record_frames(
-                vertices,
-                steps,
-                format!("{label} ({} particles)", particles.len()),
-                progress,
-                || {
-                    sim.advance(BEAM_TIME_STEP).map_err(|e| match e {
-                        MpmError::TracerLost { tracer, .. } => format!(
-                            "{e} (tracer at rest position {:?} m)",
-                            vertices[tracer].as_slice()
-                        ),
-                        _ => e.to_string(),
-                    })?;
-                    Ok((as_arrays(sim.tracer_positions()), sim.max_pin_deviation()))
-                },
-            );
-            let run = CachedMpmRun {
-                failure: recorded.failure,
-                max_pin_deviation: recorded.max_pin_deviation,
-                frames: recorded.frames,
-                timings: *sim.timings(),
-                particles: particles.len(),
-                seconds: start.elapsed().as_secs_f64(),
-            };
+            let run = simulate_mpm(
+                &particles, &scene, params, vertices, steps, &label, progress,
+            )?;
             store_cached_run(
                 &path,
                 MPM_CACHE_MAGIC,
@@ -193,4 +168,49 @@ pub fn run_mpm_beam(
         reference,
         progress,
     )
+}
+
+/// MPM on `scene` for `steps` frames from `particles`, with tracers at `vertices`: what the
+/// cache keeps (a failed run is a run with its `failure`).
+///
+/// # Errors
+/// [`EvalError::Mpm`] / [`EvalError::Scene`] when the simulator or its regions cannot be set up.
+fn simulate_mpm(
+    particles: &IntegrationPoints,
+    scene: &SceneSpec,
+    params: MpmParams,
+    vertices: &[Vector3<f64>],
+    steps: usize,
+    label: &str,
+    progress: &TerminalProgress,
+) -> Result<CachedMpmRun, EvalError> {
+    let reduced_scene = scene.reduced_scene(particles.positions())?;
+    let tracer_regions = scene.reduced_scene(vertices)?.pins;
+    let mut sim = MpmSimulator::new(particles, &[beam_material()], &reduced_scene, params)?
+        .with_tracers(vertices, &tracer_regions)?;
+    let start = Instant::now();
+    let recorded = record_frames(
+        vertices,
+        steps,
+        format!("{label} ({} particles)", particles.len()),
+        progress,
+        || {
+            sim.advance(BEAM_TIME_STEP).map_err(|e| match e {
+                MpmError::TracerLost { tracer, .. } => format!(
+                    "{e} (tracer at rest position {:?} m)",
+                    vertices[tracer].as_slice()
+                ),
+                _ => e.to_string(),
+            })?;
+            Ok((as_arrays(sim.tracer_positions()), sim.max_pin_deviation()))
+        },
+    );
+    Ok(CachedMpmRun {
+        failure: recorded.failure,
+        max_pin_deviation: recorded.max_pin_deviation,
+        frames: recorded.frames,
+        timings: *sim.timings(),
+        particles: particles.len(),
+        seconds: start.elapsed().as_secs_f64(),
+    })
 }

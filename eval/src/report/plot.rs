@@ -70,14 +70,9 @@ fn register_font() -> bool {
     })
 }
 
-fn draw<DB: DrawingBackend>(
-    root: DrawingArea<DB, plotters::coord::Shift>,
-    spec: &PlotSpec,
-) -> Result<(), String>
-where
-    DB::ErrorType: 'static,
-{
-    root.fill(&WHITE).map_err(|e| e.to_string())?;
+/// The axes' ranges `(x0, x1, y0, y1)` of `spec`: its finite points (positive on log axes)
+/// with a margin, and room below a log-log plot's data for the legend.
+fn axis_ranges(spec: &PlotSpec) -> Result<(f64, f64, f64, f64), String> {
     let all: Vec<(f64, f64)> = spec
         .series
         .iter()
@@ -126,6 +121,18 @@ where
         AxisScale::LogY => (y0 / 2.0, y1 * 2.0),
         AxisScale::Linear => (y0 - py, y1 + py),
     };
+    Ok((x0, x1, y0, y1))
+}
+
+fn draw<DB: DrawingBackend>(
+    root: DrawingArea<DB, plotters::coord::Shift>,
+    spec: &PlotSpec,
+) -> Result<(), String>
+where
+    DB::ErrorType: 'static,
+{
+    root.fill(&WHITE).map_err(|e| e.to_string())?;
+    let (x0, x1, y0, y1) = axis_ranges(spec)?;
     let mut builder = ChartBuilder::on(&root);
     builder
         .caption(&spec.title, ("sans-serif", 22))

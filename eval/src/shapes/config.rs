@@ -45,7 +45,7 @@ pub struct ShapeStudyConfig {
     #[serde(default)]
     pub check_convergence: bool,
     /// Also run every (shape, boundary condition) with its regions held exactly, shrunk by this
-    /// many median kernel radii (a basis per condition, [`PinHold::Exact`]); `None` leaves it
+    /// many median kernel radii (a basis per condition, [`freeform::PinHold::Exact`]); `None` leaves it
     /// out.
     #[serde(default)]
     pub exact_pins: Option<f64>,
@@ -60,7 +60,7 @@ pub struct ShapeStudyConfig {
     #[serde(default = "all_boundaries")]
     pub boundaries: Vec<ShapeBoundary>,
     /// Score only what the cache holds (default false): a FEM reference or convergence check
-    /// that is not cached is not computed, and its row says so ([`EvalError::NotCached`]); a
+    /// that is not cached is not computed, and its row says so ([`crate::EvalError::NotCached`]); a
     /// shape whose Simplicits network is not cached (or not readable) is not trained, and
     /// reported. For reading the tables of work spread over several runs while they go on.
     #[serde(default)]

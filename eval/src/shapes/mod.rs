@@ -4,8 +4,8 @@
 //! - [`catalog`]: the shared meshes' names and materials; [`boundary`]: the boundary
 //!   conditions on any shape; [`reference`](mod@reference): the FEM mesh of a shape;
 //! - [`config`]: what the study runs; [`result`]: what it measures;
-//! - [`study`]: the run over the shapes, [`shape_run`] one shape stage by stage,
-//!   [`boundary_run`] one condition's reduced runs;
+//! - [`study`]: the run over the shapes, `shape_run` one shape stage by stage,
+//!   `boundary_run` one condition's reduced runs;
 //! - [`tables`]: the rendering.
 
 pub mod boundary;

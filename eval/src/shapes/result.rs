@@ -106,10 +106,10 @@ pub struct ShapeRow {
     pub reference_check_error: Option<String>,
     /// This row's own FEM mesh when it is not the shape's ([`ShapeResult::fem_mesh`]): on the
     /// lattice whose vertex planes are the held slabs' faces
-    /// ([`ShapeFemParams::clamp_on_lattice_plane`],
-    /// [`ShapeFemParams::pull_slabs_on_lattice_planes`]) or refined along the pulled regions'
-    /// edges ([`ShapeFemParams::refine_pulled_patch_edges`],
-    /// [`ShapeFemParams::refine_pulled_slab_faces`]). `None`: the shape's mesh.
+    /// ([`crate::shapes::reference::ShapeFemParams::clamp_on_lattice_plane`],
+    /// [`crate::shapes::reference::ShapeFemParams::pull_slabs_on_lattice_planes`]) or refined along the pulled regions'
+    /// edges ([`crate::shapes::reference::ShapeFemParams::refine_pulled_patch_edges`],
+    /// [`crate::shapes::reference::ShapeFemParams::refine_pulled_slab_faces`]). `None`: the shape's mesh.
     #[serde(default)]
     pub fem_mesh: Option<FemMeshSummary>,
     /// Reduced integration points in each constrained region.
@@ -211,7 +211,7 @@ pub struct ShapeStudy {
 
 impl ShapeStudy {
     /// The file names of `config.meshes` that have no result in `shapes`, in table order: none
-    /// for the study [`run_shape_study`] returns, the shapes still to come in the one it hands
+    /// for the study [`crate::shapes::study::run_shape_study`] returns, the shapes still to come in the one it hands
     /// to `on_shape`.
     pub fn unfinished(&self) -> Vec<String> {
         let mut finished: Vec<&str> = self.shapes.iter().map(|s| s.name.as_str()).collect();

@@ -16,7 +16,7 @@ use rkpm_core::{
 use skin_eigen::{SkinningBasis, build_basis};
 
 use crate::EvalError;
-use crate::beam_scenario::reduced::median_kernel_radius;
+use crate::beam_protocol::reduced::median_kernel_radius;
 use crate::model_cache::{load_cached, model_path};
 use crate::reduced_settings::ReducedSettings;
 use crate::shapes::boundary::ShapeBoundary;

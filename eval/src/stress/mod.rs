@@ -179,6 +179,69 @@ pub struct StressConfig {
     pub cases: Vec<StressCase>,
 }
 
+/// The full matrix's FEM reference cases (ν = 0.3 and 0.499, dt = 0.1, the fast twist) and its
+/// degenerate samplings (a one-layer plate, a sparse noisy cloud, duplicated points).
+fn fem_and_sampling_cases() -> Vec<StressCase> {
+    let mut cases = Vec::new();
+    for (name, nu, dt, scene, steps) in [
+        ("FEM Bend ν = 0.3", 0.3, 0.01, StressScene::BeamBend, 300),
+        (
+            "FEM Bend ν = 0.499",
+            0.499,
+            0.01,
+            StressScene::BeamBend,
+            300,
+        ),
+        ("FEM Bend dt = 0.1", 0.45, 0.1, StressScene::BeamBend, 30),
+        (
+            "FEM Twist 4× faster (8640°/s)",
+            0.45,
+            0.01,
+            StressScene::BeamTwist {
+                degrees_per_second: 8640.0,
+            },
+            34,
+        ),
+    ] {
+        cases.push(StressCase {
+            solver: StressSolver::Fem,
+            poisson_ratio: nu,
+            time_step: dt,
+            ..StressCase::beam("FEM", name.into(), scene, steps)
+        });
+    }
+    for (name, thickness, sampling) in [
+        ("plate one point thick", 0.05, DegenerateSampling::OneLayer),
+        (
+            "sparse noisy cloud (300 points)",
+            0.3,
+            DegenerateSampling::SparseNoisy { points: 300 },
+        ),
+        (
+            "every point duplicated",
+            0.3,
+            DegenerateSampling::Duplicated,
+        ),
+    ] {
+        cases.push(StressCase {
+            modes: 8,
+            kernels: 64,
+            basis_points: 2000,
+            simulation_points: 2000,
+            ..StressCase::beam(
+                "sampling",
+                name.into(),
+                StressScene::Plate {
+                    thickness,
+                    sampling,
+                },
+                30,
+            )
+        });
+    }
+    cases
+}
+
 impl StressConfig {
     /// The matrix: ν ∈ {0.3, 0.45, 0.49, 0.499}; contrast 10² and 10⁴; dt ∈ {0.01,
     /// 0.05, 0.1}; the 720° Twist, held past 720°, and 4× faster; a 10 m/s impact; m from 1 to
@@ -256,62 +319,7 @@ impl StressConfig {
                 ..StressCase::beam("K", format!("Bend K = {k}"), StressScene::BeamBend, 100)
             });
         }
-        for (name, nu, dt, scene, steps) in [
-            ("FEM Bend ν = 0.3", 0.3, 0.01, StressScene::BeamBend, 300),
-            (
-                "FEM Bend ν = 0.499",
-                0.499,
-                0.01,
-                StressScene::BeamBend,
-                300,
-            ),
-            ("FEM Bend dt = 0.1", 0.45, 0.1, StressScene::BeamBend, 30),
-            (
-                "FEM Twist 4× faster (8640°/s)",
-                0.45,
-                0.01,
-                StressScene::BeamTwist {
-                    degrees_per_second: 8640.0,
-                },
-                34,
-            ),
-        ] {
-            cases.push(StressCase {
-                solver: StressSolver::Fem,
-                poisson_ratio: nu,
-                time_step: dt,
-                ..StressCase::beam("FEM", name.into(), scene, steps)
-            });
-        }
-        for (name, thickness, sampling) in [
-            ("plate one point thick", 0.05, DegenerateSampling::OneLayer),
-            (
-                "sparse noisy cloud (300 points)",
-                0.3,
-                DegenerateSampling::SparseNoisy { points: 300 },
-            ),
-            (
-                "every point duplicated",
-                0.3,
-                DegenerateSampling::Duplicated,
-            ),
-        ] {
-            cases.push(StressCase {
-                modes: 8,
-                kernels: 64,
-                basis_points: 2000,
-                simulation_points: 2000,
-                ..StressCase::beam(
-                    "sampling",
-                    name.into(),
-                    StressScene::Plate {
-                        thickness,
-                        sampling,
-                    },
-                    30,
-                )
-            });
-        }
+        cases.extend(fem_and_sampling_cases());
         StressConfig { cases }
     }
 

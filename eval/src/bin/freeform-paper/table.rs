@@ -9,8 +9,8 @@ use eval::ablation::study::{AblationStudyConfig, run_ablation_study};
 use eval::ablation::tables::{table3, table4};
 use eval::beam::study::run_beam_study;
 use eval::beam::tables::{table1, table5, table6, twist_error_plot};
+use eval::beam_protocol::study_config::BeamStudyConfig;
 use eval::beam_scenario::BeamTest;
-use eval::beam_scenario::study_config::BeamStudyConfig;
 use eval::presets::{StudyKind, set_folder};
 use eval::report::table::{RenderedTable, write_table};
 use eval::shapes::config::ShapeStudyConfig;
@@ -75,41 +75,7 @@ pub(crate) fn run(
     let cache_dir = |table: &mut toml::Table| set_folder(table, "cache_dir", cache);
     let mut rendered = Vec::new();
     if wants(&[2, 7]) {
-        let Some(dir) = &options.meshes else {
-            bail!("tables 2 and 7 need --meshes DIR (e.g. data/meshes)");
-        };
-        let mut shapes: ShapeStudyConfig =
-            chosen.load("shapes")?.config(StudyKind::Shapes, |table| {
-                cache_dir(table);
-                table.insert("meshes".into(), toml::Value::Array(Vec::new()));
-            })?;
-        shapes.meshes = mesh_files(dir, options.only.as_deref())?;
-        shapes.jobs = options.jobs.unwrap_or(shapes.jobs);
-        shapes.cached_only |= options.cached_only;
-        let total = shapes.meshes.len();
-        let study = run_shape_study(&shapes, progress, |shape, so_far| {
-            let mut line = format!(
-                "[{}/{total} shapes] {} finished",
-                so_far.shapes.len(),
-                shape.name
-            );
-            // A long run leaves the tables of the shapes it finished, should it be stopped (or
-            // should a later table fail).
-            let written = shape_tables(numbers, so_far)
-                .iter()
-                .map(|table| write_table(table, out))
-                .collect::<Result<Vec<_>, _>>();
-            line += &match written {
-                Ok(_) => format!("; the tables so far are in {}", out.display()),
-                Err(e) => format!("; the tables so far could not be written: {e}"),
-            };
-            progress.status(line);
-        })?;
-        progress.status(format!(
-            "shape study: {total} shape(s) in {:.0} s",
-            study.seconds
-        ));
-        rendered.extend(shape_tables(numbers, &study));
+        rendered.extend(shape_study_tables(numbers, &options, out, cache, progress)?);
     }
     if wants(&[3, 4]) {
         let mut ablation: AblationStudyConfig = chosen
@@ -181,6 +147,54 @@ pub(crate) fn run(
         println!("{}", serde_json::to_string_pretty(&value)?);
     }
     Ok(())
+}
+
+/// Runs the shapes study for Tables 2 and 7 (writing the tables so far after each shape) and
+/// returns those of them `numbers` asks for.
+fn shape_study_tables(
+    numbers: &[u32],
+    options: &TableOptions,
+    out: &Path,
+    cache: &Path,
+    progress: &TerminalProgress,
+) -> Result<Vec<RenderedTable>> {
+    let chosen = &options.preset;
+    let cache_dir = |table: &mut toml::Table| set_folder(table, "cache_dir", cache);
+    let Some(dir) = &options.meshes else {
+        bail!("tables 2 and 7 need --meshes DIR (e.g. data/meshes)");
+    };
+    let mut shapes: ShapeStudyConfig =
+        chosen.load("shapes")?.config(StudyKind::Shapes, |table| {
+            cache_dir(table);
+            table.insert("meshes".into(), toml::Value::Array(Vec::new()));
+        })?;
+    shapes.meshes = mesh_files(dir, options.only.as_deref())?;
+    shapes.jobs = options.jobs.unwrap_or(shapes.jobs);
+    shapes.cached_only |= options.cached_only;
+    let total = shapes.meshes.len();
+    let study = run_shape_study(&shapes, progress, |shape, so_far| {
+        let mut line = format!(
+            "[{}/{total} shapes] {} finished",
+            so_far.shapes.len(),
+            shape.name
+        );
+        // A long run leaves the tables of the shapes it finished, should it be stopped (or
+        // should a later table fail).
+        let written = shape_tables(numbers, so_far)
+            .iter()
+            .map(|table| write_table(table, out))
+            .collect::<Result<Vec<_>, _>>();
+        line += &match written {
+            Ok(_) => format!("; the tables so far are in {}", out.display()),
+            Err(e) => format!("; the tables so far could not be written: {e}"),
+        };
+        progress.status(line);
+    })?;
+    progress.status(format!(
+        "shape study: {total} shape(s) in {:.0} s",
+        study.seconds
+    ));
+    Ok(shape_tables(numbers, &study))
 }
 
 /// Tables 2 and 7 of `study`, those of them `numbers` asks for, in its order.

@@ -11,7 +11,7 @@ use crate::report::paper;
 use crate::report::table::{RenderedTable, not_run_or, sci};
 use crate::shapes::boundary::ShapeBoundary;
 use crate::shapes::reference::FemMeshSummary;
-use crate::shapes::result::{ShapeResult, ShapeStudy};
+use crate::shapes::result::{MethodScores, ShapeResult, ShapeRow, ShapeStudy};
 
 /// Table 2: averages per boundary condition and collection, training times, per-shape rows.
 pub fn table2(study: &ShapeStudy) -> RenderedTable {
@@ -276,25 +276,8 @@ fn shape_row(
     };
     let mm = |v: Option<f64>| v.map_or("—".into(), |v| format!("{:.2}", 1e3 * v));
     let error = row_error(shape, boundary);
-    let join = |v: &[usize]| v.iter().map(usize::to_string).collect::<Vec<_>>().join("+");
-    let held = match row {
-        Some(r) if r.fem.is_some() && !r.region_points.is_empty() => format!(
-            "{} / {}",
-            join(
-                &r.fem
-                    .as_ref()
-                    .map_or(Vec::new(), |f| f.region_nodes.clone())
-            ),
-            join(&r.region_points)
-        ),
-        _ => "—".into(),
-    };
-    let lower = match (&untrusted, ours, theirs) {
-        (Some(why), Some(_), _) => format!("no trustworthy reference: {why}"),
-        (None, Some(o), Some(t)) if o.mse < t.mse => "FreeForm".into(),
-        (None, Some(_), Some(_)) => "Simplicits".into(),
-        _ => "—".into(),
-    };
+    let held = held_cell(row);
+    let lower = lower_cell(untrusted.as_deref(), ours, theirs);
     let _ = writeln!(
         *md,
         "| {} ({}) | {:.0e} | {mesh} | {} | {} | {} | {} | {} | {} | {} | {} | {} | {lower} | {held} | {} | {} | {} | {} |",
@@ -374,4 +357,35 @@ fn shape_row(
         "fem_mesh": reference_mesh,
         "error": error,
     })
+}
+
+/// "FEM nodes / integration points" held in each region, "+"-joined, or "—".
+fn held_cell(row: Option<&ShapeRow>) -> String {
+    let join = |v: &[usize]| v.iter().map(usize::to_string).collect::<Vec<_>>().join("+");
+    match row {
+        Some(r) if r.fem.is_some() && !r.region_points.is_empty() => format!(
+            "{} / {}",
+            join(
+                &r.fem
+                    .as_ref()
+                    .map_or(Vec::new(), |f| f.region_nodes.clone())
+            ),
+            join(&r.region_points)
+        ),
+        _ => "—".into(),
+    }
+}
+
+/// Which method has the lower MSE, or why the reference cannot say.
+fn lower_cell(
+    untrusted: Option<&str>,
+    ours: Option<MethodScores>,
+    theirs: Option<MethodScores>,
+) -> String {
+    match (untrusted, ours, theirs) {
+        (Some(why), Some(_), _) => format!("no trustworthy reference: {why}"),
+        (None, Some(o), Some(t)) if o.mse < t.mse => "FreeForm".into(),
+        (None, Some(_), Some(_)) => "Simplicits".into(),
+        _ => "—".into(),
+    }
 }

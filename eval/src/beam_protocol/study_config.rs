@@ -36,7 +36,7 @@ pub struct BeamStudyConfig {
     /// Cache folder (FEM trajectories under `fem/`, networks under `simplicits/`).
     pub cache_dir: PathBuf,
     /// Also run every (test, m) with the pinned regions held exactly, shrunk by this many
-    /// median kernel radii ([`exact_pin_hold`], a basis per test), beside the penalty (issue
+    /// median kernel radii ([`crate::beam_protocol::reduced::exact_pin_hold`], a basis per test), beside the penalty (issue
     /// 25); `None` to leave it out.
     #[serde(default)]
     pub exact_pins: Option<f64>,

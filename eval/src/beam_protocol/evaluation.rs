@@ -8,8 +8,8 @@ use reduced_sim::SkinningField;
 use serde::{Deserialize, Serialize};
 
 use crate::EvalError;
-use crate::beam_scenario::reduced::run_reduced_beam_with;
-use crate::beam_scenario::study_config::BeamStudyConfig;
+use crate::beam_protocol::reduced::run_reduced_beam_with;
+use crate::beam_protocol::study_config::BeamStudyConfig;
 use crate::beam_scenario::{BEAM_TIME_STEP, BeamTest, beam_length_scale, beam_material};
 use crate::fem_reference::{FEM_TIMING_STEPS, beam_seconds_per_step_here, run_fem_beam};
 use crate::reduced_run::ReducedRun;

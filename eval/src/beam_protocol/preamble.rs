@@ -3,8 +3,8 @@
 
 use std::fmt::Write as _;
 
-use crate::beam_scenario::evaluation::FemSummary;
-use crate::beam_scenario::study_config::BeamStudyConfig;
+use crate::beam_protocol::evaluation::FemSummary;
+use crate::beam_protocol::study_config::BeamStudyConfig;
 use crate::beam_scenario::{BeamTest, beam_length_scale};
 
 /// The settings preamble of a beam table: the reduced settings and each FEM reference.
