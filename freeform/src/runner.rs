@@ -8,8 +8,8 @@ use std::time::Instant;
 
 use hyperelastic::{HyperelasticMaterial, MaterialField};
 use optimize::NewtonReport;
-use reduced_sim::automatic_quadrature::cubature_if_it_pays;
-use reduced_sim::cubature::load_cached_cubature;
+use reduced_sim::quadrature::automatic_quadrature::cubature_if_it_pays;
+use reduced_sim::quadrature::cubature::load_cached_cubature;
 use reduced_sim::{
     CubatureError, CubatureParams, PinnedRegion, PlannedRun, QuadratureChoice, QuadratureReport,
     QuadratureRule, ReducedModel, ReducedModelError, SceneError, SimulationParams, Simulator,

@@ -376,7 +376,8 @@ fn an_automatic_quadrature_decides_after_the_warm_up_and_reports_what_it_chose()
     )
     .unwrap();
     let (cached, _) =
-        reduced_sim::cubature::optimize_cubature_cached(&model, &cubature, &cache).unwrap();
+        reduced_sim::quadrature::cubature::optimize_cubature_cached(&model, &cubature, &cache)
+            .unwrap();
     let report = run(&simulation, steps, |_| Ok(())).unwrap();
     let choice = report.quadrature.choice.unwrap();
     assert!(choice.chose_cubature && choice.planned_steps == steps);

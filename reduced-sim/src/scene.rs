@@ -7,7 +7,7 @@ use std::sync::Arc;
 use nalgebra::Vector3;
 use serde::{Deserialize, Serialize};
 
-use crate::collider::Collider;
+use crate::contact::collider::Collider;
 
 /// A target position (m) as a function of rest position X (m) and time t (s).
 pub type TargetFunction = Arc<dyn Fn(&Vector3<f64>, f64) -> Vector3<f64> + Send + Sync>;
@@ -185,7 +185,9 @@ impl FloorContact {
         match *self {
             FloorContact::Penalty => (0.5 * gap * gap, gap, 1.0),
             FloorContact::Barrier { .. } if gap <= 0.0 => (f64::INFINITY, f64::NAN, f64::NAN),
-            FloorContact::Barrier { distance } => crate::log_barrier::log_barrier(gap, distance),
+            FloorContact::Barrier { distance } => {
+                crate::contact::log_barrier::log_barrier(gap, distance)
+            }
         }
     }
 }

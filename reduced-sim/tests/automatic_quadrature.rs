@@ -4,8 +4,8 @@
 
 mod support;
 
-use reduced_sim::automatic_quadrature::{SAVING_SHARE, cubature_if_it_pays};
-use reduced_sim::cubature::{optimize_cubature_cached, optimize_cubature_within};
+use reduced_sim::quadrature::automatic_quadrature::{SAVING_SHARE, cubature_if_it_pays};
+use reduced_sim::quadrature::cubature::{optimize_cubature_cached, optimize_cubature_within};
 use reduced_sim::{
     CubatureBudget, CubatureError, CubatureParams, ElasticCost, PlannedRun, QuadratureRule,
     SimulationParams, Simulator, optimize_cubature,

@@ -5,7 +5,7 @@
 mod support;
 
 use hyperelastic::Tangent;
-use reduced_sim::cubature::{
+use reduced_sim::quadrature::cubature::{
     cubature_cache_path, force_error, force_weights, optimize_cubature_cached, training_poses,
 };
 use reduced_sim::{

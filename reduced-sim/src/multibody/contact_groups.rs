@@ -1,6 +1,6 @@
 //! Objects connected by contact pairs.
 
-use crate::body_contact::SamplePair;
+use crate::contact::body_contact::SamplePair;
 
 /// The contact-connected groups of `count` objects under `pairs`, each ascending, in order
 /// of their first object.

@@ -9,13 +9,13 @@ use nalgebra::{Matrix3, Vector3};
 use optimize::NewtonObjective;
 use rayon::prelude::*;
 
-use crate::body_contact::{
+use crate::contact::body_contact::{
     BodyContactModel, BodyContactParams, LaggedPair, PairFriction, RelativeDerivatives, SamplePair,
     add_cross_hessians, lagged_friction, repulsion_derivatives,
 };
-use crate::deformation_map::DeformationMap;
-use crate::hessian_tangent::{HessianTangent, StepTangents};
-use crate::incremental_potential::IncrementalPotential;
+use crate::model::deformation_map::DeformationMap;
+use crate::step::hessian_tangent::{HessianTangent, StepTangents};
+use crate::step::incremental_potential::IncrementalPotential;
 
 /// The pair ends on one object: sample, x-gradient and x-Hessian of each.
 #[derive(Default)]

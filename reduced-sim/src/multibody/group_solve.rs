@@ -4,9 +4,9 @@ use hyperelastic::HyperelasticMaterial;
 use nalgebra::Vector3;
 use optimize::{CarriedFactor, NewtonReport};
 
-use crate::body_contact::{PairFriction, SamplePair};
-use crate::incremental_potential::IncrementalPotential;
-use crate::simulator::{StepError, solve_step};
+use crate::contact::body_contact::{PairFriction, SamplePair};
+use crate::step::incremental_potential::IncrementalPotential;
+use crate::step::simulator::{StepError, solve_step};
 use crate::terms::friction_term::{LAG_TOLERANCE, same_lagged_forces};
 
 use super::MultiBodySimulator;

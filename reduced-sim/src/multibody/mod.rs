@@ -1,6 +1,6 @@
 //! Several objects in one scene: each a [`Simulator`] of its own model and scene
 //! (floor, colliders, pins, gravity), coupled by contact between their surface samples
-//! ([`crate::body_contact`]).
+//! ([`crate::contact::body_contact`]).
 //!
 //! A step finds the sample pairs of different objects that may touch during the step (those
 //! whose inertial motions over the step bring them within 1.5 d̂, searched in a k-d tree per
@@ -30,9 +30,9 @@ use rayon::prelude::*;
 use rkpm_core::SpatialIndex;
 use thiserror::Error;
 
-use crate::body_contact::{BodyContactModel, BodyContactParams, SamplePair};
-use crate::deformation_map::DeformationMap;
-use crate::simulator::{ReducedState, Simulator, StateError, StepError};
+use crate::contact::body_contact::{BodyContactModel, BodyContactParams, SamplePair};
+use crate::model::deformation_map::DeformationMap;
+use crate::step::simulator::{ReducedState, Simulator, StateError, StepError};
 
 mod contact_groups;
 mod group_potential;

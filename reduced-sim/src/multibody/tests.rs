@@ -6,9 +6,9 @@ use optimize::NewtonObjective;
 use test_support::finite_difference;
 
 use super::*;
-use crate::analytic_field::{AnalyticField, analytic_model_with_spacing};
+use crate::model::analytic_field::{AnalyticField, analytic_model_with_spacing};
 use crate::scene::{Floor, Scene};
-use crate::simulator::SimulationParams;
+use crate::step::simulator::SimulationParams;
 
 /// The grid points of spacing `spacing` on the surface of the box `[0, size]`.
 fn box_surface(size: Vector3<f64>, spacing: f64) -> Vec<Vector3<f64>> {

@@ -7,7 +7,7 @@ use faer::Mat;
 use hyperelastic::Tangent;
 use nalgebra::{Isometry3, Matrix3, Vector3};
 
-use crate::collider::{Collider, ColliderShape, SignedDistance};
+use crate::contact::collider::{Collider, ColliderShape, SignedDistance};
 use crate::terms::floor_term::ContactLaw;
 use crate::terms::friction_term::FrictionContact;
 use crate::terms::step_term::{StepTerm, TermPoint};
@@ -46,7 +46,7 @@ impl ColliderTerm {
 
     /// The colliders' poses in the world at `time` (s).
     pub(crate) fn poses(&self, time: f64) -> Vec<Isometry3<f64>> {
-        crate::collider::collider_poses(&self.colliders, time)
+        crate::contact::collider::collider_poses(&self.colliders, time)
     }
 
     /// The narrowest band (m) of the mesh colliders ([`crate::MeshShape::band`]).
@@ -260,10 +260,10 @@ mod tests {
     use nalgebra::UnitQuaternion;
 
     use super::*;
-    use crate::analytic_field::{analytic_model, probe_z};
-    use crate::collider::Keyframe;
+    use crate::contact::collider::Keyframe;
+    use crate::model::analytic_field::{analytic_model, probe_z};
     use crate::scene::FloorContact;
-    use crate::scene_terms::term_point;
+    use crate::terms::scene_terms::term_point;
     use crate::terms::term_check::{TermCheckParams, check_term};
 
     #[test]

@@ -184,8 +184,8 @@ impl StepTerm for FloorTerm {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::analytic_field::{analytic_model, probe_z};
-    use crate::scene_terms::term_point;
+    use crate::model::analytic_field::{analytic_model, probe_z};
+    use crate::terms::scene_terms::term_point;
     use crate::terms::term_check::{TermCheckParams, check_term};
 
     fn floor_at(offset: f64, contact: FloorContact) -> FloorTerm {

@@ -4,7 +4,7 @@ use faer::Mat;
 use hyperelastic::{HyperelasticMaterial, Tangent};
 use nalgebra::Vector3;
 
-use crate::reduced_model::ReducedModel;
+use crate::model::reduced_model::ReducedModel;
 use crate::terms::step_term::{StepTerm, TermPoint};
 
 /// `E_grav(z) = −Σ_i ρ_i v_i gᵀ x_i(z)` (J, up to a constant; design §3.7): linear in z, so
@@ -63,8 +63,8 @@ impl StepTerm for GravityTerm {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::analytic_field::{analytic_model, probe_z};
-    use crate::scene_terms::term_point;
+    use crate::model::analytic_field::{analytic_model, probe_z};
+    use crate::terms::scene_terms::term_point;
     use crate::terms::term_check::{TermCheckParams, check_term};
 
     #[test]

@@ -6,7 +6,7 @@ use faer::{Accum, Mat, MatRef, Par};
 use hyperelastic::Tangent;
 use nalgebra::Vector3;
 
-use crate::reduced_model::add_block_diagonal_product;
+use crate::model::reduced_model::add_block_diagonal_product;
 use crate::terms::pinned_points::PinnedPoints;
 use crate::terms::step_term::{StepTerm, TermPoint};
 
@@ -53,7 +53,7 @@ impl PinPenalty {
                 Par::rayon(0),
             );
         }
-        crate::reduced_model::symmetrize(&mut hessian_block);
+        crate::model::reduced_model::symmetrize(&mut hessian_block);
         PinPenalty {
             regions,
             stiffness,
@@ -155,9 +155,9 @@ impl StepTerm for PinPenalty {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::analytic_field::{analytic_model, probe_z};
+    use crate::model::analytic_field::{analytic_model, probe_z};
     use crate::scene::{PinTarget, PinnedRegion};
-    use crate::scene_terms::term_point;
+    use crate::terms::scene_terms::term_point;
     use crate::terms::term_check::{TermCheckParams, check_term};
 
     #[test]

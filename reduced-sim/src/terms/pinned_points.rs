@@ -3,7 +3,7 @@
 use faer::{Accum, MatRef, Par};
 use nalgebra::Vector3;
 
-use crate::deformation_map::DeformationMap;
+use crate::model::deformation_map::DeformationMap;
 use crate::scene::{PinTarget, PinnedRegion};
 
 /// One region's points: rest positions, volumes, rows `B_i` and where they must be.

@@ -6,7 +6,7 @@ use faer::Mat;
 use hyperelastic::Tangent;
 use nalgebra::Vector3;
 
-use crate::deformation_map::DeformationMap;
+use crate::model::deformation_map::DeformationMap;
 
 /// Where a [`StepTerm`] is evaluated: one body's reduced coordinates z (length 12(m + 1), the
 /// [`crate::ReducedLayout`]) at time t, with the map `x_i(z) = X_i + B_iᵀ z` of its integration

@@ -178,8 +178,8 @@ fn relative_error(a: &[f64], b: &[f64]) -> f64 {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::analytic_field::{analytic_model, probe_z};
-    use crate::scene_terms::term_point;
+    use crate::model::analytic_field::{analytic_model, probe_z};
+    use crate::terms::scene_terms::term_point;
 
     /// `E = Σ_k z_k⁴` with a gradient scaled by `gradient_scale` and a Hessian by
     /// `hessian_scale`: exact at 1, wrong otherwise.

@@ -6,8 +6,8 @@ use artifact::{ContentKeyBuilder, load_framed, save_framed};
 use hyperelastic::HyperelasticMaterial;
 use serde::{Deserialize, Serialize};
 
-use crate::elastic_quadrature::ElasticQuadrature;
-use crate::reduced_model::ReducedModel;
+use crate::model::elastic_quadrature::ElasticQuadrature;
+use crate::model::reduced_model::ReducedModel;
 
 use super::{CubatureError, CubatureParams, CubatureReport, optimize_cubature};
 

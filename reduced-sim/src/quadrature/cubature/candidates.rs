@@ -5,8 +5,8 @@ use hyperelastic::{HyperelasticMaterial, LameParameters};
 use nalgebra::Matrix3;
 use rayon::prelude::*;
 
-use crate::deformation_map::DeformationMap;
-use crate::reduced_model::ReducedModel;
+use crate::model::deformation_map::DeformationMap;
+use crate::model::reduced_model::ReducedModel;
 
 use super::norm;
 

@@ -20,10 +20,10 @@ use faer::{Mat, Par, Side};
 use hyperelastic::{HyperelasticMaterial, Tangent};
 use optimize::NewtonObjective;
 
-use crate::hessian_tangent::{HessianTangent, StepTangents};
-use crate::reduced_model::{ReducedModel, add_block_diagonal_product};
-use crate::scene_terms::{SceneTerms, term_point};
+use crate::model::reduced_model::{ReducedModel, add_block_diagonal_product};
+use crate::step::hessian_tangent::{HessianTangent, StepTangents};
 use crate::terms::friction_term::ContactFriction;
+use crate::terms::scene_terms::{SceneTerms, term_point};
 use crate::terms::step_term::StepTerm;
 
 /// `1/(2h²) (z - ẑ)ᵀ M_z (z - ẑ)`.
@@ -259,8 +259,8 @@ mod tests {
     use test_support::finite_difference;
 
     use super::*;
-    use crate::analytic_field::{analytic_model, probe_z};
-    use crate::collider::{Collider, ColliderShape, Keyframe};
+    use crate::contact::collider::{Collider, ColliderShape, Keyframe};
+    use crate::model::analytic_field::{analytic_model, probe_z};
     use crate::scene::{Floor, FloorContact, PenaltyParams, PinTarget, PinnedRegion, Scene};
     use nalgebra::UnitQuaternion;
 

@@ -6,8 +6,8 @@ use rand::seq::index::sample;
 use rand::{Rng, SeedableRng};
 use rand_chacha::ChaCha8Rng;
 
-use crate::deformation_map::DeformationMap;
-use crate::reduced_model::ReducedModel;
+use crate::model::deformation_map::DeformationMap;
+use crate::model::reduced_model::ReducedModel;
 
 use super::{CubatureError, CubatureParams, check_pose_ranges};
 

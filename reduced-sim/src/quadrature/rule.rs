@@ -7,11 +7,11 @@
 //! - every point with its volume ([`ElasticQuadrature::full`], the paper's setting and the
 //!   default of a [`crate::ReducedModel`]);
 //! - a random subset, volumes rescaled to the total ([`ElasticQuadrature::random_subset`]);
-//! - an optimized cubature (An, Kim and James 2008; [`crate::cubature`]).
+//! - an optimized cubature (An, Kim and James 2008; [`crate::quadrature::cubature`]).
 //!
 //! [`QuadratureRule::Automatic`] chooses between the first and the last for a run of known
 //! length: a cubature only when its training pays for itself in the run's steps
-//! ([`crate::elastic_cost`]).
+//! ([`crate::quadrature::elastic_cost`]).
 
 use hyperelastic::HyperelasticMaterial;
 use serde::{Deserialize, Serialize};
@@ -19,15 +19,15 @@ use serde::{Deserialize, Serialize};
 use std::path::Path;
 use std::time::Instant;
 
-use crate::automatic_quadrature::{QuadratureChoice, cubature_if_it_pays};
-use crate::cubature::{
+use crate::model::reduced_model::ReducedModel;
+use crate::quadrature::automatic_quadrature::{QuadratureChoice, cubature_if_it_pays};
+use crate::quadrature::cubature::{
     CubatureError, CubatureParams, CubatureReport, load_cached_cubature, optimize_cubature,
     optimize_cubature_cached,
 };
-use crate::elastic_cost::{ElasticCost, PlannedRun};
-use crate::reduced_model::ReducedModel;
+use crate::quadrature::elastic_cost::{ElasticCost, PlannedRun};
 
-pub use crate::elastic_quadrature::{ElasticQuadrature, QuadratureError};
+pub use crate::model::elastic_quadrature::{ElasticQuadrature, QuadratureError};
 
 /// How to choose the elastic quadrature of a model: a typed option for scene files, the CLI
 /// and the experiments.
@@ -47,10 +47,10 @@ pub enum QuadratureRule {
         /// Seed of the draw.
         seed: u64,
     },
-    /// An optimized cubature ([`crate::cubature`]).
+    /// An optimized cubature ([`crate::quadrature::cubature`]).
     Cubature(CubatureParams),
     /// Every point, or an optimized cubature with these options when it pays for itself
-    /// ([`crate::automatic_quadrature`]): a cached cubature is used as it is; otherwise the
+    /// ([`crate::quadrature::automatic_quadrature`]): a cached cubature is used as it is; otherwise the
     /// elastic time of the run on every point is predicted and the cubature is trained with a
     /// budget of half what it can still save, and if training runs past the budget, the run
     /// uses every point (and a note in the cache spares a later run of about the same length
@@ -110,7 +110,7 @@ impl QuadratureRule {
     }
 
     /// [`QuadratureRule::apply`], with a cubature loaded from (or saved to) `cache_dir` when
-    /// one is given ([`crate::cubature::optimize_cubature_cached`]).
+    /// one is given ([`crate::quadrature::cubature::optimize_cubature_cached`]).
     ///
     /// # Errors
     /// As [`QuadratureRule::apply`].

@@ -5,7 +5,7 @@ use hyperelastic::HyperelasticMaterial;
 use optimize::{NnlsParams, NnlsWarmStart, nnls_normal};
 use rayon::prelude::*;
 
-use crate::cubature_gram::ForceGramFactors;
+use crate::quadrature::cubature::gram::ForceGramFactors;
 
 use super::candidates::CandidateForces;
 use super::{CubatureError, CubatureParams, dot, norm};

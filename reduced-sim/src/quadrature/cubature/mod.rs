@@ -36,12 +36,13 @@ use rand_chacha::ChaCha8Rng;
 use serde::{Deserialize, Serialize};
 use thiserror::Error;
 
-use crate::elastic_energy::weighted_elastic_gradient;
-use crate::elastic_quadrature::{ElasticQuadrature, QuadratureError};
-use crate::reduced_model::ReducedModel;
+use crate::model::elastic_energy::weighted_elastic_gradient;
+use crate::model::elastic_quadrature::{ElasticQuadrature, QuadratureError};
+use crate::model::reduced_model::ReducedModel;
 
 mod cache;
 mod candidates;
+pub(crate) mod gram;
 mod greedy;
 mod training;
 

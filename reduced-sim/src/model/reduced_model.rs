@@ -8,12 +8,12 @@ use nalgebra::Vector3;
 use rkpm_core::{Aabb, IntegrationPoints};
 use thiserror::Error;
 
-use crate::deformation_map::{DeformationMap, DeformationMapError};
-use crate::elastic_quadrature::{ElasticQuadrature, QuadratureError};
-use crate::projected_dilatation::{
+use crate::model::deformation_map::{DeformationMap, DeformationMapError};
+use crate::model::elastic_quadrature::{ElasticQuadrature, QuadratureError};
+use crate::model::projected_dilatation::{
     ProjectedDilatation, ProjectedDilatationError, ProjectedDilatationParams,
 };
-use crate::skinning_field::SkinningField;
+use crate::model::skinning_field::SkinningField;
 
 /// The model could not be built.
 #[derive(Debug, Error)]
@@ -178,7 +178,7 @@ impl<M: HyperelasticMaterial> ReducedModel<M> {
 
     /// The model with the material's volumetric term `½ κ (J − γ)²` replaced by its projection
     /// onto the pressure space whose values at the model's points are the columns of
-    /// `pressure` (N × P; see [`crate::projected_dilatation`]; the part `min(κ, c μ)` of `params`
+    /// `pressure` (N × P; see [`crate::model::projected_dilatation`]; the part `min(κ, c μ)` of `params`
     /// stays pointwise): the locking-free volumetric term. Include the constant function; a point whose row is all zeros (a held region)
     /// carries no volumetric energy.
     ///

@@ -25,7 +25,7 @@ use rkpm_core::surface_distance::closest_point_on_triangle;
 use rkpm_core::{GeometryReadError, TriangleMesh, read_triangle_mesh};
 use serde::{Deserialize, Serialize};
 
-use crate::signed_distance::SignedDistance;
+use crate::contact::signed_distance::SignedDistance;
 
 /// The queries of one loaded mesh.
 struct MeshSurface {
@@ -354,7 +354,7 @@ mod tests {
     #[test]
     fn mesh_signed_distance_matches_the_analytic_box_and_its_derivatives_match_differences() {
         let mesh = cube();
-        let analytic = crate::collider::ColliderShape::Box {
+        let analytic = crate::contact::collider::ColliderShape::Box {
             half_extents: Vector3::new(0.5, 0.3, 0.4),
         };
         // Inside near a face, outside near a face, an edge and a corner.

@@ -21,8 +21,8 @@ use nalgebra::{Isometry3, Matrix3, Translation3, UnitQuaternion, Vector3};
 use rayon::prelude::*;
 use serde::{Deserialize, Serialize};
 
-use crate::mesh_collider::MeshShape;
-pub use crate::signed_distance::SignedDistance;
+use crate::contact::mesh_collider::MeshShape;
+pub use crate::contact::signed_distance::SignedDistance;
 
 /// A shape in the collider's frame (m): a half-space, three convex primitives and closed
 /// triangle meshes.

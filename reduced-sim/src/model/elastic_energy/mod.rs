@@ -7,9 +7,9 @@ use hyperelastic::{HyperelasticMaterial, LameParameters, Matrix9, Tangent};
 use nalgebra::Matrix3;
 use rayon::prelude::*;
 
-use crate::deformation_map::{DeformationMap, deformation_gradient_of_block};
-use crate::projected_dilatation::ProjectedDilatation;
-use crate::reduced_model::ReducedModel;
+use crate::model::deformation_map::{DeformationMap, deformation_gradient_of_block};
+use crate::model::projected_dilatation::ProjectedDilatation;
+use crate::model::reduced_model::ReducedModel;
 
 /// The three diagonal and three upper row-block pairs (r, q) of the reduced Hessian.
 const BLOCK_PAIRS: [(usize, usize); 6] = [(0, 0), (1, 1), (2, 2), (0, 1), (0, 2), (1, 2)];
@@ -228,7 +228,7 @@ impl<M: HyperelasticMaterial> ReducedModel<M> {
     }
 
     /// Adds `(∂r/∂z)ᵀ G⁻¹ (∂r/∂z)` of the projected dilatation to `h`
-    /// ([`crate::projected_dilatation`]).
+    /// ([`crate::model::projected_dilatation`]).
     fn add_dilatation_rank_update(
         &self,
         d: &ProjectedDilatation,
@@ -426,7 +426,7 @@ enum PointDeformation<'a> {
 /// `Σ_i G_i S_iᵀ` (length 12(m + 1), z's layout: entry `r·4(m+1) + a` is
 /// `Σ_i Σ_s G_i[a, s] S_i[r, s]`) for the 3 × 3 `S_i = stress(i, F_i)`, G_i column-major
 /// `4(m+1) × 3`. The points are taken
-/// [`POINTS_PER_PART`](crate::deformation_map::POINTS_PER_PART) at a time in parallel, each G_i
+/// [`POINTS_PER_PART`](crate::model::deformation_map::POINTS_PER_PART) at a time in parallel, each G_i
 /// read once; the parts' sums are added in part order.
 fn accumulate_point_gradients(
     map: &DeformationMap,

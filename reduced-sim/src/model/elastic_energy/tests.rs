@@ -4,8 +4,8 @@ use faer::Mat;
 use hyperelastic::{HyperelasticMaterial, StableNeoHookean, Tangent};
 use nalgebra::Matrix3;
 
-use crate::analytic_field::analytic_model_with_spacing;
-use crate::reduced_model::ReducedModel;
+use crate::model::analytic_field::analytic_model_with_spacing;
+use crate::model::reduced_model::ReducedModel;
 
 /// `Σ_i Σ_{s,t} G_i[a, s] v_i ∂²Ψ/∂F_rs∂F_qt G_i[b, t]` in entry `(r·n4 + a, q·n4 + b)`,
 /// one point and one entry at a time (the definition, without chunks, parts or products).
@@ -86,7 +86,7 @@ fn the_one_pass_energy_gradient_and_f_are_the_point_by_point_definitions_and_do_
     let (model, _) = analytic_model_with_spacing(0.15);
     let map = model.elastic_map();
     assert!(
-        map.len() > 2 * crate::deformation_map::POINTS_PER_PART,
+        map.len() > 2 * crate::model::deformation_map::POINTS_PER_PART,
         "{} points",
         map.len()
     );

@@ -17,12 +17,12 @@ use std::time::Instant;
 use hyperelastic::HyperelasticMaterial;
 use serde::{Deserialize, Serialize};
 
-use crate::cubature::{
+use crate::model::elastic_quadrature::ElasticQuadrature;
+use crate::model::reduced_model::ReducedModel;
+use crate::quadrature::cubature::{
     CubatureBudget, CubatureError, CubatureParams, CubatureReport, cubature_cache_path,
     optimize_cubature_within, save_cached_cubature,
 };
-use crate::elastic_quadrature::ElasticQuadrature;
-use crate::reduced_model::ReducedModel;
 
 /// What [`crate::QuadratureRule::Automatic`] predicted and chose.
 #[derive(Clone, Copy, Debug, PartialEq, Serialize, Deserialize)]
@@ -76,7 +76,7 @@ pub struct AutomaticCubature {
 /// rest of a run of `steps` steps whose elastic time on every point is predicted at
 /// `predicted_seconds`, within the budget of the module docs; a trained cubature is saved
 /// under `cache_dir` when one is given (the caller looks for a cached one first,
-/// [`crate::cubature::load_cached_cubature`]).
+/// [`crate::quadrature::cubature::load_cached_cubature`]).
 ///
 /// # Errors
 /// [`CubatureError`] other than [`CubatureError::OverBudget`] (which means every point).

@@ -15,7 +15,7 @@ pub use hyperelastic::HessianTangent;
 
 /// A step objective made of incremental potentials (one object's, or a group's side by side)
 /// whose tangents a retry in the paper's setting switches
-/// ([`crate::simulator::solve_step`]).
+/// ([`crate::step::simulator::solve_step`]).
 pub(crate) trait StepTangents {
     /// The potentials' tangents, in order.
     fn tangents(&self) -> Vec<HessianTangent>;

@@ -25,7 +25,7 @@
 
 use nalgebra::{Matrix3, Matrix3x4, Matrix4, SymmetricEigen, Vector3, Vector4};
 
-use crate::reduced_coordinates::ReducedLayout;
+use crate::model::reduced_coordinates::ReducedLayout;
 use crate::scene_error::SceneError;
 
 /// How far (absolute, dimensionless) the basis's weights on a region may be from 1/0 for the

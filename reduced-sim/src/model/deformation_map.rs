@@ -8,8 +8,8 @@ use nalgebra::{Matrix3, Vector3};
 use rayon::prelude::*;
 use thiserror::Error;
 
-use crate::reduced_coordinates::ReducedLayout;
-use crate::skinning_field::SkinningField;
+use crate::model::reduced_coordinates::ReducedLayout;
+use crate::model::skinning_field::SkinningField;
 
 /// The weights could not be turned into a deformation map.
 #[derive(Debug, Error)]

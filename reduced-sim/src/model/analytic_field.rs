@@ -9,8 +9,8 @@ use nalgebra::{DMatrix, Vector3};
 use rkpm_core::{IntegrationPoints, sample_box_grid};
 use skin_eigen::SkinningWeights;
 
-use crate::reduced_model::ReducedModel;
-use crate::skinning_field::SkinningField;
+use crate::model::reduced_model::ReducedModel;
+use crate::model::skinning_field::SkinningField;
 
 /// Weights `[1, x², y z, sin(x + z)]` (m = 3) on any points. (A weight linear in X would make
 /// `W^j X̄` linearly dependent on the constant handle's affine terms and the mass singular.)

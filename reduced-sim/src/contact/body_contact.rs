@@ -39,9 +39,9 @@ use faer::{Accum, Mat, MatMut, MatRef, Par};
 use nalgebra::{Matrix3, Vector3};
 use serde::{Deserialize, Serialize};
 
-use crate::deformation_map::DeformationMap;
-use crate::log_barrier::log_barrier;
-use crate::terms::friction_term::{f0, slip_derivatives};
+use crate::contact::friction_smoothing::{f0, slip_derivatives};
+use crate::contact::log_barrier::log_barrier;
+use crate::model::deformation_map::DeformationMap;
 
 /// How the contact samples of different objects repel.
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Serialize, Deserialize)]

@@ -6,15 +6,15 @@ use faer::Mat;
 use hyperelastic::{HyperelasticMaterial, Tangent};
 use nalgebra::Vector3;
 
-use crate::collider::ColliderShape;
-use crate::held_regions::HeldRegions;
-use crate::reduced_model::ReducedModel;
+use crate::contact::collider::ColliderShape;
+use crate::model::reduced_model::ReducedModel;
 use crate::scene::{Floor, FloorContact, PenaltyParams, PinModulus, Scene};
 use crate::scene_error::SceneError;
 use crate::terms::collider_term::ColliderTerm;
 use crate::terms::floor_term::{ContactLaw, FloorTerm};
 use crate::terms::friction_term::ContactFriction;
 use crate::terms::gravity_term::GravityTerm;
+use crate::terms::held_regions::HeldRegions;
 use crate::terms::pin_penalty::PinPenalty;
 use crate::terms::pinned_points::PinnedPoints;
 use crate::terms::step_term::{StepTerm, TermPoint};
@@ -359,7 +359,7 @@ fn check_colliders(scene: &Scene, contact: FloorContact) -> Result<(), SceneErro
     {
         return Err(SceneError::Collider { index, why });
     }
-    if let Some((index, why)) = crate::collider::chain_defect(&scene.colliders) {
+    if let Some((index, why)) = crate::contact::collider::chain_defect(&scene.colliders) {
         return Err(SceneError::Collider { index, why });
     }
     let reach = contact.reach();
@@ -390,8 +390,8 @@ mod tests {
     use nalgebra::Vector3;
 
     use super::*;
-    use crate::analytic_field::analytic_model;
-    use crate::collider::{Collider, ColliderShape, Keyframe};
+    use crate::contact::collider::{Collider, ColliderShape, Keyframe};
+    use crate::model::analytic_field::analytic_model;
 
     /// `shape` sliding along x through the block's middle (y = z = 0.5 m), from `from` at t = 0
     /// to `to` at t = 1 s (m), rubbing with `friction`.

@@ -19,7 +19,7 @@ use std::time::Instant;
 
 use hyperelastic::{HyperelasticMaterial, Tangent};
 
-use crate::reduced_model::ReducedModel;
+use crate::model::reduced_model::ReducedModel;
 
 /// A run whose elastic work is predicted: its steps and the elastic evaluations each makes.
 #[derive(Clone, Copy, Debug, PartialEq)]

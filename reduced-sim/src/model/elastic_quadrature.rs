@@ -32,7 +32,7 @@ pub enum QuadratureError {
     /// The projected volumetric term cannot be set up on the quadrature's points (its pressure
     /// functions are linearly dependent there).
     #[error("the projected dilatation on the quadrature points")]
-    Dilatation(#[source] crate::projected_dilatation::ProjectedDilatationError),
+    Dilatation(#[source] crate::model::projected_dilatation::ProjectedDilatationError),
     /// A point index is not an integration point of the model.
     #[error("quadrature point {point} is not one of the model's {points} integration points")]
     OutOfRange {

@@ -11,13 +11,13 @@ use optimize::{
 use serde::{Deserialize, Serialize};
 use thiserror::Error;
 
-use crate::hessian_tangent::{HessianTangent, StepTangents};
-use crate::incremental_potential::{IncrementalPotential, Inertia};
-use crate::reduced_model::ReducedModel;
+use crate::model::reduced_model::ReducedModel;
 use crate::scene::{PenaltyParams, Scene};
 use crate::scene_error::SceneError;
-use crate::scene_terms::{SceneTerms, term_point};
+use crate::step::hessian_tangent::{HessianTangent, StepTangents};
+use crate::step::incremental_potential::{IncrementalPotential, Inertia};
 use crate::terms::friction_term::ContactFriction;
+use crate::terms::scene_terms::{SceneTerms, term_point};
 use crate::terms::step_term::StepTerm;
 
 /// Minimizes `objective` from z (updated in place), carrying `factor` across when `newton`
@@ -305,7 +305,7 @@ impl<M: HyperelasticMaterial> Simulator<M> {
     pub fn mechanical_energy(&self) -> f64 {
         let (z, velocity) = (&self.state.z, &self.state.velocity);
         let kinetic =
-            0.5 * crate::incremental_potential::mass_inner(&self.model, velocity, velocity);
+            0.5 * crate::step::incremental_potential::mass_inner(&self.model, velocity, velocity);
         kinetic + self.model.elastic_energy(z) + self.terms.energy(&self.now())
     }
 
