@@ -31,10 +31,8 @@ pub(crate) fn run(
     let stem = scene.file_stem().unwrap_or_default().to_string_lossy();
     let out = out.join(stem.as_ref());
     if ObjectsFile::describes(scene) {
-        if options.stress {
-            anyhow::bail!("--stress: stress output is not written for several objects yet");
-        }
-        let file = ObjectsFile::load(scene)?;
+        let mut file = ObjectsFile::load(scene)?;
+        file.simulation.stress |= options.stress;
         run_objects(&file, &out, cache, progress)?;
         let info = SceneInfo::new(&file.scene, file.simulation.time_step);
         return write_views(&out, &info, &options.viewer);

@@ -24,7 +24,6 @@ pub mod material_spec;
 pub mod metrics;
 pub mod object_scene;
 mod object_setup;
-mod objects_statistics;
 pub mod pin_hold;
 pub mod placement;
 pub mod prelude;
@@ -39,6 +38,7 @@ pub mod simulate_error;
 pub mod spherical_harmonics;
 pub mod splat_preview;
 pub mod splats;
+mod step_loop;
 pub mod stress_field;
 pub mod stress_summary;
 #[cfg(feature = "terminal")]

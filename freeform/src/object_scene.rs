@@ -47,7 +47,6 @@ use reduced_sim::{
 use serde::{Deserialize, Serialize};
 
 use crate::object_setup::{ObjectDescription, ObjectOutput, ObjectSetup};
-use crate::objects_statistics::ObjectsStatistics;
 use crate::pin_hold::PinHold;
 use crate::placement::Placement;
 use crate::progress::Progress;
@@ -59,6 +58,7 @@ use crate::scene_file::{
 };
 use crate::simulate::write_summary;
 use crate::simulate_error::SimulateError;
+use crate::step_loop::{StepStatistics, run_steps};
 use crate::stress_summary::StressSummary;
 
 /// One object of a scene.
@@ -354,41 +354,43 @@ pub fn simulate_objects(
             Ok::<(), SimulateError>(())
         };
     write_all(&sim, &mut outputs, 0)?;
-    let mut statistics = ObjectsStatistics::new(&sim);
+    let mut statistics = StepStatistics::new(&sim);
     let mut frames_written = 1;
     progress.begin(steps, "simulate");
-    for step in 1..=steps {
-        let t = Instant::now();
-        let report = sim
-            .step()
-            .map_err(|source| SimulateError::ObjectStep { step, source })?;
-        statistics.record(&report, t.elapsed().as_secs_f64(), &sim);
-        for (summary, body) in summaries.iter_mut().zip(sim.bodies()) {
-            if let Some(d) = body.simulator().max_held_deviation() {
-                summary.max_held_deviation = Some(summary.max_held_deviation.unwrap_or(0.0).max(d));
+    run_steps(
+        &mut sim,
+        steps,
+        &mut statistics,
+        |step, source| SimulateError::ObjectStep { step, source },
+        |sim, step, _, _| {
+            for (summary, body) in summaries.iter_mut().zip(sim.bodies()) {
+                if let Some(d) = body.simulator().max_held_deviation() {
+                    summary.max_held_deviation =
+                        Some(summary.max_held_deviation.unwrap_or(0.0).max(d));
+                }
             }
-        }
-        if step % file.simulation.output_every == 0 || step == steps {
-            write_all(&sim, &mut outputs, step)?;
-            frames_written += 1;
-        }
-        progress.advance();
-    }
+            if step % file.simulation.output_every == 0 || step == steps {
+                write_all(sim, &mut outputs, step)?;
+                frames_written += 1;
+            }
+            progress.advance();
+            Ok(())
+        },
+    )?;
     progress.finish();
     for (summary, output) in summaries.iter_mut().zip(&outputs) {
         summary.stress.clone_from(&output.summary);
     }
-    let n = steps as f64;
-    let s = statistics;
+    let s = &statistics;
     let report = ObjectsReport {
         objects: summaries,
         steps,
-        ms_per_step: 1e3 * s.stepping / n,
-        ms_split_per_step: s.split.map(|x| 1e3 * x / n),
-        iterations_per_step: s.iterations as f64 / n,
-        hessians_per_step: s.hessians as f64 / n,
-        line_search_cuts_per_step: s.line_search_cuts as f64 / n,
-        joint_solves_per_step: s.joint_groups as f64 / n,
+        ms_per_step: 1e3 * s.per_step(s.stepping),
+        ms_split_per_step: s.split.map(|x| 1e3 * s.per_step(x)),
+        iterations_per_step: s.per_step(s.iterations as f64),
+        hessians_per_step: s.per_step(s.hessians as f64),
+        line_search_cuts_per_step: s.per_step(s.line_search_cuts as f64),
+        joint_solves_per_step: s.per_step(s.joint_groups as f64),
         unconverged_steps: s.unconverged,
         max_penetration: s.max_penetration,
         max_contact_overlap: s.max_overlap,

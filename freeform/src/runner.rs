@@ -22,6 +22,7 @@ use crate::pin_hold::PinHold;
 use crate::placement::Placement;
 use crate::pressure_space::PressureSpace;
 use crate::scene::{SceneSpec, SceneSpecError};
+use crate::step_loop::{StepStatistics, run_steps};
 
 /// Everything one reduced run needs: made by [`Simulation::new`] with the library's defaults
 /// and changed by its `with_…` methods (or by assigning a field), so that a new option does
@@ -512,73 +513,64 @@ where
         })
     };
     notify(&sim, 0, None)?;
-    let (mut iterations, mut unconverged, mut hessians) = (0usize, 0usize, 0usize);
-    let (mut stepping, mut assembly, mut solve, mut line_search) = (0.0, 0.0, 0.0, 0.0);
-    let (mut max_pin_deviation, mut max_held_deviation): (f64, f64) = (0.0, 0.0);
-    let mut max_penetration: f64 = 0.0;
-    let start_energy = sim.mechanical_energy();
-    let (mut energy, mut max_energy_rise) = (start_energy, 0.0_f64);
-    for step in 1..=steps {
-        let t = Instant::now();
-        let report = sim
-            .step()
-            .map_err(|source| RunError::Step { step, source })?;
-        stepping += t.elapsed().as_secs_f64();
-        assembly += report.timings.assembly;
-        solve += report.timings.solve;
-        line_search += report.timings.line_search;
-        iterations += report.iterations;
-        hessians += report.hessian_assemblies;
-        unconverged += usize::from(!report.converged());
-        max_pin_deviation = max_pin_deviation.max(sim.max_pin_deviation().unwrap_or(0.0));
-        max_held_deviation = max_held_deviation.max(sim.max_held_deviation().unwrap_or(0.0));
-        max_penetration = max_penetration.max(sim.max_penetration());
-        let now = sim.mechanical_energy();
-        max_energy_rise = max_energy_rise.max(now - energy);
-        energy = now;
-        notify(&sim, step, Some(&report))?;
-        if step == 1 {
-            first_step_elastic = assembly + line_search;
-        }
-        if step == warmup
-            && let Some(params) = pending.take()
-        {
-            // The automatic quadrature: the rest of the run on every point, predicted from the
-            // elastic part (assembly and line search) of the warm-up steps after the first,
-            // which always assembles a Hessian that later steps may carry.
-            let choosing = Instant::now();
-            let rest = steps - warmup;
-            let per_step = (assembly + line_search - first_step_elastic) / (warmup - 1) as f64;
-            let predicted = per_step * rest as f64;
-            let outcome =
-                cubature_if_it_pays(sim.model(), &params, simulation.cache_dir, rest, predicted)
-                    .map_err(RunError::Quadrature)?;
-            if let Some((cubature, report)) = outcome.cubature {
-                quadrature.kind = "cubature".to_string();
-                quadrature.points = cubature.len();
-                quadrature.cubature = Some(report);
-                sim.set_elastic_quadrature(cubature)
-                    .map_err(|e| RunError::Quadrature(e.into()))?;
+    let mut statistics = StepStatistics::new(&sim);
+    run_steps(
+        &mut sim,
+        steps,
+        &mut statistics,
+        |step, source| RunError::Step { step, source },
+        |sim, step, report, statistics| {
+            notify(sim, step, Some(report))?;
+            if step == 1 {
+                first_step_elastic = statistics.elastic_seconds();
             }
-            quadrature.choice = Some(outcome.choice);
-            setup_seconds += choosing.elapsed().as_secs_f64();
-        }
-    }
-    let n = steps.max(1) as f64;
+            if step == warmup
+                && let Some(params) = pending.take()
+            {
+                // The automatic quadrature: the rest of the run on every point, predicted from
+                // the elastic part (assembly and line search) of the warm-up steps after the
+                // first, which always assembles a Hessian that later steps may carry.
+                let choosing = Instant::now();
+                let rest = steps - warmup;
+                let per_step =
+                    (statistics.elastic_seconds() - first_step_elastic) / (warmup - 1) as f64;
+                let predicted = per_step * rest as f64;
+                let outcome = cubature_if_it_pays(
+                    sim.model(),
+                    &params,
+                    simulation.cache_dir,
+                    rest,
+                    predicted,
+                )
+                .map_err(RunError::Quadrature)?;
+                if let Some((cubature, report)) = outcome.cubature {
+                    quadrature.kind = "cubature".to_string();
+                    quadrature.points = cubature.len();
+                    quadrature.cubature = Some(report);
+                    sim.set_elastic_quadrature(cubature)
+                        .map_err(|e| RunError::Quadrature(e.into()))?;
+                }
+                quadrature.choice = Some(outcome.choice);
+                setup_seconds += choosing.elapsed().as_secs_f64();
+            }
+            Ok(())
+        },
+    )?;
+    let s = &statistics;
     Ok(RunReport {
         steps,
-        ms_per_step: 1e3 * stepping / n,
-        ms_assembly_per_step: 1e3 * assembly / n,
-        ms_solve_per_step: 1e3 * solve / n,
-        ms_line_search_per_step: 1e3 * line_search / n,
-        iterations_per_step: iterations as f64 / n,
-        hessians_per_step: hessians as f64 / n,
-        unconverged_steps: unconverged,
-        max_pin_deviation,
-        max_held_deviation,
-        max_penetration,
-        energy: [start_energy, energy],
-        max_energy_rise,
+        ms_per_step: 1e3 * s.per_step(s.stepping),
+        ms_assembly_per_step: 1e3 * s.per_step(s.split[0]),
+        ms_solve_per_step: 1e3 * s.per_step(s.split[1]),
+        ms_line_search_per_step: 1e3 * s.per_step(s.split[2]),
+        iterations_per_step: s.per_step(s.iterations as f64),
+        hessians_per_step: s.per_step(s.hessians as f64),
+        unconverged_steps: s.unconverged,
+        max_pin_deviation: s.max_pin_deviation,
+        max_held_deviation: s.max_held_deviation,
+        max_penetration: s.max_penetration,
+        energy: s.energy,
+        max_energy_rise: s.max_energy_rise,
         setup_seconds,
         quadrature,
         simulation_points: points.len(),
