@@ -55,19 +55,25 @@ use crate::simplicits::{StepLosses, random_handle_transforms};
 
 /// Which objective Adam minimizes over c.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Hash, Serialize, Deserialize)]
+#[serde(rename_all = "snake_case")]
 pub enum CoefficientLoss {
     /// The Simplicits random-handle elastic loss plus `mean((WᵀW − I)²)`.
+    #[serde(alias = "RandomHandles")]
     RandomHandles,
     /// `tr(cᵀH_w c)/s` plus `mean((cᵀ𝓜c − I)²)`.
+    #[serde(alias = "WeightHessian")]
     WeightHessian,
 }
 
 /// Where the losses are integrated.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Hash, Serialize, Deserialize)]
+#[serde(rename_all = "snake_case")]
 pub enum TrainingPoints {
     /// Fresh uniform random points in the solid every step.
+    #[serde(alias = "Random")]
     Random,
     /// The given (grid) integration points.
+    #[serde(alias = "Grid")]
     Grid,
 }
 

@@ -72,12 +72,15 @@ pub const EXACT_INSET_KERNEL_RADII: f64 = 1.5;
 
 /// How the simulation's integration points are placed.
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Serialize, Deserialize)]
+#[serde(rename_all = "snake_case")]
 pub enum SimulationSampling {
     /// A uniform grid of about `simulation_points` cells, `v_i = h³` (default).
     #[default]
+    #[serde(alias = "Grid")]
     Grid,
     /// As many uniform random points in the beam as the grid has, `v_i = V / N`, seeded
     /// (design §3.1, Table 4).
+    #[serde(alias = "Random")]
     Random {
         /// The random seed.
         seed: u64,

@@ -10,11 +10,14 @@ use crate::tet_mesh::{TET_EDGES, TetMesh};
 
 /// Polynomial order of the elements.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Hash, Serialize, Deserialize)]
+#[serde(rename_all = "snake_case")]
 pub enum ElementOrder {
     /// P1: 4 corner nodes, constant strain, one quadrature point. Locks at ν = 0.45.
+    #[serde(alias = "Linear")]
     Linear,
     /// P2: 4 corners + 6 edge midpoints (VTK order: edges 01, 12, 02, 03, 13, 23), linear
     /// strain, 4-point degree-2 quadrature.
+    #[serde(alias = "Quadratic")]
     Quadratic,
 }
 

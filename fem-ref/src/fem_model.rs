@@ -16,12 +16,15 @@ use crate::element::{
 
 /// How the mass matrix is formed.
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Hash, Serialize, Deserialize)]
+#[serde(rename_all = "snake_case")]
 pub enum MassKind {
     /// `M_ab = ∫ ρ N_a N_b dV`, integrated exactly (default; the reference).
     #[default]
+    #[serde(alias = "Consistent")]
     Consistent,
     /// Diagonal HRZ lumping: each element's consistent diagonal scaled to the element's mass.
     /// (Row-sum lumping would give P2 corner nodes negative mass.)
+    #[serde(alias = "Lumped")]
     Lumped,
 }
 

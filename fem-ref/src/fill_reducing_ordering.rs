@@ -25,16 +25,20 @@ use serde::{Deserialize, Serialize};
 /// Hence the default analyses both (symbolically: well under a second at 400k DOFs, against
 /// seconds per factorization) and keeps the smaller factor.
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Serialize, Deserialize)]
+#[serde(rename_all = "snake_case")]
 pub enum FillReducingOrdering {
     /// Approximate minimum degree on the degrees of freedom (faer's default; the references'
     /// order before the ordering study of the shapes' references).
+    #[serde(alias = "ApproximateMinimumDegree")]
     ApproximateMinimumDegree,
     /// Nested dissection (METIS 5) on the graph of the free nodes, each node's three degrees
     /// of freedom kept together.
+    #[serde(alias = "NestedDissection")]
     NestedDissection,
     /// Both analysed, the one whose factor has fewer entries kept (a tie goes to minimum
     /// degree; the default).
     #[default]
+    #[serde(alias = "SmallerFactor")]
     SmallerFactor,
 }
 

@@ -23,27 +23,27 @@ use crate::material::Tangent;
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Serialize, Deserialize)]
 pub enum HessianTangent {
     /// Every point's `∂P/∂F` projected onto the PSD cone (the paper's setting).
-    #[serde(rename = "ProjectedPsd", alias = "projected_psd")]
+    #[serde(rename = "projected_psd", alias = "ProjectedPsd")]
     ProjectedPsd,
     /// The exact `∂P/∂F` (and the colliders' curvature): only safe while the Newton system
     /// stays positive definite; a failed factorization is reported.
-    #[serde(rename = "Exact", alias = "exact")]
+    #[serde(rename = "exact", alias = "Exact")]
     Exact,
     /// The exact Hessian where it is positive definite (tested by a Cholesky factorization of
     /// the assembled Newton system: 12(m + 1) square in the reduced simulator, the free DOFs
     /// in the FEM), the projected one otherwise (the default of this enum and of the reduced
     /// simulator; the FEM's default is [`HessianTangent::ProjectedPsd`]).
     #[default]
-    #[serde(rename = "ExactWhenDefinite", alias = "exact_when_definite")]
+    #[serde(rename = "exact_when_definite", alias = "ExactWhenDefinite")]
     ExactWhenDefinite,
     /// Every point's `∂P/∂F` with its eigenvalues replaced by their absolute values
     /// ([`Tangent::AbsoluteEigenvalues`], Chen et al. 2024): positive semidefinite like the
     /// projection, closer to the exact tangent where points are compressed.
-    #[serde(rename = "AbsoluteEigenvalues", alias = "absolute_eigenvalues")]
+    #[serde(rename = "absolute_eigenvalues", alias = "AbsoluteEigenvalues")]
     AbsoluteEigenvalues,
     /// As [`HessianTangent::ExactWhenDefinite`], but where the exact Hessian fails to factor
     /// the absolute-eigenvalue one is used instead of the projected one.
-    #[serde(rename = "ExactElseAbsolute", alias = "exact_else_absolute")]
+    #[serde(rename = "exact_else_absolute", alias = "ExactElseAbsolute")]
     ExactElseAbsolute,
 }
 

@@ -9,16 +9,20 @@ use crate::psd_projection::{absolute_eigenvalues, project_to_psd};
 
 /// Which tangent a batch call returns.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, Deserialize)]
+#[serde(rename_all = "snake_case")]
 pub enum Tangent {
     /// The exact `∂P/∂F`.
+    #[serde(alias = "Exact")]
     Exact,
     /// Its projection onto the positive semi-definite cone (negative eigenvalues clamped to 0),
     /// what Newton's method needs.
+    #[serde(alias = "ProjectedPsd")]
     ProjectedPsd,
     /// Its absolute value `Σ |λ_i| q_i q_iᵀ` (negative eigenvalues mirrored, not clamped):
     /// positive semi-definite like the projection, but it keeps the curvature of a compressed or
     /// buckling point instead of dropping it. Chen et al., *Stabler Neo-Hookean Simulation:
     /// Absolute Eigenvalue Filtering for Projected Newton* (SIGGRAPH 2024).
+    #[serde(alias = "AbsoluteEigenvalues")]
     AbsoluteEigenvalues,
 }
 

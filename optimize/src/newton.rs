@@ -125,12 +125,16 @@ impl Default for NewtonParams {
 
 /// Why Newton stopped.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, Deserialize)]
+#[serde(rename_all = "snake_case")]
 pub enum NewtonStop {
     /// The step norm fell below the tolerance.
+    #[serde(alias = "Converged")]
     Converged,
     /// `max_iterations` reached first.
+    #[serde(alias = "IterationLimit")]
     IterationLimit,
     /// The line search found no decrease within `max_line_search_cuts` halvings.
+    #[serde(alias = "LineSearchStalled")]
     LineSearchStalled,
 }
 

@@ -280,14 +280,17 @@ pub fn sample_random(
 
 /// How the volume of a point-cloud solid is obtained.
 #[derive(Clone, Copy, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(rename_all = "snake_case")]
 pub enum CloudVolume {
     /// The caller knows the volume (m³).
+    #[serde(alias = "Given")]
     Given(f64),
     /// `V_est` = (number of occupied cells) × `c³` on a grid of spacing
     /// `c = cell_factor × mean nearest-neighbour distance`. For a solid, well-sampled cloud it
     /// approaches the true volume as the sampling refines; for a surface-like cloud (most 3DGS
     /// files) it measures a shell about one cell thick, so pass [`CloudVolume::Given`] when the
     /// volume matters (it scales mass and stiffness together, not the mode shapes).
+    #[serde(alias = "VoxelEstimate")]
     VoxelEstimate {
         /// Cell size in units of the mean nearest-neighbour distance (default 1.0).
         cell_factor: f64,
@@ -305,6 +308,7 @@ pub enum CloudVolume {
     ///
     /// (a boundary cell has a face-neighbour outside the solid; the surface runs through it,
     /// about half of it inside). Concavities narrower than about 4 cells are filled too.
+    #[serde(alias = "FilledVoxels")]
     FilledVoxels {
         /// Cell size in units of the mean nearest-neighbour distance (default 2.0).
         cell_factor: f64,

@@ -21,13 +21,17 @@ use crate::subspace_iteration::{SubspaceParams, solve_skinning_modes_iteratively
 
 /// Which eigen solver [`build_basis`] uses.
 #[derive(Clone, Copy, Debug, Default, PartialEq, Serialize, Deserialize)]
+#[serde(rename_all = "snake_case")]
 pub enum EigenSolverChoice {
     /// Dense for K ≤ [`DENSE_SOLVER_MAX_KERNELS`], iterative above (default).
     #[default]
+    #[serde(alias = "Auto")]
     Auto,
     /// Dense assembly and two dense eigendecompositions (O(K³)).
+    #[serde(alias = "Dense")]
     Dense,
     /// Sparse assembly and shift-invert subspace iteration.
+    #[serde(alias = "Iterative")]
     Iterative(SubspaceParams),
 }
 

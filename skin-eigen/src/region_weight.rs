@@ -19,8 +19,10 @@ use serde::{Deserialize, Serialize};
 
 /// A held region with an analytic signed distance (m): ≤ 0 inside, the distance to it outside.
 #[derive(Clone, Copy, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(rename_all = "snake_case")]
 pub enum HeldRegionShape {
     /// `{X : n·X ≤ offset}`, n a unit vector; `d = n·X − offset`.
+    #[serde(alias = "HalfSpace")]
     HalfSpace {
         /// Unit outward normal n of the region.
         normal: Vector3<f64>,
@@ -28,6 +30,7 @@ pub enum HeldRegionShape {
         offset: f64,
     },
     /// `{X : |X − c| ≤ radius}`; `d = |X − c| − radius`.
+    #[serde(alias = "Ball")]
     Ball {
         /// Centre c (m).
         center: Vector3<f64>,

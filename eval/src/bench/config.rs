@@ -51,22 +51,29 @@ fn fast_step_runs(base: ReducedSettings, modes: &[usize]) -> Vec<(String, BenchM
 
 /// One configuration to time.
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(rename_all = "snake_case")]
 pub enum BenchMethod {
     /// FreeForm with these settings.
+    #[serde(rename = "freeform", alias = "FreeForm")]
     FreeForm(ReducedSettings),
     /// FreeForm with these settings and the clamped end held exactly, on the end shrunk by this
     /// many median kernel radii ([`crate::beam_protocol::reduced::exact_pin_hold`]).
+    #[serde(rename = "freeform_exact", alias = "FreeFormExact")]
     FreeFormExact(ReducedSettings, f64),
     /// The FEM at a coarser resolution than the ground truth.
+    #[serde(alias = "Fem")]
     Fem(FemResolution),
     /// The Simplicits baseline (network trained on the basis grid of the settings, cached),
     /// simulated with these settings.
+    #[serde(alias = "Simplicits")]
     Simplicits(ReducedSettings, SimplicitsParams),
     /// The MPM baseline at this grid spacing (m), otherwise [`crate::particle_baselines::mpm::MpmStudyConfig::default`]
     /// (trajectories cached, shared with Table 1).
+    #[serde(alias = "Mpm")]
     Mpm(f64),
     /// The SPH baseline at this particle spacing (m), otherwise [`crate::particle_baselines::sph::SphStudyConfig::default`]
     /// (trajectories cached, shared with Table 1).
+    #[serde(alias = "Sph")]
     Sph(f64),
 }
 

@@ -92,19 +92,24 @@ pub struct ShapeFemParams {
 /// ([`fem_ref::reusing_reference_newton`]'s chord steps while each is at most half the last,
 /// to its tolerance of 1e-8 instead of 1e-6).
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Serialize, Deserialize)]
+#[serde(rename_all = "snake_case")]
 pub enum ReferenceFactorReuse {
     /// A fresh factorization every Newton iteration (default, the first tables' setting).
     #[default]
+    #[serde(alias = "Never")]
     Never,
     /// Pull farthest's and Pull boundary's references (and their convergence checks); Fix
     /// side's, where the soft shapes sag far and Newton needs many iterations, fresh.
+    #[serde(alias = "Pulls")]
     Pulls,
     /// The Pulls' references, and Fix side's of a stiff shape: Young's modulus at least
     /// [`STIFF_YOUNGS_MODULUS`] (the manufactured class, 10⁸ Pa), where the shape's own weight
     /// strains it by about ρ g L / E ≈ 10⁻⁴ (ρ = 1000 kg/m³, L = 1 m after normalization) and
     /// each step is nearly linear. A soft shape's Fix side (10⁵ Pa, strain ≈ 0.1) stays fresh.
+    #[serde(alias = "PullsAndStiffFixSide")]
     PullsAndStiffFixSide,
     /// Every condition's.
+    #[serde(alias = "Every")]
     Every,
 }
 

@@ -18,15 +18,19 @@ use serde::{Deserialize, Serialize};
 
 /// The object and what happens to it.
 #[derive(Clone, Copy, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(rename_all = "snake_case")]
 pub enum StressScene {
     /// The beam of design §4.1 (5 × 1 × 1 m, E = 5 MPa) under gravity, x ≤ 0.5 pinned.
+    #[serde(alias = "BeamBend")]
     BeamBend,
     /// The beam with x ≤ 0.5 pinned and x ≥ 4.5 rotated about its axis at this rate up to 720°.
+    #[serde(alias = "BeamTwist")]
     BeamTwist {
         /// Degrees per second (design §4.1: 2160).
         degrees_per_second: f64,
     },
     /// A 1 m cube (E = 0.1 MPa) starting 2 cm above a floor, moving down at this speed.
+    #[serde(alias = "CubeImpact")]
     CubeImpact {
         /// m/s.
         speed: f64,
@@ -34,12 +38,14 @@ pub enum StressScene {
     /// The paper's layered sphere (Sec. 9.2): radius 0.5 m, four concentric shells
     /// stiff-soft-stiff-soft (soft E = 0.1 MPa, stiff `contrast` times that), dropped from
     /// 0.1 m onto a floor (it lands after about 14 steps of 0.01 s).
+    #[serde(alias = "LayeredSphereDrop")]
     LayeredSphereDrop {
         /// Stiff / soft Young's modulus.
         contrast: f64,
     },
     /// A 1 × 1 × `thickness` m plate (E = 0.1 MPa) under gravity, x ≤ 0.1 pinned, sampled by
     /// the given degenerate rule.
+    #[serde(alias = "Plate")]
     Plate {
         /// Plate thickness (m).
         thickness: f64,
@@ -50,26 +56,33 @@ pub enum StressScene {
 
 /// Sampling rules a careless user might feed the basis builder.
 #[derive(Clone, Copy, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(rename_all = "snake_case")]
 pub enum DegenerateSampling {
     /// A grid whose spacing equals the thickness: one layer of coplanar points.
+    #[serde(alias = "OneLayer")]
     OneLayer,
     /// A jittered grid of about this many points, each moved by up to 40% of the spacing.
+    #[serde(alias = "SparseNoisy")]
     SparseNoisy {
         /// Number of points.
         points: usize,
     },
     /// A grid with every point given twice.
+    #[serde(alias = "Duplicated")]
     Duplicated,
 }
 
 /// Which simulator a case runs.
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Serialize, Deserialize)]
+#[serde(rename_all = "snake_case")]
 pub enum StressSolver {
     /// FreeForm's reduced simulator (default).
     #[default]
+    #[serde(alias = "Reduced")]
     Reduced,
     /// The FEM reference, P2 tetrahedra at 2 cells per metre (beam scenes only; no energy
     /// balance: its Dirichlet handles' work is not tracked, so the growth column is NaN).
+    #[serde(alias = "Fem")]
     Fem,
 }
 
@@ -120,12 +133,16 @@ impl StressCase {
 
 /// How a case ended.
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(rename_all = "snake_case")]
 pub enum CaseStatus {
     /// Every step ran.
+    #[serde(alias = "Finished")]
     Finished,
     /// Stopped with a named error (setup or a step): a safe failure.
+    #[serde(alias = "Error")]
     Error(String),
     /// A panic: a bug, whatever the input.
+    #[serde(alias = "Panicked")]
     Panicked(String),
 }
 
