@@ -3,10 +3,12 @@
 pub mod atomic_write;
 pub mod content_key;
 pub mod framing;
+pub mod key_lock;
 
 pub use atomic_write::write_atomically;
 pub use content_key::{ContentKey, ContentKeyBuilder};
 pub use framing::{FrameError, decode_framed, encode_framed, load_framed, save_framed};
+pub use key_lock::{KeyLock, KeyLockParams};
 
 use std::path::PathBuf;
 

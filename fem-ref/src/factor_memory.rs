@@ -14,8 +14,10 @@ use serde::{Deserialize, Serialize};
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Serialize, Deserialize)]
 #[serde(rename_all = "snake_case")]
 pub enum FactorMemoryLimit {
-    /// The memory the operating system reports available when the simulator is set up
-    /// (`MemAvailable` of `/proc/meminfo`; no limit where that cannot be read) (default).
+    /// The memory available when the simulator is set up: the smaller of the machine's
+    /// (`MemAvailable` of `/proc/meminfo`) and, under a scheduler that limits the process's
+    /// cgroup (v2), the cgroup's room (`memory.max − memory.current`); no limit where neither
+    /// can be read (default).
     #[default]
     Available,
     /// At most this many bytes.
@@ -35,10 +37,36 @@ impl FactorMemoryLimit {
     }
 }
 
-/// `MemAvailable` of `/proc/meminfo` in bytes, or `None` where it cannot be read (not Linux).
+/// The smaller of `MemAvailable` of `/proc/meminfo` and the room left in the process's cgroup
+/// (v2), in bytes, or `None` where neither can be read (not Linux).
 fn available_memory_bytes() -> Option<u64> {
-    let meminfo = std::fs::read_to_string("/proc/meminfo").ok()?;
-    parse_mem_available(&meminfo)
+    let machine = std::fs::read_to_string("/proc/meminfo")
+        .ok()
+        .and_then(|meminfo| parse_mem_available(&meminfo));
+    let cgroup = cgroup_room_bytes();
+    match (machine, cgroup) {
+        (Some(a), Some(b)) => Some(a.min(b)),
+        (a, b) => a.or(b),
+    }
+}
+
+/// `memory.max − memory.current` of the process's cgroup v2 (the `0::PATH` line of
+/// `/proc/self/cgroup` under `/sys/fs/cgroup`), or `None` without a cgroup v2 limit.
+fn cgroup_room_bytes() -> Option<u64> {
+    let own = std::fs::read_to_string("/proc/self/cgroup").ok()?;
+    let path = own.lines().find_map(|line| line.strip_prefix("0::"))?;
+    let dir = std::path::Path::new("/sys/fs/cgroup").join(path.trim_start_matches('/'));
+    let max = std::fs::read_to_string(dir.join("memory.max")).ok()?;
+    let current = std::fs::read_to_string(dir.join("memory.current")).ok()?;
+    cgroup_room(&max, &current)
+}
+
+/// The room `max − current` (bytes) of a cgroup's `memory.max` and `memory.current` texts;
+/// `None` for `max` (no limit) or text that is not a number.
+fn cgroup_room(max: &str, current: &str) -> Option<u64> {
+    let max: u64 = max.trim().parse().ok()?;
+    let current: u64 = current.trim().parse().ok()?;
+    Some(max.saturating_sub(current))
 }
 
 /// The `MemAvailable:  N kB` line of a `/proc/meminfo` text, in bytes.
@@ -57,6 +85,14 @@ fn parse_mem_available(meminfo: &str) -> Option<u64> {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn a_cgroup_limit_leaves_its_room_and_max_means_no_limit() {
+        assert_eq!(cgroup_room("4294967296\n", "1073741824\n"), Some(3 << 30));
+        assert_eq!(cgroup_room("1000\n", "2000\n"), Some(0));
+        assert_eq!(cgroup_room("max\n", "1073741824\n"), None);
+        assert_eq!(cgroup_room("", "1"), None);
+    }
 
     #[test]
     fn mem_available_is_read_in_bytes_and_a_malformed_line_gives_no_limit() {

@@ -181,14 +181,22 @@ pub fn run_fem(
     let cache = TrajectoryCache::new(cache_dir.join("fem"));
     let solved = match load_solved(&parts, problem, &cache)? {
         Some(solved) => solved,
-        None => step_through(
-            parts,
-            problem.steps,
-            &problem.scene.label(),
-            &cache,
-            label,
-            progress,
-        )?,
+        None => {
+            // Another process (here or on a machine sharing the cache) may be computing the
+            // same run: wait for it and load its trajectory instead of computing it again.
+            let _lock = lock_run(&parts, problem, &cache, label, progress)?;
+            match load_solved(&parts, problem, &cache)? {
+                Some(solved) => solved,
+                None => step_through(
+                    parts,
+                    problem.steps,
+                    &problem.scene.label(),
+                    &cache,
+                    label,
+                    progress,
+                )?,
+            }
+        }
     };
     Ok(fem_run(
         solved,
@@ -198,6 +206,40 @@ pub fn run_fem(
         &cache,
         progress,
     ))
+}
+
+/// The lock of `problem`'s run in `cache` (`<checkpoint file>.lock`, [`artifact::KeyLock`]),
+/// waiting while another process holds it; `None` when the run has no key (its scene is
+/// refused, which the run then reports).
+fn lock_run(
+    parts: &SimulatorParts,
+    problem: &FemProblem<'_>,
+    cache: &TrajectoryCache,
+    label: &str,
+    progress: &dyn Progress,
+) -> Result<Option<artifact::KeyLock>, FemReferenceError> {
+    let Some(key) = FemSimulator::checkpoint_key_for(
+        &parts.model,
+        &parts.scene,
+        &parts.params,
+        problem.steps,
+        &problem.scene.label(),
+    ) else {
+        return Ok(None);
+    };
+    let mut path = cache.path(key).into_os_string();
+    path.push(".lock");
+    artifact::KeyLock::acquire(
+        Path::new(&path),
+        &artifact::KeyLockParams::default(),
+        |owner| {
+            progress.status(&format!(
+                "FEM {label}: waiting for {owner}, which is computing it in the same cache"
+            ));
+        },
+    )
+    .map(Some)
+    .map_err(|e| FemReferenceError::Run(fem_ref::FemRunError::Cache(e.into())))
 }
 
 /// [`run_fem`]'s trajectory when `<cache_dir>/fem/` holds it, else `None`: nothing is computed

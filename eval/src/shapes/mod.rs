@@ -6,6 +6,8 @@
 //! - [`config`]: what the study runs; [`result`]: what it measures;
 //! - [`study`]: the run over the shapes, `shape_run` one shape stage by stage,
 //!   `boundary_run` one condition's reduced runs;
+//! - [`stage`]: the stages a workflow engine runs as tasks, [`shard`]: their raw rows, the
+//!   plan and the merge;
 //! - [`tables`]: the rendering.
 
 pub mod boundary;
@@ -15,5 +17,7 @@ pub mod config;
 pub mod reference;
 pub mod result;
 pub(crate) mod shape_run;
+pub mod shard;
+pub mod stage;
 pub mod study;
 pub mod tables;

@@ -230,8 +230,8 @@ impl ShapeStudy {
     }
 }
 
-/// The name a shape goes by in the tables: its file name.
-pub(crate) fn mesh_name(path: &Path) -> String {
+/// The name a shape goes by in the tables (and in `--only`, plans and shards): its file name.
+pub fn mesh_name(path: &Path) -> String {
     path.file_name().map_or_else(
         || path.display().to_string(),
         |n| n.to_string_lossy().into(),

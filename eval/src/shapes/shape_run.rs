@@ -24,6 +24,7 @@ use crate::shapes::boundary_run::BoundaryRun;
 use crate::shapes::config::ShapeStudyConfig;
 use crate::shapes::reference::{ConditionLattice, FemMeshSummary, mesh_for_fem, mesh_through};
 use crate::shapes::result::{FemRunSummary, MethodScores, ShapeResult, ShapeRow};
+use crate::shapes::stage::ShapeStage;
 use crate::simplicits_cache::train_cached_simplicits;
 use freeform::PinHold;
 use freeform::failure_chain;
@@ -33,10 +34,12 @@ use freeform::scene::SceneSpec;
 use freeform::terminal_progress::{BarProgress, TerminalProgress};
 
 /// The body of [`crate::shapes::study`]'s shape run, filling `result` as it goes so that what
-/// was measured before a failure stays.
+/// was measured before a failure stays; with a `stage`, only that stage of the shape's work
+/// ([`ShapeStage`]).
 pub(crate) fn run_shape_into(
     path: &Path,
     config: &ShapeStudyConfig,
+    stage: Option<ShapeStage>,
     progress: &TerminalProgress,
     result: &mut ShapeResult,
 ) -> Result<(), EvalError> {
@@ -46,20 +49,38 @@ pub(crate) fn run_shape_into(
     let lame = material.lame_parameters().map_err(EvalError::Material)?;
     let settings = &config.settings;
 
-    let basis_start = Instant::now();
-    let basis_points = sample_on(&surface, settings.basis_points, "basis points")?;
-    let lames = vec![lame; basis_points.len()];
-    let (ours, _, _) =
-        build_basis(&basis_points, &lames, &settings.basis_params()).map_err(EvalError::Basis)?;
-    result.basis_points = basis_points.len();
-    result.basis_seconds = Some(basis_start.elapsed().as_secs_f64());
-    let simplicits = baseline_network(config, &basis_points, &lames, material, progress, result)?;
+    let fem_only = matches!(stage, Some(ShapeStage::Reference | ShapeStage::Check));
+    let basis = if fem_only {
+        None
+    } else {
+        let basis_start = Instant::now();
+        let basis_points = sample_on(&surface, settings.basis_points, "basis points")?;
+        let lames = vec![lame; basis_points.len()];
+        result.basis_points = basis_points.len();
+        if stage == Some(ShapeStage::Train) {
+            baseline_network(config, &basis_points, &lames, material, progress, result)?;
+            return Ok(());
+        }
+        let (ours, _, _) = build_basis(&basis_points, &lames, &settings.basis_params())
+            .map_err(EvalError::Basis)?;
+        result.basis_seconds = Some(basis_start.elapsed().as_secs_f64());
+        let simplicits =
+            baseline_network(config, &basis_points, &lames, material, progress, result)?;
+        Some((ours, basis_points, lames, simplicits))
+    };
 
     let (lattice_mesh, report) = mesh_for_fem(&surface, &config.fem)?;
     // Islands the lattice cut off from the body would fall freely in the FEM reference.
     let (tets, summary) = FemMeshSummary::largest_piece(&lattice_mesh, &report, length);
     result.fem_mesh = Some(summary);
-    let points = sample_on(&surface, settings.simulation_points, "simulation points")?;
+    let points = match &basis {
+        Some(_) => Some(sample_on(
+            &surface,
+            settings.simulation_points,
+            "simulation points",
+        )?),
+        None => None,
+    };
     let mut meshes = ShapeMeshes {
         surface: &surface,
         length,
@@ -71,14 +92,19 @@ pub(crate) fn run_shape_into(
     let shape = ShapeInputs {
         config,
         progress,
+        stage,
         name: &result.name,
         youngs_modulus: result.youngs_modulus,
         material,
-        points: &points,
-        ours: &ours,
-        basis_points: &basis_points,
-        lames: &lames,
-        simplicits: simplicits.as_ref(),
+        reduced: basis.as_ref().zip(points.as_ref()).map(
+            |((ours, basis_points, lames, simplicits), points)| ReducedInputs {
+                points,
+                ours,
+                basis_points,
+                lames,
+                simplicits: simplicits.as_ref(),
+            },
+        ),
     };
     let mut fem_seconds = 0.0;
     for &boundary in &config.boundaries {
@@ -139,9 +165,17 @@ fn baseline_network(
 struct ShapeInputs<'a> {
     config: &'a ShapeStudyConfig,
     progress: &'a TerminalProgress,
+    /// Only this stage, or everything.
+    stage: Option<ShapeStage>,
     name: &'a str,
     youngs_modulus: f64,
     material: MaterialSample,
+    /// What the reduced runs need (none in the FEM-only stages).
+    reduced: Option<ReducedInputs<'a>>,
+}
+
+/// The bases and points the reduced runs of a shape share.
+struct ReducedInputs<'a> {
     /// The simulation's integration points.
     points: &'a IntegrationPoints,
     ours: &'a SkinningBasis,
@@ -253,6 +287,26 @@ fn run_row(
         failed_step_halvings: config.fem.failed_step_halvings,
         steps: config.boundary.steps,
     };
+    match shape.stage {
+        Some(ShapeStage::Reference) => {
+            match reference_run(&problem(tets), &label, config, shape.progress) {
+                Ok(fem) => row.fem = Some(FemRunSummary::of(&fem, meshes.length)),
+                Err(e) => row.error = Some(failure_chain(&e)),
+            }
+            return row;
+        }
+        Some(ShapeStage::Check) => {
+            if let Some(finer) = finer {
+                let label = format!("{label} finer");
+                match reference_run(&problem(finer), &label, config, shape.progress) {
+                    Ok(fine) => row.reference_check = Some(FemRunSummary::of(&fine, meshes.length)),
+                    Err(e) => row.reference_check_error = Some(failure_chain(&e)),
+                }
+            }
+            return row;
+        }
+        _ => {}
+    }
     let outcome = reference_run(&problem(tets), &label, config, shape.progress).and_then(|fem| {
         *fem_seconds += fem.seconds_per_step * config.boundary.steps as f64;
         row.fem = Some(FemRunSummary::of(&fem, meshes.length));
@@ -288,8 +342,11 @@ fn score_row(
 ) -> Result<(), EvalError> {
     let config = shape.config;
     let settings = &config.settings;
+    let Some(reduced) = &shape.reduced else {
+        return Ok(());
+    };
     let run = BoundaryRun {
-        points: shape.points,
+        points: reduced.points,
         material: shape.material,
         scene,
         params: settings.simulation_params(config.boundary.time_step),
@@ -301,15 +358,15 @@ fn score_row(
         label,
         progress: shape.progress,
     };
-    let (scores, region_points) = run.score(shape.ours, "FreeForm", PinHold::Penalty)?;
+    let (scores, region_points) = run.score(reduced.ours, "FreeForm", PinHold::Penalty)?;
     row.ours = Some(scores);
     row.region_points = region_points;
     if let Some(radii) = config.exact_pins {
         match run_exact(
             &run,
-            shape.ours,
-            shape.basis_points,
-            shape.lames,
+            reduced.ours,
+            reduced.basis_points,
+            reduced.lames,
             settings,
             radii,
         ) {
@@ -320,7 +377,7 @@ fn score_row(
             Err(e) => row.exact_error = Some(failure_chain(&e)),
         }
     }
-    if let Some(net) = shape.simplicits {
+    if let Some(net) = reduced.simplicits {
         let baseline = BoundaryRun {
             quadrature: config.simplicits_quadrature.unwrap_or(run.quadrature),
             ..run

@@ -20,6 +20,7 @@ use crate::shapes::catalog::MaterialClass;
 use crate::shapes::config::ShapeStudyConfig;
 use crate::shapes::result::{ShapeResult, ShapeStudy};
 use crate::shapes::shape_run::run_shape_into;
+use crate::shapes::stage::ShapeStage;
 use freeform::failure_chain;
 use freeform::terminal_progress::TerminalProgress;
 
@@ -83,6 +84,35 @@ pub fn run_shape_study(
     progress: &TerminalProgress,
     on_shape: impl Fn(&ShapeResult, &ShapeStudy) + Sync,
 ) -> Result<ShapeStudy, EvalError> {
+    run_shapes(config, None, progress, on_shape)
+}
+
+/// One stage of every shape of `config` ([`ShapeStage`]): for a workflow engine that runs the
+/// stages as separate tasks. `Train`, `Reference` and `Check` fill the cache and return results
+/// with only what they ran; `Row` scores the rows from the cache alone (as
+/// [`ShapeStudyConfig::cached_only`]), the results a shard holds.
+///
+/// # Errors
+/// As [`run_shape_study`].
+pub fn run_shape_stage(
+    config: &ShapeStudyConfig,
+    stage: ShapeStage,
+    progress: &TerminalProgress,
+) -> Result<ShapeStudy, EvalError> {
+    let config = ShapeStudyConfig {
+        cached_only: config.cached_only || stage == ShapeStage::Row,
+        ..config.clone()
+    };
+    run_shapes(&config, Some(stage), progress, |_, _| {})
+}
+
+/// [`run_shape_study`], or one stage of it.
+fn run_shapes(
+    config: &ShapeStudyConfig,
+    stage: Option<ShapeStage>,
+    progress: &TerminalProgress,
+    on_shape: impl Fn(&ShapeResult, &ShapeStudy) + Sync,
+) -> Result<ShapeStudy, EvalError> {
     if config.jobs == 0 || config.meshes.is_empty() {
         return Err(EvalError::InvalidInput(format!(
             "the shape study needs at least one job and one mesh (jobs = {}, {} meshes)",
@@ -108,7 +138,7 @@ pub fn run_shape_study(
                     let Some(path) = config.meshes.get(i) else {
                         break;
                     };
-                    let result = run_shape(path, config, progress);
+                    let result = run_shape(path, config, stage, progress);
                     // Held through `on_shape`: one call at a time, each seeing its own shape.
                     let mut slots = results.lock().unwrap_or_else(PoisonError::into_inner);
                     let so_far = ShapeStudy {
@@ -150,7 +180,12 @@ pub fn run_shape_study(
 }
 
 /// Runs one shape; every failure ends up in the result.
-fn run_shape(path: &Path, config: &ShapeStudyConfig, progress: &TerminalProgress) -> ShapeResult {
+fn run_shape(
+    path: &Path,
+    config: &ShapeStudyConfig,
+    stage: Option<ShapeStage>,
+    progress: &TerminalProgress,
+) -> ShapeResult {
     let mut result = ShapeResult::new(path, config);
     let start = Instant::now();
     progress.status(format!(
@@ -159,7 +194,7 @@ fn run_shape(path: &Path, config: &ShapeStudyConfig, progress: &TerminalProgress
         result.youngs_modulus,
         result.class.map_or("not catalogued", MaterialClass::name)
     ));
-    if let Err(e) = run_shape_into(path, config, progress, &mut result) {
+    if let Err(e) = run_shape_into(path, config, stage, progress, &mut result) {
         result.error = Some(failure_chain(&e));
     }
     progress.status(format!(

@@ -116,6 +116,26 @@ impl<M: HyperelasticMaterial> FemSimulator<M> {
         inputs.keys(scene_label, steps).load(cache)
     }
 
+    /// The key [`Self::checkpoint_key`] gives the simulator `FemSimulator::new(model.clone(),
+    /// scene.clone(), *params)`, found without building it: what several processes computing
+    /// the same run lock on. `None` when `new` would refuse the scene.
+    pub fn checkpoint_key_for(
+        model: &FemModel<M>,
+        scene: &FemScene,
+        params: &FemParams,
+        steps: usize,
+        scene_label: &str,
+    ) -> Option<TrajectoryKey> {
+        let floor = penalized_floor(model, scene, length_scale(model)).ok()?;
+        let inputs = KeyInputs {
+            model,
+            scene,
+            floor: floor.as_ref(),
+            params,
+        };
+        Some(inputs.keys(scene_label, steps).checkpoint())
+    }
+
     /// `steps` steps from the current state, recording all node positions per frame (frame 0 =
     /// the current state) — or the cached trajectory when `cache` holds one. A fresh run is
     /// stored. `progress` hears [`RunProgress::Stepped`] after each computed step, and

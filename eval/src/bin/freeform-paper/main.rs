@@ -19,9 +19,11 @@ use preset_args::PresetArgs;
 
 mod bench;
 mod convergence;
+mod merge;
 mod pins;
 mod preset_args;
 mod presets;
+mod shape_tasks;
 mod stress;
 mod table;
 
@@ -97,6 +99,17 @@ enum Command {
     },
     /// List the committed presets, or print one (with any `--set` applied) as TOML: a starting
     /// point for a `--config` file of your own.
+    /// Tables 2 and 7 from shards (`table 2 7 … --shard-out FILE`, any number, any order):
+    /// refuses shards of different settings or one shape with two different results, and
+    /// heads the tables **Partial** with the missing shapes named.
+    Merge {
+        /// Shard files.
+        #[arg(required = true, num_args = 1..)]
+        shards: Vec<PathBuf>,
+        /// Print JSON instead of Markdown.
+        #[arg(long)]
+        json: bool,
+    },
     Presets {
         /// The preset to print.
         name: Option<String>,
@@ -133,6 +146,7 @@ fn run(cli: Cli) -> Result<()> {
             convergence::run(&preset, json, &cache, &cli.out, &progress)
         }
         Command::Bench { preset } => bench::run(&preset, &cache, &cli.out, &progress),
+        Command::Merge { shards, json } => merge::run(&shards, json, &cli.out),
         Command::Presets { name, set } => presets::run(name.as_deref(), &set),
     }
 }

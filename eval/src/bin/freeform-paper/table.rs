@@ -2,6 +2,7 @@
 
 use crate::plot_or_warn;
 use crate::preset_args::PresetArgs;
+use crate::shape_tasks;
 use std::path::{Path, PathBuf};
 
 use anyhow::{Result, bail};
@@ -15,6 +16,7 @@ use eval::presets::{StudyKind, set_folder};
 use eval::report::table::{RenderedTable, write_table};
 use eval::shapes::config::ShapeStudyConfig;
 use eval::shapes::result::ShapeStudy;
+use eval::shapes::shard::unix_seconds;
 use eval::shapes::study::{mesh_files, run_shape_study};
 use eval::shapes::tables::{table2, table7};
 use freeform::terminal_progress::TerminalProgress;
@@ -43,6 +45,10 @@ pub(crate) struct TableOptions {
     /// or check is not cached says so and is not scored), for work spread over several runs.
     #[arg(long)]
     cached_only: bool,
+    /// Tables 2 and 7, for a workflow engine: the shapes, their stages and the settings key as
+    /// JSON; runs nothing.
+    #[command(flatten)]
+    tasks: shape_tasks::TaskOptions,
 }
 
 /// The groups of tables that share one run, and their presets.
@@ -168,9 +174,17 @@ fn shape_study_tables(
             cache_dir(table);
             table.insert("meshes".into(), toml::Value::Array(Vec::new()));
         })?;
+    let every_mesh = mesh_files(dir, None)?;
     shapes.meshes = mesh_files(dir, options.only.as_deref())?;
     shapes.jobs = options.jobs.unwrap_or(shapes.jobs);
     shapes.cached_only |= options.cached_only;
+    let started = unix_seconds();
+    let tasks = &options.tasks;
+    tasks.select(&mut shapes)?;
+    if tasks.plan || tasks.stage.is_some() {
+        tasks.run(&shapes, &every_mesh, started, progress)?;
+        return Ok(Vec::new());
+    }
     let total = shapes.meshes.len();
     let study = run_shape_study(&shapes, progress, |shape, so_far| {
         let mut line = format!(
@@ -194,6 +208,7 @@ fn shape_study_tables(
         "shape study: {total} shape(s) in {:.0} s",
         study.seconds
     ));
+    tasks.finish(&study, &every_mesh, started)?;
     Ok(shape_tables(numbers, &study))
 }
 
