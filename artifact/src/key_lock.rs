@@ -146,7 +146,9 @@ impl Drop for KeyLock {
     }
 }
 
-fn host_name() -> String {
+/// This machine's host name (`/proc/sys/kernel/hostname`, else `$HOSTNAME`, else "unknown"):
+/// how a lock, a receipt or a shard names where it was made.
+pub fn host_name() -> String {
     fs::read_to_string("/proc/sys/kernel/hostname")
         .map(|h| h.trim().to_string())
         .ok()

@@ -8,7 +8,7 @@ pub mod key_lock;
 pub use atomic_write::write_atomically;
 pub use content_key::{ContentKey, ContentKeyBuilder};
 pub use framing::{FrameError, decode_framed, encode_framed, load_framed, save_framed};
-pub use key_lock::{KeyLock, KeyLockParams};
+pub use key_lock::{KeyLock, KeyLockParams, host_name};
 
 use std::path::PathBuf;
 

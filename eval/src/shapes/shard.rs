@@ -66,7 +66,7 @@ impl Provenance {
     /// This machine and thread pool, started at `started` (s since the epoch), finished now.
     pub fn since(started: f64) -> Self {
         Provenance {
-            host: host_name(),
+            host: artifact::host_name(),
             threads: rayon::current_num_threads(),
             started,
             finished: unix_seconds(),
@@ -80,15 +80,6 @@ pub fn unix_seconds() -> f64 {
     SystemTime::now()
         .duration_since(UNIX_EPOCH)
         .map_or(0.0, |d| d.as_secs_f64())
-}
-
-fn host_name() -> String {
-    std::fs::read_to_string("/proc/sys/kernel/hostname")
-        .map(|h| h.trim().to_string())
-        .ok()
-        .filter(|h| !h.is_empty())
-        .or_else(|| std::env::var("HOSTNAME").ok())
-        .unwrap_or_else(|| "unknown".into())
 }
 
 /// The raw rows of some shapes of one study.
