@@ -84,11 +84,7 @@ impl TaskOptions {
         progress: &TerminalProgress,
     ) -> Result<()> {
         if self.plan {
-            let plan = TaskPlan::new(&ShapeStudyConfig {
-                meshes: config.meshes.clone(),
-                ..config.clone()
-            });
-            println!("{}", serde_json::to_string_pretty(&plan)?);
+            println!("{}", serde_json::to_string_pretty(&TaskPlan::new(config))?);
             return Ok(());
         }
         let Some(stage) = self.stage else {
