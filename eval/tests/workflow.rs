@@ -172,19 +172,9 @@ fn shape(name: &str, mse: f64) -> ShapeResult {
         fem_mesh: None,
         fem_seconds: Some(2.0),
         rows: vec![ShapeRow {
-            boundary: ShapeBoundary::FixSide,
-            fem: None,
             ours: Some(scores(mse)),
-            simplicits: None,
-            exact: None,
-            exact_error: None,
-            exact_kernel_coverage: None,
-            reference_change: None,
-            reference_check: None,
-            reference_check_error: None,
-            fem_mesh: None,
             region_points: vec![10],
-            error: None,
+            ..ShapeRow::new(ShapeBoundary::FixSide)
         }],
         error: None,
     }

@@ -118,6 +118,27 @@ pub struct ShapeRow {
     pub error: Option<String>,
 }
 
+impl ShapeRow {
+    /// The row of `boundary` before anything is measured: no runs, no scores, no errors.
+    pub fn new(boundary: ShapeBoundary) -> Self {
+        ShapeRow {
+            boundary,
+            fem: None,
+            ours: None,
+            simplicits: None,
+            exact: None,
+            exact_error: None,
+            exact_kernel_coverage: None,
+            reference_change: None,
+            reference_check: None,
+            reference_check_error: None,
+            fem_mesh: None,
+            region_points: Vec::new(),
+            error: None,
+        }
+    }
+}
+
 /// Everything measured on one shape.
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
 pub struct ShapeResult {

@@ -218,21 +218,7 @@ fn run_row(
     fem_seconds: &mut f64,
 ) -> ShapeRow {
     let config = shape.config;
-    let mut row = ShapeRow {
-        boundary,
-        fem: None,
-        ours: None,
-        simplicits: None,
-        exact: None,
-        exact_error: None,
-        exact_kernel_coverage: None,
-        reference_change: None,
-        reference_check: None,
-        reference_check_error: None,
-        fem_mesh: None,
-        region_points: Vec::new(),
-        error: None,
-    };
+    let mut row = ShapeRow::new(boundary);
     let scene = boundary.scene(meshes.surface, meshes.tets.vertices(), &config.boundary);
     let label = format!("{} {}", shape.name, boundary.title());
     // The reference on its own lattice (the held slabs' faces on vertex planes, the pulled

@@ -47,7 +47,6 @@ fn shape(name: &str, volume_error: f64, unconverged: usize, mse: f64) -> ShapeRe
         rows: ShapeBoundary::ALL
             .iter()
             .map(|&boundary| ShapeRow {
-                boundary,
                 fem: Some(FemRunSummary {
                     region_nodes: vec![10],
                     max_displacement: 0.1,
@@ -58,16 +57,8 @@ fn shape(name: &str, volume_error: f64, unconverged: usize, mse: f64) -> ShapeRe
                     cached: false,
                 }),
                 ours: Some(scores(mse)),
-                simplicits: None,
-                exact: None,
-                exact_error: None,
-                exact_kernel_coverage: None,
-                reference_change: None,
-                reference_check: None,
-                reference_check_error: None,
-                fem_mesh: None,
                 region_points: vec![5],
-                error: None,
+                ..ShapeRow::new(boundary)
             })
             .collect(),
         error: None,
