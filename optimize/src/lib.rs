@@ -8,4 +8,7 @@ pub use newton::{
     CarriedFactor, HessianReuse, NewtonError, NewtonObjective, NewtonParams, NewtonReport,
     NewtonStop, NewtonTimings, minimize, minimize_reusing,
 };
-pub use nnls::{NnlsError, NnlsParams, NnlsSolution, NnlsWarmStart, nnls, nnls_normal};
+pub use nnls::{
+    NnlsError, NnlsFactor, NnlsParams, NnlsSolution, NnlsWarmStart, nnls, nnls_normal,
+    nnls_normal_carried,
+};

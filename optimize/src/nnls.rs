@@ -107,6 +107,37 @@ pub struct NnlsWarmStart<'a> {
     pub free: &'a [bool],
 }
 
+/// The Cholesky factor of a solve's final passive set, carried into the next solve of a
+/// problem that only gained variables (columns of A) or lost variables at zero, as greedy
+/// cubature's are: the next solve factors only the variables that joined instead of the whole
+/// warm-start support (`O(k² b)` instead of `O(k³)`).
+///
+/// Contract: between two solves with the same `NnlsFactor`, the entries of `AᵀA` among the
+/// previous solution's positive variables are unchanged (new variables may be appended and
+/// variables renumbered with [`NnlsFactor::renumber`]).
+#[derive(Clone, Debug, Default)]
+pub struct NnlsFactor {
+    factor: Option<SubsetCholesky>,
+}
+
+impl NnlsFactor {
+    /// No factor yet: the first solve factors its warm start.
+    pub fn new() -> Self {
+        NnlsFactor::default()
+    }
+
+    /// Follows a renumbering of the variables: variable i is now `new_index[i]`, or left the
+    /// problem (`None`), which only variables at zero in the last solution may.
+    ///
+    /// # Panics
+    /// If a variable positive in the last solution has no new index.
+    pub fn renumber(&mut self, new_index: &[Option<usize>]) {
+        if let Some(factor) = &mut self.factor {
+            factor.renumber(new_index);
+        }
+    }
+}
+
 /// Solves the NNLS problem given its normal equations: `gram = AᵀA` (`n × n`, symmetric
 /// positive semidefinite) and `atb = Aᵀb` (length n), optionally from a warm start.
 ///
@@ -117,6 +148,21 @@ pub fn nnls_normal(
     atb: &[f64],
     warm: Option<NnlsWarmStart<'_>>,
     params: &NnlsParams,
+) -> Result<NnlsSolution, NnlsError> {
+    nnls_normal_carried(gram, atb, warm, params, &mut NnlsFactor::new())
+}
+
+/// [`nnls_normal`] with the passive set's factor carried from the previous solve of the same
+/// growing problem (see [`NnlsFactor`]'s contract) and left for the next.
+///
+/// # Errors
+/// [`NnlsError`]: mismatched sizes, non-finite input, or no convergence within the cap.
+pub fn nnls_normal_carried(
+    gram: MatRef<'_, f64>,
+    atb: &[f64],
+    warm: Option<NnlsWarmStart<'_>>,
+    params: &NnlsParams,
+    carried: &mut NnlsFactor,
 ) -> Result<NnlsSolution, NnlsError> {
     let n = atb.len();
     if gram.nrows() != n || gram.ncols() != n {
@@ -163,13 +209,28 @@ pub fn nnls_normal(
         Some(w) => x.iter().zip(w.free).map(|(&v, &f)| v > 0.0 || f).collect(),
         None => vec![false; n],
     };
-    // The passive set's factor, updated as variables join and leave.
-    let mut factor = SubsetCholesky::new(gram);
+    // The passive set's factor, updated as variables join and leave: the carried one, less
+    // what is not passive now, plus what is.
+    let factor = match &mut carried.factor {
+        Some(factor) => {
+            factor.adapt(gram);
+            factor
+        }
+        empty => empty.insert(SubsetCholesky::new(gram)),
+    };
+    let mut in_factor = vec![false; n];
+    for i in factor.set().to_vec() {
+        if i < n && passive[i] {
+            in_factor[i] = true;
+        } else {
+            factor.remove(i);
+        }
+    }
     let mut iterations = 0;
     if passive.iter().any(|&p| p) {
-        let joining: Vec<usize> = (0..n).filter(|&i| passive[i]).collect();
+        let joining: Vec<usize> = (0..n).filter(|&i| passive[i] && !in_factor[i]).collect();
         factor.insert(gram, &joining);
-        restore_feasibility(gram, atb, &mut x, &mut passive, &mut factor);
+        restore_feasibility(gram, atb, &mut x, &mut passive, factor);
     }
     loop {
         let w = negative_gradient(gram, atb, &x);
@@ -193,12 +254,12 @@ pub fn nnls_normal(
             passive[j] = true;
         }
         factor.insert(gram, &joining);
-        restore_feasibility(gram, atb, &mut x, &mut passive, &mut factor);
+        restore_feasibility(gram, atb, &mut x, &mut passive, factor);
         if x == before && params.block > 1 {
             // Every joined variable fell out again: try the best one alone.
             passive[joining[0]] = true;
             factor.insert(gram, &joining[..1]);
-            restore_feasibility(gram, atb, &mut x, &mut passive, &mut factor);
+            restore_feasibility(gram, atb, &mut x, &mut passive, factor);
         }
         if x == before {
             // The best variable's least-squares value was not positive (round-off at the
@@ -283,5 +344,50 @@ mod tests {
         let a = Mat::<f64>::identity(3, 3);
         let solution = nnls(a.as_ref(), &[1.0, -2.0, 3.0], &NnlsParams::default()).unwrap();
         assert_eq!(solution.x, vec![1.0, 0.0, 3.0]);
+    }
+
+    #[test]
+    fn a_carried_factor_solves_a_growing_and_renumbered_problem_like_a_fresh_solve() {
+        use rand::{Rng, SeedableRng};
+        let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(11);
+        let (rows, n) = (80, 60);
+        let a = Mat::from_fn(rows, n, |_, _| rng.random_range(-1.0..1.0));
+        let b: Vec<f64> = (0..rows).map(|_| rng.random_range(-1.0..1.0)).collect();
+        let b_col = Mat::from_fn(rows, 1, |i, _| b[i]);
+        let params = NnlsParams::default();
+        let mut carried = NnlsFactor::new();
+        // The columns in play, grown 10 at a time; zero-weight ones leave after each solve.
+        let mut columns: Vec<usize> = Vec::new();
+        let mut x: Vec<f64> = Vec::new();
+        for batch in 0..6 {
+            let old = columns.len();
+            columns.extend(10 * batch..10 * (batch + 1));
+            let sub = Mat::from_fn(rows, columns.len(), |i, j| a[(i, columns[j])]);
+            let gram = sub.transpose() * &sub;
+            let atb_col = sub.transpose() * &b_col;
+            let atb: Vec<f64> = (0..columns.len()).map(|j| atb_col[(j, 0)]).collect();
+            x.resize(columns.len(), 0.0);
+            let free: Vec<bool> = (0..columns.len()).map(|i| i >= old).collect();
+            let warm = NnlsWarmStart { x: &x, free: &free };
+            let got = nnls_normal_carried(gram.as_ref(), &atb, Some(warm), &params, &mut carried)
+                .unwrap()
+                .x;
+            let want = nnls_normal(gram.as_ref(), &atb, None, &params).unwrap().x;
+            for (g, w) in got.iter().zip(&want) {
+                assert!((g - w).abs() <= 1e-9 * w.abs().max(1.0), "batch {batch}: {g} vs {w}");
+            }
+            let mut new_index = vec![None; columns.len()];
+            let mut kept = 0;
+            for (i, &v) in got.iter().enumerate() {
+                if v > 0.0 {
+                    new_index[i] = Some(kept);
+                    kept += 1;
+                }
+            }
+            carried.renumber(&new_index);
+            columns = (0..columns.len()).filter(|&i| got[i] > 0.0).map(|i| columns[i]).collect();
+            x = got.into_iter().filter(|&v| v > 0.0).collect();
+        }
+        assert!(columns.len() > 10, "the support grew: {}", columns.len());
     }
 }

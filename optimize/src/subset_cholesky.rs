@@ -9,11 +9,12 @@ use faer::linalg::triangular_solve::{
 use faer::{Mat, MatRef, Par, Side};
 
 /// The factor of `G_SS` (S in the order indices joined), stored column-major in the leading
-/// `k × k` block of an `n × n` buffer (n the order of G), so a column is one slice.
+/// `k × k` block of a `capacity × capacity` buffer, so a column is one slice. The buffer grows
+/// when S outgrows it, so one factor can follow a matrix G that gains rows and columns.
 #[derive(Clone, Debug)]
 pub(crate) struct SubsetCholesky {
     set: Vec<usize>,
-    n: usize,
+    capacity: usize,
     l: Vec<f64>,
     /// Diagonal shift of a block whose Schur complement is not numerically positive definite
     /// (dependent columns): `1e-12 · max diag G`, grown ×100 until the block factors.
@@ -23,14 +24,50 @@ pub(crate) struct SubsetCholesky {
 impl SubsetCholesky {
     /// The factor of the empty set for a matrix G of order `gram.nrows()`.
     pub(crate) fn new(gram: MatRef<'_, f64>) -> Self {
+        let mut factor = SubsetCholesky {
+            set: Vec::new(),
+            capacity: 0,
+            l: Vec::new(),
+            shift: 0.0,
+        };
+        factor.adapt(gram);
+        factor
+    }
+
+    /// Makes the factor ready for G = `gram`, of which its set's block is unchanged (G may
+    /// have grown): room for every index of G and the shift from G's diagonal.
+    pub(crate) fn adapt(&mut self, gram: MatRef<'_, f64>) {
         let n = gram.nrows();
         let max_diag = (0..n).fold(0.0_f64, |m, i| m.max(gram[(i, i)]));
-        SubsetCholesky {
-            set: Vec::new(),
-            n,
-            l: vec![0.0; n * n],
-            shift: 1e-12 * max_diag.max(f64::MIN_POSITIVE),
+        self.shift = 1e-12 * max_diag.max(f64::MIN_POSITIVE);
+        self.reserve(n);
+    }
+
+    /// Renumbers S after G lost rows and columns: index i becomes `new_index[i]`, which must
+    /// be `Some` for every member of S.
+    ///
+    /// # Panics
+    /// If a member of S has no new index.
+    pub(crate) fn renumber(&mut self, new_index: &[Option<usize>]) {
+        for i in &mut self.set {
+            *i = new_index[*i].expect("a member of the factor's set left G");
         }
+    }
+
+    /// Grows the buffer to hold a factor of order `order`.
+    fn reserve(&mut self, order: usize) {
+        if order <= self.capacity {
+            return;
+        }
+        let capacity = order.max(self.capacity + self.capacity / 2);
+        let k = self.set.len();
+        let mut l = vec![0.0; capacity * capacity];
+        for j in 0..k {
+            l[j * capacity..j * capacity + k]
+                .copy_from_slice(&self.l[j * self.capacity..j * self.capacity + k]);
+        }
+        self.l = l;
+        self.capacity = capacity;
     }
 
     /// S, in factor order.
@@ -41,7 +78,7 @@ impl SubsetCholesky {
     /// The leading `k × k` block: L.
     fn factor(&self) -> MatRef<'_, f64> {
         let k = self.set.len();
-        MatRef::from_column_major_slice_with_stride(&self.l[..self.n * k], k, k, self.n)
+        MatRef::from_column_major_slice_with_stride(&self.l[..self.capacity * k], k, k, self.capacity)
     }
 
     /// Adds `joining` (indices not in S) to S: `Y = L⁻¹ G_SJ`, then the factor of the Schur
@@ -51,6 +88,7 @@ impl SubsetCholesky {
             return;
         }
         let (k, b) = (self.set.len(), joining.len());
+        self.reserve(k + b);
         let mut y = Mat::from_fn(k, b, |i, j| gram[(self.set[i], joining[j])]);
         solve_lower_triangular_in_place(self.factor(), y.as_mut(), Par::Seq);
         let schur = Mat::from_fn(b, b, |i, j| gram[(joining[i], joining[j])]) - y.transpose() * &y;
@@ -68,7 +106,7 @@ impl SubsetCholesky {
             })
             .next()
             .unwrap_or_else(|| Mat::identity(b, b));
-        let n = self.n;
+        let n = self.capacity;
         for i in 0..k {
             let column = &mut self.l[i * n..(i + 1) * n];
             for j in 0..b {
@@ -91,7 +129,7 @@ impl SubsetCholesky {
         let Some(p) = self.set.iter().position(|&s| s == index) else {
             return;
         };
-        let (k, n) = (self.set.len(), self.n);
+        let (k, n) = (self.set.len(), self.capacity);
         // Delete row p: within each column only rows from the diagonal down (and, for the
         // columns before p, from p down) hold entries.
         for j in 0..k {

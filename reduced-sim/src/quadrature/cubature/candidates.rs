@@ -1,27 +1,24 @@
-//! The candidate points' force columns over the training poses.
+//! The candidate points' force columns over the training poses, held as per-point factors.
 
-use faer::{Accum, Mat, MatRef, Par};
+use faer::{Accum, Mat, MatMut, MatRef, Par};
 use hyperelastic::{HyperelasticMaterial, LameParameters};
 use nalgebra::Matrix3;
 use rayon::prelude::*;
 
-use crate::model::deformation_map::DeformationMap;
 use crate::model::reduced_model::ReducedModel;
 
-use super::norm;
-
 /// Candidate c's column holds, pose after pose, its weighted, normalized force density
-/// `ω ⊙ g_c(z_k) / ‖f_k‖` (`3K · 4(m+1)` rows for K poses). Per candidate, two small products
-/// over all poses at once: the strains `[F_k − I]_k = Z_allᵀ G_c` (`3K × 3`, Z_all the
-/// `4(m+1) × 3K` poses side by side), then the force densities `[g_k]_k = G_c S`
-/// (`4(m+1) × 3K`, `S[s, 3k + r] = P_k[r, s]`), which is the column's layout.
-pub(super) struct CandidateForces<'a, M: HyperelasticMaterial> {
-    material: &'a M,
-    /// The deformation map at the candidates.
-    map: DeformationMap,
-    lame: Vec<LameParameters>,
-    /// The poses side by side, column-major `4(m+1) × 3K`.
-    poses: Vec<f64>,
+/// `ω ⊙ g_c(z_k) / ‖f_k‖` (`3K · 4(m+1)` rows for K poses): laid out as a `4(m+1) × 3K`
+/// matrix it is `s ⊙ (G_c S_c)`, with G_c the point's `4(m+1) × 3` gradient block,
+/// `S_c[t, 3k + r] = P_ck[r, t]` its stresses (`3 × 3K`) and `s` the row scales `ω / ‖f_k‖`.
+/// The columns are never stored: each candidate keeps G_c and S_c (the strains
+/// `[F_k − I]_k = Z_allᵀ G_c`, `3K × 3`, are one small product over all poses, Z_all the
+/// `4(m+1) × 3K` poses side by side), and products with columns are formed from them.
+pub(super) struct CandidateForces {
+    /// G of every candidate, column-major `4(m+1) × 3C` (candidate c at columns 3c … 3c + 2).
+    gradients: Vec<f64>,
+    /// S_c of every candidate.
+    stresses: Vec<Mat<f64>>,
     /// Per row: `ω / ‖f_k‖`.
     scale: Vec<f64>,
     /// 4(m + 1).
@@ -30,28 +27,50 @@ pub(super) struct CandidateForces<'a, M: HyperelasticMaterial> {
     pose_count: usize,
 }
 
-impl<'a, M: HyperelasticMaterial> CandidateForces<'a, M> {
+impl CandidateForces {
     /// The candidates `pool` (integration points of `model`) over `poses` (each 12(m+1) long)
     /// whose targets have norms `norms`, with the force weights `omega`.
-    pub(super) fn new(
-        model: &'a ReducedModel<M>,
+    pub(super) fn new<M: HyperelasticMaterial>(
+        model: &ReducedModel<M>,
         pool: &[usize],
         poses: &[&[f64]],
         norms: &[f64],
         omega: &[f64],
     ) -> Self {
+        let map = model.deformation_map().subset(pool);
+        let block_len = map.layout().block_len();
+        let all_poses: Vec<f64> = poses.iter().flat_map(|p| p.iter().copied()).collect();
+        let lame = model.lame_parameters();
+        let stresses = pool
+            .par_iter()
+            .enumerate()
+            .map(|(c, &i)| {
+                stresses_at(
+                    model.material(),
+                    &lame[i],
+                    map.gradient_block(c),
+                    &all_poses,
+                    poses.len(),
+                )
+            })
+            .collect();
         CandidateForces {
-            material: model.material(),
-            map: model.deformation_map().subset(pool),
-            lame: pool.iter().map(|&i| model.lame_parameters()[i]).collect(),
-            poses: poses.iter().flat_map(|p| p.iter().copied()).collect(),
+            gradients: (0..pool.len())
+                .flat_map(|c| map.gradient_block(c).iter().copied())
+                .collect(),
+            stresses,
             scale: norms
                 .iter()
                 .flat_map(|&norm| omega.iter().map(move |w| w / norm))
                 .collect(),
-            block_len: model.deformation_map().layout().block_len(),
+            block_len,
             pose_count: poses.len(),
         }
+    }
+
+    /// The scale of each row of a column: `ω / ‖f_k‖` (`3K · 4(m+1)`).
+    pub(super) fn scales(&self) -> &[f64] {
+        &self.scale
     }
 
     /// Rows of a column: `3K · 4(m+1)`.
@@ -61,7 +80,7 @@ impl<'a, M: HyperelasticMaterial> CandidateForces<'a, M> {
 
     /// Number of candidates.
     pub(super) fn len(&self) -> usize {
-        self.lame.len()
+        self.stresses.len()
     }
 
     /// 4(m + 1).
@@ -76,44 +95,24 @@ impl<'a, M: HyperelasticMaterial> CandidateForces<'a, M> {
 
     /// Candidate c's G block (`4(m+1) × 3`, column-major).
     pub(super) fn gradient_block(&self, c: usize) -> &[f64] {
-        self.map.gradient_block(c)
+        let n = 3 * self.block_len;
+        &self.gradients[c * n..(c + 1) * n]
     }
 
-    /// Candidate c's stresses at every pose: `3 × 3K`, `[(s, 3k + r)] = P_k[r, s]`.
-    pub(super) fn stresses(&self, c: usize) -> Mat<f64> {
-        let (n4, k) = (self.block_len, self.pose_count);
-        let g_c = MatRef::from_column_major_slice(self.map.gradient_block(c), n4, 3);
-        let mut strain = Mat::<f64>::zeros(3 * k, 3);
-        faer::linalg::matmul::matmul(
-            strain.as_mut(),
-            Accum::Replace,
-            MatRef::from_column_major_slice(&self.poses, n4, 3 * k).transpose(),
-            g_c,
-            1.0,
-            Par::Seq,
-        );
-        let mut stresses = Mat::<f64>::zeros(3, 3 * k);
-        for pose in 0..k {
-            let f =
-                Matrix3::from_fn(|r, s| strain[(3 * pose + r, s)] + f64::from(u8::from(r == s)));
-            let p = self.material.first_piola_kirchhoff(&self.lame[c], &f);
-            for r in 0..3 {
-                for s in 0..3 {
-                    stresses[(s, 3 * pose + r)] = p[(r, s)];
-                }
-            }
-        }
-        stresses
+    /// Candidate c's stresses at every pose: `3 × 3K`, `[(t, 3k + r)] = P_k[r, t]`.
+    pub(super) fn stresses(&self, c: usize) -> MatRef<'_, f64> {
+        self.stresses[c].as_ref()
     }
 
-    /// Candidate c's column, in f64 (`rows` entries), from its `stresses`.
-    pub(super) fn column(&self, c: usize, stresses: MatRef<'_, f64>, column: &mut [f64]) {
+    /// Candidate c's column (`rows` entries).
+    #[cfg(test)]
+    pub(super) fn column(&self, c: usize, column: &mut [f64]) {
         let n4 = self.block_len;
         faer::linalg::matmul::matmul(
-            faer::MatMut::from_column_major_slice_mut(column, n4, 3 * self.pose_count),
+            MatMut::from_column_major_slice_mut(column, n4, 3 * self.pose_count),
             Accum::Replace,
-            MatRef::from_column_major_slice(self.map.gradient_block(c), n4, 3),
-            stresses,
+            MatRef::from_column_major_slice(self.gradient_block(c), n4, 3),
+            self.stresses(c),
             1.0,
             Par::Seq,
         );
@@ -122,26 +121,90 @@ impl<'a, M: HyperelasticMaterial> CandidateForces<'a, M> {
         }
     }
 
-    /// Every candidate's column in f32 (only to rank candidates by their correlation with the
-    /// residual: half the memory and memory traffic of f64), column-major `rows × len`, and
-    /// its norm in f64; the columns that join the cubature are formed again in f64.
-    pub(super) fn ranking_columns(&self) -> (Vec<f32>, Vec<f64>) {
-        let rows = self.rows();
-        let mut columns = vec![0.0_f32; rows * self.len()];
-        let norms: Vec<f64> = columns
-            .par_chunks_mut(rows)
-            .enumerate()
-            .map_init(
-                || vec![0.0; rows],
-                |scratch, (c, column)| {
-                    self.column(c, self.stresses(c).as_ref(), scratch);
-                    for (x, &y) in column.iter_mut().zip(scratch.iter()) {
-                        *x = y as f32;
-                    }
-                    norm(scratch)
-                },
-            )
-            .collect();
-        (columns, norms)
+    /// `v ⊙ s`: a vector of a column's rows scaled as the columns are, for [`Self::dot`].
+    pub(super) fn scaled(&self, v: &[f64]) -> Vec<f64> {
+        v.iter().zip(&self.scale).map(|(v, s)| v * s).collect()
     }
+
+    /// `A_cᵀ v` from `scaled` = [`Self::scaled`]`(v)`: `Σ_{t,j} (G_cᵀ V)[t, j] S_c[t, j]`.
+    pub(super) fn dot(&self, c: usize, scaled: &[f64]) -> f64 {
+        let n4 = self.block_len;
+        let (g, stresses) = (self.gradient_block(c), self.stresses(c));
+        let mut sum = 0.0;
+        for (j, v) in scaled.chunks_exact(n4).enumerate() {
+            for t in 0..3 {
+                let gv: f64 = g[t * n4..(t + 1) * n4]
+                    .iter()
+                    .zip(v)
+                    .map(|(g, v)| g * v)
+                    .sum();
+                sum += gv * stresses[(t, j)];
+            }
+        }
+        sum
+    }
+
+    /// `Σ_j weights[j] A_{members[j]}`, as one product `s ⊙ (G_S W)` with `G_S` the members'
+    /// gradient blocks side by side (`4(m+1) × 3n`) and `W` their weighted stresses stacked
+    /// (`3n × 3K`).
+    pub(super) fn combination(&self, members: &[usize], weights: &[f64]) -> Vec<f64> {
+        let (n4, columns, n) = (self.block_len, 3 * self.pose_count, members.len());
+        let gradients: Vec<f64> = members
+            .iter()
+            .flat_map(|&c| self.gradient_block(c).iter().copied())
+            .collect();
+        let mut stacked = vec![0.0; 3 * n * columns];
+        for (j, column) in stacked.chunks_exact_mut(3 * n).enumerate() {
+            for ((to, &c), &w) in column.chunks_exact_mut(3).zip(members).zip(weights) {
+                for (x, &p) in to.iter_mut().zip(self.stresses[c].col_as_slice(j)) {
+                    *x = w * p;
+                }
+            }
+        }
+        let mut combination = vec![0.0; self.rows()];
+        faer::linalg::matmul::matmul(
+            MatMut::from_column_major_slice_mut(&mut combination, n4, columns),
+            Accum::Replace,
+            MatRef::from_column_major_slice(&gradients, n4, 3 * n),
+            MatRef::from_column_major_slice(&stacked, 3 * n, columns),
+            1.0,
+            Par::rayon(0),
+        );
+        for (x, s) in combination.iter_mut().zip(&self.scale) {
+            *x *= s;
+        }
+        combination
+    }
+}
+
+/// A point's stresses at every pose (`3 × 3K`, `[(t, 3k + r)] = P_k[r, t]`) from its gradient
+/// block `gradient` (`4(m+1) × 3`) and the `poses` side by side (`4(m+1) × 3K`).
+fn stresses_at<M: HyperelasticMaterial>(
+    material: &M,
+    lame: &LameParameters,
+    gradient: &[f64],
+    poses: &[f64],
+    pose_count: usize,
+) -> Mat<f64> {
+    let n4 = gradient.len() / 3;
+    let mut strain = Mat::<f64>::zeros(3 * pose_count, 3);
+    faer::linalg::matmul::matmul(
+        strain.as_mut(),
+        Accum::Replace,
+        MatRef::from_column_major_slice(poses, n4, 3 * pose_count).transpose(),
+        MatRef::from_column_major_slice(gradient, n4, 3),
+        1.0,
+        Par::Seq,
+    );
+    let mut stresses = Mat::<f64>::zeros(3, 3 * pose_count);
+    for pose in 0..pose_count {
+        let f = Matrix3::from_fn(|r, s| strain[(3 * pose + r, s)] + f64::from(u8::from(r == s)));
+        let p = material.first_piola_kirchhoff(lame, &f);
+        for r in 0..3 {
+            for s in 0..3 {
+                stresses[(s, 3 * pose + r)] = p[(r, s)];
+            }
+        }
+    }
+    stresses
 }

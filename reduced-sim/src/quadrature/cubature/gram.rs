@@ -140,15 +140,12 @@ impl ForceGramFactors {
                 );
             }
             for j in 0..new {
-                for i in 0..n {
-                    let mut sum = 0.0;
-                    for t in 0..3 {
-                        for s in 0..3 {
-                            let (a, b) = (3 * i + s, 3 * j + t);
-                            sum += m[(a, b)] * q[(a, b)];
-                        }
+                let sums = cross.col_as_slice_mut(j);
+                for t in 0..3 {
+                    let (m, q) = (m.col_as_slice(3 * j + t), q.col_as_slice(3 * j + t));
+                    for ((sum, m), q) in sums.iter_mut().zip(m.chunks_exact(3)).zip(q.chunks_exact(3)) {
+                        *sum += m[0] * q[0] + m[1] * q[1] + m[2] * q[2];
                     }
-                    cross[(i, j)] += sum;
                 }
             }
         }

@@ -18,10 +18,10 @@
 //! ([`optimize::nnls_normal`], warm-started) after each batch; candidates the solve leaves at
 //! zero weight leave Q for good. Selection stops when the relative residual
 //! `‖Σ_q w_q g_q − f‖ / ‖f‖` over all poses is at most [`CubatureParams::tolerance`] or Q holds
-//! [`CubatureParams::max_points`] points. Candidates are ranked on an f32 copy of their force
-//! columns (ranking only; weights, residual and errors are f64), and the Gram matrix of the
-//! chosen columns is formed from small per-point factors instead of the columns
-//! (`cubature_gram`: 4.6× fewer flops at m = 32).
+//! [`CubatureParams::max_points`] points. Both the candidates' correlations with the residual
+//! (`ranking`, in f32: ranking only; weights, residual and errors are f64) and the Gram matrix
+//! of the chosen columns (`cubature_gram`) are formed from small per-point factors (gradient
+//! blocks and stresses) instead of the force columns.
 //!
 //! One cubature serves every scene on that shape and material; a scene may add poses of its own
 //! ([`optimize_cubature_on`]).
@@ -44,6 +44,7 @@ mod cache;
 mod candidates;
 pub(crate) mod gram;
 mod greedy;
+mod ranking;
 mod training;
 
 pub use cache::{
@@ -53,6 +54,7 @@ pub use training::training_poses;
 
 use candidates::CandidateForces;
 use greedy::select_greedily;
+use ranking::ResidualCorrelation;
 
 /// Options of the cubature optimization.
 #[derive(Clone, Copy, Debug, PartialEq, Serialize, Deserialize)]
@@ -85,7 +87,7 @@ pub struct CubatureParams {
     /// Points the greedy selection chooses from, drawn at random (default 5000; every point
     /// when the model has fewer). Too few limit the error reachable with non-negative weights
     /// (`results/RESULTS.md`, "The cubature's candidate pool"). Memory:
-    /// 4 · 12(m+1) · poses · candidates bytes (0.48 GB at m = 32).
+    /// 4 · (12(m+1) + 18 · poses) · candidates bytes (30 MB at m = 32 with 60 poses).
     pub candidates: usize,
     /// Relative force error over the training poses (in the weighted norm of
     /// [`force_weights`]) at which selection stops (default 0.001). Lower values keep more points
@@ -336,13 +338,12 @@ fn optimize<M: HyperelasticMaterial>(
     let kept_poses: Vec<&[f64]> = kept.iter().map(|&p| poses[p].as_slice()).collect();
     let kept_norms: Vec<f64> = kept.iter().map(|&p| norms[p]).collect();
     let candidates = CandidateForces::new(model, &pool, &kept_poses, &kept_norms, &omega);
-    let (columns, column_norms) = candidates.ranking_columns();
-    check_budget(0)?;
     let pose_scales: Vec<f64> = kept_norms.iter().map(|norm| 1.0 / norm).collect();
+    let mut ranking = ResidualCorrelation::new(&candidates, &omega, &pose_scales);
+    check_budget(0)?;
     let selection = select_greedily(
         &candidates,
-        &columns,
-        &column_norms,
+        &mut ranking,
         &b,
         &omega,
         &pose_scales,
