@@ -374,7 +374,10 @@ mod tests {
                 .x;
             let want = nnls_normal(gram.as_ref(), &atb, None, &params).unwrap().x;
             for (g, w) in got.iter().zip(&want) {
-                assert!((g - w).abs() <= 1e-9 * w.abs().max(1.0), "batch {batch}: {g} vs {w}");
+                assert!(
+                    (g - w).abs() <= 1e-9 * w.abs().max(1.0),
+                    "batch {batch}: {g} vs {w}"
+                );
             }
             let mut new_index = vec![None; columns.len()];
             let mut kept = 0;
@@ -385,7 +388,10 @@ mod tests {
                 }
             }
             carried.renumber(&new_index);
-            columns = (0..columns.len()).filter(|&i| got[i] > 0.0).map(|i| columns[i]).collect();
+            columns = (0..columns.len())
+                .filter(|&i| got[i] > 0.0)
+                .map(|i| columns[i])
+                .collect();
             x = got.into_iter().filter(|&v| v > 0.0).collect();
         }
         assert!(columns.len() > 10, "the support grew: {}", columns.len());

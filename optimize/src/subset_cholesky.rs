@@ -78,7 +78,12 @@ impl SubsetCholesky {
     /// The leading `k × k` block: L.
     fn factor(&self) -> MatRef<'_, f64> {
         let k = self.set.len();
-        MatRef::from_column_major_slice_with_stride(&self.l[..self.capacity * k], k, k, self.capacity)
+        MatRef::from_column_major_slice_with_stride(
+            &self.l[..self.capacity * k],
+            k,
+            k,
+            self.capacity,
+        )
     }
 
     /// Adds `joining` (indices not in S) to S: `Y = L⁻¹ G_SJ`, then the factor of the Schur

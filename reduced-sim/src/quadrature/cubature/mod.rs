@@ -15,8 +15,8 @@
 //!
 //! found greedily: the candidates (a seeded pool of the points) most aligned with the residual
 //! join Q a batch at a time, and w is re-solved by non-negative least squares
-//! ([`optimize::nnls_normal`], warm-started) after each batch; candidates the solve leaves at
-//! zero weight leave Q for good. Selection stops when the relative residual
+//! ([`optimize::nnls_normal_carried`], warm-started, its factor carried from batch to batch)
+//! after each batch; candidates the solve leaves at zero weight leave Q for good. Selection stops when the relative residual
 //! `‖Σ_q w_q g_q − f‖ / ‖f‖` over all poses is at most [`CubatureParams::tolerance`] or Q holds
 //! [`CubatureParams::max_points`] points. Both the candidates' correlations with the residual
 //! (`ranking`, in f32: ranking only; weights, residual and errors are f64) and the Gram matrix

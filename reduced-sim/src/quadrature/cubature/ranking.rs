@@ -22,7 +22,7 @@ use rayon::prelude::*;
 use super::candidates::CandidateForces;
 
 /// Rows of S and T one task contracts.
-const ROWS_PER_TASK: usize = 3 * 512;
+const ROWS_PER_TASK: usize = 3 * 128;
 
 /// The factors of every candidate's column and the products they rank with.
 pub(super) struct ResidualCorrelation {
@@ -38,18 +38,12 @@ pub(super) struct ResidualCorrelation {
     norms: Vec<f64>,
     /// The candidates the factors hold, in their order (those retired leave).
     members: Vec<usize>,
-    /// T, reused between calls.
-    product: Vec<f32>,
 }
 
 impl ResidualCorrelation {
     /// The factors of every candidate of `candidates`, whose column rows are scaled by
     /// `omega` (the force weights, `12(m+1)`) and `pose_scales` (`1 / ‖f_k‖`, K).
-    pub(super) fn new(
-        candidates: &CandidateForces,
-        omega: &[f64],
-        pose_scales: &[f64],
-    ) -> Self {
+    pub(super) fn new(candidates: &CandidateForces, omega: &[f64], pose_scales: &[f64]) -> Self {
         let (n4, poses, count) = (
             candidates.block_len(),
             candidates.pose_count(),
@@ -107,7 +101,6 @@ impl ResidualCorrelation {
             scale: candidates.scales().to_vec(),
             norms: per_candidate.into_iter().map(|(_, norm)| norm).collect(),
             members: (0..count).collect(),
-            product: vec![0.0; rows * 3 * poses],
         }
     }
 
@@ -144,7 +137,6 @@ impl ResidualCorrelation {
         self.members = keep.iter().map(|&i| self.members[i]).collect();
         self.gradients = gradients;
         self.stresses = stresses;
-        self.product.truncate(kept_rows * columns);
     }
 
     /// `(c, A_cᵀ r)` for every candidate c not retired (to f32 precision) for the residual `r`
@@ -158,29 +150,37 @@ impl ResidualCorrelation {
             .zip(&self.scale)
             .map(|(r, s)| (r * s) as f32)
             .collect();
-        faer::linalg::matmul::matmul(
-            MatMut::from_column_major_slice_mut(&mut self.product, rows, columns),
-            Accum::Replace,
-            MatRef::from_column_major_slice(&self.gradients, n4, rows).transpose(),
-            MatRef::from_column_major_slice(&scaled, n4, columns),
-            1.0,
-            Par::rayon(0),
-        );
+        // T a block of rows at a time, contracted with S while it is in cache.
+        let gradients = MatRef::from_column_major_slice(&self.gradients, n4, rows);
+        let scaled = MatRef::from_column_major_slice(&scaled, n4, columns);
+        let stresses = &self.stresses;
         let mut sums = vec![0.0_f32; rows];
-        let (product, stresses) = (&self.product, &self.stresses);
         sums.par_chunks_mut(ROWS_PER_TASK)
             .enumerate()
-            .for_each(|(task, sums)| {
-                let first = task * ROWS_PER_TASK;
-                for j in 0..columns {
-                    let at = j * rows + first;
-                    let t = &product[at..at + sums.len()];
-                    let s = &stresses[at..at + sums.len()];
-                    for ((sum, t), s) in sums.iter_mut().zip(t).zip(s) {
-                        *sum += t * s;
+            .for_each_init(
+                || vec![0.0_f32; ROWS_PER_TASK * columns],
+                |block, (task, sums)| {
+                    let (first, len) = (task * ROWS_PER_TASK, sums.len());
+                    faer::linalg::matmul::matmul(
+                        MatMut::from_column_major_slice_mut(
+                            &mut block[..len * columns],
+                            len,
+                            columns,
+                        ),
+                        Accum::Replace,
+                        gradients.subcols(first, len).transpose(),
+                        scaled,
+                        1.0,
+                        Par::Seq,
+                    );
+                    for (j, t) in block[..len * columns].chunks_exact(len).enumerate() {
+                        let s = &stresses[j * rows + first..j * rows + first + len];
+                        for ((sum, t), s) in sums.iter_mut().zip(t).zip(s) {
+                            *sum += t * s;
+                        }
                     }
-                }
-            });
+                },
+            );
         sums.chunks_exact(3)
             .zip(&self.members)
             .map(|(c, &member)| (member, f64::from(c[0]) + f64::from(c[1]) + f64::from(c[2])))
@@ -208,7 +208,9 @@ mod tests {
         let pose_norms: Vec<f64> = (0..poses.len()).map(|k| 1.0 + k as f64).collect();
         let pose_scales: Vec<f64> = pose_norms.iter().map(|n| 1.0 / n).collect();
         let omega = force_weights(&model, params.time_step);
-        let pool: Vec<usize> = (0..model.deformation_map().len()).step_by(3).collect();
+        // Every point: more candidates than one task's block of rows.
+        let pool: Vec<usize> = (0..model.deformation_map().len()).collect();
+        assert!(3 * pool.len() > ROWS_PER_TASK);
         let candidates = CandidateForces::new(&model, &pool, &pose_refs, &pose_norms, &omega);
         let mut ranking = ResidualCorrelation::new(&candidates, &omega, &pose_scales);
         let rows = candidates.rows();
@@ -216,18 +218,37 @@ mod tests {
         let correlations = ranking.correlations(&residual);
         assert_eq!(correlations.len(), candidates.len());
         let mut column = vec![0.0; rows];
-        for c in 0..candidates.len() {
+        for (c, &(member, got_correlation)) in correlations.iter().enumerate() {
+            assert_eq!(member, c);
             candidates.column(c, &mut column);
             let want = norm(&column);
             assert!(want > 0.0, "candidate {c} has a zero column");
             let got = ranking.norms()[c];
-            assert!((got - want).abs() <= 1e-10 * want, "norm {c}: {got} vs {want}");
-            let (member, got) = correlations[c];
-            assert_eq!(member, c);
+            assert!(
+                (got - want).abs() <= 1e-10 * want,
+                "norm {c}: {got} vs {want}"
+            );
             let want = dot(&column, &residual);
             assert!(
-                (got - want).abs() <= 1e-5 * norm(&column) * norm(&residual),
-                "correlation {c}: {got} vs {want}"
+                (got_correlation - want).abs() <= 1e-5 * norm(&column) * norm(&residual),
+                "correlation {c}: {got_correlation} vs {want}"
+            );
+        }
+        // Retiring every fourth candidate leaves the others' correlations as they were.
+        let retired: Vec<bool> = (0..candidates.len()).map(|c| c % 4 == 1).collect();
+        ranking.retire(&retired);
+        let after = ranking.correlations(&residual);
+        let kept: Vec<(usize, f64)> = correlations
+            .iter()
+            .copied()
+            .filter(|&(c, _)| !retired[c])
+            .collect();
+        assert_eq!(after.len(), kept.len());
+        for ((c, got), (d, want)) in after.iter().zip(&kept) {
+            assert_eq!(c, d);
+            assert!(
+                (got - want).abs() <= 1e-6 * want.abs().max(1.0),
+                "{c}: {got} vs {want}"
             );
         }
     }
