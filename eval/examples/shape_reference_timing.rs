@@ -6,7 +6,7 @@
 //!
 //! ```sh
 //! cargo run --release -p eval --example shape_reference_timing -- \
-//!     ../shared/data/meshes/bunny.obj --boundary fix-side --steps 10 --tangent projected
+//!     data/meshes/bunny.obj --boundary fix-side --steps 10 --tangent projected
 //! ```
 //! Options: `--boundary fix-side|pull-farthest|pull-boundary` (default fix-side), `--steps N`
 //! (default 40, the tables'), `--tangent projected|exact-when-definite|exact-else-absolute` (default the mesher

@@ -1,5 +1,5 @@
 //! How much of each surface's volume the lattice mesher keeps at several resolutions:
-//! `cargo run --release -p fem-ref --example mesh_volumes -- ../shared/data/meshes 16 24 32 48`.
+//! `cargo run --release -p fem-ref --example mesh_volumes -- data/meshes 16 24 32 48`.
 //! A setting `gN:H:T` meshes graded: N cells across, at most H halvings near the surface,
 //! linearity tolerance T (e.g. `g16:3:0.05`), optionally `gN:H:T:G` with the snap's dihedral
 //! guard G (degrees, default 10) or `gN:H:T:G:S` with the snap fraction S too. Each column:

@@ -7,13 +7,15 @@
 //!
 //! ```text
 //! best_l2:      z = argmin |P z − u*|²                         (L2 projection onto V_m)
-//! best_energy:  z = argmin (P z − u*)ᵀ K (P z − u*) + τ |P z − u*|²,  τ = 1e-8 tr(PᵀKP)/tr(PᵀP)
+//! best_energy:  z = argmin (P z − u*)ᵀ K (P z − u*) + τ |P z − u*|² + κ Σ_{i held} |P_i z − u*_i|²,
+//!               τ = 1e-8 tr(PᵀKP)/tr(PᵀP),  κ = 1e4 tr(PᵀKP)/tr(PᵀP)
 //! ```
 //!
-//! with K the FEM's stiffness at rest (no boundary condition: the L2 tie τ fixes the rigid
-//! motions). For a conforming, exactly integrated model with exact held regions the Galerkin
-//! solution is the energy projection restricted to the held subspace (Ritz), so the gap between
-//! the two is what quadrature, penalty and locking cost.
+//! with K the FEM's stiffness at rest and the held nodes (where u* = 0) tied by κ, so the
+//! projection holds the region as the Galerkin solution must (without κ it would add the rigid
+//! motion that fits u* best, which the clamp forbids; τ fixes what κ leaves free). For a
+//! conforming, exactly integrated model with exact held regions the Galerkin solution is this
+//! projection (Ritz), so the gap between the two is what quadrature, penalty and locking cost.
 
 //!
 //! Files: `options.rs` (what varies besides m, K and ν), `config.rs` (what the study runs),

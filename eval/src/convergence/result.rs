@@ -40,7 +40,8 @@ pub struct ConvergenceRow {
     pub ms_per_step: f64,
     /// Normalized MSE of the L2 projection of the FEM field onto the subspace (static only).
     pub best_l2: Option<f64>,
-    /// Normalized MSE of the energy projection of the FEM field onto the subspace (static only).
+    /// Normalized MSE of the energy projection of the FEM field onto the subspace with the
+    /// held nodes tied (static only; module docs).
     pub best_energy: Option<f64>,
     /// Static projected rows: the discrete inf-sup constant β of the pressure space with each
     /// candidate count of Neumann modes ([`crate::convergence::ConvergenceConfig::inf_sup_fractions`]).

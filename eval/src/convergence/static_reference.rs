@@ -22,6 +22,8 @@ pub(crate) struct StaticReference {
     pub(crate) displacements: Vec<Vector3<f64>>,
     /// Per element: its nodes and its rest stiffness (row-major, node-major DOFs).
     elements: Vec<(Vec<usize>, Vec<f64>)>,
+    /// Which nodes the held region holds (their displacement is zero).
+    pub(crate) held: Vec<bool>,
     /// The node nearest the tip ([`tip_index`]).
     pub(crate) tip: usize,
 }
@@ -92,11 +94,16 @@ pub(crate) fn static_reference(
             )
         })
         .collect();
+    let held = scene
+        .fem_scene(&nodes, 1e4)?
+        .held_nodes(nodes.len())
+        .map_err(EvalError::FemSetup)?;
     let tip = tip_index(&nodes);
     Ok(StaticReference {
         nodes,
         displacements,
         elements,
+        held,
         tip,
     })
 }
@@ -186,11 +193,26 @@ pub(crate) fn projections(
     rhs += &kp_u;
     let trace_k = system.trace();
     let tie = 1e-8 * trace_k / (3.0 * gram.trace());
+    // The held nodes tied to their (zero) displacement, 1e4 times as stiff per node as K is
+    // on average: the projection stays in the subspace's fields that hold the region, as the
+    // Galerkin solution does, instead of adding the rigid motion that fits the field best.
+    let held_rows: Vec<usize> = (0..n).filter(|&i| reference.held[i]).collect();
+    let held_b = DMatrix::from_fn(held_rows.len(), width, |i, k| b[(held_rows[i], k)]);
+    let held_gram = held_b.transpose() * &held_b;
+    let held_tie = if held_rows.is_empty() {
+        0.0
+    } else {
+        1e4 * trace_k / (3.0 * gram.trace())
+    };
     for r in 0..3 {
+        let held_u = DVector::from_iterator(
+            held_rows.len(),
+            held_rows.iter().map(|&i| reference.displacements[i][r]),
+        );
         let mut diagonal = system.view_mut((r * width, r * width), (width, width));
-        diagonal += &gram * tie;
+        diagonal += &gram * tie + &held_gram * held_tie;
         let mut part = rhs.rows_mut(r * width, width);
-        part += b.transpose() * u(r) * tie;
+        part += b.transpose() * u(r) * tie + held_b.transpose() * held_u * held_tie;
     }
     let system = (&system + system.transpose()) * 0.5;
     let solution = system

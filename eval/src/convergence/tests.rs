@@ -56,3 +56,24 @@ fn the_l2_projection_has_the_smallest_mse_in_the_subspace() {
     assert!(best > 0.0, "the FEM field is not in a 4-mode subspace");
     assert!(best <= other, "L2 {best:e} above energy {other:e}");
 }
+
+#[test]
+fn the_energy_projection_keeps_the_held_nodes_in_place() {
+    let basis = small_basis();
+    let reference = coarse_reference();
+    let (_, energy) = projections(&basis, &reference).unwrap();
+    let largest = reference
+        .displacements
+        .iter()
+        .map(|d| d.norm())
+        .fold(0.0, f64::max);
+    let held: Vec<usize> = (0..reference.nodes.len())
+        .filter(|&i| reference.held[i])
+        .collect();
+    assert!(!held.is_empty(), "the Bend holds a region");
+    let drift = held.iter().map(|&i| energy[i].norm()).fold(0.0, f64::max);
+    assert!(
+        drift <= 1e-2 * largest,
+        "held nodes moved {drift:e} against the field's largest {largest:e}"
+    );
+}
