@@ -60,7 +60,7 @@ pub(super) fn select_greedily(
         if error <= params.tolerance || support >= params.max_points || selected.len() >= pool {
             break;
         }
-        check_budget(weights.iter().filter(|&&w| w > 0.0).count())?;
+        check_budget(support)?;
         ranking.retire(&in_set);
         let correlations = ranking.correlations(&residual);
         let column_norms = ranking.norms();
@@ -84,8 +84,6 @@ pub(super) fn select_greedily(
         selected.extend_from_slice(&added);
         for &c in &added {
             in_set[c] = true;
-        }
-        for &c in &added {
             gram_factors.push(
                 candidates.gradient_block(c),
                 omega,
