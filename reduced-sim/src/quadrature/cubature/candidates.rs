@@ -37,26 +37,26 @@ impl CandidateForces {
         norms: &[f64],
         omega: &[f64],
     ) -> Self {
-        let map = model.deformation_map().subset(pool);
+        let map = model.deformation_map();
         let block_len = map.layout().block_len();
         let all_poses: Vec<f64> = poses.iter().flat_map(|p| p.iter().copied()).collect();
         let lame = model.lame_parameters();
         let stresses = pool
             .par_iter()
-            .enumerate()
-            .map(|(c, &i)| {
+            .map(|&i| {
                 stresses_at(
                     model.material(),
                     &lame[i],
-                    map.gradient_block(c),
+                    map.gradient_block(i),
                     &all_poses,
                     poses.len(),
                 )
             })
             .collect();
         CandidateForces {
-            gradients: (0..pool.len())
-                .flat_map(|c| map.gradient_block(c).iter().copied())
+            gradients: pool
+                .iter()
+                .flat_map(|&i| map.gradient_block(i).iter().copied())
                 .collect(),
             stresses,
             scale: norms
