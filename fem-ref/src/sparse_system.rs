@@ -48,6 +48,8 @@ pub(crate) struct SparseSystem {
     /// Free index of each DOF (3 per node), or `usize::MAX` when fixed.
     pub(crate) free_index: Vec<usize>,
     pub(crate) free_count: usize,
+    /// [`Self::factor_bytes`].
+    factor_bytes: u64,
     pattern: SparseColMat<usize, f64>,
     scatter: Vec<u32>,
     symbolic: SymbolicCholesky<usize>,
@@ -191,6 +193,7 @@ impl SparseSystem {
                 .map_err(|_| SystemSetupError::Faer(faer::sparse::FaerError::OutOfMemory))?,
         );
         Ok(SparseSystem {
+            factor_bytes: bytes,
             free_index,
             free_count,
             pattern,
@@ -259,6 +262,12 @@ impl SparseSystem {
     /// Number of stored entries of the Cholesky factor L.
     pub(crate) fn factor_nonzeros(&self) -> usize {
         self.symbolic.len_val()
+    }
+
+    /// Bytes the factors need: two factors (a carried or previous one and the fresh one) and
+    /// the factorization's workspace, what the memory limit is checked against.
+    pub(crate) fn factor_bytes(&self) -> u64 {
+        self.factor_bytes
     }
 
     /// Adds element e's local Hessian (row-major, `(3·npe)²`) into `values`.

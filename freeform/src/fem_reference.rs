@@ -77,6 +77,21 @@ pub struct FemRun {
     pub failed_step_halvings: usize,
 }
 
+/// What one FEM reference run needs, known before its numeric work ([`FemProblem::estimate`]).
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, Deserialize)]
+pub struct ReferenceEstimate {
+    /// Free degrees of freedom.
+    pub dofs: usize,
+    /// Stored entries of one Cholesky factor.
+    pub factor_nonzeros: usize,
+    /// Bytes the factors need: two factors and the factorization's workspace (the run's
+    /// largest allocation).
+    pub factor_bytes: u64,
+    /// Whether that fits in the memory available where the estimate was made (the smaller of
+    /// the machine's and its cgroup's).
+    pub fits_here: bool,
+}
+
 /// Everything one FEM reference run needs.
 pub struct FemProblem<'a> {
     /// The tetrahedral mesh (m).
@@ -119,6 +134,36 @@ impl FemProblem<'_> {
         let sim = FemSimulator::new(parts.model, parts.scene, parts.params)
             .map_err(FemReferenceError::Setup)?;
         Ok((sim, region_nodes))
+    }
+
+    /// What this problem's run needs, from the symbolic analysis alone (no numeric work): its
+    /// free DOFs and the memory of its Cholesky factors, and whether that fits in the memory
+    /// available here ([`fem_ref::FactorMemoryLimit::Available`]).
+    ///
+    /// # Errors
+    /// As [`Self::simulator`], except that factors too large for this machine give an estimate
+    /// with `fits_here: false`.
+    pub fn estimate(&self) -> Result<ReferenceEstimate, FemReferenceError> {
+        match self.simulator() {
+            Ok((sim, _)) => Ok(ReferenceEstimate {
+                dofs: sim.free_dofs(),
+                factor_nonzeros: sim.factor_nonzeros(),
+                factor_bytes: sim.factor_memory_bytes(),
+                fits_here: true,
+            }),
+            Err(FemReferenceError::Setup(fem_ref::FemSetupError::FactorTooLarge {
+                dofs,
+                factor_nonzeros,
+                bytes,
+                ..
+            })) => Ok(ReferenceEstimate {
+                dofs,
+                factor_nonzeros,
+                factor_bytes: bytes,
+                fits_here: false,
+            }),
+            Err(e) => Err(e),
+        }
     }
 
     /// What [`Self::simulator`] builds the simulator from.

@@ -6,18 +6,22 @@
 //! - [`config`]: what the study runs; [`result`]: what it measures;
 //! - [`study`]: the run over the shapes, `shape_run` one shape stage by stage,
 //!   `boundary_run` one condition's reduced runs;
-//! - [`stage`]: the stages a workflow engine runs as tasks, [`shard`]: their raw rows, the
-//!   plan and the merge;
+//! - [`stage`]: the stages a workflow engine runs as tasks, [`tasks`]: their plan and
+//!   receipts, [`shard`]: their raw rows, [`merge`]: shards into one study,
+//!   [`rendered_import`]: shards from tables rendered before shards existed;
 //! - [`tables`]: the rendering.
 
 pub mod boundary;
 pub(crate) mod boundary_run;
 pub mod catalog;
 pub mod config;
+pub mod merge;
 pub mod reference;
+pub mod rendered_import;
 pub mod result;
 pub(crate) mod shape_run;
 pub mod shard;
 pub mod stage;
 pub mod study;
 pub mod tables;
+pub mod tasks;

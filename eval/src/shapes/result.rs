@@ -14,7 +14,7 @@ use crate::shapes::catalog::{
 };
 use crate::shapes::config::ShapeStudyConfig;
 use crate::shapes::reference::FemMeshSummary;
-use freeform::fem_reference::FemRun;
+use freeform::fem_reference::{FemRun, ReferenceEstimate};
 
 /// A method's scores on one (shape, boundary condition).
 #[derive(Clone, Copy, Debug, PartialEq, Serialize, Deserialize)]
@@ -112,6 +112,13 @@ pub struct ShapeRow {
     /// [`crate::shapes::reference::ShapeFemParams::refine_pulled_slab_faces`]). `None`: the shape's mesh.
     #[serde(default)]
     pub fem_mesh: Option<FemMeshSummary>,
+    /// What the reference needs (DOFs, factor memory), when estimated
+    /// ([`crate::shapes::study::estimate_references`]; no run or score made).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub reference_estimate: Option<ReferenceEstimate>,
+    /// What the convergence check's finer reference needs, when estimated.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub check_estimate: Option<ReferenceEstimate>,
     /// Reduced integration points in each constrained region.
     pub region_points: Vec<usize>,
     /// Why something is missing.
@@ -133,6 +140,8 @@ impl ShapeRow {
             reference_check: None,
             reference_check_error: None,
             fem_mesh: None,
+            reference_estimate: None,
+            check_estimate: None,
             region_points: Vec::new(),
             error: None,
         }
@@ -246,6 +255,26 @@ impl ShapeStudy {
                     false
                 }
                 None => true,
+            })
+            .collect()
+    }
+}
+
+impl ShapeStudy {
+    /// The rows of shapes in `shapes` that no run attempted, as "name (Condition)" in table
+    /// order: none for a study one process ran (every shape it finished has a row for every
+    /// condition, or failed as a whole), the rows no shard held in one
+    /// [`crate::shapes::merge::merge_shards`] put together.
+    pub fn unfinished_rows(&self) -> Vec<String> {
+        self.shapes
+            .iter()
+            .filter(|s| s.error.is_none())
+            .flat_map(|s| {
+                self.config
+                    .boundaries
+                    .iter()
+                    .filter(|&&b| !s.rows.iter().any(|r| r.boundary == b))
+                    .map(|b| format!("{} ({})", s.name, b.title()))
             })
             .collect()
     }

@@ -24,7 +24,7 @@ use crate::shapes::boundary_run::BoundaryRun;
 use crate::shapes::config::ShapeStudyConfig;
 use crate::shapes::reference::{ConditionLattice, FemMeshSummary, mesh_for_fem, mesh_through};
 use crate::shapes::result::{FemRunSummary, MethodScores, ShapeResult, ShapeRow};
-use crate::shapes::stage::ShapeStage;
+use crate::shapes::stage::{ShapeStage, ShapeWork};
 use crate::simplicits_cache::train_cached_simplicits;
 use freeform::PinHold;
 use freeform::failure_chain;
@@ -34,12 +34,12 @@ use freeform::scene::SceneSpec;
 use freeform::terminal_progress::{BarProgress, TerminalProgress};
 
 /// The body of [`crate::shapes::study`]'s shape run, filling `result` as it goes so that what
-/// was measured before a failure stays; with a `stage`, only that stage of the shape's work
-/// ([`ShapeStage`]).
+/// was measured before a failure stays; `work` says whether that is everything, one stage of
+/// the shape's work ([`ShapeStage`]) or the references' estimates.
 pub(crate) fn run_shape_into(
     path: &Path,
     config: &ShapeStudyConfig,
-    stage: Option<ShapeStage>,
+    work: ShapeWork,
     progress: &TerminalProgress,
     result: &mut ShapeResult,
 ) -> Result<(), EvalError> {
@@ -49,7 +49,10 @@ pub(crate) fn run_shape_into(
     let lame = material.lame_parameters().map_err(EvalError::Material)?;
     let settings = &config.settings;
 
-    let fem_only = matches!(stage, Some(ShapeStage::Reference | ShapeStage::Check));
+    let fem_only = matches!(
+        work,
+        ShapeWork::Stage(ShapeStage::Reference | ShapeStage::Check) | ShapeWork::Estimate
+    );
     let basis = if fem_only {
         None
     } else {
@@ -57,7 +60,7 @@ pub(crate) fn run_shape_into(
         let basis_points = sample_on(&surface, settings.basis_points, "basis points")?;
         let lames = vec![lame; basis_points.len()];
         result.basis_points = basis_points.len();
-        if stage == Some(ShapeStage::Train) {
+        if work == ShapeWork::Stage(ShapeStage::Train) {
             baseline_network(config, &basis_points, &lames, material, progress, result)?;
             return Ok(());
         }
@@ -92,7 +95,7 @@ pub(crate) fn run_shape_into(
     let shape = ShapeInputs {
         config,
         progress,
-        stage,
+        work,
         name: &result.name,
         youngs_modulus: result.youngs_modulus,
         material,
@@ -165,8 +168,8 @@ fn baseline_network(
 struct ShapeInputs<'a> {
     config: &'a ShapeStudyConfig,
     progress: &'a TerminalProgress,
-    /// Only this stage, or everything.
-    stage: Option<ShapeStage>,
+    /// Everything, one stage, or the estimates.
+    work: ShapeWork,
     name: &'a str,
     youngs_modulus: f64,
     material: MaterialSample,
@@ -273,15 +276,28 @@ fn run_row(
         failed_step_halvings: config.fem.failed_step_halvings,
         steps: config.boundary.steps,
     };
-    match shape.stage {
-        Some(ShapeStage::Reference) => {
+    match shape.work {
+        ShapeWork::Estimate => {
+            match problem(tets).estimate() {
+                Ok(estimate) => row.reference_estimate = Some(estimate),
+                Err(e) => row.error = Some(failure_chain(&e)),
+            }
+            if let Some(finer) = finer {
+                match problem(finer).estimate() {
+                    Ok(estimate) => row.check_estimate = Some(estimate),
+                    Err(e) => row.reference_check_error = Some(failure_chain(&e)),
+                }
+            }
+            return row;
+        }
+        ShapeWork::Stage(ShapeStage::Reference) => {
             match reference_run(&problem(tets), &label, config, shape.progress) {
                 Ok(fem) => row.fem = Some(FemRunSummary::of(&fem, meshes.length)),
                 Err(e) => row.error = Some(failure_chain(&e)),
             }
             return row;
         }
-        Some(ShapeStage::Check) => {
+        ShapeWork::Stage(ShapeStage::Check) => {
             if let Some(finer) = finer {
                 let label = format!("{label} finer");
                 match reference_run(&problem(finer), &label, config, shape.progress) {

@@ -40,3 +40,15 @@ impl ShapeStage {
         }
     }
 }
+
+/// What a run does with each shape: everything, one stage, or only estimate the references.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub(crate) enum ShapeWork {
+    /// Every stage: a whole study.
+    Everything,
+    /// One stage.
+    Stage(ShapeStage),
+    /// Each reference's and check's DOFs and factor memory, from their meshes and symbolic
+    /// analyses; nothing trained, run or scored ([`crate::shapes::study::estimate_references`]).
+    Estimate,
+}

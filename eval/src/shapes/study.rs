@@ -20,7 +20,7 @@ use crate::shapes::catalog::MaterialClass;
 use crate::shapes::config::ShapeStudyConfig;
 use crate::shapes::result::{ShapeResult, ShapeStudy};
 use crate::shapes::shape_run::run_shape_into;
-use crate::shapes::stage::ShapeStage;
+use crate::shapes::stage::{ShapeStage, ShapeWork};
 use freeform::failure_chain;
 use freeform::terminal_progress::TerminalProgress;
 
@@ -84,7 +84,22 @@ pub fn run_shape_study(
     progress: &TerminalProgress,
     on_shape: impl Fn(&ShapeResult, &ShapeStudy) + Sync,
 ) -> Result<ShapeStudy, EvalError> {
-    run_shapes(config, None, progress, on_shape)
+    run_shapes(config, ShapeWork::Everything, progress, on_shape)
+}
+
+/// The FEM references of every shape and condition of `config`, and their convergence checks
+/// when the study makes them, estimated: each one's mesh is built and its system analysed
+/// symbolically (DOFs, factor nonzeros and bytes in each row's `reference_estimate` and
+/// `check_estimate`, [`crate::shapes::result::ShapeRow`]), nothing trained, run or scored. Seconds to minutes a shape:
+/// the meshing and the fill-reducing ordering of the finest references take the longest.
+///
+/// # Errors
+/// As [`run_shape_study`].
+pub fn estimate_references(
+    config: &ShapeStudyConfig,
+    progress: &TerminalProgress,
+) -> Result<ShapeStudy, EvalError> {
+    run_shapes(config, ShapeWork::Estimate, progress, |_, _| {})
 }
 
 /// One stage of every shape of `config` ([`ShapeStage`]): for a workflow engine that runs the
@@ -103,13 +118,13 @@ pub fn run_shape_stage(
         cached_only: config.cached_only || stage == ShapeStage::Row,
         ..config.clone()
     };
-    run_shapes(&config, Some(stage), progress, |_, _| {})
+    run_shapes(&config, ShapeWork::Stage(stage), progress, |_, _| {})
 }
 
-/// [`run_shape_study`], or one stage of it.
+/// [`run_shape_study`], one stage of it, or its estimates.
 fn run_shapes(
     config: &ShapeStudyConfig,
-    stage: Option<ShapeStage>,
+    work: ShapeWork,
     progress: &TerminalProgress,
     on_shape: impl Fn(&ShapeResult, &ShapeStudy) + Sync,
 ) -> Result<ShapeStudy, EvalError> {
@@ -138,7 +153,7 @@ fn run_shapes(
                     let Some(path) = config.meshes.get(i) else {
                         break;
                     };
-                    let result = run_shape(path, config, stage, progress);
+                    let result = run_shape(path, config, work, progress);
                     // Held through `on_shape`: one call at a time, each seeing its own shape.
                     let mut slots = results.lock().unwrap_or_else(PoisonError::into_inner);
                     let so_far = ShapeStudy {
@@ -183,7 +198,7 @@ fn run_shapes(
 fn run_shape(
     path: &Path,
     config: &ShapeStudyConfig,
-    stage: Option<ShapeStage>,
+    work: ShapeWork,
     progress: &TerminalProgress,
 ) -> ShapeResult {
     let mut result = ShapeResult::new(path, config);
@@ -194,7 +209,7 @@ fn run_shape(
         result.youngs_modulus,
         result.class.map_or("not catalogued", MaterialClass::name)
     ));
-    if let Err(e) = run_shape_into(path, config, stage, progress, &mut result) {
+    if let Err(e) = run_shape_into(path, config, work, progress, &mut result) {
         result.error = Some(failure_chain(&e));
     }
     progress.status(format!(

@@ -248,6 +248,14 @@ impl<M: HyperelasticMaterial> FemSimulator<M> {
         self.system.factor_nonzeros()
     }
 
+    /// Bytes its factors need, known from the symbolic analysis before any numeric work: two
+    /// factors of [`Self::factor_nonzeros`] `f64` entries (a carried or previous one and the
+    /// fresh one) and the factorization's workspace; what [`FemParams::factor_memory`] is
+    /// checked against.
+    pub fn factor_memory_bytes(&self) -> u64 {
+        self.system.factor_bytes()
+    }
+
     /// Sets Dirichlet nodes to their targets at `t`.
     fn apply_targets(&self, x: &mut [f64], t: f64) {
         let rest = self.model.mesh().nodes();

@@ -97,11 +97,10 @@ enum Command {
         #[command(flatten)]
         preset: PresetArgs,
     },
-    /// List the committed presets, or print one (with any `--set` applied) as TOML: a starting
-    /// point for a `--config` file of your own.
-    /// Tables 2 and 7 from shards (`table 2 7 … --shard-out FILE`, any number, any order):
-    /// refuses shards of different settings or one shape with two different results, and
-    /// heads the tables **Partial** with the missing shapes named.
+    /// Tables 2 and 7 from shards (`table 2 7 … --shard-out FILE`, any number, any order),
+    /// row by row: refuses shards of different settings or one row with two different results,
+    /// and heads the tables **Partial** with the missing shapes and rows named. The shard
+    /// holding the most rows heads the merge (its settings head the tables).
     Merge {
         /// Shard files.
         #[arg(required = true, num_args = 1..)]
@@ -110,6 +109,19 @@ enum Command {
         #[arg(long)]
         json: bool,
     },
+    /// Shards from Tables 2 rendered before shards existed (`table2.json`, the whole-table
+    /// run first): a row a later table scored replaces an earlier table's copy; one shard per
+    /// table with rows left, named after the table's folder, written to --shard-dir.
+    ImportTables {
+        /// Rendered `table2.json` files.
+        #[arg(required = true, num_args = 1..)]
+        tables: Vec<PathBuf>,
+        /// Where the shards go.
+        #[arg(long, value_name = "DIR")]
+        shard_dir: PathBuf,
+    },
+    /// List the committed presets, or print one (with any `--set` applied) as TOML: a starting
+    /// point for a `--config` file of your own.
     Presets {
         /// The preset to print.
         name: Option<String>,
@@ -147,6 +159,7 @@ fn run(cli: Cli) -> Result<()> {
         }
         Command::Bench { preset } => bench::run(&preset, &cache, &cli.out, &progress),
         Command::Merge { shards, json } => merge::run(&shards, json, &cli.out),
+        Command::ImportTables { tables, shard_dir } => merge::import_tables(&tables, &shard_dir),
         Command::Presets { name, set } => presets::run(name.as_deref(), &set),
     }
 }

@@ -7,9 +7,10 @@ use anyhow::{Context, Result, bail};
 use eval::shapes::boundary::ShapeBoundary;
 use eval::shapes::config::ShapeStudyConfig;
 use eval::shapes::result::{ShapeStudy, mesh_name};
-use eval::shapes::shard::{Provenance, Receipt, Shard, TaskPlan, settings_key, shard_meshes};
+use eval::shapes::shard::{Provenance, Shard, settings_key, shard_meshes};
 use eval::shapes::stage::ShapeStage;
-use eval::shapes::study::run_shape_stage;
+use eval::shapes::study::{estimate_references, run_shape_stage};
+use eval::shapes::tasks::{Receipt, TaskPlan};
 use freeform::terminal_progress::TerminalProgress;
 
 /// The workflow options of `table 2 7`.
@@ -20,6 +21,11 @@ pub(crate) struct TaskOptions {
     /// the settings key) and run nothing.
     #[arg(long)]
     pub(crate) plan: bool,
+    /// With --plan: add each reference's and check's DOFs and factor memory (its mesh built and
+    /// its system analysed, nothing run: seconds to minutes a shape), the largest of them, and
+    /// the tasks that would not fit in this machine's available memory.
+    #[arg(long, requires = "plan")]
+    estimate: bool,
     /// Run one stage of the shapes' work: `train` (the baseline's network), `reference` (the
     /// FEM references), `check` (their finer references), or `row` (score from the cache alone
     /// and write a shard; needs --shard-out). Every stage but `row` only fills the cache.
@@ -84,7 +90,11 @@ impl TaskOptions {
         progress: &TerminalProgress,
     ) -> Result<()> {
         if self.plan {
-            println!("{}", serde_json::to_string_pretty(&TaskPlan::new(config))?);
+            let mut plan = TaskPlan::new(config);
+            if self.estimate {
+                plan = plan.with_estimates(&estimate_references(config, progress)?);
+            }
+            println!("{}", serde_json::to_string_pretty(&plan)?);
             return Ok(());
         }
         let Some(stage) = self.stage else {

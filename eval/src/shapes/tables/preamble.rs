@@ -30,6 +30,7 @@ fn run_lines(study: &ShapeStudy) -> String {
     let c = &study.config;
     let s = &c.settings;
     let unfinished = study.unfinished();
+    let unfinished_rows = study.unfinished_rows();
     let mut out = if unfinished.is_empty() {
         String::new()
     } else {
@@ -41,6 +42,12 @@ fn run_lines(study: &ShapeStudy) -> String {
             unfinished.join(", ")
         )
     };
+    if !unfinished_rows.is_empty() {
+        out += &format!(
+            "**Partial:** rows not yet: {}. Averages and counts cover the finished rows only.\n\n",
+            unfinished_rows.join(", ")
+        );
+    }
     if c.cached_only {
         out += "**Cached only:** nothing was computed for this table; a row whose FEM reference or \
                 convergence check the cache does not hold says so and is not scored.\n\n";

@@ -39,6 +39,7 @@ pub fn table2(study: &ShapeStudy) -> RenderedTable {
         json: json!({
             "table": 2,
             "unfinished": study.unfinished(),
+            "unfinished_rows": study.unfinished_rows(),
             "shapes": rows,
             "averages": averages,
             "training_seconds": training_seconds,

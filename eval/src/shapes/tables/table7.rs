@@ -84,6 +84,7 @@ pub fn table7(study: &ShapeStudy) -> RenderedTable {
         json: json!({
             "table": 7,
             "unfinished": study.unfinished(),
+            "unfinished_rows": study.unfinished_rows(),
             "shapes": rows,
             "averages": averages,
             "wall_seconds": study.seconds,
