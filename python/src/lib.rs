@@ -2,11 +2,16 @@
 //! pure-Python package `freeform` (`python/freeform/__init__.py`).
 //!
 //! Conventions at the boundary: SI units, float64, points as `(n, 3)` arrays. Long calls
-//! (a basis, a simulation) release the GIL. Errors become `ValueError` (bad input, a failed
-//! algorithm) or `OSError` (a file that cannot be read or written), with the whole chain of
-//! causes in the message.
+//! (a basis, a simulation) release the GIL. Errors are `FreeFormError` subclasses
+//! (`errors`), `FileNotFoundError` for a missing file, `ValueError` for an argument of the
+//! wrong shape, with the whole chain of causes in the message.
+
+mod arrays;
+mod errors;
 
 use std::path::PathBuf;
+
+use arrays::{Points, matrix_array, points_array, points_of};
 
 use freeform::reduced_sim::{DeformationMap, PinTarget, PinnedRegion, ReducedState, Simulator};
 use freeform::{
@@ -15,10 +20,10 @@ use freeform::{
     prepare_simulator, simulate_objects, simulate_scene_file as run_scene_file,
 };
 use hyperelastic::{LameParameters, MaterialField, MaterialSample, StableNeoHookean};
-use nalgebra::{DMatrix, Matrix3, Vector3};
+use nalgebra::{Matrix3, Vector3};
 use numpy::ndarray::{Array1, Array2, Array3};
-use numpy::{IntoPyArray, PyArray1, PyArray2, PyArray3, PyReadonlyArray2};
-use pyo3::exceptions::{PyOSError, PyValueError};
+use numpy::{IntoPyArray, PyArray1, PyArray2, PyArray3};
+use pyo3::exceptions::{PyFileNotFoundError, PyOSError, PyValueError};
 use pyo3::prelude::*;
 use rkpm_core::{IntegrationPoints, PointCloud};
 use skin_eigen::{
@@ -28,11 +33,6 @@ use skin_eigen::{
 /// `ValueError` with `error`'s chain of causes.
 fn value_error(error: &dyn std::error::Error) -> PyErr {
     PyValueError::new_err(failure_chain(error))
-}
-
-/// `OSError` with `error`'s chain of causes.
-fn os_error(error: &dyn std::error::Error) -> PyErr {
-    PyOSError::new_err(failure_chain(error))
 }
 
 /// Runs `work` on a rayon pool of `threads` threads (all cores when `None`).
@@ -90,38 +90,6 @@ impl Progress for PythonProgress {
     }
 }
 
-/// Points of an `(n, 3)` float64 array, refused unless every coordinate is finite.
-fn points_of(array: &PyReadonlyArray2<'_, f64>, what: &str) -> PyResult<Vec<Vector3<f64>>> {
-    let view = array.as_array();
-    if view.ncols() != 3 {
-        return Err(PyValueError::new_err(format!(
-            "{what} must have shape (n, 3), got {:?}",
-            view.shape()
-        )));
-    }
-    let points: Vec<Vector3<f64>> = view
-        .rows()
-        .into_iter()
-        .map(|r| Vector3::new(r[0], r[1], r[2]))
-        .collect();
-    if let Some(i) = points.iter().position(|p| !p.iter().all(|c| c.is_finite())) {
-        return Err(PyValueError::new_err(format!(
-            "{what}: point {i} has a coordinate that is not finite"
-        )));
-    }
-    Ok(points)
-}
-
-/// An `(n, 3)` array of points.
-fn points_array<'py>(py: Python<'py>, points: &[Vector3<f64>]) -> Bound<'py, PyArray2<f64>> {
-    Array2::from_shape_fn((points.len(), 3), |(i, k)| points[i][k]).into_pyarray(py)
-}
-
-/// An `n × c` matrix as an `(n, c)` array.
-fn matrix_array<'py>(py: Python<'py>, m: &DMatrix<f64>) -> Bound<'py, PyArray2<f64>> {
-    Array2::from_shape_fn((m.nrows(), m.ncols()), |(i, j)| m[(i, j)]).into_pyarray(py)
-}
-
 /// A shape: a closed triangle surface or a point cloud (m).
 #[pyclass(module = "freeform._native", name = "Geometry", frozen)]
 struct PyGeometry {
@@ -136,7 +104,7 @@ impl PyGeometry {
     fn read(path: PathBuf) -> PyResult<Self> {
         Geometry::read(&path)
             .map(|inner| PyGeometry { inner })
-            .map_err(|e| value_error(&e))
+            .map_err(|e| errors::geometry_error(&e))
     }
 
     /// The axis-aligned box from corner `lo` to corner `hi` (m).
@@ -155,7 +123,7 @@ impl PyGeometry {
 
     /// A point cloud from an `(n, 3)` array of points (m).
     #[staticmethod]
-    fn from_points(points: PyReadonlyArray2<'_, f64>) -> PyResult<Self> {
+    fn from_points(points: Points<'_>) -> PyResult<Self> {
         let points = points_of(&points, "points")?;
         if points.is_empty() {
             return Err(PyValueError::new_err(
@@ -173,7 +141,7 @@ impl PyGeometry {
         let geometry = &self.inner;
         py.detach(|| geometry.integration_points(n))
             .map(|inner| PyIntegrationPoints { inner })
-            .map_err(|e| value_error(&e))
+            .map_err(|e| errors::geometry_error(&e))
     }
 
     /// `(n, 3)` points that show the shape: the surface's vertices or the cloud's points (m).
@@ -222,7 +190,7 @@ impl PyFrameWriter {
     fn write(
         &self,
         index: usize,
-        positions: PyReadonlyArray2<'_, f64>,
+        positions: Points<'_>,
         time: f64,
     ) -> PyResult<(PathBuf, PathBuf)> {
         let positions = points_of(&positions, "positions")?;
@@ -236,7 +204,7 @@ impl PyFrameWriter {
         let [ply, vtk] = self
             .inner
             .write(index, &positions, time)
-            .map_err(|e| os_error(&e))?;
+            .map_err(|e| errors::raise::<PyOSError>(&e))?;
         Ok((ply, vtk))
     }
 }
@@ -251,11 +219,11 @@ struct PyIntegrationPoints {
 impl PyIntegrationPoints {
     /// Integration points from an `(n, 3)` array of positions (m) and `n` volumes (m³).
     #[new]
-    fn new(positions: PyReadonlyArray2<'_, f64>, volumes: Vec<f64>) -> PyResult<Self> {
+    fn new(positions: Points<'_>, volumes: Vec<f64>) -> PyResult<Self> {
         let positions = points_of(&positions, "positions")?;
         IntegrationPoints::new(positions, volumes)
             .map(|inner| PyIntegrationPoints { inner })
-            .map_err(|e| value_error(&e))
+            .map_err(|e| errors::raise::<errors::GeometryError>(&e))
     }
 
     /// `(n, 3)` positions (m).
@@ -299,7 +267,9 @@ impl PyMaterial {
             poisson_ratio,
             density,
         };
-        inner.lame_parameters().map_err(|e| value_error(&e))?;
+        inner
+            .lame_parameters()
+            .map_err(|e| errors::raise::<errors::SceneError>(&e))?;
         if !(density.is_finite() && density > 0.0) {
             return Err(PyValueError::new_err(format!(
                 "the density must be finite and positive, got {density} kg/m³"
@@ -343,15 +313,11 @@ struct PyBasis {
 
 impl PyBasis {
     /// W and ∇W at `points`, evaluated without the GIL.
-    fn evaluate(
-        &self,
-        py: Python<'_>,
-        points: &PyReadonlyArray2<'_, f64>,
-    ) -> PyResult<SkinningWeights> {
+    fn evaluate(&self, py: Python<'_>, points: &Points<'_>) -> PyResult<SkinningWeights> {
         let points = points_of(points, "points")?;
         let basis = &self.inner;
         py.detach(|| basis.evaluate(&points))
-            .map_err(|e| value_error(&e))
+            .map_err(|e| errors::raise::<errors::BasisError>(&e))
     }
 }
 
@@ -379,7 +345,7 @@ impl PyBasis {
     fn weights<'py>(
         &self,
         py: Python<'py>,
-        points: PyReadonlyArray2<'py, f64>,
+        points: Points<'py>,
     ) -> PyResult<Bound<'py, PyArray2<f64>>> {
         let evaluated = self.evaluate(py, &points)?;
         Ok(matrix_array(py, &evaluated.weights))
@@ -389,7 +355,7 @@ impl PyBasis {
     fn weight_gradients<'py>(
         &self,
         py: Python<'py>,
-        points: PyReadonlyArray2<'py, f64>,
+        points: Points<'py>,
     ) -> PyResult<Bound<'py, PyArray3<f64>>> {
         let evaluated = self.evaluate(py, &points)?;
         let g = &evaluated.gradients;
@@ -399,15 +365,23 @@ impl PyBasis {
 
     /// Writes the basis to `path` (the library's versioned binary format).
     fn save(&self, path: PathBuf) -> PyResult<()> {
-        self.inner.save(&path).map_err(|e| os_error(&e))
+        self.inner
+            .save(&path)
+            .map_err(|e| errors::raise::<PyOSError>(&e))
     }
 
     /// Reads a basis written by `save`.
     #[staticmethod]
     fn load(path: PathBuf) -> PyResult<Self> {
+        if !path.is_file() {
+            return Err(PyFileNotFoundError::new_err(format!(
+                "{}: no such file",
+                path.display()
+            )));
+        }
         SkinningBasis::load(&path)
             .map(|inner| PyBasis { inner })
-            .map_err(|e| os_error(&e))
+            .map_err(|e| errors::raise::<errors::FileFormatError>(&e))
     }
 
     fn __repr__(&self) -> String {
@@ -435,7 +409,7 @@ fn build_basis(
     let lame = material
         .inner
         .lame_parameters()
-        .map_err(|e| value_error(&e))?;
+        .map_err(|e| errors::raise::<errors::SceneError>(&e))?;
     let lame = vec![lame; points.inner.len()];
     let params = BasisParams::default()
         .with_modes(modes)
@@ -443,7 +417,7 @@ fn build_basis(
     let points = &points.inner;
     py.detach(|| with_threads(threads, || build_skinning_basis(points, &lame, &params)))?
         .map(|(inner, _, _)| PyBasis { inner })
-        .map_err(|e| value_error(&e))
+        .map_err(|e| errors::raise::<errors::BasisError>(&e))
 }
 
 /// Runs a scene file (TOML or JSON, one object or several) and writes its frames and
@@ -472,14 +446,14 @@ fn simulate_scene_file(
     let summary = py.detach(|| {
         with_threads(threads, || -> PyResult<String> {
             let json = if ObjectsFile::describes(&path) {
-                let file = ObjectsFile::load(&path).map_err(|e| value_error(&e))?;
+                let file = ObjectsFile::load(&path).map_err(|e| errors::scene_file_error(&e))?;
                 let report = simulate_objects(&file, &out_dir, cache, progress)
-                    .map_err(|e| value_error(&e))?;
+                    .map_err(|e| errors::simulate_error(&e))?;
                 serde_json::to_string(&report)
             } else {
-                let file = SceneFile::load(&path).map_err(|e| value_error(&e))?;
+                let file = SceneFile::load(&path).map_err(|e| errors::scene_file_error(&e))?;
                 let report = run_scene_file(&file, &out_dir, cache, progress)
-                    .map_err(|e| value_error(&e))?;
+                    .map_err(|e| errors::simulate_error(&e))?;
                 serde_json::to_string(&report)
             };
             json.map_err(|e| value_error(&e))
@@ -502,12 +476,12 @@ impl PySplats {
     fn read(path: PathBuf) -> PyResult<Self> {
         SplatTable::read(&path)
             .map(|inner| PySplats { inner })
-            .map_err(|e| value_error(&e))
+            .map_err(|e| errors::splat_error(&e))
     }
 
     /// Writes the table (atomically).
     fn write(&self, path: PathBuf) -> PyResult<()> {
-        self.inner.write(&path).map_err(|e| os_error(&e))
+        self.inner.write(&path).map_err(|e| errors::splat_error(&e))
     }
 
     /// Splat centres `(n, 3)` (file units, m for a simulated scene).
@@ -569,6 +543,8 @@ struct PySimulation {
     /// The material's Lamé parameters, for the stress.
     lame: LameParameters,
     quadrature: String,
+    /// Steps taken since it was built (the `StepError.step` of the next failure is one more).
+    steps_taken: usize,
 }
 
 #[pymethods]
@@ -594,15 +570,17 @@ impl PySimulation {
         pinned: Vec<Vec<usize>>,
     ) -> PyResult<Self> {
         let scene: SceneSpec = serde_json::from_str(scene)
-            .map_err(|e| PyValueError::new_err(format!("scene: {e}")))?;
-        scene.validate().map_err(|e| value_error(&e))?;
+            .map_err(|e| errors::SceneError::new_err(format!("scene: {e}")))?;
+        scene
+            .validate()
+            .map_err(|e| errors::raise::<errors::SceneError>(&e))?;
         let spec: SimulationSpec = serde_json::from_str(simulation)
-            .map_err(|e| PyValueError::new_err(format!("simulation: {e}")))?;
+            .map_err(|e| errors::SceneError::new_err(format!("simulation: {e}")))?;
         if let Some((field, problem)) = spec.defect() {
-            return Err(PyValueError::new_err(format!("{field}: {problem}")));
+            return Err(errors::SceneError::new_err(format!("{field}: {problem}")));
         }
         if spec.pins != PinHold::Penalty || spec.pressure.is_some() {
-            return Err(PyValueError::new_err(
+            return Err(errors::SceneError::new_err(
                 "simulation.pins other than \"penalty\" and simulation.pressure need a basis \
                  built for them: use simulate_scene_file",
             ));
@@ -610,7 +588,7 @@ impl PySimulation {
         let lame = material
             .inner
             .lame_parameters()
-            .map_err(|e| value_error(&e))?;
+            .map_err(|e| errors::raise::<errors::SceneError>(&e))?;
         let field = MaterialField::Uniform(material.inner);
         let simulation = Simulation::new(
             &basis.inner,
@@ -638,13 +616,14 @@ impl PySimulation {
             .collect();
         let (simulator, quadrature) = py
             .detach(|| prepare_simulator(&simulation, spec.steps, &pins))
-            .map_err(|e| value_error(&e))?;
+            .map_err(|e| errors::raise::<errors::SceneError>(&e))?;
         let quadrature = serde_json::to_string(&quadrature).map_err(|e| value_error(&e))?;
         Ok(PySimulation {
             simulator,
             basis: basis.inner.clone(),
             lame,
             quadrature,
+            steps_taken: 0,
         })
     }
 
@@ -654,7 +633,8 @@ impl PySimulation {
         let simulator = &mut self.simulator;
         let report = py
             .detach(|| simulator.step())
-            .map_err(|e| value_error(&e))?;
+            .map_err(|e| errors::step_error(Some(self.steps_taken + 1), &e))?;
+        self.steps_taken += 1;
         let json = serde_json::json!({
             "converged": report.converged(),
             "iterations": report.iterations,
@@ -709,19 +689,24 @@ impl PySimulation {
     }
 
     /// Deformed positions `(n, 3)` (m) of rest `points` (`(n, 3)`, m; the integration points
-    /// when omitted).
-    #[pyo3(signature = (points = None))]
+    /// when omitted), written into `out` (a C-contiguous `(n, 3)` float64 array) and `out`
+    /// returned when given.
+    #[pyo3(signature = (points = None, out = None))]
     fn deformed_points<'py>(
         &self,
         py: Python<'py>,
-        points: Option<PyReadonlyArray2<'py, f64>>,
+        points: Option<Points<'py>>,
+        out: Option<Bound<'py, PyArray2<f64>>>,
     ) -> PyResult<Bound<'py, PyArray2<f64>>> {
         let z = &self.simulator.state().z;
         let deformed = match self.map_at(py, points)? {
             None => self.simulator.model().deformation_map().positions(z),
             Some(map) => map.positions(z),
         };
-        Ok(points_array(py, &deformed))
+        match out {
+            Some(out) => arrays::write_points_into(out, &deformed),
+            None => Ok(points_array(py, &deformed)),
+        }
     }
 
     /// Deformation gradients F = ∂x/∂X `(n, 3, 3)` (row i, column j: ∂x_i/∂X_j) at rest
@@ -730,7 +715,7 @@ impl PySimulation {
     fn deformation_gradients<'py>(
         &self,
         py: Python<'py>,
-        points: Option<PyReadonlyArray2<'py, f64>>,
+        points: Option<Points<'py>>,
     ) -> PyResult<Bound<'py, PyArray3<f64>>> {
         let f = self.gradients_at(py, points)?;
         Ok(Array3::from_shape_fn((f.len(), 3, 3), |(i, r, c)| f[i][(r, c)]).into_pyarray(py))
@@ -748,7 +733,7 @@ impl PySimulation {
                 let map = DeformationMap::new(basis, &table.positions())?;
                 Ok(table.deformed(&map.positions(z), &map.deformation_gradients(z))?)
             })
-            .map_err(|e| value_error(e.as_ref()))?;
+            .map_err(|e| errors::raise::<errors::BasisError>(e.as_ref()))?;
         Ok((PySplats { inner: deformed }, inverted))
     }
 
@@ -760,7 +745,7 @@ impl PySimulation {
     fn stress<'py>(
         &self,
         py: Python<'py>,
-        points: Option<PyReadonlyArray2<'py, f64>>,
+        points: Option<Points<'py>>,
     ) -> PyResult<(
         Bound<'py, PyArray3<f64>>,
         Bound<'py, PyArray2<f64>>,
@@ -789,7 +774,7 @@ impl PySimulation {
     fn map_at(
         &self,
         py: Python<'_>,
-        points: Option<PyReadonlyArray2<'_, f64>>,
+        points: Option<Points<'_>>,
     ) -> PyResult<Option<DeformationMap>> {
         let Some(points) = points else {
             return Ok(None);
@@ -798,14 +783,14 @@ impl PySimulation {
         let basis = &self.basis;
         py.detach(|| DeformationMap::new(basis, &points))
             .map(Some)
-            .map_err(|e| value_error(&e))
+            .map_err(|e| errors::raise::<errors::BasisError>(&e))
     }
 
     /// F at `points` (the integration points when `None`).
     fn gradients_at(
         &self,
         py: Python<'_>,
-        points: Option<PyReadonlyArray2<'_, f64>>,
+        points: Option<Points<'_>>,
     ) -> PyResult<Vec<Matrix3<f64>>> {
         let z = &self.simulator.state().z;
         Ok(match self.map_at(py, points)? {
@@ -826,7 +811,7 @@ impl PySimulation {
 #[pyo3(signature = (points, values = None, opacity = None, up = [0.0, 1.0, 0.0], width = 512, height = 512))]
 fn render_preview<'py>(
     py: Python<'py>,
-    points: PyReadonlyArray2<'py, f64>,
+    points: Points<'py>,
     values: Option<Vec<f64>>,
     opacity: Option<Vec<f64>>,
     up: [f64; 3],
@@ -863,5 +848,6 @@ fn _native(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add_function(wrap_pyfunction!(build_basis, m)?)?;
     m.add_function(wrap_pyfunction!(simulate_scene_file, m)?)?;
     m.add_function(wrap_pyfunction!(render_preview, m)?)?;
+    errors::register(m)?;
     Ok(())
 }

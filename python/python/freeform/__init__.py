@@ -21,24 +21,36 @@ import numpy as np
 from . import _native
 from ._native import (
     Basis,
+    BasisError,
+    FileFormatError,
     FrameWriter,
+    FreeFormError,
     Geometry,
     IntegrationPoints,
     Material,
+    SceneError,
     Splats,
+    StepError,
     build_basis,
     render_preview,
 )
+from ._native import GeometryError
 from ._native import simulate_scene_file as _simulate_scene_file
 
 __all__ = [
     "Basis",
+    "BasisError",
+    "FileFormatError",
     "FrameWriter",
+    "FreeFormError",
     "Geometry",
+    "GeometryError",
     "IntegrationPoints",
     "Material",
+    "SceneError",
     "Simulation",
     "Splats",
+    "StepError",
     "build_basis",
     "render_preview",
     "simulate_scene_file",
@@ -165,30 +177,24 @@ class Simulation:
         """The elastic quadrature used (``kind``, ``points``, ``cubature``, ``choice``)."""
         return json.loads(self._native.quadrature)
 
-    def deformed_points(self, points: Optional[np.ndarray] = None) -> np.ndarray:
+    def deformed_points(
+        self, points: Optional[np.ndarray] = None, out: Optional[np.ndarray] = None
+    ) -> np.ndarray:
         """Deformed positions ``(n, 3)`` (m) of rest ``points`` ``(n, 3)`` (m; the integration
-        points when omitted)."""
-        if points is None:
-            return self._native.deformed_points()
-        return self._native.deformed_points(np.ascontiguousarray(points, dtype=np.float64))
+        points when omitted). With ``out`` (a C-contiguous ``(n, 3)`` float64 array) the
+        positions are written there and ``out`` is returned: nothing is allocated in numpy."""
+        return self._native.deformed_points(points, out)
 
     def deformation_gradients(self, points: Optional[np.ndarray] = None) -> np.ndarray:
         """Deformation gradients F ``(n, 3, 3)``, ``F[i, r, c] = ∂x_r/∂X_c`` at point i, at rest
         ``points`` ``(n, 3)`` (m; the integration points when omitted)."""
-        if points is None:
-            return self._native.deformation_gradients()
-        return self._native.deformation_gradients(np.ascontiguousarray(points, dtype=np.float64))
+        return self._native.deformation_gradients(points)
 
     def stress(self, points: Optional[np.ndarray] = None) -> dict[str, Any]:
         """The stress at rest ``points`` (the integration points when omitted): ``cauchy``
         ``(n, 3, 3)``, ``principal`` ``(n, 3)`` (σ₁ ≥ σ₂ ≥ σ₃) and ``von_mises`` ``(n,)`` in Pa,
         and ``inverted``, the indices of points with det F ≤ 0 (their stress is 0)."""
-        if points is None:
-            cauchy, principal, von_mises, inverted = self._native.stress()
-        else:
-            cauchy, principal, von_mises, inverted = self._native.stress(
-                np.ascontiguousarray(points, dtype=np.float64)
-            )
+        cauchy, principal, von_mises, inverted = self._native.stress(points)
         return {
             "cauchy": cauchy,
             "principal": principal,

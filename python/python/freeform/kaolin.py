@@ -12,7 +12,8 @@ Kaolin's conventions hold at this boundary:
   floor is ``floor_height`` along ``floor_axis`` (above it, or below it with ``flip_floor``).
 - ``init_tfm`` is the 3 × 4 offset added to the rigid handle's transform.
 
-What differs: arrays are numpy float64 (torch tensors are accepted and converted), there is no
+What differs: arrays are numpy float64 (CPU torch tensors are accepted and converted, CUDA
+tensors refused with a clear error), there is no
 device, and the penalties are FreeForm's, which scale with the material
 (``docs/scene-files.md``), so ``floor_penalty`` and ``bdry_penalty`` are accepted and not used.
 ``num_cub_pts`` draws that many points at random for the elastic energy, as Kaolin does; leave
@@ -30,9 +31,17 @@ __all__ = ["SimplicitsObject", "SimplicitsScene"]
 
 
 def _array(values, shape=None) -> np.ndarray:
-    """``values`` (numpy, torch or a sequence) as a float64 numpy array."""
+    """``values`` (numpy, a CPU torch tensor or a sequence) as a float64 numpy array; a tensor
+    on another device is refused (moving it is the caller's choice)."""
     if hasattr(values, "detach"):
-        values = values.detach().cpu().numpy()
+        device = getattr(values, "device", None)
+        kind = getattr(device, "type", "cpu")
+        if kind != "cpu":
+            raise ValueError(
+                f"a torch tensor on {device} was given: FreeForm runs on the CPU, so pass "
+                "tensor.cpu() (or a numpy array)"
+            )
+        values = values.detach().numpy()
     array = np.asarray(values, dtype=np.float64)
     return array if shape is None else array.reshape(shape)
 
