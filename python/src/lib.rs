@@ -8,6 +8,7 @@
 
 mod arrays;
 mod errors;
+mod scene;
 
 use std::path::PathBuf;
 
@@ -92,8 +93,8 @@ impl Progress for PythonProgress {
 
 /// A shape: a closed triangle surface or a point cloud (m).
 #[pyclass(module = "freeform._native", name = "Geometry", frozen)]
-struct PyGeometry {
-    inner: Geometry,
+pub(crate) struct PyGeometry {
+    pub(crate) inner: Geometry,
 }
 
 #[pymethods]
@@ -211,8 +212,8 @@ impl PyFrameWriter {
 
 /// Integration points x_i (m) with their volumes v_i (m³).
 #[pyclass(module = "freeform._native", name = "IntegrationPoints", frozen)]
-struct PyIntegrationPoints {
-    inner: IntegrationPoints,
+pub(crate) struct PyIntegrationPoints {
+    pub(crate) inner: IntegrationPoints,
 }
 
 #[pymethods]
@@ -253,8 +254,8 @@ impl PyIntegrationPoints {
 
 /// A homogeneous material: Young's modulus E (Pa), Poisson ratio ν, density ρ (kg/m³).
 #[pyclass(module = "freeform._native", name = "Material", frozen)]
-struct PyMaterial {
-    inner: MaterialSample,
+pub(crate) struct PyMaterial {
+    pub(crate) inner: MaterialSample,
 }
 
 #[pymethods]
@@ -307,8 +308,8 @@ impl PyMaterial {
 /// A skinning basis: m eigenmode weights plus the constant handle, evaluated anywhere in the
 /// shape.
 #[pyclass(module = "freeform._native", name = "Basis", frozen)]
-struct PyBasis {
-    inner: SkinningBasis,
+pub(crate) struct PyBasis {
+    pub(crate) inner: SkinningBasis,
 }
 
 impl PyBasis {
@@ -843,6 +844,7 @@ fn _native(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add_class::<PyMaterial>()?;
     m.add_class::<PyBasis>()?;
     m.add_class::<PySimulation>()?;
+    m.add_class::<scene::PyScene>()?;
     m.add_class::<PySplats>()?;
     m.add_class::<PyFrameWriter>()?;
     m.add_function(wrap_pyfunction!(build_basis, m)?)?;

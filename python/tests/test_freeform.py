@@ -377,3 +377,82 @@ def test_the_quick_beam_bend_stepped_in_python_equals_the_scene_file_run(tmp_pat
         np.testing.assert_allclose(sim.deformed_points(rest), written, rtol=0, atol=1e-12)
     # The tip sagged: the frames compared are not the rest state.
     assert written[:, 1].min() < -1e-3
+
+
+def test_a_scene_of_two_objects_stepped_in_python_equals_the_objects_file_run(tmp_path):
+    # A small box dropped onto a larger one resting on the floor, the larger one's left end
+    # held; the same scene as a file with [[objects]] and through freeform.Scene.
+    steps = 15
+    simulation = {"steps": steps, "points": 400, "time_step": 0.01, "quadrature": {"kind": "full"}}
+    floor = {"normal": [0, 1, 0], "offset": 0.0, "friction": 0.3}
+    contact = {"radius": 0.03, "friction": 0.2}
+    held = [{"region": {"below": {"axis": 0, "value": 0.05}}, "motion": "rest"}]
+    objects = [
+        # (name, size, E, position, velocity, constraints)
+        ("slab", [0.8, 0.1, 0.3], 1e5, [0.0, 0.0, 0.0], [0.0, 0.0, 0.0], held),
+        ("cube", [0.2, 0.2, 0.2], 2e5, [0.3, 0.13, 0.05], [0.0, -0.5, 0.0], []),
+    ]
+    basis = {"modes": 6, "kernels": 80, "points": 1200}
+    scene_file = tmp_path / "stack.json"
+    scene_file.write_text(
+        json.dumps(
+            {
+                "simulation": simulation,
+                "scene": {"gravity": [0, -9.8, 0], "floor": floor},
+                "contact": contact,
+                "objects": [
+                    {
+                        "name": name,
+                        "geometry": {"box": {"min": [0, 0, 0], "max": size}},
+                        "material": {"youngs_modulus": e, "poisson_ratio": 0.4, "density": 800},
+                        "basis": basis,
+                        "position": position,
+                        "velocity": velocity,
+                        "constraints": constraints,
+                    }
+                    for name, size, e, position, velocity, constraints in objects
+                ],
+            }
+        )
+    )
+    summary = freeform.simulate_scene_file(scene_file, tmp_path / "out")
+    assert summary["unconverged_steps"] == 0
+
+    scene = freeform.Scene(gravity=[0, -9.8, 0], floor=floor, contact=contact, simulation=simulation)
+    shapes = []
+    for name, size, e, position, velocity, constraints in objects:
+        geometry = freeform.Geometry.box([0, 0, 0], size)
+        material = freeform.Material(e, 0.4, 800)
+        b = freeform.build_basis(geometry.integration_points(basis["points"]), material, modes=6, kernels=80)
+        k = scene.add_object(
+            b,
+            geometry.integration_points(simulation["points"]),
+            material,
+            geometry=geometry,
+            position=position,
+            velocity=velocity,
+            constraints=constraints,
+        )
+        shapes.append((k, name, geometry.display_points()))
+    for k, name, rest in shapes:
+        written = vtk_points(tmp_path / "out" / name / "frame_00000.vtk")
+        np.testing.assert_allclose(scene.deformed_points(k, rest), written, rtol=0, atol=1e-12)
+    touched = 0
+    for step in range(1, steps + 1):
+        report = scene.step()
+        assert report["converged"]
+        touched = max(touched, report["active_pairs"])
+        for k, name, rest in shapes:
+            written = vtk_points(tmp_path / "out" / name / f"frame_{step:05d}.vtk")
+            np.testing.assert_allclose(scene.deformed_points(k, rest), written, rtol=0, atol=1e-12)
+    # The cube came down onto the slab: the objects touched.
+    assert touched > 0
+    assert scene.time == pytest.approx(steps * 0.01)
+    # The point transforms map rest points to their deformed positions (to first order, at
+    # the points themselves exactly).
+    k, _, rest = shapes[1]
+    t = scene.point_transforms(k, rest)
+    np.testing.assert_allclose(
+        np.einsum("nrc,nc->nr", t[:, :3, :3], rest) + t[:, :3, 3], scene.deformed_points(k, rest), atol=1e-12
+    )
+    np.testing.assert_array_equal(t[:, 3], np.tile([0, 0, 0, 1.0], (len(rest), 1)))

@@ -210,3 +210,18 @@ def test_the_type_stubs_name_everything_the_extension_has():
         if isinstance(obj, type) and not issubclass(obj, BaseException):
             native = {m for m in vars(obj) if not m.startswith("_")}
             assert native == members, (name, native ^ members)
+
+
+def test_run_reports_progress_at_most_ten_times_a_second_and_always_the_end(bar):
+    points, basis = bar
+    sim = falling(points, basis)
+    calls = []
+    # 40 steps of at least 30 ms: about 1.2 s, so about 12 reports, not 40.
+    sim.run(
+        40,
+        on_frame=lambda sim, report: time.sleep(0.03),
+        progress=lambda label, done, total: calls.append((label, done, total, time.monotonic())),
+    )
+    assert calls[-1][:3] == ("simulate", 40, 40)
+    assert all(b[3] - a[3] >= 0.099 for a, b in zip(calls[:-2], calls[1:-1]))
+    assert 5 <= len(calls) <= 15, len(calls)

@@ -47,6 +47,7 @@ __all__ = [
     "GeometryError",
     "IntegrationPoints",
     "Material",
+    "Scene",
     "SceneError",
     "Simulation",
     "Splats",
@@ -132,13 +133,17 @@ class Simulation:
         ``iterations``, ``hessian_assemblies``, ``line_search_cuts``, ``residual``)."""
         return json.loads(self._native.step())
 
-    def run(self, steps: int, on_frame=None) -> list[dict[str, Any]]:
+    def run(self, steps: int, on_frame=None, progress=None) -> list[dict[str, Any]]:
         """``steps`` steps; ``on_frame(simulation, report)`` after each (return ``False`` to
-        stop early). Returns the steps' reports."""
+        stop early); ``progress``: a callable ``progress(label, done, total)`` or True for a
+        tqdm bar (at most ten updates a second). Ctrl-C stops after the step in progress.
+        Returns the steps' reports."""
+        report_progress = _progress_reporter(progress, steps, "simulate")
         reports = []
-        for _ in range(steps):
+        for done in range(1, steps + 1):
             report = self.step()
             reports.append(report)
+            report_progress(done)
             if on_frame is not None and on_frame(self, report) is False:
                 break
         return reports
@@ -207,3 +212,174 @@ class Simulation:
         covariances mapped to ``F Σ Fᵀ``, higher spherical harmonics rotated; and the number
         of splats with det F ≤ 0. Write the result with ``Splats.write``."""
         return self._native.deformed_splats(splats)
+
+
+def _progress_reporter(progress, total: int, label: str):
+    """A function ``report(done)`` that shows progress at most ten times a second: through
+    ``progress(label, done, total)`` when it is callable, a tqdm bar when ``progress`` is True
+    and tqdm is installed (a line on stderr otherwise), nothing when it is None or False."""
+    import time
+
+    if not progress:
+        return lambda done: None
+    if callable(progress):
+        last = [0.0]
+
+        def report(done):
+            now = time.monotonic()
+            if done == total or now - last[0] >= 0.1:
+                last[0] = now
+                progress(label, done, total)
+
+        return report
+    try:
+        from tqdm import tqdm
+
+        bar = tqdm(total=total, desc=label)
+
+        def report(done):
+            bar.n = done
+            bar.refresh() if done == total else bar.update(0)
+            if done == total:
+                bar.close()
+
+        return report
+    except ImportError:
+        import sys
+
+        last = [0.0]
+
+        def report(done):
+            now = time.monotonic()
+            if done == total or now - last[0] >= 0.1:
+                last[0] = now
+                end = "\n" if done == total else ""
+                print(f"\r{label}: {done}/{total}", end=end, file=sys.stderr, flush=True)
+
+        return report
+
+
+class Scene:
+    """Several objects stepped together by backward Euler, touching one another, the floor and
+    the colliders: what a scene file with ``[[objects]]`` runs (``docs/scene-files.md``).
+
+    ``gravity`` (m/s², a vector), ``floor`` and ``colliders`` take the keys of the scene file's
+    ``[scene]``; ``contact`` those of its ``[contact]`` (default ``{"radius": 0.02}``: samples
+    of different objects closer than 2 cm repel); ``simulation`` those of ``[simulation]``
+    (``time_step`` overrides its ``time_step``). Objects are added before the first step::
+
+        scene = freeform.Scene(gravity=[0, -9.8, 0], floor={"normal": [0, 1, 0], "offset": 0})
+        a = scene.add_object(basis, points, rubber, geometry=box, position=[0, 0.3, 0])
+        scene.run(100)
+        x = scene.deformed_points(a, box.display_points())
+    """
+
+    def __init__(
+        self,
+        time_step: Optional[float] = None,
+        gravity=None,
+        floor: Optional[dict[str, Any]] = None,
+        colliders: Optional[list[dict[str, Any]]] = None,
+        contact: Optional[dict[str, Any]] = None,
+        simulation: Optional[dict[str, Any]] = None,
+        cache_dir: Optional[PathType] = None,
+    ) -> None:
+        simulation = dict(simulation or {})
+        if time_step is not None:
+            simulation["time_step"] = float(time_step)
+        scene: dict[str, Any] = {}
+        if gravity is not None:
+            scene["gravity"] = np.asarray(gravity, dtype=np.float64).tolist()
+        if floor is not None:
+            scene["floor"] = floor
+        if colliders is not None:
+            scene["colliders"] = colliders
+        self._native = _native.Scene(
+            json.dumps(scene, allow_nan=False),
+            json.dumps(simulation, allow_nan=False),
+            json.dumps(contact or {"radius": 0.02}, allow_nan=False),
+            None if cache_dir is None else str(cache_dir),
+        )
+
+    def add_object(
+        self,
+        basis: Basis,
+        points: IntegrationPoints,
+        material: Material,
+        geometry: Optional[Geometry] = None,
+        position=None,
+        rotation=None,
+        velocity=None,
+        constraints: Optional[list[dict[str, Any]]] = None,
+        pinned: Optional[list[np.ndarray]] = None,
+    ) -> int:
+        """Adds an object and returns its index ``k``. ``position`` (m) and ``rotation`` (a
+        quaternion ``[i, j, k, w]``) place its rest frame, ``x = R X + position``; ``velocity``
+        (m/s) starts it moving. ``constraints`` are its held and moving regions in its rest
+        frame (the scene file's ``[[objects.constraints]]``); ``pinned`` sets of its
+        integration-point indices held at rest. ``geometry``'s surface samples touch the other
+        objects (its integration points do when omitted)."""
+        placement: dict[str, Any] = {}
+        for key, value in (("position", position), ("rotation", rotation), ("velocity", velocity)):
+            if value is not None:
+                placement[key] = np.asarray(value, dtype=np.float64).tolist()
+        return self._native.add_object(
+            basis,
+            points,
+            material,
+            json.dumps(placement, allow_nan=False),
+            json.dumps(constraints or [], allow_nan=False),
+            [np.asarray(p, dtype=np.int64).ravel().tolist() for p in (pinned or [])],
+            geometry,
+        )
+
+    def __len__(self) -> int:
+        return len(self._native)
+
+    def step(self) -> dict[str, Any]:
+        """Advance every object one step (the first step builds the simulator); return the
+        Newton reports: ``converged``, ``objects`` (one report each), ``joint_groups``,
+        ``active_pairs``. Raises ``StepError`` (with ``.step``) for a step that fails."""
+        return json.loads(self._native.step())
+
+    def run(self, steps: int, on_frame=None, progress=None) -> list[dict[str, Any]]:
+        """``steps`` steps; ``on_frame(scene, report)`` after each (return ``False`` to stop
+        early); ``progress``: a callable ``progress(label, done, total)`` or True for a tqdm bar
+        (at most ten updates a second). Ctrl-C stops after the step in progress."""
+        report_progress = _progress_reporter(progress, steps, "simulate")
+        reports = []
+        for done in range(1, steps + 1):
+            report = self.step()
+            reports.append(report)
+            report_progress(done)
+            if on_frame is not None and on_frame(self, report) is False:
+                break
+        return reports
+
+    @property
+    def time(self) -> float:
+        """Simulated time (s)."""
+        return self._native.time
+
+    @property
+    def mechanical_energy(self) -> float:
+        """Every object's kinetic, elastic, gravitational, penalty and contact energy (J)."""
+        return self._native.mechanical_energy
+
+    def coordinates(self, k: int) -> np.ndarray:
+        """Object ``k``'s reduced coordinates z, ``(12 (m + 1),)``."""
+        return self._native.coordinates(k)
+
+    def deformed_points(self, k: int, points=None, out: Optional[np.ndarray] = None) -> np.ndarray:
+        """World positions ``(n, 3)`` (m) of object ``k``'s rest ``points`` (its integration
+        points when omitted); written into ``out`` and ``out`` returned when given."""
+        return self._native.deformed_points(k, points, out)
+
+    def deformation_gradients(self, k: int, points=None) -> np.ndarray:
+        """Object ``k``'s deformation gradients F ``(n, 3, 3)`` at its rest ``points``."""
+        return self._native.deformation_gradients(k, points)
+
+    def point_transforms(self, k: int, points=None) -> np.ndarray:
+        """Object ``k``'s per-point transforms ``(n, 4, 4)``, ``[[F, t], [0, 1]]`` with
+        ``x = F X + t`` at each rest point (Kaolin's point transforms, homogeneous)."""
+        return self._native.point_transforms(k, points)
