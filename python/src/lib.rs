@@ -8,11 +8,13 @@
 
 mod arrays;
 mod errors;
+mod material;
 mod scene;
 
 use std::path::PathBuf;
 
 use arrays::{Points, matrix_array, points_array, points_of};
+pub(crate) use material::PyMaterial;
 
 use freeform::reduced_sim::{DeformationMap, PinTarget, PinnedRegion, ReducedState, Simulator};
 use freeform::{
@@ -20,7 +22,7 @@ use freeform::{
     Simulation, SimulationSpec, SplatTable, StressField, failure_chain, points_preview,
     prepare_simulator, simulate_objects, simulate_scene_file as run_scene_file,
 };
-use hyperelastic::{LameParameters, MaterialField, MaterialSample, StableNeoHookean};
+use hyperelastic::{MaterialField, StableNeoHookean};
 use nalgebra::{Matrix3, Vector3};
 use numpy::ndarray::{Array1, Array2, Array3};
 use numpy::{IntoPyArray, PyArray1, PyArray2, PyArray3};
@@ -252,59 +254,6 @@ impl PyIntegrationPoints {
     }
 }
 
-/// A homogeneous material: Young's modulus E (Pa), Poisson ratio ν, density ρ (kg/m³).
-#[pyclass(module = "freeform._native", name = "Material", frozen)]
-pub(crate) struct PyMaterial {
-    pub(crate) inner: MaterialSample,
-}
-
-#[pymethods]
-impl PyMaterial {
-    #[new]
-    #[pyo3(signature = (youngs_modulus, poisson_ratio, density))]
-    fn new(youngs_modulus: f64, poisson_ratio: f64, density: f64) -> PyResult<Self> {
-        let inner = MaterialSample {
-            youngs_modulus,
-            poisson_ratio,
-            density,
-        };
-        inner
-            .lame_parameters()
-            .map_err(|e| errors::raise::<errors::SceneError>(&e))?;
-        if !(density.is_finite() && density > 0.0) {
-            return Err(PyValueError::new_err(format!(
-                "the density must be finite and positive, got {density} kg/m³"
-            )));
-        }
-        Ok(PyMaterial { inner })
-    }
-
-    /// Young's modulus E (Pa).
-    #[getter]
-    fn youngs_modulus(&self) -> f64 {
-        self.inner.youngs_modulus
-    }
-
-    /// Poisson ratio ν.
-    #[getter]
-    fn poisson_ratio(&self) -> f64 {
-        self.inner.poisson_ratio
-    }
-
-    /// Density ρ (kg/m³).
-    #[getter]
-    fn density(&self) -> f64 {
-        self.inner.density
-    }
-
-    fn __repr__(&self) -> String {
-        format!(
-            "Material(E = {} Pa, ν = {}, ρ = {} kg/m³)",
-            self.inner.youngs_modulus, self.inner.poisson_ratio, self.inner.density
-        )
-    }
-}
-
 /// A skinning basis: m eigenmode weights plus the constant handle, evaluated anywhere in the
 /// shape.
 #[pyclass(module = "freeform._native", name = "Basis", frozen)]
@@ -407,11 +356,7 @@ fn build_basis(
     kernels: usize,
     threads: Option<usize>,
 ) -> PyResult<PyBasis> {
-    let lame = material
-        .inner
-        .lame_parameters()
-        .map_err(|e| errors::raise::<errors::SceneError>(&e))?;
-    let lame = vec![lame; points.inner.len()];
+    let lame = material.lame_at(points.inner.positions())?;
     let params = BasisParams::default()
         .with_modes(modes)
         .with_kernels(kernels);
@@ -541,8 +486,10 @@ impl PySplats {
 struct PySimulation {
     simulator: Simulator<StableNeoHookean>,
     basis: SkinningBasis,
-    /// The material's Lamé parameters, for the stress.
-    lame: LameParameters,
+    /// The material, for the stress.
+    material: MaterialField,
+    /// The integration points' rest positions (m).
+    points: Vec<Vector3<f64>>,
     quadrature: String,
     /// Steps taken since it was built (the `StepError.step` of the next failure is one more).
     steps_taken: usize,
@@ -586,11 +533,7 @@ impl PySimulation {
                  built for them: use simulate_scene_file",
             ));
         }
-        let lame = material
-            .inner
-            .lame_parameters()
-            .map_err(|e| errors::raise::<errors::SceneError>(&e))?;
-        let field = MaterialField::Uniform(material.inner);
+        let field = material.field();
         let simulation = Simulation::new(
             &basis.inner,
             &points.inner,
@@ -622,7 +565,8 @@ impl PySimulation {
         Ok(PySimulation {
             simulator,
             basis: basis.inner.clone(),
-            lame,
+            material: field.clone(),
+            points: points.inner.positions().to_vec(),
             quadrature,
             steps_taken: 0,
         })
@@ -753,8 +697,18 @@ impl PySimulation {
         Bound<'py, PyArray1<f64>>,
         Vec<usize>,
     )> {
+        let rest = match &points {
+            Some(p) => points_of(p, "points")?,
+            None => self.points.clone(),
+        };
         let f = self.gradients_at(py, points)?;
-        let lame = vec![self.lame; f.len()];
+        let lame = self
+            .material
+            .sample(&rest)
+            .iter()
+            .map(|m| m.lame_parameters())
+            .collect::<Result<Vec<_>, _>>()
+            .map_err(|e| errors::raise::<errors::SceneError>(&e))?;
         let field = StressField::new(&StableNeoHookean, &lame, &f).map_err(|e| value_error(&e))?;
         let samples = &field.samples;
         let n = samples.len();

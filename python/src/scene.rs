@@ -12,7 +12,7 @@ use freeform::{
     Constraint, PinHold, Placement, SceneSpec, Simulation, SimulationSpec, failure_chain,
     prepare_simulator_for,
 };
-use hyperelastic::{MaterialField, MaterialSample, StableNeoHookean};
+use hyperelastic::{MaterialField, StableNeoHookean};
 use nalgebra::{Matrix3, UnitQuaternion, Vector3};
 use numpy::ndarray::Array3;
 use numpy::{IntoPyArray, PyArray2, PyArray3};
@@ -29,7 +29,7 @@ use crate::{PyBasis, PyGeometry, PyIntegrationPoints, PyMaterial};
 struct ObjectInputs {
     basis: SkinningBasis,
     points: IntegrationPoints,
-    material: MaterialSample,
+    material: MaterialField,
     placement: Placement,
     constraints: Vec<Constraint>,
     pinned: Vec<Vec<usize>>,
@@ -143,7 +143,7 @@ impl PyScene {
         self.objects.push(ObjectInputs {
             basis: basis.inner.clone(),
             points: points.inner.clone(),
-            material: material.inner,
+            material: material.field(),
             placement,
             constraints,
             pinned,
@@ -339,11 +339,10 @@ impl PyScene {
             scene
                 .validate()
                 .map_err(|e| errors::raise::<SceneError>(&e))?;
-            let field = MaterialField::Uniform(object.material);
             let simulation = Simulation::new(
                 &object.basis,
                 &object.points,
-                &field,
+                &object.material,
                 StableNeoHookean,
                 &scene,
             )

@@ -456,3 +456,38 @@ def test_a_scene_of_two_objects_stepped_in_python_equals_the_objects_file_run(tm
         np.einsum("nrc,nc->nr", t[:, :3, :3], rest) + t[:, :3, 3], scene.deformed_points(k, rest), atol=1e-12
     )
     np.testing.assert_array_equal(t[:, 3], np.tile([0, 0, 0, 1.0], (len(rest), 1)))
+
+
+def test_a_material_at_points_is_the_uniform_one_when_equal_and_stiffens_where_stiffer(bar):
+    points, basis = bar
+    x = points.positions
+    n = len(x)
+    scene = {
+        "gravity": [0, -9.8, 0],
+        "constraints": [{"region": {"below": {"axis": 0, "value": 0.05}}, "motion": "rest"}],
+    }
+
+    def tip_sag(material):
+        b = freeform.build_basis(points, material, modes=6, kernels=120)
+        sim = freeform.Simulation(b, points, material, scene=scene, simulation={"steps": 8})
+        sim.run(8)
+        return sim.deformed_points(), -sim.deformed_points([[1.0, 0.125, 0.125]])[0, 1] + 0.125
+
+    same = freeform.Material.at_points(x, [1e6] * n, [0.45], [1000.0])
+    assert same.per_point and not RUBBER.per_point
+    uniform_x, uniform_sag = tip_sag(RUBBER)
+    same_x, _ = tip_sag(same)
+    np.testing.assert_array_equal(same_x, uniform_x)
+
+    # Ten times stiffer near the clamp (x < 0.5 m): the tip sags less, but more than a bar
+    # ten times stiffer everywhere.
+    stiff_near_clamp = freeform.Material.at_points(x, np.where(x[:, 0] < 0.5, 1e7, 1e6).tolist(), [0.45], [1000.0])
+    _, mixed_sag = tip_sag(stiff_near_clamp)
+    _, stiff_sag = tip_sag(freeform.Material(1e7, 0.45, 1000.0))
+    assert stiff_sag < mixed_sag < uniform_sag, (stiff_sag, mixed_sag, uniform_sag)
+    np.testing.assert_array_equal(stiff_near_clamp.youngs_modulus[:3], np.where(x[:3, 0] < 0.5, 1e7, 1e6))
+
+    with pytest.raises(ValueError, match="3 values for"):
+        freeform.Material.at_points(x, [1e6, 1e6, 1e6], [0.45], [1000.0])
+    with pytest.raises(freeform.SceneError, match="point 0"):
+        freeform.Material.at_points(x, [-1.0], [0.45], [1000.0])

@@ -81,10 +81,14 @@ def test_the_rigid_handle_is_last_and_an_initial_transform_offsets_it(bar):
     np.testing.assert_allclose(scene.get_object_deformed_pts(idx), bar.pts + tfm[:, 3], atol=1e-12)
 
 
-def test_what_the_front_does_not_support_is_a_named_error(bar):
+def test_per_point_moduli_are_read_at_the_points_and_bad_input_is_a_named_error(bar):
     pts = bar.pts
-    with pytest.raises(NotImplementedError, match="yms"):
-        SimplicitsObject.create_with_rkpm(pts, np.linspace(1e5, 1e6, len(pts)), NU, RHO, 0.0625)
+    graded = np.linspace(1e5, 1e6, len(pts))
+    obj = SimplicitsObject.create_with_rkpm(pts, graded, NU, RHO, 0.0625, num_handles=4, num_kernels=60)
+    assert obj.material.per_point
+    np.testing.assert_array_equal(obj.material.youngs_modulus, graded)
+    with pytest.raises(ValueError, match="yms: 2 values"):
+        SimplicitsObject.create_with_rkpm(pts, [1e5, 1e6], NU, RHO, 0.0625)
     scene = SimplicitsScene()
     idx = scene.add_object(bar)
     with pytest.raises(ValueError, match="selects none"):

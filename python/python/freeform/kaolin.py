@@ -46,14 +46,18 @@ def _array(values, shape=None) -> np.ndarray:
     return array if shape is None else array.reshape(shape)
 
 
-def _uniform(values, name: str) -> float:
-    """One value from a scalar or a per-point array whose values are all equal."""
-    array = _array(values).ravel()
-    if array.size == 0 or not np.all(array == array[0]):
-        raise NotImplementedError(
-            f"{name}: per-point values that differ are not supported yet; pass one value"
-        )
-    return float(array[0])
+def _material(pts: np.ndarray, yms, prs, rhos) -> Material:
+    """Kaolin's per-point (or scalar) ``yms``, ``prs`` and ``rhos`` as a material: one value
+    everywhere when each is uniform, else the values at the points."""
+    values = []
+    for name, given in (("yms", yms), ("prs", prs), ("rhos", rhos)):
+        array = _array(given).ravel()
+        if array.size not in (1, len(pts)):
+            raise ValueError(f"{name}: {array.size} values for {len(pts)} points (give one or {len(pts)})")
+        values.append(array)
+    if all(np.all(v == v[0]) for v in values):
+        return Material(*(float(v[0]) for v in values))
+    return Material.at_points(pts, *(v.tolist() for v in values))
 
 
 class SimplicitsObject:
@@ -66,7 +70,7 @@ class SimplicitsObject:
         n = self.pts.shape[0]
         self.appx_vol = float(_array(appx_vol))
         self.num_handles = int(num_handles)
-        self.material = Material(_uniform(yms, "yms"), _uniform(prs, "prs"), _uniform(rhos, "rhos"))
+        self.material = _material(self.pts, yms, prs, rhos)
         # Every point carries an equal share of the volume, as Kaolin's integration sampling.
         self.points = IntegrationPoints(self.pts, [self.appx_vol / n] * n)
         self.basis: Basis = build_basis(
@@ -79,7 +83,7 @@ class SimplicitsObject:
     ) -> "SimplicitsObject":
         """An object whose handles are FreeForm's skinning eigenmodes of ``num_kernels`` RKPM
         kernels (no training): ``pts`` ``(n, 3)`` in m, ``yms`` in Pa, ``prs``, ``rhos`` in
-        kg/m³ (one value, or per-point arrays of one value), ``appx_vol`` the object's volume
+        kg/m³ (one value, or per-point arrays), ``appx_vol`` the object's volume
         in m³."""
         return cls(pts, yms, prs, rhos, appx_vol, num_handles, num_kernels)
 
