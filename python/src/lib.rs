@@ -28,7 +28,7 @@ use numpy::ndarray::{Array1, Array2, Array3};
 use numpy::{IntoPyArray, PyArray1, PyArray2, PyArray3};
 use pyo3::exceptions::{PyFileNotFoundError, PyOSError, PyValueError};
 use pyo3::prelude::*;
-use rkpm_core::{IntegrationPoints, PointCloud};
+use rkpm_core::{IntegrationPoints, PointCloud, TriangleMesh};
 use skin_eigen::{
     BasisParams, SkinningBasis, SkinningWeights, build_basis as build_skinning_basis,
 };
@@ -122,6 +122,18 @@ impl PyGeometry {
         Ok(PyGeometry {
             inner: Geometry::cuboid(Vector3::from(lo), Vector3::from(hi)),
         })
+    }
+
+    /// A closed triangle surface from vertices `(n, 3)` (m) and triangles `(t, 3)` (vertex
+    /// indices, counter-clockwise seen from outside).
+    #[staticmethod]
+    fn from_mesh(vertices: Points<'_>, triangles: Vec<[usize; 3]>) -> PyResult<Self> {
+        let vertices = points_of(&vertices, "vertices")?;
+        TriangleMesh::new(vertices, triangles)
+            .map(|mesh| PyGeometry {
+                inner: Geometry::Surface(mesh),
+            })
+            .map_err(|e| errors::raise::<errors::GeometryError>(&e))
     }
 
     /// A point cloud from an `(n, 3)` array of points (m).

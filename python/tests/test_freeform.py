@@ -491,3 +491,49 @@ def test_a_material_at_points_is_the_uniform_one_when_equal_and_stiffens_where_s
         freeform.Material.at_points(x, [1e6, 1e6, 1e6], [0.45], [1000.0])
     with pytest.raises(freeform.SceneError, match="point 0"):
         freeform.Material.at_points(x, [-1.0], [0.45], [1000.0])
+
+
+def test_a_scene_set_up_by_methods_equals_the_one_given_at_construction(bar):
+    points, basis = bar
+    held = {"below": {"axis": 0, "value": 0.05}}
+    given = freeform.Scene(
+        time_step=0.01,
+        gravity=[0, -9.8, 0],
+        floor={"normal": [0, 1, 0], "offset": -0.05, "friction": 0.2},
+        colliders=[{"shape": {"sphere": {"radius": 0.1}}, "path": [{"time": 0, "translation": [0.7, 0.4, 0.12]}], "friction": 0.0}],
+        contact={"radius": 0.03, "friction": 0.0},
+    )
+    k = given.add_object(basis, points, RUBBER, constraints=[{"region": held, "motion": "rest"}])
+    built = freeform.Scene(time_step=0.01)
+    j = built.add_object(basis, points, RUBBER)
+    built.deformed_points(j)  # a look before stepping does not fix the setup
+    built.set_gravity([0, -9.8, 0])
+    built.set_floor(offset=-0.05, friction=0.2)
+    built.add_collider({"sphere": {"radius": 0.1}}, path=[{"time": 0, "translation": [0.7, 0.4, 0.12]}])
+    built.set_contact(radius=0.03)
+    built.pin(j, held)
+    for _ in range(6):
+        assert given.step()["converged"] and built.step()["converged"]
+    np.testing.assert_array_equal(given.deformed_points(k), built.deformed_points(j))
+    # Pinning by a mask of the same points holds them the same way.
+    masked = freeform.Scene(time_step=0.01, gravity=[0, -9.8, 0])
+    m = masked.add_object(basis, points, RUBBER)
+    masked.pin(m, points.positions[:, 0] <= 0.05)
+    masked.run(3)
+    np.testing.assert_allclose(
+        masked.deformed_points(m)[points.positions[:, 0] <= 0.05],
+        points.positions[points.positions[:, 0] <= 0.05],
+        atol=1e-3,
+    )
+    with pytest.raises(freeform.SceneError, match="started"):
+        masked.set_gravity([0, 0, 0])
+
+
+def test_a_mesh_from_arrays_is_checked_closed_and_fills_its_volume():
+    vertices = np.array([[0, 0, 0], [1, 0, 0], [0, 1, 0], [0, 0, 1]], dtype=np.float64)
+    triangles = np.array([[0, 2, 1], [0, 1, 3], [0, 3, 2], [1, 2, 3]])
+    tetrahedron = freeform.Geometry.from_mesh(vertices, triangles)
+    points = tetrahedron.integration_points(4000)
+    assert points.volumes.sum() == pytest.approx(1 / 6, rel=0.05)
+    with pytest.raises(freeform.GeometryError, match="open"):
+        freeform.Geometry.from_mesh(vertices, triangles[:3])

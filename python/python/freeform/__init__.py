@@ -266,10 +266,14 @@ class Scene:
     ``gravity`` (m/s², a vector), ``floor`` and ``colliders`` take the keys of the scene file's
     ``[scene]``; ``contact`` those of its ``[contact]`` (default ``{"radius": 0.02}``: samples
     of different objects closer than 2 cm repel); ``simulation`` those of ``[simulation]``
-    (``time_step`` overrides its ``time_step``). Objects are added before the first step::
+    (``time_step`` overrides its ``time_step``). Objects, pins, the floor, colliders and contact
+    are set before the first step::
 
-        scene = freeform.Scene(gravity=[0, -9.8, 0], floor={"normal": [0, 1, 0], "offset": 0})
+        scene = freeform.Scene(time_step=0.01)
+        scene.set_gravity([0, -9.8, 0])
+        scene.set_floor(offset=0.0, friction=0.3)
         a = scene.add_object(basis, points, rubber, geometry=box, position=[0, 0.3, 0])
+        scene.pin(a, {"below": {"axis": 0, "value": 0.05}})
         scene.run(100)
         x = scene.deformed_points(a, box.display_points())
     """
@@ -284,22 +288,70 @@ class Scene:
         simulation: Optional[dict[str, Any]] = None,
         cache_dir: Optional[PathType] = None,
     ) -> None:
-        simulation = dict(simulation or {})
+        self._native_scene = None
+        self._stepped = False
+        self._simulation = dict(simulation or {})
         if time_step is not None:
-            simulation["time_step"] = float(time_step)
-        scene: dict[str, Any] = {}
+            self._simulation["time_step"] = float(time_step)
+        self._scene: dict[str, Any] = {"colliders": list(colliders or [])}
         if gravity is not None:
-            scene["gravity"] = np.asarray(gravity, dtype=np.float64).tolist()
+            self.set_gravity(gravity)
         if floor is not None:
-            scene["floor"] = floor
-        if colliders is not None:
-            scene["colliders"] = colliders
-        self._native = _native.Scene(
-            json.dumps(scene, allow_nan=False),
-            json.dumps(simulation, allow_nan=False),
-            json.dumps(contact or {"radius": 0.02}, allow_nan=False),
-            None if cache_dir is None else str(cache_dir),
-        )
+            self._scene["floor"] = dict(floor)
+        self._contact = dict(contact or {"radius": 0.02})
+        self._cache_dir = None if cache_dir is None else str(cache_dir)
+        self._objects: list[dict[str, Any]] = []
+
+    # What acts on the objects, set before the first step.
+    def _unstarted(self, what: str) -> None:
+        if self._stepped:
+            raise SceneError(f"{what} is set before the first step; this scene has started")
+        # A native scene built for a look before stepping is built again with the change.
+        self._native_scene = None
+
+    def set_gravity(self, acceleration) -> None:
+        """Gravitational acceleration (m/s², a vector, e.g. ``[0, -9.8, 0]``)."""
+        self._unstarted("gravity")
+        self._scene["gravity"] = np.asarray(acceleration, dtype=np.float64).reshape(3).tolist()
+
+    def set_floor(self, normal=(0.0, 1.0, 0.0), offset: float = 0.0, friction: float = 0.0) -> None:
+        """The half-space ``normal · x >= offset`` (m) the objects stay above, with Coulomb
+        friction ``friction``."""
+        self._unstarted("the floor")
+        self._scene["floor"] = {
+            "normal": np.asarray(normal, dtype=np.float64).reshape(3).tolist(),
+            "offset": float(offset),
+            "friction": float(friction),
+        }
+
+    def add_collider(self, shape: dict[str, Any], path=None, friction: float = 0.0,
+                     parent: Optional[int] = None) -> int:
+        """A kinematic collider (the scene file's ``[[scene.colliders]]``): ``shape`` e.g.
+        ``{"sphere": {"radius": 0.1}}``, ``path`` its keyframes (``[{"time": 0,
+        "translation": [x, y, z]}, ...]``; at rest at the origin when None), ``friction``, and
+        the collider it rides on (``parent``). Returns its index."""
+        self._unstarted("a collider")
+        collider: dict[str, Any] = {
+            "shape": shape,
+            "path": path if path is not None else [{"time": 0.0, "translation": [0.0, 0.0, 0.0]}],
+            "friction": float(friction),
+        }
+        if parent is not None:
+            collider["parent"] = int(parent)
+        self._scene["colliders"].append(collider)
+        return len(self._scene["colliders"]) - 1
+
+    def set_contact(self, radius: float, friction: float = 0.0, model: Optional[Any] = None,
+                    stiffness_factor: Optional[float] = None) -> None:
+        """Contact between the objects (the scene file's ``[contact]``): samples of different
+        objects closer than ``radius`` (m) repel, with Coulomb ``friction``."""
+        self._unstarted("contact")
+        contact: dict[str, Any] = {"radius": float(radius), "friction": float(friction)}
+        if model is not None:
+            contact["model"] = model
+        if stiffness_factor is not None:
+            contact["stiffness_factor"] = float(stiffness_factor)
+        self._contact = contact
 
     def add_object(
         self,
@@ -319,28 +371,78 @@ class Scene:
         frame (the scene file's ``[[objects.constraints]]``); ``pinned`` sets of its
         integration-point indices held at rest. ``geometry``'s surface samples touch the other
         objects (its integration points do when omitted)."""
+        self._unstarted("an object")
         placement: dict[str, Any] = {}
         for key, value in (("position", position), ("rotation", rotation), ("velocity", velocity)):
             if value is not None:
                 placement[key] = np.asarray(value, dtype=np.float64).tolist()
-        return self._native.add_object(
-            basis,
-            points,
-            material,
-            json.dumps(placement, allow_nan=False),
-            json.dumps(constraints or [], allow_nan=False),
-            [np.asarray(p, dtype=np.int64).ravel().tolist() for p in (pinned or [])],
-            geometry,
+        self._objects.append(
+            {
+                "basis": basis,
+                "points": points,
+                "material": material,
+                "geometry": geometry,
+                "placement": placement,
+                "constraints": list(constraints or []),
+                "pinned": [np.asarray(p, dtype=np.int64).ravel().tolist() for p in (pinned or [])],
+            }
         )
+        return len(self._objects) - 1
+
+    def pin(self, k: int, where, motion: Any = "rest") -> None:
+        """Holds part of object ``k``: ``where`` a region of its rest frame (the scene file's
+        ``region``, e.g. ``{"below": {"axis": 0, "value": 0.05}}``) moving by ``motion``
+        (``"rest"`` or the scene file's motions), or a boolean mask over its integration points
+        held at rest."""
+        self._unstarted("a pin")
+        if not 0 <= k < len(self._objects):
+            raise ValueError(f"no object {k}: the scene has {len(self._objects)}")
+        if isinstance(where, dict):
+            self._objects[k]["constraints"].append({"region": where, "motion": motion})
+            return
+        mask = np.asarray(where, dtype=bool).ravel()
+        if mask.shape[0] != len(self._objects[k]["points"]):
+            raise ValueError(
+                f"a mask of {mask.shape[0]} values for {len(self._objects[k]['points'])} points"
+            )
+        if motion != "rest":
+            raise ValueError("a mask holds its points at rest; give a region to move them")
+        self._objects[k]["pinned"].append(np.flatnonzero(mask).tolist())
+
+    @property
+    def _native(self):
+        """The native scene, built with every object at the first use after setting up."""
+        if self._native_scene is None:
+            scene = dict(self._scene)
+            native = _native.Scene(
+                json.dumps(scene, allow_nan=False),
+                json.dumps(self._simulation, allow_nan=False),
+                json.dumps(self._contact, allow_nan=False),
+                self._cache_dir,
+            )
+            for o in self._objects:
+                native.add_object(
+                    o["basis"],
+                    o["points"],
+                    o["material"],
+                    json.dumps(o["placement"], allow_nan=False),
+                    json.dumps(o["constraints"], allow_nan=False),
+                    o["pinned"],
+                    o["geometry"],
+                )
+            self._native_scene = native
+        return self._native_scene
 
     def __len__(self) -> int:
-        return len(self._native)
+        return len(self._objects)
 
     def step(self) -> dict[str, Any]:
         """Advance every object one step (the first step builds the simulator); return the
         Newton reports: ``converged``, ``objects`` (one report each), ``joint_groups``,
         ``active_pairs``. Raises ``StepError`` (with ``.step``) for a step that fails."""
-        return json.loads(self._native.step())
+        report = json.loads(self._native.step())
+        self._stepped = True
+        return report
 
     def run(self, steps: int, on_frame=None, progress=None) -> list[dict[str, Any]]:
         """``steps`` steps; ``on_frame(scene, report)`` after each (return ``False`` to stop
