@@ -114,3 +114,29 @@ def test_a_run_interrupted_after_its_first_reference_finishes_the_same_when_reru
     snakemake(fresh)
     for merged, single in zip(tables(fresh / "out"), tables(work / "single")):
         assert numbers(merged) == numbers(single)
+
+
+def test_estimates_size_each_reference_task_by_its_largest_system(work):
+    plan = subprocess.run(
+        [BIN, "--quiet", "--cache", "cache-estimates", "table", "2", "7", "--quick", "--meshes", "meshes",
+         "--plan", "--estimate"],
+        cwd=work, check=True, capture_output=True, text=True,
+    ).stdout
+    (work / "plan.json").write_text(plan)
+    estimates = json.loads(plan)["estimates"]["references"]
+    run = snakemake(work, "out=out-estimates", "estimates=plan.json", "-n")
+    asked = {}
+    for block in run.stdout.split("rule ")[1:]:
+        if not block.startswith("reference:"):
+            continue
+        shape = block.split("wildcards: shape=")[1].split()[0]
+        asked[shape] = int(block.split("mem_mb=")[1].split(",")[0])
+    expected = {
+        shape: max(
+            (e["reference"]["factor_bytes"] + 6000 * e["reference"]["dofs"]) // 1_000_000 + 1000
+            for e in estimates
+            if e["shape"] == shape
+        )
+        for shape in SHAPES
+    }
+    assert asked == expected, run.stdout
