@@ -423,7 +423,7 @@ fn simulate_scene_file(
 /// The vertex table of a 3DGS PLY file (binary little-endian), kept byte for byte: what a
 /// deformation rewrites (centres, scales, rotations, higher SH) is typed, the rest is carried.
 #[pyclass(module = "freeform._native", name = "Splats", frozen)]
-struct PySplats {
+pub(crate) struct PySplats {
     inner: SplatTable,
 }
 
@@ -682,16 +682,7 @@ impl PySimulation {
     /// covariance mapped to `F Σ Fᵀ` and its higher spherical harmonics rotated by F's
     /// rotation, F taken at its rest centre; and the number of splats with det F ≤ 0.
     fn deformed_splats(&self, py: Python<'_>, splats: &PySplats) -> PyResult<(PySplats, usize)> {
-        let basis = &self.basis;
-        let z = &self.simulator.state().z;
-        let table = &splats.inner;
-        let (deformed, inverted) = py
-            .detach(|| -> Result<_, Box<dyn std::error::Error + Send + Sync>> {
-                let map = DeformationMap::new(basis, &table.positions())?;
-                Ok(table.deformed(&map.positions(z), &map.deformation_gradients(z))?)
-            })
-            .map_err(|e| errors::raise::<errors::BasisError>(e.as_ref()))?;
-        Ok((PySplats { inner: deformed }, inverted))
+        deform_splats(py, &self.basis, &self.simulator.state().z, splats)
     }
 
     /// The stress at rest `points` (the integration points when omitted) of the simulation's
@@ -714,25 +705,7 @@ impl PySimulation {
             None => self.points.clone(),
         };
         let f = self.gradients_at(py, points)?;
-        let lame = self
-            .material
-            .sample(&rest)
-            .iter()
-            .map(|m| m.lame_parameters())
-            .collect::<Result<Vec<_>, _>>()
-            .map_err(|e| errors::raise::<errors::SceneError>(&e))?;
-        let field = StressField::new(&StableNeoHookean, &lame, &f).map_err(|e| value_error(&e))?;
-        let samples = &field.samples;
-        let n = samples.len();
-        let cauchy = Array3::from_shape_fn((n, 3, 3), |(i, r, c)| samples[i].cauchy[(r, c)]);
-        let principal = Array2::from_shape_fn((n, 3), |(i, k)| samples[i].principal[k]);
-        let von_mises = Array1::from_iter(samples.iter().map(|s| s.von_mises));
-        Ok((
-            cauchy.into_pyarray(py),
-            principal.into_pyarray(py),
-            von_mises.into_pyarray(py),
-            field.inverted,
-        ))
+        stress_arrays(py, &self.material, &rest, &f)
     }
 }
 
@@ -769,6 +742,58 @@ impl PySimulation {
             Some(map) => map.deformation_gradients(z),
         })
     }
+}
+
+/// `splats` (rest centres, m) deformed by `basis` at coordinates `z`, and the number of splats
+/// with det F ≤ 0.
+fn deform_splats(
+    py: Python<'_>,
+    basis: &SkinningBasis,
+    z: &[f64],
+    splats: &PySplats,
+) -> PyResult<(PySplats, usize)> {
+    let table = &splats.inner;
+    let (deformed, inverted) = py
+        .detach(|| -> Result<_, Box<dyn std::error::Error + Send + Sync>> {
+            let map = DeformationMap::new(basis, &table.positions())?;
+            Ok(table.deformed(&map.positions(z), &map.deformation_gradients(z))?)
+        })
+        .map_err(|e| errors::raise::<errors::BasisError>(e.as_ref()))?;
+    Ok((PySplats { inner: deformed }, inverted))
+}
+
+/// The stress of `material` with deformation gradients `f` at rest positions `rest`: Cauchy σ
+/// `(n, 3, 3)`, principal stresses `(n, 3)`, von Mises `(n,)` (Pa), inverted points.
+#[allow(clippy::type_complexity)]
+fn stress_arrays<'py>(
+    py: Python<'py>,
+    material: &MaterialField,
+    rest: &[Vector3<f64>],
+    f: &[Matrix3<f64>],
+) -> PyResult<(
+    Bound<'py, PyArray3<f64>>,
+    Bound<'py, PyArray2<f64>>,
+    Bound<'py, PyArray1<f64>>,
+    Vec<usize>,
+)> {
+    let lame = material
+        .sample(rest)
+        .iter()
+        .map(|m| m.lame_parameters())
+        .collect::<Result<Vec<_>, _>>()
+        .map_err(|e| errors::raise::<errors::SceneError>(&e))?;
+    let field = StressField::new(&StableNeoHookean, &lame, f).map_err(|e| value_error(&e))?;
+    let samples = &field.samples;
+    let n = samples.len();
+    let cauchy = Array3::from_shape_fn((n, 3, 3), |(i, r, c)| samples[i].cauchy[(r, c)]);
+    let principal = Array2::from_shape_fn((n, 3), |(i, k)| samples[i].principal[k]);
+    let von_mises = Array1::from_iter(samples.iter().map(|s| s.von_mises));
+    Ok((
+        cauchy.into_pyarray(py),
+        principal.into_pyarray(py),
+        von_mises.into_pyarray(py),
+        field.inverted,
+    ))
 }
 
 /// A `(height, width, 3)` uint8 RGB preview of `points` (`(n, 3)`, m) seen from 30° about and

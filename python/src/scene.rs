@@ -247,6 +247,44 @@ impl PyScene {
         Ok(matrices_array(py, &f))
     }
 
+    /// The stress of object `k` at its rest `points` (its integration points when omitted):
+    /// Cauchy σ `(n, 3, 3)`, principal stresses `(n, 3)` (σ₁ ≥ σ₂ ≥ σ₃), von Mises `(n,)`
+    /// (Pa), and the indices of inverted points (det F ≤ 0), whose stress is 0.
+    #[pyo3(signature = (k, points = None))]
+    #[allow(clippy::type_complexity)]
+    fn stress<'py>(
+        &self,
+        py: Python<'py>,
+        k: usize,
+        points: Option<Points<'py>>,
+    ) -> PyResult<(
+        Bound<'py, PyArray3<f64>>,
+        Bound<'py, PyArray2<f64>>,
+        Bound<'py, numpy::PyArray1<f64>>,
+        Vec<usize>,
+    )> {
+        let rest: Vec<Vector3<f64>> = match &points {
+            Some(p) => points_of(p, "points")?,
+            None => self.object(k)?.points.positions().to_vec(),
+        };
+        let z = &self.state(k)?.z;
+        let f = self.map(py, k, points)?.deformation_gradients(z);
+        crate::stress_arrays(py, &self.object(k)?.material, &rest, &f)
+    }
+
+    /// `splats` (rest centres in object `k`'s rest frame, m) deformed with object `k`: centres
+    /// moved, covariances mapped to `F Σ Fᵀ`, higher spherical harmonics rotated; and the
+    /// number of splats with det F ≤ 0.
+    fn deformed_splats(
+        &self,
+        py: Python<'_>,
+        k: usize,
+        splats: &crate::PySplats,
+    ) -> PyResult<(crate::PySplats, usize)> {
+        let z = self.state(k)?.z;
+        crate::deform_splats(py, &self.object(k)?.basis, &z, splats)
+    }
+
     /// Per-point affine transforms `(n, 4, 4)` of object `k` at its rest `points`: `[F t; 0 1]`
     /// with `x = F X + t` to first order about each point (the blended handle transform).
     #[pyo3(signature = (k, points = None))]

@@ -537,3 +537,41 @@ def test_a_mesh_from_arrays_is_checked_closed_and_fills_its_volume():
     assert points.volumes.sum() == pytest.approx(1 / 6, rel=0.05)
     with pytest.raises(freeform.GeometryError, match="open"):
         freeform.Geometry.from_mesh(vertices, triangles[:3])
+
+
+def test_splats_write_back_byte_for_byte_and_at_rest_deform_to_themselves(tmp_path):
+    splats = freeform.Splats.read(DONUT)
+    splats.write(tmp_path / "copy.ply")
+    assert (tmp_path / "copy.ply").read_bytes() == pathlib.Path(DONUT).read_bytes()
+    x = splats.positions
+    points = freeform.Geometry.from_points(x).integration_points(1500)
+    basis = freeform.build_basis(points, RUBBER, modes=6, kernels=120)
+    sim = freeform.Simulation(basis, points, RUBBER, simulation={"quadrature": {"kind": "full"}})
+    at_rest, inverted = sim.deformed_splats(splats)
+    assert inverted == 0
+    np.testing.assert_array_equal(at_rest.positions, splats.positions)
+    # Scales and rotations are stored as float32 again: each covariance within 1e-5 of its size.
+    size = np.abs(splats.covariances).max(axis=(1, 2))
+    change = np.abs(at_rest.covariances - splats.covariances).max(axis=(1, 2))
+    assert (change <= 1e-5 * size).all(), (change / size).max()
+    for name in splats.properties:
+        if not name.startswith(("scale_", "rot_")):
+            np.testing.assert_array_equal(at_rest.column(name), splats.column(name), err_msg=name)
+
+
+def test_a_scene_of_one_object_steps_as_the_simulation_and_gives_its_stress_and_splats(bar):
+    points, basis = bar
+    sim = cantilever(points, basis)
+    scene = freeform.Scene(time_step=0.01, gravity=[0, -9.8, 0])
+    k = scene.add_object(basis, points, RUBBER)
+    scene.pin(k, {"below": {"axis": 0, "value": 0.05}})
+    sim.run(4)
+    scene.run(4)
+    np.testing.assert_array_equal(scene.deformed_points(k), sim.deformed_points())
+    x = np.array([[0.5, 0.1, 0.1], [0.9, 0.2, 0.05]])
+    for key in ("cauchy", "principal", "von_mises"):
+        np.testing.assert_array_equal(scene.stress(k, x)[key], sim.stress(x)[key])
+    splats = freeform.Splats.read(DONUT)
+    moved, _ = scene.deformed_splats(k, splats)
+    # (The splat table keeps its centres as float32.)
+    np.testing.assert_allclose(moved.positions, sim.deformed_points(splats.positions), atol=1e-6)

@@ -481,6 +481,19 @@ class Scene:
         """Object ``k``'s deformation gradients F ``(n, 3, 3)`` at its rest ``points``."""
         return self._native.deformation_gradients(k, points)
 
+    def stress(self, k: int, points=None) -> dict[str, Any]:
+        """Object ``k``'s stress at its rest ``points`` (its integration points when omitted):
+        ``cauchy`` ``(n, 3, 3)``, ``principal`` ``(n, 3)``, ``von_mises`` ``(n,)`` (Pa), and
+        ``inverted``, the indices of points with det F <= 0 (their stress is 0)."""
+        cauchy, principal, von_mises, inverted = self._native.stress(k, points)
+        return {"cauchy": cauchy, "principal": principal, "von_mises": von_mises, "inverted": inverted}
+
+    def deformed_splats(self, k: int, splats: Splats) -> tuple[Splats, int]:
+        """``splats`` (rest centres in object ``k``'s rest frame, m) deformed with object
+        ``k``: centres moved, covariances ``F Σ Fᵀ``, higher SH rotated; and the number of
+        splats with det F <= 0."""
+        return self._native.deformed_splats(k, splats)
+
     def point_transforms(self, k: int, points=None) -> np.ndarray:
         """Object ``k``'s per-point transforms ``(n, 4, 4)``, ``[[F, t], [0, 1]]`` with
         ``x = F X + t`` at each rest point (Kaolin's point transforms, homogeneous)."""
