@@ -53,6 +53,11 @@ create_exception!(
     "A file that is not of the format it claims (a corrupt PLY, a basis file of another version)."
 );
 
+/// `ValueError` with `error`'s chain of causes.
+pub(crate) fn value_error(error: &dyn std::error::Error) -> PyErr {
+    PyValueError::new_err(failure_chain(error))
+}
+
 /// `class(message)` with `error`'s chain of causes as the message.
 pub(crate) fn raise<E: pyo3::PyTypeInfo>(error: &dyn std::error::Error) -> PyErr {
     PyErr::new::<E, _>(failure_chain(error))

@@ -22,8 +22,12 @@ use rkpm_core::IntegrationPoints;
 use skin_eigen::SkinningBasis;
 
 use crate::arrays::{self, Points, points_array, points_of};
+use crate::basis::PyBasis;
 use crate::errors::{self, SceneError};
-use crate::{PyBasis, PyGeometry, PyIntegrationPoints, PyMaterial};
+use crate::geometry::PyGeometry;
+use crate::material::PyMaterial;
+use crate::points::PyIntegrationPoints;
+use crate::splats::PySplats;
 
 /// One object as added, before the simulator is built.
 struct ObjectInputs {
@@ -269,7 +273,7 @@ impl PyScene {
         };
         let z = &self.state(k)?.z;
         let f = self.map(py, k, points)?.deformation_gradients(z);
-        crate::stress_arrays(py, &self.object(k)?.material, &rest, &f)
+        crate::outputs::stress_arrays(py, &self.object(k)?.material, &rest, &f)
     }
 
     /// `splats` (rest centres in object `k`'s rest frame, m) deformed with object `k`: centres
@@ -279,10 +283,10 @@ impl PyScene {
         &self,
         py: Python<'_>,
         k: usize,
-        splats: &crate::PySplats,
-    ) -> PyResult<(crate::PySplats, usize)> {
+        splats: &PySplats,
+    ) -> PyResult<(PySplats, usize)> {
         let z = self.state(k)?.z;
-        crate::deform_splats(py, &self.object(k)?.basis, &z, splats)
+        crate::outputs::deform_splats(py, &self.object(k)?.basis, &z, splats)
     }
 
     /// Per-point affine transforms `(n, 4, 4)` of object `k` at its rest `points`: `[F t; 0 1]`
