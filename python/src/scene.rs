@@ -28,6 +28,8 @@ use crate::geometry::PyGeometry;
 use crate::material::PyMaterial;
 use crate::points::PyIntegrationPoints;
 use crate::splats::PySplats;
+use crate::threads::{on_pool, thread_pool};
+use std::sync::Arc;
 
 /// One object as added, before the simulator is built.
 struct ObjectInputs {
@@ -51,20 +53,26 @@ pub(crate) struct PyScene {
     objects: Vec<ObjectInputs>,
     simulator: Option<MultiBodySimulator<StableNeoHookean>>,
     steps_taken: usize,
+    /// The pool its setup and steps run on (`None`: the global pool).
+    pool: Option<Arc<rayon::ThreadPool>>,
 }
 
 #[pymethods]
 impl PyScene {
     /// `scene`, `simulation` and `contact`: JSON text of a scene file's `[scene]` (gravity,
     /// floor, colliders; constraints go with each object), `[simulation]` and `[contact]`.
+    /// `threads`: the threads its setup and steps run on (all cores when None; a fixed count
+    /// gives bit-identical runs).
     #[new]
-    #[pyo3(signature = (scene, simulation, contact, cache_dir = None))]
+    #[pyo3(signature = (scene, simulation, contact, cache_dir = None, threads = None))]
     fn new(
         scene: &str,
         simulation: &str,
         contact: &str,
         cache_dir: Option<std::path::PathBuf>,
+        threads: Option<usize>,
     ) -> PyResult<Self> {
+        let pool = thread_pool(threads)?;
         let shared: SceneSpec =
             serde_json::from_str(scene).map_err(|e| SceneError::new_err(format!("scene: {e}")))?;
         if !shared.constraints.is_empty() {
@@ -101,6 +109,7 @@ impl PyScene {
             objects: Vec::new(),
             simulator: None,
             steps_taken: 0,
+            pool,
         })
     }
 
@@ -166,12 +175,14 @@ impl PyScene {
     /// (`converged`, and per object `iterations`, `residual`, ...).
     fn step(&mut self, py: Python<'_>) -> PyResult<String> {
         if self.simulator.is_none() {
-            let simulator = py.detach(|| self.build())?;
+            let pool = self.pool.as_deref();
+            let simulator = py.detach(|| on_pool(pool, || self.build()))?;
             self.simulator = Some(simulator);
         }
+        let pool = self.pool.as_deref();
         let simulator = self.simulator.as_mut().expect("built above");
         let report = py
-            .detach(|| simulator.step())
+            .detach(|| on_pool(pool, || simulator.step()))
             .map_err(|e| errors::step_error(Some(self.steps_taken + 1), &e))?;
         self.steps_taken += 1;
         let bodies: Vec<serde_json::Value> = report

@@ -1,6 +1,7 @@
 //! `freeform.Simulation`: one object stepped from Python.
 
 use std::path::PathBuf;
+use std::sync::Arc;
 
 use freeform::reduced_sim::{DeformationMap, PinTarget, PinnedRegion, ReducedState, Simulator};
 use freeform::{PinHold, SceneSpec, Simulation, SimulationSpec, prepare_simulator};
@@ -19,6 +20,7 @@ use crate::material::PyMaterial;
 use crate::outputs::{deform_splats, stress_arrays};
 use crate::points::PyIntegrationPoints;
 use crate::splats::PySplats;
+use crate::threads::{on_pool, thread_pool};
 
 /// A reduced simulation that Python steps: a basis, its integration points and material,
 /// a scene and the simulation settings, both in the scene-file format (`docs/scene-files.md`,
@@ -34,6 +36,8 @@ pub(crate) struct PySimulation {
     quadrature: String,
     /// Steps taken since it was built (the `StepError.step` of the next failure is one more).
     steps_taken: usize,
+    /// The pool its setup and steps run on (`None`: the global pool).
+    pool: Option<Arc<rayon::ThreadPool>>,
 }
 
 #[pymethods]
@@ -44,9 +48,10 @@ impl PySimulation {
     /// basis built for them: use `simulate_scene_file` for those.
     ///
     /// `pinned`: sets of integration-point indices held at rest by the same penalty as the
-    /// scene's constraints (e.g. from a mask over the points).
+    /// scene's constraints (e.g. from a mask over the points). `threads`: the threads its
+    /// setup and steps run on (all cores when None; a fixed count gives bit-identical runs).
     #[new]
-    #[pyo3(signature = (basis, points, material, scene, simulation, cache_dir = None, pinned = Vec::new()))]
+    #[pyo3(signature = (basis, points, material, scene, simulation, cache_dir = None, pinned = Vec::new(), threads = None))]
     #[allow(clippy::too_many_arguments)]
     fn new(
         py: Python<'_>,
@@ -57,7 +62,9 @@ impl PySimulation {
         simulation: &str,
         cache_dir: Option<PathBuf>,
         pinned: Vec<Vec<usize>>,
+        threads: Option<usize>,
     ) -> PyResult<Self> {
+        let pool = thread_pool(threads)?;
         let scene: SceneSpec = serde_json::from_str(scene)
             .map_err(|e| errors::SceneError::new_err(format!("scene: {e}")))?;
         scene
@@ -100,7 +107,11 @@ impl PySimulation {
             })
             .collect();
         let (simulator, quadrature) = py
-            .detach(|| prepare_simulator(&simulation, spec.steps, &pins))
+            .detach(|| {
+                on_pool(pool.as_deref(), || {
+                    prepare_simulator(&simulation, spec.steps, &pins)
+                })
+            })
             .map_err(|e| errors::raise::<errors::SceneError>(&e))?;
         let quadrature = serde_json::to_string(&quadrature).map_err(|e| value_error(&e))?;
         Ok(PySimulation {
@@ -110,15 +121,16 @@ impl PySimulation {
             points: points.inner.positions().to_vec(),
             quadrature,
             steps_taken: 0,
+            pool,
         })
     }
 
     /// Advances one backward-Euler step; returns the Newton report as JSON text
     /// (`converged`, `iterations`, `hessian_assemblies`, `residual`, ...).
     fn step(&mut self, py: Python<'_>) -> PyResult<String> {
-        let simulator = &mut self.simulator;
+        let (simulator, pool) = (&mut self.simulator, self.pool.as_deref());
         let report = py
-            .detach(|| simulator.step())
+            .detach(|| on_pool(pool, || simulator.step()))
             .map_err(|e| errors::step_error(Some(self.steps_taken + 1), &e))?;
         self.steps_taken += 1;
         let json = serde_json::json!({

@@ -496,15 +496,17 @@ def test_a_material_at_points_is_the_uniform_one_when_equal_and_stiffens_where_s
 def test_a_scene_set_up_by_methods_equals_the_one_given_at_construction(bar):
     points, basis = bar
     held = {"below": {"axis": 0, "value": 0.05}}
+    full = {"quadrature": {"kind": "full"}}
     given = freeform.Scene(
         time_step=0.01,
+        simulation=full,
         gravity=[0, -9.8, 0],
         floor={"normal": [0, 1, 0], "offset": -0.05, "friction": 0.2},
         colliders=[{"shape": {"sphere": {"radius": 0.1}}, "path": [{"time": 0, "translation": [0.7, 0.4, 0.12]}], "friction": 0.0}],
         contact={"radius": 0.03, "friction": 0.0},
     )
     k = given.add_object(basis, points, RUBBER, constraints=[{"region": held, "motion": "rest"}])
-    built = freeform.Scene(time_step=0.01)
+    built = freeform.Scene(time_step=0.01, simulation=full)
     j = built.add_object(basis, points, RUBBER)
     built.deformed_points(j)  # a look before stepping does not fix the setup
     built.set_gravity([0, -9.8, 0])
@@ -562,7 +564,9 @@ def test_splats_write_back_byte_for_byte_and_at_rest_deform_to_themselves(tmp_pa
 def test_a_scene_of_one_object_steps_as_the_simulation_and_gives_its_stress_and_splats(bar):
     points, basis = bar
     sim = cantilever(points, basis)
-    scene = freeform.Scene(time_step=0.01, gravity=[0, -9.8, 0])
+    scene = freeform.Scene(
+        time_step=0.01, gravity=[0, -9.8, 0], simulation={"quadrature": {"kind": "full"}}
+    )
     k = scene.add_object(basis, points, RUBBER)
     scene.pin(k, {"below": {"axis": 0, "value": 0.05}})
     sim.run(4)

@@ -225,3 +225,29 @@ def test_run_reports_progress_at_most_ten_times_a_second_and_always_the_end(bar)
     assert calls[-1][:3] == ("simulate", 40, 40)
     assert all(b[3] - a[3] >= 0.099 for a, b in zip(calls[:-2], calls[1:-1]))
     assert 5 <= len(calls) <= 15, len(calls)
+
+
+def test_a_fixed_thread_count_gives_bit_identical_runs(bar):
+    points, basis = bar
+
+    def run(threads):
+        # (Every point's quadrature: the automatic one weighs measured times.)
+        full = {"quadrature": {"kind": "full"}, "steps": 5}
+        scene = freeform.Scene(time_step=0.01, gravity=[0, -9.8, 0], simulation=full, threads=threads)
+        k = scene.add_object(basis, points, RUBBER)
+        scene.pin(k, {"below": {"axis": 0, "value": 0.05}})
+        scene.run(5)
+        sim = freeform.Simulation(
+            basis, points, RUBBER, scene={"gravity": [0, -9.8, 0]}, simulation=full, threads=threads
+        )
+        sim.run(5)
+        return scene.deformed_points(k), sim.deformed_points()
+
+    for threads in (1, 2):
+        first, again = run(threads), run(threads)
+        for a, b in zip(first, again):
+            np.testing.assert_array_equal(a, b)
+    zero = freeform.Scene(threads=0)
+    zero.add_object(basis, points, RUBBER)
+    with pytest.raises(ValueError, match="at least 1"):
+        zero.step()

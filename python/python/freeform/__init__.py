@@ -102,8 +102,9 @@ class Simulation:
         simulation = {"time_step": 0.01, "steps": 100, "quadrature": {"kind": "full"}}
 
     ``pinned`` lists sets of integration-point indices (e.g. ``np.flatnonzero(mask)``) held
-    at rest by the same penalty as the scene's constraints. ``simulation["steps"]`` is the
-    planned length of the run, which the automatic quadrature
+    at rest by the same penalty as the scene's constraints; ``threads`` pins the threads its
+    setup and steps run on (all cores by default; a fixed count gives bit-identical runs).
+    ``simulation["steps"]`` is the planned length of the run, which the automatic quadrature
     weighs; ``points``, ``output_every`` and ``stress`` do not apply here. Held pins and a
     pressure space need a basis built for them: use ``simulate_scene_file`` for those.
     """
@@ -117,6 +118,7 @@ class Simulation:
         simulation: Optional[dict[str, Any]] = None,
         cache_dir: Optional[PathType] = None,
         pinned: Optional[list[np.ndarray]] = None,
+        threads: Optional[int] = None,
     ) -> None:
         self._native = _native.Simulation(
             basis,
@@ -126,6 +128,7 @@ class Simulation:
             json.dumps(simulation or {}, allow_nan=False),
             None if cache_dir is None else str(cache_dir),
             [np.asarray(p, dtype=np.int64).ravel().tolist() for p in (pinned or [])],
+            threads,
         )
 
     def step(self) -> dict[str, Any]:
@@ -266,8 +269,9 @@ class Scene:
     ``gravity`` (m/s², a vector), ``floor`` and ``colliders`` take the keys of the scene file's
     ``[scene]``; ``contact`` those of its ``[contact]`` (default ``{"radius": 0.02}``: samples
     of different objects closer than 2 cm repel); ``simulation`` those of ``[simulation]``
-    (``time_step`` overrides its ``time_step``). Objects, pins, the floor, colliders and contact
-    are set before the first step::
+    (``time_step`` overrides its ``time_step``); ``threads`` pins the threads its setup and steps
+    run on (all cores by default; a fixed count gives bit-identical runs). Objects, pins, the
+    floor, colliders and contact are set before the first step::
 
         scene = freeform.Scene(time_step=0.01)
         scene.set_gravity([0, -9.8, 0])
@@ -287,7 +291,9 @@ class Scene:
         contact: Optional[dict[str, Any]] = None,
         simulation: Optional[dict[str, Any]] = None,
         cache_dir: Optional[PathType] = None,
+        threads: Optional[int] = None,
     ) -> None:
+        self._threads = threads
         self._native_scene = None
         self._stepped = False
         self._simulation = dict(simulation or {})
@@ -419,6 +425,7 @@ class Scene:
                 json.dumps(self._simulation, allow_nan=False),
                 json.dumps(self._contact, allow_nan=False),
                 self._cache_dir,
+                self._threads,
             )
             for o in self._objects:
                 native.add_object(

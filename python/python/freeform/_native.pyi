@@ -102,6 +102,7 @@ class Simulation:
         simulation: str,
         cache_dir: Optional[str] = None,
         pinned: list[list[int]] = ...,
+        threads: Optional[int] = None,
     ) -> None: ...
     def step(self) -> str: ...
     @property
@@ -123,7 +124,9 @@ class Simulation:
     ) -> tuple[_Array, _Array, _Array, list[int]]: ...
 
 class Scene:
-    def __init__(self, scene: str, simulation: str, contact: str, cache_dir: Optional[str] = None) -> None: ...
+    def __init__(
+        self, scene: str, simulation: str, contact: str, cache_dir: Optional[str] = None, threads: Optional[int] = None
+    ) -> None: ...
     def add_object(
         self,
         basis: Basis,
