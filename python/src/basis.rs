@@ -6,14 +6,13 @@ use numpy::ndarray::Array3;
 use numpy::{IntoPyArray, PyArray2, PyArray3};
 use pyo3::exceptions::{PyFileNotFoundError, PyOSError};
 use pyo3::prelude::*;
-use skin_eigen::{
-    BasisParams, SkinningBasis, SkinningWeights, build_basis as build_skinning_basis,
-};
+use skin_eigen::{BasisParams, BasisStage, SkinningBasis, SkinningWeights, build_basis_observed};
 
 use crate::arrays::{Points, matrix_array, points_of};
 use crate::errors::{self};
 use crate::material::PyMaterial;
 use crate::points::PyIntegrationPoints;
+use crate::progress::PythonProgress;
 use crate::threads::with_threads;
 
 /// A skinning basis: m eigenmode weights plus the constant handle, evaluated anywhere in the
@@ -107,9 +106,12 @@ impl PyBasis {
 
 /// Builds the skinning basis of `points` (Sec. 4–5): `kernels` RKPM kernels, the `modes`
 /// lowest generalized eigenmodes of the elastic Hessian at rest against the mass.
-/// `threads`: the threads it may use (all cores when None).
+/// `threads`: the threads it may use (all cores when None); `progress`: a callable
+/// `progress(label, done, total)` told as each of the three stages begins (`"basis: shape
+/// functions"`, `"basis: assembly"`, `"basis: eigen solve"` with done 0, 1, 2 of 3) and once
+/// more when it is built (`"basis"`, 3 of 3).
 #[pyfunction]
-#[pyo3(signature = (points, material, modes = 16, kernels = 1000, threads = None))]
+#[pyo3(signature = (points, material, modes = 16, kernels = 1000, threads = None, progress = None))]
 pub(crate) fn build_basis(
     py: Python<'_>,
     points: &PyIntegrationPoints,
@@ -117,13 +119,34 @@ pub(crate) fn build_basis(
     modes: usize,
     kernels: usize,
     threads: Option<usize>,
+    progress: Option<Py<PyAny>>,
 ) -> PyResult<PyBasis> {
     let lame = material.lame_at(points.inner.positions())?;
     let params = BasisParams::default()
         .with_modes(modes)
         .with_kernels(kernels);
     let points = &points.inner;
-    py.detach(|| with_threads(threads, || build_skinning_basis(points, &lame, &params)))?
+    let progress = progress.map(PythonProgress::new);
+    let total = BasisStage::ALL.len();
+    let on_stage = |stage: BasisStage| {
+        if let Some(progress) = &progress {
+            let done = BasisStage::ALL
+                .iter()
+                .position(|&s| s == stage)
+                .unwrap_or(0);
+            progress.call(&format!("basis: {}", stage.name()), Some(done), Some(total));
+        }
+    };
+    let built = py
+        .detach(|| {
+            with_threads(threads, || {
+                build_basis_observed(points, &lame, &params, &on_stage)
+            })
+        })?
         .map(|(inner, _, _)| PyBasis { inner })
-        .map_err(|e| errors::raise::<errors::BasisError>(&e))
+        .map_err(|e| errors::raise::<errors::BasisError>(&e))?;
+    if let Some(progress) = &progress {
+        progress.call("basis", Some(total), Some(total));
+    }
+    Ok(built)
 }

@@ -7,13 +7,22 @@ use pyo3::prelude::*;
 /// the units done and its length, or a status line with `done` and `total` None. An exception
 /// the callable raises is printed and the work goes on.
 pub(crate) struct PythonProgress {
-    pub(crate) callable: Py<PyAny>,
+    callable: Py<PyAny>,
     /// The current stage's label, units done and length.
-    pub(crate) stage: std::sync::Mutex<(String, usize, usize)>,
+    stage: std::sync::Mutex<(String, usize, usize)>,
 }
 
 impl PythonProgress {
-    fn call(&self, label: &str, done: Option<usize>, total: Option<usize>) {
+    /// Progress handed to `callable`.
+    pub(crate) fn new(callable: Py<PyAny>) -> Self {
+        PythonProgress {
+            callable,
+            stage: Default::default(),
+        }
+    }
+
+    /// Calls `progress(label, done, total)`.
+    pub(crate) fn call(&self, label: &str, done: Option<usize>, total: Option<usize>) {
         Python::attach(|py| {
             if let Err(e) = self.callable.call1(py, (label, done, total)) {
                 e.print(py);

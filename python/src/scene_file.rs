@@ -29,10 +29,7 @@ pub(crate) fn simulate_scene_file(
     let cache = cache_dir.as_deref();
     let progress: Box<dyn Progress> = match progress {
         None => Box::new(Silent),
-        Some(callable) => Box::new(PythonProgress {
-            callable,
-            stage: Default::default(),
-        }),
+        Some(callable) => Box::new(PythonProgress::new(callable)),
     };
     let progress = progress.as_ref();
     let summary = py.detach(|| {

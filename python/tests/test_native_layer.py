@@ -4,6 +4,7 @@ Rust buffers (or the caller's own array), long calls release the GIL, and Ctrl-C
 between steps with the simulation still usable."""
 
 import os
+import pathlib
 import signal
 import threading
 import time
@@ -15,6 +16,7 @@ import pytest
 import freeform
 
 RUBBER = freeform.Material(1e6, 0.45, 1000.0)
+DONUT = pathlib.Path(__file__).resolve().parents[2] / "data" / "splats" / "donut_mipsplatting_fused.ply"
 
 
 @pytest.fixture(scope="module")
@@ -251,3 +253,28 @@ def test_a_fixed_thread_count_gives_bit_identical_runs(bar):
     zero.add_object(basis, points, RUBBER)
     with pytest.raises(ValueError, match="at least 1"):
         zero.step()
+
+
+def test_build_basis_reports_its_three_stages_and_the_end():
+    points = freeform.Geometry.box([0, 0, 0], [1.0, 0.25, 0.25]).integration_points(800)
+    calls = []
+    basis = freeform.build_basis(points, RUBBER, modes=4, kernels=60, progress=lambda *a: calls.append(a))
+    assert calls == [
+        ("basis: shape functions", 0, 3),
+        ("basis: assembly", 1, 3),
+        ("basis: eigen solve", 2, 3),
+        ("basis", 3, 3),
+    ]
+    np.testing.assert_array_equal(
+        basis.weights(points.positions),
+        freeform.build_basis(points, RUBBER, modes=4, kernels=60).weights(points.positions),
+    )
+
+
+def test_a_preview_of_splats_draws_them_with_their_opacity():
+    splats = freeform.Splats.read(DONUT)
+    image = freeform.render_preview(splats, width=64, height=48)
+    assert image.shape == (48, 64, 3) and image.dtype == np.uint8
+    assert (image < 250).any() and (image == 255).any()
+    clear = freeform.render_preview(splats, opacity=np.zeros(len(splats)), width=64, height=48)
+    assert (clear == 255).all()

@@ -192,7 +192,50 @@ pub fn build_basis(
     materials: &[LameParameters],
     params: &BasisParams,
 ) -> Result<(SkinningBasis, BasisReport, AssembledMatrices), BasisError> {
-    build(points, materials, params, None, &[])
+    build(points, materials, params, None, &[], &|_| {})
+}
+
+/// A stage of building a basis, in the order [`build_basis_observed`] reports them.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum BasisStage {
+    /// Placing the K kernels and evaluating the RKPM shape functions at the points.
+    ShapeFunctions,
+    /// Assembling the weight-space stiffness and mass matrices (Eq. 12).
+    Assembly,
+    /// Solving the generalized eigenproblem for the m modes.
+    EigenSolve,
+}
+
+impl BasisStage {
+    /// The stages in order.
+    pub const ALL: [BasisStage; 3] = [
+        BasisStage::ShapeFunctions,
+        BasisStage::Assembly,
+        BasisStage::EigenSolve,
+    ];
+
+    /// "shape functions", "assembly" or "eigen solve".
+    pub fn name(self) -> &'static str {
+        match self {
+            BasisStage::ShapeFunctions => "shape functions",
+            BasisStage::Assembly => "assembly",
+            BasisStage::EigenSolve => "eigen solve",
+        }
+    }
+}
+
+/// [`build_basis`], calling `on_stage` as each stage begins (for a progress display; the
+/// result is the same).
+///
+/// # Errors
+/// As [`build_basis`].
+pub fn build_basis_observed(
+    points: &IntegrationPoints,
+    materials: &[LameParameters],
+    params: &BasisParams,
+    on_stage: &dyn Fn(BasisStage),
+) -> Result<(SkinningBasis, BasisReport, AssembledMatrices), BasisError> {
+    build(points, materials, params, None, &[], on_stage)
 }
 
 /// [`build_basis`] for an object with R exactly held regions: the basis carries one
@@ -227,6 +270,7 @@ pub fn build_basis_with_regions(
         params,
         Some((regions, region_params)),
         evaluated_at,
+        &|_| {},
     )
 }
 
@@ -236,7 +280,9 @@ fn build(
     params: &BasisParams,
     regions: Option<(&[Vec<Vector3<f64>>], &RegionConstraintParams)>,
     evaluated_at: &[&[Vector3<f64>]],
+    on_stage: &dyn Fn(BasisStage),
 ) -> Result<(SkinningBasis, BasisReport, AssembledMatrices), BasisError> {
+    on_stage(BasisStage::ShapeFunctions);
     let (mut timings, kernels, coverage, shape) =
         placed_kernels_and_shape_functions(points, evaluated_at, params)?;
 
@@ -252,12 +298,14 @@ fn build(
             kernels: kernels.len(),
         });
     }
+    on_stage(BasisStage::Assembly);
     let t = Instant::now();
     let mut held = None;
     let (matrices, solution) = match iterative {
         None => {
             let matrices = assemble_weight_space_matrices(&shape, points.volumes(), materials)?;
             timings.assembly = t.elapsed().as_secs_f64();
+            on_stage(BasisStage::EigenSolve);
             let t = Instant::now();
             let solution = match regions {
                 None => solve_skinning_modes(&matrices, &params.eigen)?,
@@ -297,6 +345,7 @@ fn build(
                 materials,
             )?;
             timings.assembly = t.elapsed().as_secs_f64();
+            on_stage(BasisStage::EigenSolve);
             let t = Instant::now();
             let solution = solve_skinning_modes_iteratively(&matrices, &params.eigen, &subspace)?;
             timings.eigen_solve = t.elapsed().as_secs_f64();

@@ -12,8 +12,9 @@ pub mod weighted_basis;
 
 pub use assembly::{AssemblyError, WeightSpaceMatrices, assemble_weight_space_matrices};
 pub use basis_builder::{
-    AssembledMatrices, BasisError, BasisParams, BasisReport, DENSE_SOLVER_MAX_KERNELS,
-    EigenSolverChoice, HeldRegionsReport, PhaseTimings, build_basis, build_basis_with_regions,
+    AssembledMatrices, BasisError, BasisParams, BasisReport, BasisStage, DENSE_SOLVER_MAX_KERNELS,
+    EigenSolverChoice, HeldRegionsReport, PhaseTimings, build_basis, build_basis_observed,
+    build_basis_with_regions,
 };
 pub use generalized_eigen::{EigenError, EigenParams, EigenSolution, solve_skinning_modes};
 pub use region_constraints::{

@@ -8,8 +8,9 @@ use hyperelastic::LameParameters;
 use nalgebra::Vector3;
 use rkpm_core::{IntegrationPoints, sample_box_grid};
 use skin_eigen::{
-    AssembledMatrices, BasisFileError, BasisParams, EigenSolverChoice, SkinningBasis,
+    AssembledMatrices, BasisFileError, BasisParams, BasisStage, EigenSolverChoice, SkinningBasis,
     SubspaceParams, WeightSpaceMatrices, assemble_weight_space_matrices, build_basis,
+    build_basis_observed,
 };
 
 const BEAM: [f64; 3] = [5.0, 1.0, 1.0];
@@ -233,6 +234,21 @@ fn more_modes_than_kernels_is_a_clear_error() {
     let materials = vec![lame(); points.len()];
     let err = build_basis(&points, &materials, &params(20, 25)).unwrap_err();
     assert!(err.to_string().contains("modes"), "{err}");
+}
+
+#[test]
+fn an_observed_build_reports_each_stage_once_in_order_and_builds_the_same_basis() {
+    let points = beam_points(0.25);
+    let materials = vec![lame(); points.len()];
+    let stages = std::sync::Mutex::new(Vec::new());
+    let observed = build_basis_observed(&points, &materials, &params(60, 4), &|stage| {
+        stages.lock().unwrap().push(stage)
+    })
+    .unwrap()
+    .0;
+    assert_eq!(stages.into_inner().unwrap(), BasisStage::ALL.to_vec());
+    let plain = build_basis(&points, &materials, &params(60, 4)).unwrap().0;
+    assert_eq!(observed.eigenvalues(), plain.eigenvalues());
 }
 
 /// The iterative (sparse, shift-invert subspace) solver reproduces the dense solver's

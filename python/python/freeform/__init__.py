@@ -31,9 +31,9 @@ from ._native import (
     SceneError,
     Splats,
     StepError,
-    build_basis,
-    render_preview,
 )
+from ._native import build_basis as _build_basis
+from ._native import render_preview as _render_preview
 from ._native import GeometryError
 from ._native import simulate_scene_file as _simulate_scene_file
 
@@ -58,6 +58,74 @@ __all__ = [
 ]
 
 PathType = Union[str, "PathLike[str]"]
+
+
+def _stage_printer(total_label: str):
+    """A ``progress(label, done, total)`` for ``progress=True``: a tqdm bar when tqdm is
+    installed, else a line on stderr per stage."""
+    try:
+        from tqdm import tqdm
+    except ImportError:
+        import sys
+
+        def report(label, done, total):
+            print(f"{label} ({done}/{total})", file=sys.stderr, flush=True)
+
+        return report
+    bar = None
+
+    def report(label, done, total):
+        nonlocal bar
+        if bar is None:
+            bar = tqdm(total=total, desc=total_label)
+        bar.set_description(label)
+        bar.n = done
+        bar.refresh()
+        if done == total:
+            bar.close()
+
+    return report
+
+
+def build_basis(
+    points: IntegrationPoints,
+    material: Material,
+    modes: int = 16,
+    kernels: int = 1000,
+    threads: Optional[int] = None,
+    progress=None,
+) -> Basis:
+    """The skinning basis of ``points`` (Sec. 4-5): ``kernels`` RKPM kernels, the ``modes``
+    lowest generalized eigenmodes of the elastic Hessian at rest against the mass.
+    ``threads`` caps the threads (all cores by default; a fixed count is bit-identical);
+    ``progress`` is a callable ``progress(label, done, total)`` told as each of the three
+    stages begins and when the basis is built, or True for a tqdm bar.
+
+    Raises ``BasisError`` for m >= K or a point no kernel reaches, ``SceneError`` for a
+    material that is not one."""
+    if progress is True:
+        progress = _stage_printer("basis")
+    return _build_basis(points, material, modes, kernels, threads, progress or None)
+
+
+def render_preview(points, values=None, opacity=None, up=(0.0, 1.0, 0.0), width: int = 512,
+                   height: int = 512) -> np.ndarray:
+    """A ``(height, width, 3)`` uint8 RGB quick look at ``points`` (``(n, 3)``, m) or at a
+    ``Splats`` table (its centres, with its opacities unless ``opacity`` is given), each point
+    a round splat coloured by ``values`` (``(n,)``, e.g. von Mises stress; grey without), on
+    white, seen from 30° about and 20° above ``up``."""
+    if isinstance(points, Splats):
+        if opacity is None and "opacity" in points.properties:
+            opacity = 1.0 / (1.0 + np.exp(-points.column("opacity")))
+        points = points.positions
+    return _render_preview(
+        points,
+        None if values is None else np.asarray(values, dtype=np.float64).tolist(),
+        None if opacity is None else np.asarray(opacity, dtype=np.float64).tolist(),
+        [float(u) for u in up],
+        int(width),
+        int(height),
+    )
 
 
 def simulate_scene_file(

@@ -158,6 +158,7 @@ def build_basis(
     modes: int = 16,
     kernels: int = 1000,
     threads: Optional[int] = None,
+    progress: Optional[Callable[[str, Optional[int], Optional[int]], Any]] = None,
 ) -> Basis: ...
 def simulate_scene_file(
     path: _Path,
