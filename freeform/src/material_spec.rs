@@ -71,7 +71,7 @@ impl MaterialSpec {
 impl MaterialSpec {
     /// The first problem as (field, what is wrong): E or ν out of range, a density that is not
     /// positive, an invalid region.
-    pub(crate) fn defect(&self) -> Option<(String, String)> {
+    pub fn defect(&self) -> Option<(String, String)> {
         let samples = std::iter::once(("material".to_string(), self.base())).chain(
             self.regions.iter().enumerate().map(|(i, r)| {
                 (

@@ -3,6 +3,7 @@
 
 use std::sync::Arc;
 
+use freeform::{MaterialRegion, MaterialSpec};
 use hyperelastic::{LameParameters, MaterialField, MaterialSample};
 use nalgebra::Vector3;
 use numpy::ndarray::Array1;
@@ -35,6 +36,8 @@ impl SampledMaterial {
 pub(crate) struct PyMaterial {
     uniform: Option<MaterialSample>,
     sampled: Option<Arc<SampledMaterial>>,
+    /// A base material with regions of their own (the scene file's `material.regions`).
+    regions: Option<MaterialSpec>,
 }
 
 /// `sample`, refused unless its values make a material.
@@ -54,6 +57,9 @@ fn checked(sample: MaterialSample, what: &str) -> PyResult<MaterialSample> {
 impl PyMaterial {
     /// The material as a field over the rest shape.
     pub(crate) fn field(&self) -> MaterialField {
+        if let Some(spec) = &self.regions {
+            return spec.field();
+        }
         match (&self.uniform, &self.sampled) {
             (Some(m), _) => MaterialField::Uniform(*m),
             (None, Some(sampled)) => {
@@ -96,18 +102,50 @@ impl PyMaterial {
 
 #[pymethods]
 impl PyMaterial {
-    /// One material everywhere: E (Pa), ν, ρ (kg/m³).
+    /// One material everywhere: E (Pa), ν, ρ (kg/m³); with `regions` (a list of dicts with the
+    /// scene file's `material.regions` keys: `region`, `youngs_modulus`, `poisson_ratio`,
+    /// `density`), parts of the object by rest position have their own (the later region wins
+    /// where they overlap).
     #[new]
-    #[pyo3(signature = (youngs_modulus, poisson_ratio, density))]
-    fn new(youngs_modulus: f64, poisson_ratio: f64, density: f64) -> PyResult<Self> {
+    #[pyo3(signature = (youngs_modulus, poisson_ratio, density, regions = None))]
+    fn new(
+        py: Python<'_>,
+        youngs_modulus: f64,
+        poisson_ratio: f64,
+        density: f64,
+        regions: Option<Bound<'_, PyAny>>,
+    ) -> PyResult<Self> {
         let sample = MaterialSample {
             youngs_modulus,
             poisson_ratio,
             density,
         };
+        let uniform = checked(sample, "the material")?;
+        let regions = match regions {
+            None => None,
+            Some(regions) => {
+                let json: String = py
+                    .import("json")?
+                    .call_method1("dumps", (regions,))?
+                    .extract()?;
+                let regions: Vec<MaterialRegion> = serde_json::from_str(&json)
+                    .map_err(|e| SceneError::new_err(format!("material regions: {e}")))?;
+                let spec = MaterialSpec {
+                    youngs_modulus,
+                    poisson_ratio,
+                    density,
+                    regions,
+                };
+                if let Some((field, problem)) = spec.defect() {
+                    return Err(SceneError::new_err(format!("{field}: {problem}")));
+                }
+                Some(spec)
+            }
+        };
         Ok(PyMaterial {
-            uniform: Some(checked(sample, "the material")?),
+            uniform: Some(uniform),
             sampled: None,
+            regions,
         })
     }
 
@@ -150,6 +188,7 @@ impl PyMaterial {
         let index = SpatialIndex::new(&positions);
         Ok(PyMaterial {
             uniform: None,
+            regions: None,
             sampled: Some(Arc::new(SampledMaterial {
                 positions,
                 samples,
@@ -158,7 +197,14 @@ impl PyMaterial {
         })
     }
 
-    /// Young's modulus E (Pa): a number, or `(n,)` at the given points.
+    /// The number of regions with their own material (0 without).
+    #[getter]
+    fn regions(&self) -> usize {
+        self.regions.as_ref().map_or(0, |spec| spec.regions.len())
+    }
+
+    /// Young's modulus E (Pa): a number (the base one with regions), or `(n,)` at the given
+    /// points.
     #[getter]
     fn youngs_modulus(&self, py: Python<'_>) -> PyResult<Py<PyAny>> {
         self.values(py, |m| m.youngs_modulus)
@@ -183,6 +229,15 @@ impl PyMaterial {
     }
 
     fn __repr__(&self) -> String {
+        if let Some(spec) = &self.regions {
+            return format!(
+                "Material(E = {} Pa, ν = {}, ρ = {} kg/m³, {} region(s))",
+                spec.youngs_modulus,
+                spec.poisson_ratio,
+                spec.density,
+                spec.regions.len()
+            );
+        }
         match (&self.uniform, &self.sampled) {
             (Some(m), _) => format!(
                 "Material(E = {} Pa, ν = {}, ρ = {} kg/m³)",

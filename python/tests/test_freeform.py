@@ -487,6 +487,19 @@ def test_a_material_at_points_is_the_uniform_one_when_equal_and_stiffens_where_s
     assert stiff_sag < mixed_sag < uniform_sag, (stiff_sag, mixed_sag, uniform_sag)
     np.testing.assert_array_equal(stiff_near_clamp.youngs_modulus[:3], np.where(x[:3, 0] < 0.5, 1e7, 1e6))
 
+    # The same part given as a region of the rest shape: the same material at every point.
+    cut = 0.5013
+    by_points = freeform.Material.at_points(x, np.where(x[:, 0] <= cut, 1e7, 1e6).tolist(), [0.45], [1000.0])
+    by_region = freeform.Material(
+        1e6, 0.45, 1000.0,
+        regions=[{"region": {"below": {"axis": 0, "value": cut}}, "youngs_modulus": 1e7,
+                  "poisson_ratio": 0.45, "density": 1000.0}],
+    )
+    assert by_region.regions == 1
+    np.testing.assert_array_equal(tip_sag(by_region)[0], tip_sag(by_points)[0])
+    with pytest.raises(freeform.SceneError, match="regions"):
+        freeform.Material(1e6, 0.45, 1000.0, regions=[{"region": {"below": {"axis": 0}}}])
+
     with pytest.raises(ValueError, match="3 values for"):
         freeform.Material.at_points(x, [1e6, 1e6, 1e6], [0.45], [1000.0])
     with pytest.raises(freeform.SceneError, match="point 0"):
@@ -579,3 +592,22 @@ def test_a_scene_of_one_object_steps_as_the_simulation_and_gives_its_stress_and_
     moved, _ = scene.deformed_splats(k, splats)
     # (The splat table keeps its centres as float32.)
     np.testing.assert_allclose(moved.positions, sim.deformed_points(splats.positions), atol=1e-6)
+
+
+def test_scene_frames_are_written_where_the_scene_file_run_puts_them(tmp_path, bar):
+    points, basis = bar
+    scene = freeform.Scene(time_step=0.01, gravity=[0, -9.8, 0], quadrature={"kind": "full"})
+    box = freeform.Geometry.box([0, 0, 0], [1.0, 0.25, 0.25])
+    k = scene.add_object(basis, points, RUBBER, geometry=box, name="bar")
+    c = scene.add_object(basis, points, RUBBER, position=[0, 1, 0])
+    scene.run(2)
+    files = scene.write_frame(tmp_path, 2)
+    assert [pathlib.Path(f[1]).relative_to(tmp_path).as_posix() for f in files] == [
+        "bar/frame_00002.vtk",
+        "object1/frame_00002.vtk",
+    ]
+    np.testing.assert_allclose(
+        vtk_points(tmp_path / "bar" / "frame_00002.vtk"), scene.deformed_points(k, box.display_points()), atol=0
+    )
+    assert vtk_points(tmp_path / "object1" / "frame_00002.vtk").shape == (len(points), 3)
+    assert c == 1

@@ -13,6 +13,7 @@ A basis for a bar, evaluated at its own points::
 """
 
 import json
+import pathlib
 from os import PathLike
 from typing import Any, Callable, Optional, Union
 
@@ -337,7 +338,8 @@ class Scene:
     ``gravity`` (m/s², a vector), ``floor`` and ``colliders`` take the keys of the scene file's
     ``[scene]``; ``contact`` those of its ``[contact]`` (default ``{"radius": 0.02}``: samples
     of different objects closer than 2 cm repel); ``simulation`` those of ``[simulation]``
-    (``time_step`` overrides its ``time_step``); ``threads`` pins the threads its setup and steps
+    (``time_step``, ``quadrature`` — e.g. ``{"kind": "full"}`` — and ``hessian_reuse`` override
+    its keys); ``threads`` pins the threads its setup and steps
     run on (all cores by default; a fixed count gives bit-identical runs). Objects, pins, the
     floor, colliders and contact are set before the first step::
 
@@ -360,13 +362,20 @@ class Scene:
         simulation: Optional[dict[str, Any]] = None,
         cache_dir: Optional[PathType] = None,
         threads: Optional[int] = None,
+        quadrature: Optional[dict[str, Any]] = None,
+        hessian_reuse: Optional[bool] = None,
     ) -> None:
         self._threads = threads
         self._native_scene = None
         self._stepped = False
+        self._writers: dict[str, list] = {}
         self._simulation = dict(simulation or {})
         if time_step is not None:
             self._simulation["time_step"] = float(time_step)
+        if quadrature is not None:
+            self._simulation["quadrature"] = quadrature
+        if hessian_reuse is not None:
+            self._simulation["hessian_reuse"] = bool(hessian_reuse)
         self._scene: dict[str, Any] = {"colliders": list(colliders or [])}
         if gravity is not None:
             self.set_gravity(gravity)
@@ -438,8 +447,10 @@ class Scene:
         velocity=None,
         constraints: Optional[list[dict[str, Any]]] = None,
         pinned: Optional[list[np.ndarray]] = None,
+        name: Optional[str] = None,
     ) -> int:
-        """Adds an object and returns its index ``k``. ``position`` (m) and ``rotation`` (a
+        """Adds an object and returns its index ``k``; ``name`` (default ``object<k>``) names
+        its folder in ``write_frame``. ``position`` (m) and ``rotation`` (a
         quaternion ``[i, j, k, w]``) place its rest frame, ``x = R X + position``; ``velocity``
         (m/s) starts it moving. ``constraints`` are its held and moving regions in its rest
         frame (the scene file's ``[[objects.constraints]]``); ``pinned`` sets of its
@@ -459,9 +470,29 @@ class Scene:
                 "placement": placement,
                 "constraints": list(constraints or []),
                 "pinned": [np.asarray(p, dtype=np.int64).ravel().tolist() for p in (pinned or [])],
+                "name": name if name is not None else f"object{len(self._objects)}",
             }
         )
         return len(self._objects) - 1
+
+    def write_frame(self, out_dir: PathType, index: int) -> list[tuple[str, str]]:
+        """Writes frame ``index`` of every object as PLY and VTK (``<out_dir>/<name>/
+        frame_NNNNN.ply`` / ``.vtk``, as ``simulate_scene_file`` does): its geometry's surface
+        or cloud, or its integration points without one. Returns the files written."""
+        key = str(out_dir)
+        if key not in self._writers:
+            self._writers[key] = [
+                FrameWriter(
+                    pathlib.Path(out_dir) / o["name"],
+                    o["geometry"] if o["geometry"] is not None
+                    else Geometry.from_points(o["points"].positions),
+                )
+                for o in self._objects
+            ]
+        return [
+            writer.write(index, self.deformed_points(k, writer.rest_positions), self.time)
+            for k, writer in enumerate(self._writers[key])
+        ]
 
     def pin(self, k: int, where, motion: Any = "rest") -> None:
         """Holds part of object ``k``: ``where`` a region of its rest frame (the scene file's

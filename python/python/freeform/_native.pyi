@@ -44,7 +44,13 @@ class IntegrationPoints:
     def __len__(self) -> int: ...
 
 class Material:
-    def __init__(self, youngs_modulus: float, poisson_ratio: float, density: float) -> None: ...
+    def __init__(
+        self,
+        youngs_modulus: float,
+        poisson_ratio: float,
+        density: float,
+        regions: Optional[list[dict[str, Any]]] = None,
+    ) -> None: ...
     @staticmethod
     def at_points(
         positions: _Points, youngs_modulus: list[float], poisson_ratio: list[float], density: list[float]
@@ -57,6 +63,8 @@ class Material:
     def density(self) -> float | _Array: ...
     @property
     def per_point(self) -> bool: ...
+    @property
+    def regions(self) -> int: ...
 
 class Basis:
     @property
