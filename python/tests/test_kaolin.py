@@ -36,7 +36,7 @@ def test_a_boundary_mask_and_a_floor_run_exactly_as_the_same_simulation(bar):
     idx = scene.add_object(bar)
     scene.set_scene_gravity()
     scene.set_scene_floor(floor_height=-0.05, floor_axis=1)
-    scene.set_object_boundary_condition(idx, "clamp", lambda x: x[:, 0] <= 0.05, bdry_penalty=1e4)
+    scene.set_object_boundary_condition(idx, "clamp", lambda x: x[:, 0] <= 0.05)
     for _ in range(8):
         scene.run_sim_step()
     sim = freeform.Simulation(
@@ -160,3 +160,21 @@ def test_cpu_tensors_are_read_and_a_cuda_tensor_is_a_clear_error():
         SimplicitsObject.create_with_rkpm(
             _Tensor(pts, "cuda"), E, NU, RHO, 0.0625, num_handles=4, num_kernels=60
         )
+
+
+def test_kaolins_penalties_are_not_used_and_warned_about_once(bar):
+    import warnings
+
+    from freeform import kaolin
+
+    kaolin._WARNED.clear()
+    scene = SimplicitsScene()
+    idx = scene.add_object(bar)
+    with pytest.warns(UserWarning, match="floor_penalty is not used"):
+        scene.set_scene_floor(floor_penalty=1e5)
+    with pytest.warns(UserWarning, match="bdry_penalty is not used"):
+        scene.set_object_boundary_condition(idx, "clamp", lambda x: x[:, 0] < 0.05, bdry_penalty=1e4)
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        scene.set_scene_floor(floor_penalty=1e5)
+        scene.set_object_boundary_condition(idx, "clamp", lambda x: x[:, 0] < 0.05, bdry_penalty=1e4)

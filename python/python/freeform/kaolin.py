@@ -15,12 +15,14 @@ Kaolin's conventions hold at this boundary:
 What differs: arrays are numpy float64 (CPU torch tensors are accepted and converted, CUDA
 tensors refused with a clear error), there is no
 device, and the penalties are FreeForm's, which scale with the material
-(``docs/scene-files.md``), so ``floor_penalty`` and ``bdry_penalty`` are accepted and not used.
+(``docs/scene-files.md``), so ``floor_penalty`` and ``bdry_penalty`` are accepted, not used, and
+warned about once.
 ``num_cub_pts`` draws that many points at random for the elastic energy, as Kaolin does; leave
 it ``None`` for FreeForm's own quadrature. Objects do not touch each other (as in Kaolin's easy
 API); each is stepped on its own.
 """
 
+import warnings
 from typing import Any, Callable, Optional
 
 import numpy as np
@@ -44,6 +46,16 @@ def _array(values, shape=None) -> np.ndarray:
         values = values.detach().numpy()
     array = np.asarray(values, dtype=np.float64)
     return array if shape is None else array.reshape(shape)
+
+
+_WARNED: set[str] = set()
+
+
+def _warn_once(key: str, message: str) -> None:
+    """A ``UserWarning`` with ``message`` the first time ``key`` comes up in this process."""
+    if key not in _WARNED:
+        _WARNED.add(key)
+        warnings.warn(message, UserWarning, stacklevel=3)
 
 
 def _material(pts: np.ndarray, yms, prs, rhos) -> Material:
@@ -142,10 +154,16 @@ class SimplicitsScene:
         self._changed()
 
     def set_scene_floor(self, floor_height: float = 0.0, floor_axis: int = 1,
-                        floor_penalty: float = 10000.0, flip_floor: bool = False) -> None:
+                        floor_penalty: Optional[float] = None, flip_floor: bool = False) -> None:
         """A floor at ``floor_height`` along ``floor_axis``: points stay above it (below it
         with ``flip_floor``). ``floor_penalty`` is not used (FreeForm's floor stiffness scales
-        with the material)."""
+        with the material); giving one warns once."""
+        if floor_penalty is not None:
+            _warn_once(
+                "floor_penalty",
+                "floor_penalty is not used: FreeForm's floor stiffness scales with the material "
+                "(kappa = 1e4 (lambda + 2 mu) / L^2), calibrated against the FEM",
+            )
         if floor_axis not in (0, 1, 2):
             raise ValueError(f"floor_axis must be 0, 1 or 2, got {floor_axis}")
         normal = [0.0, 0.0, 0.0]
@@ -155,10 +173,17 @@ class SimplicitsScene:
         self._changed()
 
     def set_object_boundary_condition(self, obj_idx: int, name: str,
-                                      fcn: Callable[[np.ndarray], Any], bdry_penalty: float = 0.0) -> None:
+                                      fcn: Callable[[np.ndarray], Any],
+                                      bdry_penalty: Optional[float] = None) -> None:
         """Holds at rest the object's points where ``fcn(points)`` is true (a boolean ``(n,)``
         mask of its ``(n, 3)`` points). ``bdry_penalty`` is not used (FreeForm's pin penalty
-        scales with the material)."""
+        scales with the material); giving one warns once."""
+        if bdry_penalty is not None:
+            _warn_once(
+                "bdry_penalty",
+                "bdry_penalty is not used: FreeForm's pin penalty scales with the material "
+                "(kappa = 3e3 max E / L^2), chosen against the FEM",
+            )
         o = self._objects[obj_idx]
         mask = _array(fcn(o.obj.pts)).astype(bool).ravel()
         if mask.shape != (o.obj.pts.shape[0],):
