@@ -34,10 +34,17 @@ impl SampledMaterial {
 /// everywhere or given at points.
 #[pyclass(module = "freeform._native", name = "Material", frozen)]
 pub(crate) struct PyMaterial {
-    uniform: Option<MaterialSample>,
-    sampled: Option<Arc<SampledMaterial>>,
+    kind: MaterialKind,
+}
+
+/// How a material varies over the object.
+enum MaterialKind {
+    /// One material everywhere.
+    Uniform(MaterialSample),
     /// A base material with regions of their own (the scene file's `material.regions`).
-    regions: Option<MaterialSpec>,
+    Regions(MaterialSpec),
+    /// Values given at points.
+    Sampled(Arc<SampledMaterial>),
 }
 
 /// `sample`, refused unless its values make a material.
@@ -57,16 +64,13 @@ fn checked(sample: MaterialSample, what: &str) -> PyResult<MaterialSample> {
 impl PyMaterial {
     /// The material as a field over the rest shape.
     pub(crate) fn field(&self) -> MaterialField {
-        if let Some(spec) = &self.regions {
-            return spec.field();
-        }
-        match (&self.uniform, &self.sampled) {
-            (Some(m), _) => MaterialField::Uniform(*m),
-            (None, Some(sampled)) => {
+        match &self.kind {
+            MaterialKind::Uniform(m) => MaterialField::Uniform(*m),
+            MaterialKind::Regions(spec) => spec.field(),
+            MaterialKind::Sampled(sampled) => {
                 let sampled = Arc::clone(sampled);
                 MaterialField::Function(Arc::new(move |x: &Vector3<f64>| sampled.at(x)))
             }
-            (None, None) => unreachable!("a material is uniform or sampled"),
         }
     }
 
@@ -88,14 +92,16 @@ impl PyMaterial {
         py: Python<'py>,
         pick: fn(&MaterialSample) -> f64,
     ) -> PyResult<Py<PyAny>> {
-        Ok(match (&self.uniform, &self.sampled) {
-            (Some(m), _) => pick(m).into_pyobject(py)?.into_any().unbind(),
-            (_, Some(s)) => {
+        Ok(match &self.kind {
+            MaterialKind::Uniform(m) => pick(m).into_pyobject(py)?.into_any().unbind(),
+            MaterialKind::Regions(spec) => {
+                pick(&spec.base()).into_pyobject(py)?.into_any().unbind()
+            }
+            MaterialKind::Sampled(s) => {
                 let values: Array1<f64> = s.samples.iter().map(pick).collect();
                 let array: Bound<'py, PyArray1<f64>> = values.into_pyarray(py);
                 array.into_any().unbind()
             }
-            (None, None) => py.None(),
         })
     }
 }
@@ -121,8 +127,8 @@ impl PyMaterial {
             density,
         };
         let uniform = checked(sample, "the material")?;
-        let regions = match regions {
-            None => None,
+        let kind = match regions {
+            None => MaterialKind::Uniform(uniform),
             Some(regions) => {
                 let json: String = py
                     .import("json")?
@@ -139,14 +145,10 @@ impl PyMaterial {
                 if let Some((field, problem)) = spec.defect() {
                     return Err(SceneError::new_err(format!("{field}: {problem}")));
                 }
-                Some(spec)
+                MaterialKind::Regions(spec)
             }
         };
-        Ok(PyMaterial {
-            uniform: Some(uniform),
-            sampled: None,
-            regions,
-        })
+        Ok(PyMaterial { kind })
     }
 
     /// Values given at `positions` (`(n, 3)`, m): `youngs_modulus`, `poisson_ratio` and
@@ -187,9 +189,7 @@ impl PyMaterial {
             .collect::<PyResult<Vec<_>>>()?;
         let index = SpatialIndex::new(&positions);
         Ok(PyMaterial {
-            uniform: None,
-            regions: None,
-            sampled: Some(Arc::new(SampledMaterial {
+            kind: MaterialKind::Sampled(Arc::new(SampledMaterial {
                 positions,
                 samples,
                 index,
@@ -200,7 +200,10 @@ impl PyMaterial {
     /// The number of regions with their own material (0 without).
     #[getter]
     fn regions(&self) -> usize {
-        self.regions.as_ref().map_or(0, |spec| spec.regions.len())
+        match &self.kind {
+            MaterialKind::Regions(spec) => spec.regions.len(),
+            _ => 0,
+        }
     }
 
     /// Young's modulus E (Pa): a number (the base one with regions), or `(n,)` at the given
@@ -225,26 +228,23 @@ impl PyMaterial {
     /// Whether the values were given at points.
     #[getter]
     fn per_point(&self) -> bool {
-        self.sampled.is_some()
+        matches!(self.kind, MaterialKind::Sampled(_))
     }
 
     fn __repr__(&self) -> String {
-        if let Some(spec) = &self.regions {
-            return format!(
+        match &self.kind {
+            MaterialKind::Uniform(m) => format!(
+                "Material(E = {} Pa, ν = {}, ρ = {} kg/m³)",
+                m.youngs_modulus, m.poisson_ratio, m.density
+            ),
+            MaterialKind::Regions(spec) => format!(
                 "Material(E = {} Pa, ν = {}, ρ = {} kg/m³, {} region(s))",
                 spec.youngs_modulus,
                 spec.poisson_ratio,
                 spec.density,
                 spec.regions.len()
-            );
-        }
-        match (&self.uniform, &self.sampled) {
-            (Some(m), _) => format!(
-                "Material(E = {} Pa, ν = {}, ρ = {} kg/m³)",
-                m.youngs_modulus, m.poisson_ratio, m.density
             ),
-            (_, Some(s)) => format!("Material(at {} points)", s.positions.len()),
-            (None, None) => "Material()".into(),
+            MaterialKind::Sampled(s) => format!("Material(at {} points)", s.positions.len()),
         }
     }
 }

@@ -174,13 +174,16 @@ impl PyScene {
     /// object's quadrature, at the first step); returns the Newton reports as JSON text
     /// (`converged`, and per object `iterations`, `residual`, ...).
     fn step(&mut self, py: Python<'_>) -> PyResult<String> {
-        if self.simulator.is_none() {
-            let pool = self.pool.as_deref();
-            let simulator = py.detach(|| on_pool(pool, || self.build()))?;
-            self.simulator = Some(simulator);
-        }
         let pool = self.pool.as_deref();
-        let simulator = self.simulator.as_mut().expect("built above");
+        if self.simulator.is_none() {
+            let built = py.detach(|| on_pool(pool, || self.build()))?;
+            self.simulator = Some(built);
+        }
+        let Some(simulator) = self.simulator.as_mut() else {
+            return Err(SceneError::new_err(
+                "the scene's simulator could not be built",
+            ));
+        };
         let report = py
             .detach(|| on_pool(pool, || simulator.step()))
             .map_err(|e| errors::step_error(Some(self.steps_taken + 1), &e))?;
