@@ -281,10 +281,7 @@ impl PyScene {
         Bound<'py, numpy::PyArray1<f64>>,
         Vec<usize>,
     )> {
-        let rest: Vec<Vector3<f64>> = match &points {
-            Some(p) => points_of(p, "points")?,
-            None => self.object(k)?.points.positions().to_vec(),
-        };
+        let rest = self.rest_points(k, points.as_ref())?;
         let z = &self.state(k)?.z;
         let f = self.map(py, k, points)?.deformation_gradients(z);
         crate::outputs::stress_arrays(py, &self.object(k)?.material, &rest, &f)
@@ -312,10 +309,7 @@ impl PyScene {
         k: usize,
         points: Option<Points<'py>>,
     ) -> PyResult<Bound<'py, PyArray3<f64>>> {
-        let rest: Vec<Vector3<f64>> = match &points {
-            Some(p) => points_of(p, "points")?,
-            None => self.object(k)?.points.positions().to_vec(),
-        };
+        let rest = self.rest_points(k, points.as_ref())?;
         let z = &self.state(k)?.z;
         let map = self.map(py, k, points)?;
         let (x, f) = (map.positions(z), map.deformation_gradients(z));
@@ -358,6 +352,14 @@ impl PyScene {
         })
     }
 
+    /// Object `k`'s rest `points` (m), its integration points when `None`.
+    fn rest_points(&self, k: usize, points: Option<&Points<'_>>) -> PyResult<Vec<Vector3<f64>>> {
+        match points {
+            Some(p) => points_of(p, "points"),
+            None => Ok(self.object(k)?.points.positions().to_vec()),
+        }
+    }
+
     /// Object `k`'s deformation map at `points` (its integration points when `None`).
     fn map(
         &self,
@@ -365,12 +367,8 @@ impl PyScene {
         k: usize,
         points: Option<Points<'_>>,
     ) -> PyResult<DeformationMap> {
-        let object = self.object(k)?;
-        let points = match &points {
-            Some(p) => points_of(p, "points")?,
-            None => object.points.positions().to_vec(),
-        };
-        let basis = &object.basis;
+        let points = self.rest_points(k, points.as_ref())?;
+        let basis = &self.object(k)?.basis;
         py.detach(|| DeformationMap::new(basis, &points))
             .map_err(|e| errors::raise::<errors::BasisError>(&e))
     }

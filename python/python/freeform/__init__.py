@@ -157,6 +157,20 @@ def simulate_scene_file(
     return json.loads(summary)
 
 
+def _run_steps(stepped, steps: int, on_frame, progress) -> list[dict[str, Any]]:
+    """``steps`` calls of ``stepped.step()``, ``on_frame(stepped, report)`` after each (``False``
+    stops early), ``progress`` told as they go; the reports."""
+    report_progress = _progress_reporter(progress, steps, "simulate")
+    reports = []
+    for done in range(1, steps + 1):
+        report = stepped.step()
+        reports.append(report)
+        report_progress(done)
+        if on_frame is not None and on_frame(stepped, report) is False:
+            break
+    return reports
+
+
 class Simulation:
     """A reduced simulation stepped from Python.
 
@@ -210,15 +224,7 @@ class Simulation:
         stop early); ``progress``: a callable ``progress(label, done, total)`` or True for a
         tqdm bar (at most ten updates a second). Ctrl-C stops after the step in progress.
         Returns the steps' reports."""
-        report_progress = _progress_reporter(progress, steps, "simulate")
-        reports = []
-        for done in range(1, steps + 1):
-            report = self.step()
-            reports.append(report)
-            report_progress(done)
-            if on_frame is not None and on_frame(self, report) is False:
-                break
-        return reports
+        return _run_steps(self, steps, on_frame, progress)
 
     @property
     def time(self) -> float:
@@ -554,15 +560,7 @@ class Scene:
         """``steps`` steps; ``on_frame(scene, report)`` after each (return ``False`` to stop
         early); ``progress``: a callable ``progress(label, done, total)`` or True for a tqdm bar
         (at most ten updates a second). Ctrl-C stops after the step in progress."""
-        report_progress = _progress_reporter(progress, steps, "simulate")
-        reports = []
-        for done in range(1, steps + 1):
-            report = self.step()
-            reports.append(report)
-            report_progress(done)
-            if on_frame is not None and on_frame(self, report) is False:
-                break
-        return reports
+        return _run_steps(self, steps, on_frame, progress)
 
     @property
     def time(self) -> float:
