@@ -47,6 +47,24 @@ enum MaterialKind {
     Sampled(Arc<SampledMaterial>),
 }
 
+/// The Lamé parameters of `field` at `positions` (m).
+///
+/// # Errors
+/// `SceneError` where the material's values make no Lamé parameters.
+pub(crate) fn lame_of(
+    field: &MaterialField,
+    positions: &[Vector3<f64>],
+) -> PyResult<Vec<LameParameters>> {
+    field
+        .sample(positions)
+        .iter()
+        .map(|m| {
+            m.lame_parameters()
+                .map_err(|e| errors::raise::<SceneError>(&e))
+        })
+        .collect()
+}
+
 /// `sample`, refused unless its values make a material.
 fn checked(sample: MaterialSample, what: &str) -> PyResult<MaterialSample> {
     sample
@@ -76,14 +94,7 @@ impl PyMaterial {
 
     /// The Lamé parameters at `positions` (m).
     pub(crate) fn lame_at(&self, positions: &[Vector3<f64>]) -> PyResult<Vec<LameParameters>> {
-        self.field()
-            .sample(positions)
-            .iter()
-            .map(|m| {
-                m.lame_parameters()
-                    .map_err(|e| errors::raise::<SceneError>(&e))
-            })
-            .collect()
+        lame_of(&self.field(), positions)
     }
 
     /// The value of `pick` everywhere, or at each given point.

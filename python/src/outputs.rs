@@ -10,6 +10,7 @@ use pyo3::prelude::*;
 use skin_eigen::SkinningBasis;
 
 use crate::errors::{self, value_error};
+use crate::material::lame_of;
 use crate::splats::PySplats;
 
 /// `splats` (rest centres, m) deformed by `basis` at coordinates `z`, and the number of splats
@@ -44,12 +45,7 @@ pub(crate) fn stress_arrays<'py>(
     Bound<'py, PyArray1<f64>>,
     Vec<usize>,
 )> {
-    let lame = material
-        .sample(rest)
-        .iter()
-        .map(|m| m.lame_parameters())
-        .collect::<Result<Vec<_>, _>>()
-        .map_err(|e| errors::raise::<errors::SceneError>(&e))?;
+    let lame = lame_of(material, rest)?;
     let field = StressField::new(&StableNeoHookean, &lame, f).map_err(|e| value_error(&e))?;
     let samples = &field.samples;
     let n = samples.len();
@@ -62,4 +58,12 @@ pub(crate) fn stress_arrays<'py>(
         von_mises.into_pyarray(py),
         field.inverted,
     ))
+}
+
+/// `n` 3 × 3 matrices as an `(n, 3, 3)` array.
+pub(crate) fn matrices_array<'py>(
+    py: Python<'py>,
+    m: &[Matrix3<f64>],
+) -> Bound<'py, PyArray3<f64>> {
+    Array3::from_shape_fn((m.len(), 3, 3), |(i, r, c)| m[i][(r, c)]).into_pyarray(py)
 }

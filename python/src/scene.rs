@@ -13,7 +13,7 @@ use freeform::{
     prepare_simulator_for,
 };
 use hyperelastic::{MaterialField, StableNeoHookean};
-use nalgebra::{Matrix3, UnitQuaternion, Vector3};
+use nalgebra::{UnitQuaternion, Vector3};
 use numpy::ndarray::Array3;
 use numpy::{IntoPyArray, PyArray2, PyArray3};
 use pyo3::exceptions::PyValueError;
@@ -26,6 +26,7 @@ use crate::basis::PyBasis;
 use crate::errors::{self, SceneError};
 use crate::geometry::PyGeometry;
 use crate::material::PyMaterial;
+use crate::outputs::matrices_array;
 use crate::points::PyIntegrationPoints;
 use crate::splats::PySplats;
 use crate::threads::{on_pool, thread_pool};
@@ -460,9 +461,4 @@ impl PlacementInput {
         }
         Ok(placement)
     }
-}
-
-/// `(n, 3, 3)` of `n` matrices.
-fn matrices_array<'py>(py: Python<'py>, m: &[Matrix3<f64>]) -> Bound<'py, PyArray3<f64>> {
-    Array3::from_shape_fn((m.len(), 3, 3), |(i, r, c)| m[i][(r, c)]).into_pyarray(py)
 }

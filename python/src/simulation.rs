@@ -7,7 +7,7 @@ use freeform::reduced_sim::{DeformationMap, PinTarget, PinnedRegion, ReducedStat
 use freeform::{PinHold, SceneSpec, Simulation, SimulationSpec, prepare_simulator};
 use hyperelastic::{MaterialField, StableNeoHookean};
 use nalgebra::{Matrix3, Vector3};
-use numpy::ndarray::{Array1, Array3};
+use numpy::ndarray::Array1;
 use numpy::{IntoPyArray, PyArray1, PyArray2, PyArray3};
 use pyo3::exceptions::PyValueError;
 use pyo3::prelude::*;
@@ -17,7 +17,7 @@ use crate::arrays::{self, Points, points_array, points_of};
 use crate::basis::PyBasis;
 use crate::errors::{self, value_error};
 use crate::material::PyMaterial;
-use crate::outputs::{deform_splats, stress_arrays};
+use crate::outputs::{deform_splats, matrices_array, stress_arrays};
 use crate::points::PyIntegrationPoints;
 use crate::splats::PySplats;
 use crate::threads::{on_pool, thread_pool};
@@ -216,7 +216,7 @@ impl PySimulation {
         points: Option<Points<'py>>,
     ) -> PyResult<Bound<'py, PyArray3<f64>>> {
         let f = self.gradients_at(py, points)?;
-        Ok(Array3::from_shape_fn((f.len(), 3, 3), |(i, r, c)| f[i][(r, c)]).into_pyarray(py))
+        Ok(matrices_array(py, &f))
     }
 
     /// `splats` (rest centres in m) deformed by the current state: each centre moved, its
