@@ -12,7 +12,7 @@ use skin_eigen::{BasisParams, build_basis};
 pub(crate) struct BasisOptions {
     pub(crate) modes: usize,
     pub(crate) kernels: usize,
-    pub(crate) points: usize,
+    pub(crate) basis_points: usize,
     pub(crate) young: f64,
     pub(crate) poisson: f64,
 }
@@ -26,7 +26,7 @@ pub(crate) fn run(
 ) -> Result<()> {
     let points = Geometry::read(geometry)?
         .normalized()
-        .integration_points(o.points)?;
+        .integration_points(o.basis_points)?;
     let lame = LameParameters::from_young_poisson(o.young, o.poisson)
         .with_context(|| format!("--young {} --poisson {}", o.young, o.poisson))?;
     progress.status(format!(

@@ -58,9 +58,10 @@ enum Command {
         /// Kernels K.
         #[arg(long, default_value_t = 1000)]
         kernels: usize,
-        /// Integration points (grid points inside a mesh; at most this many cloud points).
-        #[arg(long, default_value_t = 30_000)]
-        points: usize,
+        /// Integration points the basis is built on (grid points inside a mesh; at most this
+        /// many cloud points); `--points` is read as this.
+        #[arg(long, visible_alias = "points", default_value_t = 30_000)]
+        basis_points: usize,
         /// Young's modulus (Pa).
         #[arg(long, default_value_t = 1e5)]
         young: f64,
@@ -146,7 +147,7 @@ fn run(cli: Cli) -> Result<()> {
             geometry,
             modes,
             kernels,
-            points,
+            basis_points,
             young,
             poisson,
             save,
@@ -155,7 +156,7 @@ fn run(cli: Cli) -> Result<()> {
             basis::BasisOptions {
                 modes,
                 kernels,
-                points,
+                basis_points,
                 young,
                 poisson,
             },

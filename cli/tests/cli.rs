@@ -91,12 +91,12 @@ density = 1000
 [basis]
 modes = 4
 kernels = 60
-points = 1500
+basis_points = 1500
 
 [simulation]
 time_step = 0.01
 steps = 6
-points = 500
+simulation_points = 500
 output_every = 3
 
 [scene]
@@ -223,7 +223,7 @@ fn basis_of_the_shared_3dgs_donut_is_built_from_its_splat_centres() {
         &[
             "basis",
             splat.to_str().unwrap(),
-            "--points",
+            "--basis-points",
             "3000",
             "--kernels",
             "200",

@@ -1,5 +1,6 @@
 //! The settings of a reduced run that the experiments share (beam and shapes): modes, kernels,
-//! point counts, Newton and pin options, where the simulation integrates, the tangent.
+//! point counts, Newton and pin options, where the simulation integrates, the tangent. Keys are
+//! spelled as in scene files ([`freeform::settings_vocabulary`]).
 
 use freeform::PinHold;
 use optimize::{HessianReuse, NewtonParams};
@@ -24,8 +25,10 @@ pub struct ReducedSettings {
     pub basis_points: usize,
     /// Grid points the simulation integrates over (default 5000).
     pub simulation_points: usize,
-    /// Newton tolerance (default 1e-6, see `reduced_sim::NewtonParams`).
-    pub tolerance: f64,
+    /// Newton tolerance (default 1e-6, see `reduced_sim::NewtonParams`; `tolerance` is read
+    /// as this).
+    #[serde(alias = "tolerance")]
+    pub newton_tolerance: f64,
     /// Pin penalty factor (default the library's, [`PenaltyParams::default`]: 3e3 with
     /// [`PinModulus::Young`], κ = factor · max E / L², chosen by `freeform-paper pins` against the
     /// FEM; the first tables used 1e3 with [`PinModulus::PWave`]).
@@ -37,7 +40,10 @@ pub struct ReducedSettings {
     /// Whether Newton carries its Hessian factorization across steps (default
     /// [`HessianReuse::Never`], the paper's setting; the bench's "Hessian reuse" series runs
     /// [`reduced_sim::SimulationParams::HESSIAN_REUSE`]).
-    #[serde(default)]
+    #[serde(
+        default,
+        deserialize_with = "freeform::settings_vocabulary::hessian_reuse_or_bool"
+    )]
     pub hessian_reuse: HessianReuse,
     /// Where the elastic energy is integrated (default [`QuadratureRule::PAPER`], every
     /// simulation point: the paper's setting; the bench's cubature series and
@@ -222,7 +228,7 @@ impl ReducedSettings {
         SimulationParams {
             time_step,
             newton: NewtonParams {
-                tolerance: self.tolerance,
+                tolerance: self.newton_tolerance,
                 hessian_reuse: self.hessian_reuse,
                 ..Default::default()
             },
@@ -244,7 +250,7 @@ impl Default for ReducedSettings {
             kernels: 1000,
             basis_points: 20_000,
             simulation_points: 5000,
-            tolerance: NewtonParams::default().tolerance,
+            newton_tolerance: NewtonParams::default().tolerance,
             pin_factor: PenaltyParams::default().pin_factor,
             simulation_sampling: SimulationSampling::Grid,
             hessian_reuse: HessianReuse::Never,

@@ -33,6 +33,7 @@ pub mod recorded_run;
 pub mod runner;
 pub mod scene;
 pub mod scene_file;
+pub mod settings_vocabulary;
 pub mod simulate;
 pub mod simulate_error;
 pub mod spherical_harmonics;

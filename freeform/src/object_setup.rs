@@ -69,7 +69,7 @@ impl ObjectSetup {
         let start = Instant::now();
         progress.status(&format!(
             "{label}basis: m = {}, K = {}, ≈{} grid points",
-            spec.modes, spec.kernels, spec.points
+            spec.modes, spec.kernels, spec.basis_points
         ));
         let (geometry, splats) = read_shape(object.geometry)?;
         // A splat file keeps its scale (validated).
@@ -80,8 +80,9 @@ impl ObjectSetup {
         };
         let material = object.material.field();
         let fill = object.geometry.fill_interior;
-        let basis_points = geometry.integration_points_filling(spec.points, fill)?;
-        let points = geometry.integration_points_filling(object.simulation.points, fill)?;
+        let basis_points = geometry.integration_points_filling(spec.basis_points, fill)?;
+        let points =
+            geometry.integration_points_filling(object.simulation.simulation_points, fill)?;
         let hold = object.simulation.pins;
         let basis_params = || {
             BasisParams::default()

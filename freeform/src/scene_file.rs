@@ -27,12 +27,12 @@
 //! [basis]           # optional, as every key in it
 //! modes = 16        # m (default 16)
 //! kernels = 1000    # K (default 1000)
-//! points = 20000    # grid points the basis is built on (default 20 000)
+//! basis_points = 20000  # grid points the basis is built on (default 20 000)
 //!
 //! [simulation]      # optional, as every key in it
 //! time_step = 0.01  # s (default 0.01)
 //! steps = 100       # (default 100)
-//! points = 5000     # grid points the simulation integrates over (default 5000)
+//! simulation_points = 5000  # grid points the simulation integrates over (default 5000)
 //! output_every = 5  # write every 5th frame (default 1)
 //! quadrature = { kind = "automatic" } # a cubature if it pays for itself in the run, else every
 //!                                     # point (default); { kind = "cubature" }: always one;
@@ -42,8 +42,8 @@
 //! tangent = "exact_when_definite"     # Newton's material tangent (default); "projected_psd": the paper's
 //! floor_contact = "penalty"           # floor and colliders (default); or an IPC barrier, no
 //! # floor_contact = { barrier = { distance = 0.01 } }   # point ever reaching them
-//! hessian_reuse = true                # carry the Hessian across steps (default; false: a
-//!                                     # fresh Hessian every iteration, the paper's setting)
+//! hessian_reuse = true                # carry the Hessian across steps (default; false or
+//!                                     # "never": a fresh Hessian every iteration, the paper's)
 //! pins = "penalty"                    # hold the constraints by a penalty (default); or
 //! # pins = { exact = { inset = 0.05 } }  # exactly, on each region shrunk by 0.05 m
 //! stress = true                      # Cauchy, principal and von Mises stress in the VTK
@@ -155,8 +155,10 @@ pub struct BasisSpec {
     pub modes: usize,
     /// Kernels K (default 1000, [`rkpm_core::KernelParams`]).
     pub kernels: usize,
-    /// Grid points the basis is built on (default [`BasisSpec::DEFAULT_POINTS`]).
-    pub points: usize,
+    /// Grid points the basis is built on (default [`BasisSpec::DEFAULT_POINTS`]; `points` is
+    /// accepted for it).
+    #[serde(alias = "points")]
+    pub basis_points: usize,
 }
 
 impl BasisSpec {
@@ -171,7 +173,7 @@ impl Default for BasisSpec {
         BasisSpec {
             modes: params.eigen.modes,
             kernels: params.kernels.count,
-            points: Self::DEFAULT_POINTS,
+            basis_points: Self::DEFAULT_POINTS,
         }
     }
 }
@@ -186,8 +188,9 @@ pub struct SimulationSpec {
     /// Steps to run (default 100).
     pub steps: usize,
     /// Grid points the simulation integrates over (default
-    /// [`SimulationSpec::DEFAULT_POINTS`]).
-    pub points: usize,
+    /// [`SimulationSpec::DEFAULT_POINTS`]; `points` is accepted for it).
+    #[serde(alias = "points")]
+    pub simulation_points: usize,
     /// Write every n-th frame (default 1).
     pub output_every: usize,
     /// Where the elastic energy is integrated (default `{ kind = "automatic" }`: a cubature
@@ -196,10 +199,12 @@ pub struct SimulationSpec {
     /// first; both take [`reduced_sim::CubatureParams`]' fields as optional overrides;
     /// `{ kind = "full" }`: every point, the paper's setting).
     pub quadrature: QuadratureRule,
-    /// Carry the Hessian factorization across steps while chord steps contract (default true,
-    /// [`reduced_sim::SimulationParams::HESSIAN_REUSE`]; false: a fresh Hessian every Newton
-    /// iteration, the paper's setting).
-    pub hessian_reuse: bool,
+    /// When Newton may keep an older Hessian factorization (default `{ while_contracting = {
+    /// contraction = 0.7 } }`, [`reduced_sim::SimulationParams::HESSIAN_REUSE`]: carried across
+    /// steps while chord steps contract; `"never"`: a fresh Hessian every Newton iteration, the
+    /// paper's setting). `true` and `false` are read as these two.
+    #[serde(deserialize_with = "crate::settings_vocabulary::hessian_reuse_or_bool")]
+    pub hessian_reuse: optimize::HessianReuse,
     /// How the constraints are held (default `"penalty"`; `{ exact = { inset = d } }` builds
     /// the basis for the regions shrunk by d m, see [`crate::PinHold`]).
     pub pins: crate::PinHold,
@@ -250,10 +255,10 @@ impl Default for SimulationSpec {
         SimulationSpec {
             time_step: 0.01,
             steps: 100,
-            points: Self::DEFAULT_POINTS,
+            simulation_points: Self::DEFAULT_POINTS,
             output_every: 1,
             quadrature: QuadratureRule::Automatic(reduced_sim::CubatureParams::DEFAULT),
-            hessian_reuse: true,
+            hessian_reuse: SimulationParams::HESSIAN_REUSE,
             pins: crate::PinHold::default(),
             stress: false,
             friction_slip_speed: penalty.friction_slip_speed,
@@ -458,7 +463,7 @@ impl BasisSpec {
                 ),
             ));
         }
-        (self.points == 0).then(|| ("basis.points".into(), "must be positive".into()))
+        (self.basis_points == 0).then(|| ("basis.basis_points".into(), "must be positive".into()))
     }
 }
 
@@ -466,15 +471,16 @@ impl SimulationSpec {
     /// The simulator's options these settings ask for: the time step, the friction slip speed,
     /// and the library defaults with Hessian reuse or the paper's setting without.
     pub fn simulation_params(&self) -> SimulationParams {
-        let base = if self.hessian_reuse {
-            SimulationParams::default()
-        } else {
+        let base = if self.hessian_reuse == optimize::HessianReuse::Never {
             SimulationParams::paper_setting()
+        } else {
+            SimulationParams::default()
         };
         SimulationParams {
             time_step: self.time_step,
             newton: optimize::NewtonParams {
                 tolerance: self.newton_tolerance,
+                hessian_reuse: self.hessian_reuse,
                 ..base.newton
             },
             penalty: PenaltyParams {
@@ -496,8 +502,8 @@ impl SimulationSpec {
             (!(value > 0.0 && value.is_finite()))
                 .then(|| (field(name), format!("{value} must be positive")))
         };
-        if self.points == 0 {
-            return Some((field("points"), "must be positive".into()));
+        if self.simulation_points == 0 {
+            return Some((field("simulation_points"), "must be positive".into()));
         }
         if let Some(defect) = positive("time_step", self.time_step) {
             return Some(defect);

@@ -37,13 +37,17 @@ fn the_minimal_scene_takes_the_library_defaults_and_runs() {
     assert_eq!(file.basis, freeform::BasisSpec::default());
     assert_eq!(file.simulation, freeform::SimulationSpec::default());
     assert_eq!(
-        (file.basis.modes, file.basis.kernels, file.basis.points),
+        (
+            file.basis.modes,
+            file.basis.kernels,
+            file.basis.basis_points
+        ),
         (16, 1000, 20_000)
     );
     assert_eq!(
         (
             file.simulation.steps,
-            file.simulation.points,
+            file.simulation.simulation_points,
             file.simulation.time_step
         ),
         (100, 5000, 0.01)
@@ -53,10 +57,10 @@ fn the_minimal_scene_takes_the_library_defaults_and_runs() {
     file.basis = freeform::BasisSpec {
         modes: 6,
         kernels: 150,
-        points: 3000,
+        basis_points: 3000,
     };
     file.simulation.steps = 10;
-    file.simulation.points = 1000;
+    file.simulation.simulation_points = 1000;
     let out = test_support::fixtures::scratch_dir("freeform-minimal-scene");
     let report = freeform::simulate_scene_file(&file, &out, None, &freeform::Silent).unwrap();
     assert_eq!(report.unconverged_steps, 0);

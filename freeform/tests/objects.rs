@@ -278,12 +278,12 @@ fn the_container_with_stress_and_a_box_held_by_exact_pins_runs_and_holds_the_box
     let mut file = ObjectsFile::load(&example).unwrap();
     file.simulation.steps = 10;
     file.simulation.output_every = 5;
-    file.simulation.points = 400;
+    file.simulation.simulation_points = 400;
     file.simulation.stress = true;
     file.simulation.pins = PinHold::Exact { inset: 0.0 };
     file.simulation.quadrature = QuadratureRule::Full;
     for object in &mut file.objects {
-        object.basis.points = 2000;
+        object.basis.basis_points = 2000;
         object.basis.kernels = 80;
         object.basis.modes = 6;
     }

@@ -4,7 +4,7 @@
 use std::path::PathBuf;
 
 use freeform::{SceneFile, Silent, simulate_scene_file};
-use reduced_sim::{CubatureParams, QuadratureRule};
+use reduced_sim::{CubatureParams, QuadratureRule, SimulationParams};
 
 fn scratch_dir(name: &str) -> PathBuf {
     let dir = PathBuf::from(env!("CARGO_TARGET_TMPDIR")).join(name);
@@ -59,7 +59,7 @@ fn a_scene_file_picks_a_quadrature_with_defaults_for_the_fields_it_leaves_out() 
             ..CubatureParams::DEFAULT
         })
     );
-    assert!(default.hessian_reuse);
+    assert_eq!(default.hessian_reuse, SimulationParams::HESSIAN_REUSE);
     let path = dir.join("paper.toml");
     std::fs::write(
         &path,
@@ -68,7 +68,7 @@ fn a_scene_file_picks_a_quadrature_with_defaults_for_the_fields_it_leaves_out() 
     .unwrap();
     let paper = SceneFile::load(&path).unwrap().simulation;
     assert_eq!(paper.quadrature, QuadratureRule::PAPER);
-    assert!(!paper.hessian_reuse);
+    assert_eq!(paper.hessian_reuse, optimize::HessianReuse::Never);
     let path = dir.join("bad.toml");
     std::fs::write(&path, box_scene("quadrature = { kind = \"gauss\" }")).unwrap();
     let message = SceneFile::load(&path).unwrap_err().to_string();

@@ -349,14 +349,14 @@ def test_the_quick_beam_bend_stepped_in_python_equals_the_scene_file_run(tmp_pat
         "gravity": [0, -9.8, 0],
         "constraints": [{"region": {"below": {"axis": 0, "value": 0.05}}, "motion": "rest"}],
     }
-    simulation = {"steps": steps, "points": 1000, "quadrature": {"kind": "full"}}
+    simulation = {"steps": steps, "simulation_points": 1000, "quadrature": {"kind": "full"}}
     scene_file = tmp_path / "bend.json"
     scene_file.write_text(
         json.dumps(
             {
                 "geometry": {"box": {"min": [0, 0, 0], "max": [1.0, 0.2, 0.2]}},
                 "material": {"youngs_modulus": 1e5, "poisson_ratio": 0.45, "density": 1000},
-                "basis": {"modes": 6, "kernels": 200, "points": 3000},
+                "basis": {"modes": 6, "kernels": 200, "basis_points": 3000},
                 "simulation": simulation,
                 "scene": scene,
             }
@@ -396,7 +396,7 @@ def test_a_scene_of_two_objects_stepped_in_python_equals_the_objects_file_run(tm
     # A small box dropped onto a larger one resting on the floor, the larger one's left end
     # held; the same scene as a file with [[objects]] and through freeform.Scene.
     steps = 15
-    simulation = {"steps": steps, "points": 400, "time_step": 0.01, "quadrature": {"kind": "full"}}
+    simulation = {"steps": steps, "simulation_points": 400, "time_step": 0.01, "quadrature": {"kind": "full"}}
     floor = {"normal": [0, 1, 0], "offset": 0.0, "friction": 0.3}
     contact = {"radius": 0.03, "friction": 0.2}
     held = [{"region": {"below": {"axis": 0, "value": 0.05}}, "motion": "rest"}]
@@ -405,7 +405,7 @@ def test_a_scene_of_two_objects_stepped_in_python_equals_the_objects_file_run(tm
         ("slab", [0.8, 0.1, 0.3], 1e5, [0.0, 0.0, 0.0], [0.0, 0.0, 0.0], held),
         ("cube", [0.2, 0.2, 0.2], 2e5, [0.3, 0.13, 0.05], [0.0, -0.5, 0.0], []),
     ]
-    basis = {"modes": 6, "kernels": 80, "points": 1200}
+    basis = {"modes": 6, "kernels": 80, "basis_points": 1200}
     scene_file = tmp_path / "stack.json"
     scene_file.write_text(
         json.dumps(
@@ -436,10 +436,10 @@ def test_a_scene_of_two_objects_stepped_in_python_equals_the_objects_file_run(tm
     for name, size, e, position, velocity, constraints in objects:
         geometry = freeform.Geometry.box([0, 0, 0], size)
         material = freeform.Material(e, 0.4, 800)
-        b = freeform.build_basis(geometry.integration_points(basis["points"]), material, modes=6, kernels=80)
+        b = freeform.build_basis(geometry.integration_points(basis["basis_points"]), material, modes=6, kernels=80)
         k = scene.add_object(
             b,
-            geometry.integration_points(simulation["points"]),
+            geometry.integration_points(simulation["simulation_points"]),
             material,
             geometry=geometry,
             position=position,

@@ -17,7 +17,7 @@ pub(crate) fn settings_lines(config: &BeamStudyConfig, fem: &[FemSummary]) -> St
         s.kernels,
         s.basis_points,
         s.simulation_points,
-        s.tolerance,
+        s.newton_tolerance,
         s.pin_rule_label(),
         s.quadrature_label(),
         s.hessian_reuse_label(),

@@ -230,7 +230,7 @@ fn freeform_sweeps(base: ReducedSettings) -> Vec<(String, BenchMethod)> {
         runs.push((
             "tolerance".into(),
             BenchMethod::FreeForm(ReducedSettings {
-                tolerance: tol,
+                newton_tolerance: tol,
                 ..base
             }),
         ));

@@ -160,7 +160,7 @@ impl Bench<'_> {
                 s.modes,
                 s.kernels,
                 run.report.simulation_points,
-                s.tolerance,
+                s.newton_tolerance,
                 match s.pins {
                     PinHold::Penalty => format!("{:e}", s.pin_factor),
                     PinHold::Exact { inset } => format!("exact(inset {inset:.3} m)"),

@@ -64,7 +64,7 @@ fn run_lines(study: &ShapeStudy) -> String {
         s.kernels,
         s.basis_points,
         s.simulation_points,
-        s.tolerance,
+        s.newton_tolerance,
         s.pin_rule_label(),
         s.quadrature_label(),
         match c.simplicits_quadrature {
