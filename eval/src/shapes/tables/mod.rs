@@ -1,5 +1,5 @@
 //! Tables 2 (MSE and max error on the shapes, training time) and 7 (basis fitting residual on
-//! the shapes) as Markdown with the paper's averages beside ours, JSON (`"shapes"`: one row per
+//! the shapes) as typed rows ([`Table2`], [`Table7`]) rendered to Markdown with the paper's averages beside ours, JSON (`"shapes"`: one row per
 //! (shape, boundary condition); `"averages"`) and CSV.
 //!
 //! Averages are means over the shapes where every method in the row finished the boundary
@@ -11,11 +11,15 @@
 
 mod averages;
 mod preamble;
+mod shape_cells;
 mod table2;
+mod table2_row;
 mod table7;
 #[cfg(test)]
 mod tests;
 
 pub use averages::ShapeAverage;
-pub use table2::table2;
-pub use table7::table7;
+pub use table2::{
+    MeanStd, Table2, Table2Average, Table2PaperRow, Table2Row, TrainingSeconds, table2,
+};
+pub use table7::{Table7, Table7Row, table7};
