@@ -24,6 +24,7 @@ use eval::beam_protocol::reduced::{build_beam_basis_for, exact_pin_hold, run_red
 use eval::beam_scenario::{BeamTest, beam_length_scale, beam_material};
 use eval::fem_reference::{FemResolution, run_fem_beam};
 use eval::reduced_settings::ReducedSettings;
+use freeform::RecordedRun;
 use freeform::metrics::trajectory_errors;
 use freeform::terminal_progress::TerminalProgress;
 use optimize::{HessianReuse, NewtonParams};
@@ -95,10 +96,8 @@ struct Args {
     no_full: bool,
 }
 
-fn main() -> anyhow::Result<()> {
-    let args = Args::parse();
-    let progress = TerminalProgress::default();
-    let cache = freeform::default_cache_dir();
+/// Every point (unless `--no-full`), then a cubature per (tolerance, seed).
+fn quadrature_rules(args: &Args) -> Vec<QuadratureRule> {
     let mut rules = if args.no_full {
         Vec::new()
     } else {
@@ -119,6 +118,11 @@ fn main() -> anyhow::Result<()> {
             }));
         }
     }
+    rules
+}
+
+/// Fresh Hessians, then (unless `--no-reuse`) the library's reuse or each asked contraction.
+fn hessian_reuses(args: &Args) -> Vec<HessianReuse> {
     let mut reuses = vec![HessianReuse::Never];
     if !args.no_reuse {
         if args.reuse_contraction.is_empty() {
@@ -130,6 +134,79 @@ fn main() -> anyhow::Result<()> {
                 .map(|&contraction| HessianReuse::WhileContracting { contraction }),
         );
     }
+    reuses
+}
+
+/// One printed row: the settings a run changed and what it measured.
+struct Row<'a> {
+    test: BeamTest,
+    m: usize,
+    settings: &'a ReducedSettings,
+    run: &'a RecordedRun,
+    /// Normalized MSE against the FEM.
+    mse: f64,
+    /// The first run's MSE (every point, fresh Hessians).
+    full: f64,
+    /// Normalized MSE between this run and the first.
+    gap: f64,
+}
+
+fn print_row(row: &Row) {
+    let Row {
+        test,
+        m,
+        settings,
+        run,
+        mse,
+        full,
+        gap,
+    } = *row;
+    let r = &run.report;
+    let (seconds, force) =
+        r.quadrature
+            .cubature
+            .as_ref()
+            .map_or(("-".to_string(), "-".to_string()), |c| {
+                (
+                    format!("{:.2}", c.seconds),
+                    format!("{:.1e} / {:.1e}", c.training_error, c.validation_error),
+                )
+            });
+    println!(
+        "| {} | {m} | {} | {} | {seconds} | {force} | {} | {:?} | {:.2} | {:.2} | {:.2} \
+         | {:.2} | {:.2} | {:.2} | {} | {mse:.3e} | {:.2} | {gap:.1e} |",
+        test.name(),
+        match settings.quadrature {
+            QuadratureRule::Cubature(p) => {
+                format!("cubature {} seed {}", p.tolerance, p.seed)
+            }
+            other => other.name().to_string(),
+        },
+        r.quadrature.points,
+        match settings.hessian_reuse {
+            HessianReuse::Never => "fresh".to_string(),
+            HessianReuse::WhileContracting { contraction } => {
+                format!("reused ({contraction})")
+            }
+        },
+        settings.tangent,
+        r.ms_per_step,
+        r.ms_assembly_per_step,
+        r.ms_solve_per_step,
+        r.ms_line_search_per_step,
+        r.hessians_per_step,
+        r.iterations_per_step,
+        r.unconverged_steps,
+        mse / full,
+    );
+}
+
+fn main() -> anyhow::Result<()> {
+    let args = Args::parse();
+    let progress = TerminalProgress::default();
+    let cache = freeform::default_cache_dir();
+    let rules = quadrature_rules(&args);
+    let reuses = hessian_reuses(&args);
     let tangents: &[HessianTangent] = if args.exact_when_definite {
         &[
             HessianTangent::ProjectedPsd,
@@ -211,44 +288,15 @@ fn main() -> anyhow::Result<()> {
                         beam_length_scale(),
                     )?
                     .normalized_mse;
-                    let full = *full;
-                    let r = &run.report;
-                    let (seconds, force) = r.quadrature.cubature.as_ref().map_or(
-                        ("-".to_string(), "-".to_string()),
-                        |c| {
-                            (
-                                format!("{:.2}", c.seconds),
-                                format!("{:.1e} / {:.1e}", c.training_error, c.validation_error),
-                            )
-                        },
-                    );
-                    println!(
-                        "| {} | {m} | {} | {} | {seconds} | {force} | {} | {:?} | {:.2} | {:.2} | {:.2} \
-                         | {:.2} | {:.2} | {:.2} | {} | {mse:.3e} | {:.2} | {gap:.1e} |",
-                        test.name(),
-                        match quadrature {
-                            QuadratureRule::Cubature(p) => {
-                                format!("cubature {} seed {}", p.tolerance, p.seed)
-                            }
-                            other => other.name().to_string(),
-                        },
-                        r.quadrature.points,
-                        match hessian_reuse {
-                            HessianReuse::Never => "fresh".to_string(),
-                            HessianReuse::WhileContracting { contraction } => {
-                                format!("reused ({contraction})")
-                            }
-                        },
-                        tangent,
-                        r.ms_per_step,
-                        r.ms_assembly_per_step,
-                        r.ms_solve_per_step,
-                        r.ms_line_search_per_step,
-                        r.hessians_per_step,
-                        r.iterations_per_step,
-                        r.unconverged_steps,
-                        mse / full,
-                    );
+                    print_row(&Row {
+                        test,
+                        m,
+                        settings: &settings,
+                        run: &run,
+                        mse,
+                        full: *full,
+                        gap,
+                    });
                 }
             }
         }

@@ -36,9 +36,10 @@ use eval::shapes::catalog::{SHAPE_DENSITY, SHAPE_POISSON_RATIO, catalog_entry};
 use eval::shapes::reference::{
     ConditionLattice, ReferenceFactorReuse, ShapeFemParams, mesh_for_fem, mesh_through,
 };
+use fem_ref::FemSimulator;
 use fem_ref::FillReducingOrdering;
 use freeform::fem_reference::FemProblem;
-use hyperelastic::{HessianTangent, MaterialSample};
+use hyperelastic::{HessianTangent, MaterialSample, StableNeoHookean};
 use optimize::NewtonParams;
 use rkpm_core::read_triangle_mesh;
 
@@ -181,32 +182,7 @@ fn main() -> Result<()> {
         );
         own
     };
-    let newton = match args.reuse {
-        None if args.fresh => params.newton,
-        None => params.newton_for(boundary, youngs_modulus),
-        Some(tolerance) => {
-            // Table 2's reusing Newton for the condition, at the tolerance asked.
-            let reusing = ShapeFemParams {
-                factor_reuse: ReferenceFactorReuse::Every,
-                ..params
-            }
-            .newton_for(boundary, youngs_modulus);
-            NewtonParams {
-                tolerance: if tolerance > 0.0 {
-                    tolerance
-                } else {
-                    reusing.tolerance
-                },
-                ..reusing
-            }
-        }
-    };
-    let tangent = match args.tangent {
-        None => params.tangent,
-        Some(TangentArg::Projected) => HessianTangent::ProjectedPsd,
-        Some(TangentArg::ExactWhenDefinite) => HessianTangent::ExactWhenDefinite,
-        Some(TangentArg::ExactElseAbsolute) => HessianTangent::ExactElseAbsolute,
-    };
+    let (newton, tangent) = newton_and_tangent(&args, &params, boundary, youngs_modulus);
     let (mut sim, _) = FemProblem {
         tets,
         order: params.order,
@@ -240,6 +216,51 @@ fn main() -> Result<()> {
         sim.factor_nonzeros(),
         args.ordering,
     );
+    let frames = step_table(&mut sim, args.steps)?;
+    save_and_compare(&args, &frames)?;
+    Ok(())
+}
+
+/// Newton's options and the material tangent the flags ask for (default: Table 2's for the
+/// condition).
+fn newton_and_tangent(
+    args: &Args,
+    params: &ShapeFemParams,
+    boundary: ShapeBoundary,
+    youngs_modulus: f64,
+) -> (NewtonParams, HessianTangent) {
+    let newton = match args.reuse {
+        None if args.fresh => params.newton,
+        None => params.newton_for(boundary, youngs_modulus),
+        Some(tolerance) => {
+            // Table 2's reusing Newton for the condition, at the tolerance asked.
+            let reusing = ShapeFemParams {
+                factor_reuse: ReferenceFactorReuse::Every,
+                ..*params
+            }
+            .newton_for(boundary, youngs_modulus);
+            NewtonParams {
+                tolerance: if tolerance > 0.0 {
+                    tolerance
+                } else {
+                    reusing.tolerance
+                },
+                ..reusing
+            }
+        }
+    };
+    let tangent = match args.tangent {
+        None => params.tangent,
+        Some(TangentArg::Projected) => HessianTangent::ProjectedPsd,
+        Some(TangentArg::ExactWhenDefinite) => HessianTangent::ExactWhenDefinite,
+        Some(TangentArg::ExactElseAbsolute) => HessianTangent::ExactElseAbsolute,
+    };
+    (newton, tangent)
+}
+
+/// Steps `sim` `steps` times, printing a row per step and the means; returns every frame's node
+/// positions, flattened.
+fn step_table(sim: &mut FemSimulator<StableNeoHookean>, steps: usize) -> Result<Vec<f64>> {
     println!(
         "\n| step | iterations | factorizations | chord steps | cuts | assembly s | solve s | line search s | step s |"
     );
@@ -247,7 +268,7 @@ fn main() -> Result<()> {
     let (mut iterations, mut factorizations, mut chords, mut cuts) = (0, 0, 0, 0);
     let mut frames: Vec<f64> = Vec::new();
     let (mut assembly, mut solve, mut line_search, mut total) = (0.0, 0.0, 0.0, 0.0);
-    for step in 1..=args.steps {
+    for step in 1..=steps {
         let start = Instant::now();
         let report = sim.step().with_context(|| format!("step {step}"))?;
         let seconds = start.elapsed().as_secs_f64();
@@ -279,7 +300,7 @@ fn main() -> Result<()> {
             total + seconds,
         );
     }
-    let n = args.steps.max(1) as f64;
+    let n = steps.max(1) as f64;
     println!(
         "| per step | {:.2} | {:.2} | {:.2} | {:.2} | {:.3} | {:.3} | {:.3} | {:.3} |",
         iterations as f64 / n,
@@ -291,6 +312,11 @@ fn main() -> Result<()> {
         line_search / n,
         total / n
     );
+    Ok(frames)
+}
+
+/// `--save` and `--compare` on the run's `frames`.
+fn save_and_compare(args: &Args, frames: &[f64]) -> Result<()> {
     if let Some(path) = &args.save {
         let bytes: Vec<u8> = frames.iter().flat_map(|v| v.to_le_bytes()).collect();
         std::fs::write(path, bytes).with_context(|| format!("writing {}", path.display()))?;

@@ -143,78 +143,13 @@ fn a_quick_shape_run_fills_tables_2_and_7_reports_a_broken_mesh_and_reuses_its_c
     let first = freeform_paper(&args, &dir);
     assert_success(&first);
     let tables: serde_json::Value = serde_json::from_slice(&first.stdout).unwrap();
-    let t2 = table(&tables, 2);
-    let rows = t2["shapes"].as_array().unwrap();
-    assert_eq!(rows.len(), 6, "three conditions for each of the two files");
-    for row in rows.iter().filter(|r| r["name"] == "bunny.obj") {
-        assert!(row["error"].is_null(), "{row}");
-        assert_eq!(row["youngs_modulus"], 1e5, "the bunny is organic");
-        for key in ["ours_mse", "ours_max", "simplicits_mse", "simplicits_max"] {
-            let v = row[key].as_f64().unwrap_or(f64::NAN);
-            // Ten steps move the pulled regions by 0.02 L: errors are positive and far below L.
-            assert!(v > 0.0 && v < 0.1, "{key} = {v} in {row}");
-        }
-        assert_eq!(row["fem"]["cached"], false);
-    }
-    let broken: Vec<&serde_json::Value> = rows.iter().filter(|r| r["name"] == "open.obj").collect();
-    assert_eq!(broken.len(), 3);
-    for row in broken {
-        let error = row["error"].as_str().unwrap();
-        assert!(
-            error.contains("open") || error.contains("boundary"),
-            "{error}"
-        );
-        assert!(row["ours_mse"].is_null());
-    }
-    let averages = t2["averages"].as_array().unwrap();
-    let all: Vec<_> = averages
-        .iter()
-        .filter(|a| a["collection"] == "all")
-        .collect();
-    assert_eq!(all.len(), 3);
-    // The quality gate: a bunny row is trusted exactly when its (coarse, 6-cell) FEM mesh keeps
-    // the volume within 3% (its FEM converged), and only trusted rows are averaged.
-    for a in &all {
-        let bunny = rows
-            .iter()
-            .find(|r| r["name"] == "bunny.obj" && r["bc"] == a["bc"])
-            .unwrap();
-        let volume_error = bunny["fem_volume_error"].as_f64().unwrap();
-        let trusted = volume_error.abs() <= 0.03;
-        assert_eq!(bunny["trusted"], trusted, "{bunny}");
-        assert_eq!(bunny["why_untrusted"].is_null(), trusted, "{bunny}");
-        assert_eq!(
-            a["shapes"],
-            usize::from(trusted),
-            "only the bunny can be averaged: {a}"
-        );
-    }
-    let t7 = table(&tables, 7);
-    let fits: Vec<f64> = t7["shapes"]
-        .as_array()
-        .unwrap()
-        .iter()
-        .filter_map(|r| r["ours_fitting_residual"].as_f64())
-        .collect();
-    assert_eq!(fits.len(), 3);
-    assert!(fits.iter().all(|f| *f > 0.0 && *f < 0.1), "{fits:?}");
-
+    let rows = first_run_scores_the_bunny_and_names_the_open_mesh(&tables);
+    let rows = rows.as_slice();
     // Again: every FEM trajectory and the network come from the cache, the numbers are the same.
     let second = freeform_paper(&args, &dir);
     assert_success(&second);
     let again: serde_json::Value = serde_json::from_slice(&second.stdout).unwrap();
-    for (a, b) in rows
-        .iter()
-        .zip(table(&again, 2)["shapes"].as_array().unwrap())
-    {
-        for key in ["ours_mse", "ours_max", "simplicits_mse", "simplicits_max"] {
-            assert_eq!(a[key], b[key], "{key}");
-        }
-        if a["name"] == "bunny.obj" {
-            assert_eq!(b["fem"]["cached"], true);
-        }
-    }
-
+    a_rerun_reads_every_reference_from_the_cache(rows, &again);
     // `--cached-only` computes nothing and scores the same rows from the cache.
     let cached_only = freeform_paper(&[&args[..], &["--cached-only"]].concat(), &dir);
     assert_success(&cached_only);
@@ -287,6 +222,84 @@ fn a_quick_shape_run_fills_tables_2_and_7_reports_a_broken_mesh_and_reuses_its_c
                 assert!(points(b) > 1800, "every point of the denser grid: {b}");
             }
             assert!(b[format!("{method}_ms_per_step")].as_f64().unwrap() > 0.0);
+        }
+    }
+}
+
+fn first_run_scores_the_bunny_and_names_the_open_mesh(
+    tables: &serde_json::Value,
+) -> Vec<serde_json::Value> {
+    let t2 = table(tables, 2);
+    let rows = t2["shapes"].as_array().unwrap();
+    assert_eq!(rows.len(), 6, "three conditions for each of the two files");
+    for row in rows.iter().filter(|r| r["name"] == "bunny.obj") {
+        assert!(row["error"].is_null(), "{row}");
+        assert_eq!(row["youngs_modulus"], 1e5, "the bunny is organic");
+        for key in ["ours_mse", "ours_max", "simplicits_mse", "simplicits_max"] {
+            let v = row[key].as_f64().unwrap_or(f64::NAN);
+            // Ten steps move the pulled regions by 0.02 L: errors are positive and far below L.
+            assert!(v > 0.0 && v < 0.1, "{key} = {v} in {row}");
+        }
+        assert_eq!(row["fem"]["cached"], false);
+    }
+    let broken: Vec<&serde_json::Value> = rows.iter().filter(|r| r["name"] == "open.obj").collect();
+    assert_eq!(broken.len(), 3);
+    for row in broken {
+        let error = row["error"].as_str().unwrap();
+        assert!(
+            error.contains("open") || error.contains("boundary"),
+            "{error}"
+        );
+        assert!(row["ours_mse"].is_null());
+    }
+    let averages = t2["averages"].as_array().unwrap();
+    let all: Vec<_> = averages
+        .iter()
+        .filter(|a| a["collection"] == "all")
+        .collect();
+    assert_eq!(all.len(), 3);
+    // The quality gate: a bunny row is trusted exactly when its (coarse, 6-cell) FEM mesh keeps
+    // the volume within 3% (its FEM converged), and only trusted rows are averaged.
+    for a in &all {
+        let bunny = rows
+            .iter()
+            .find(|r| r["name"] == "bunny.obj" && r["bc"] == a["bc"])
+            .unwrap();
+        let volume_error = bunny["fem_volume_error"].as_f64().unwrap();
+        let trusted = volume_error.abs() <= 0.03;
+        assert_eq!(bunny["trusted"], trusted, "{bunny}");
+        assert_eq!(bunny["why_untrusted"].is_null(), trusted, "{bunny}");
+        assert_eq!(
+            a["shapes"],
+            usize::from(trusted),
+            "only the bunny can be averaged: {a}"
+        );
+    }
+    let t7 = table(tables, 7);
+    let fits: Vec<f64> = t7["shapes"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .filter_map(|r| r["ours_fitting_residual"].as_f64())
+        .collect();
+    assert_eq!(fits.len(), 3);
+    assert!(fits.iter().all(|f| *f > 0.0 && *f < 0.1), "{fits:?}");
+    rows.clone()
+}
+
+fn a_rerun_reads_every_reference_from_the_cache(
+    rows: &[serde_json::Value],
+    again: &serde_json::Value,
+) {
+    for (a, b) in rows
+        .iter()
+        .zip(table(again, 2)["shapes"].as_array().unwrap())
+    {
+        for key in ["ours_mse", "ours_max", "simplicits_mse", "simplicits_max"] {
+            assert_eq!(a[key], b[key], "{key}");
+        }
+        if a["name"] == "bunny.obj" {
+            assert_eq!(b["fem"]["cached"], true);
         }
     }
 }

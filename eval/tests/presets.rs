@@ -77,6 +77,13 @@ fn check<T: Serialize + DeserializeOwned + PartialEq + std::fmt::Debug>(
 
 #[test]
 fn every_committed_preset_equals_the_configuration_the_code_builds() {
+    beam_and_ablation_presets();
+    shapes_presets();
+    bench_pins_convergence_and_stress_presets();
+    assert_eq!(PRESETS.len(), 17, "every committed preset is checked above");
+}
+
+fn beam_and_ablation_presets() {
     check(
         "beam",
         StudyKind::Beam,
@@ -115,6 +122,9 @@ fn every_committed_preset_equals_the_configuration_the_code_builds() {
         AblationStudyConfig::full(BeamStudyConfig::quick(cache())),
         &["base.cache_dir"],
     );
+}
+
+fn shapes_presets() {
     check(
         "shapes",
         StudyKind::Shapes,
@@ -160,6 +170,9 @@ fn every_committed_preset_equals_the_configuration_the_code_builds() {
         ShapeStudyConfig::full(Vec::new(), cache()),
         &["cache_dir"],
     );
+}
+
+fn bench_pins_convergence_and_stress_presets() {
     check(
         "bench",
         StudyKind::Bench,
@@ -216,5 +229,4 @@ fn every_committed_preset_equals_the_configuration_the_code_builds() {
         StressConfig::quick(),
         &[],
     );
-    assert_eq!(PRESETS.len(), 17, "every committed preset is checked above");
 }

@@ -2,7 +2,7 @@
 //! numbers sit beside ours, and Table 5's ratio is FEM time over ours.
 
 use baselines::SimplicitsParams;
-use eval::beam::study::run_beam_study;
+use eval::beam::study::{BeamStudy, run_beam_study};
 use eval::beam::tables::{table1, table5, table6, twist_error_plot};
 use eval::beam_protocol::study_config::BeamStudyConfig;
 use eval::beam_scenario::BeamTest;
@@ -11,7 +11,7 @@ use eval::particle_baselines::mpm::MpmStudyConfig;
 use eval::particle_baselines::particle_baseline::ParticleMethod;
 use eval::particle_baselines::sph::SphStudyConfig;
 use eval::reduced_settings::ReducedSettings;
-use eval::report::table::write_table;
+use eval::report::table::{RenderedTable, write_table};
 use fem_ref::ElementOrder;
 use freeform::terminal_progress::TerminalProgress;
 use optimize::NewtonParams;
@@ -62,6 +62,32 @@ fn tiny_study_fills_tables_1_5_6_with_paper_columns_and_consistent_json() {
     assert_eq!(study.rows.len(), 2);
 
     let t1 = table1(&study);
+    table1_rows_carry_ours_beside_the_paper(&t1);
+    per_frame_errors_average_to_each_row(&study);
+    the_twist_plot_has_a_curve_per_method(&study);
+    particle_rows_are_scored_like_the_rest(&t1, &study);
+    tables_5_and_6_carry_ratios_and_residuals(&study);
+    let files = write_table(&t1, &dir.join("out")).unwrap();
+    assert_eq!(files.len(), 3);
+    let csv = std::fs::read_to_string(&files[2]).unwrap();
+    assert!(
+        csv.starts_with(
+            "test,m,ours_mse,ours_max,exact_mse,exact_max,exact_max_pin_deviation,simplicits_mse,simplicits_max,paper_ours_mse"
+        )
+    );
+    assert_eq!(csv.lines().count(), 3);
+
+    // A second study loads the network from the cache: the same Simplicits numbers.
+    let again = run_beam_study(&config, &quiet()).unwrap();
+    assert_eq!(table1(&again).json["rows"], t1.json["rows"]);
+    assert_eq!(
+        table1(&again).json["particle_baselines"],
+        t1.json["particle_baselines"],
+        "MPM and SPH trajectories come back from the cache"
+    );
+}
+
+fn table1_rows_carry_ours_beside_the_paper(t1: &RenderedTable) {
     let rows = t1.json["rows"].as_array().unwrap();
     assert_eq!(rows.len(), 2);
     for (row, test) in rows.iter().zip(["bend", "twist"]) {
@@ -84,6 +110,9 @@ fn tiny_study_fills_tables_1_5_6_with_paper_columns_and_consistent_json() {
         t1.markdown.contains("P2 res 2"),
         "settings name the FEM resolution"
     );
+}
+
+fn per_frame_errors_average_to_each_row(study: &BeamStudy) {
     // Per-frame errors: one per step, and their mean is the row's MSE.
     for r in &study.rows {
         let frames = &r.ours_per_frame_mse;
@@ -104,7 +133,10 @@ fn tiny_study_fills_tables_1_5_6_with_paper_columns_and_consistent_json() {
         assert_eq!(p.per_frame_mse.len(), 8);
         assert!((mean - mse).abs() <= 1e-12 * mse, "{mean} vs {mse}");
     }
-    let plot = twist_error_plot(&study).expect("a Twist row to plot");
+}
+
+fn the_twist_plot_has_a_curve_per_method(study: &BeamStudy) {
+    let plot = twist_error_plot(study).expect("a Twist row to plot");
     let labels: Vec<&str> = plot.series.iter().map(|s| s.label.as_str()).collect();
     assert_eq!(
         labels,
@@ -120,7 +152,9 @@ fn tiny_study_fills_tables_1_5_6_with_paper_columns_and_consistent_json() {
         (plot.series[0].points[7].0 - 0.08).abs() < 1e-12,
         "x is t = frame · h"
     );
+}
 
+fn particle_rows_are_scored_like_the_rest(t1: &RenderedTable, study: &BeamStudy) {
     // MPM and SPH on both tests at the one spacing, scored at the FEM vertices like the rest.
     let particles = t1.json["particle_baselines"].as_array().unwrap();
     assert_eq!(particles.len(), 4, "{particles:?}");
@@ -155,8 +189,10 @@ fn tiny_study_fills_tables_1_5_6_with_paper_columns_and_consistent_json() {
             .count(),
         2
     );
+}
 
-    let t5 = table5(&study);
+fn tables_5_and_6_carry_ratios_and_residuals(study: &BeamStudy) {
+    let t5 = table5(study);
     let r = &t5.json["rows"][0];
     let fem_ms = t5.json["fem_ms_per_step"].as_f64().unwrap();
     let ratio = r["fem_over_ours"].as_f64().unwrap();
@@ -171,30 +207,11 @@ fn tiny_study_fills_tables_1_5_6_with_paper_columns_and_consistent_json() {
     assert_eq!(t5.json["paper_mpm_ms"].as_f64(), Some(23.1));
     assert_eq!(t5.json["paper_sph_ms"].as_f64(), Some(37.8));
 
-    let t6 = table6(&study);
+    let t6 = table6(study);
     let residual = t6.json["rows"][0]["ours_fitting_residual"]
         .as_f64()
         .unwrap();
     assert!(residual > 0.0 && residual < 0.1, "{residual}");
-
-    let files = write_table(&t1, &dir.join("out")).unwrap();
-    assert_eq!(files.len(), 3);
-    let csv = std::fs::read_to_string(&files[2]).unwrap();
-    assert!(
-        csv.starts_with(
-            "test,m,ours_mse,ours_max,exact_mse,exact_max,exact_max_pin_deviation,simplicits_mse,simplicits_max,paper_ours_mse"
-        )
-    );
-    assert_eq!(csv.lines().count(), 3);
-
-    // A second study loads the network from the cache: the same Simplicits numbers.
-    let again = run_beam_study(&config, &quiet()).unwrap();
-    assert_eq!(table1(&again).json["rows"], t1.json["rows"]);
-    assert_eq!(
-        table1(&again).json["particle_baselines"],
-        t1.json["particle_baselines"],
-        "MPM and SPH trajectories come back from the cache"
-    );
 }
 
 #[test]

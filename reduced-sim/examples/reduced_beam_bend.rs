@@ -101,55 +101,29 @@ fn spacing_for(n: usize) -> f64 {
     (5.0 / n as f64).cbrt()
 }
 
-fn run() -> Result<(), String> {
-    let Args {
-        json,
-        modes,
-        kernels,
-        basis_points,
-        sim_points,
-        steps,
-        tolerance,
-        pin_factor,
-        pin_modulus,
-        full_quadrature,
-        fresh_hessians,
-        exact_tangent,
-        exact,
-        exact_inset,
-    } = clap::Parser::parse();
-    let pin_modulus = match pin_modulus {
-        None => PenaltyParams::default().pin_modulus,
-        Some(PinModulusChoice::Young) => PinModulus::Young,
-        Some(PinModulusChoice::PWave) => PinModulus::PWave,
-    };
-    if modes == 0 || kernels == 0 || basis_points == 0 || sim_points == 0 {
-        return Err("--modes, --kernels, --basis-points and --points must be positive".into());
-    }
+/// The basis grid, the simulation points, the basis (built for the clamped end when `--exact`)
+/// and the exact hold's inset (m; 0 for the penalty).
+struct BeamBasis {
+    basis_grid: rkpm_core::IntegrationPoints,
+    points: rkpm_core::IntegrationPoints,
+    basis: skin_eigen::SkinningBasis,
+    inset: f64,
+}
 
-    let material = MaterialSample {
-        youngs_modulus: 5e6,
-        poisson_ratio: 0.45,
-        density: 1000.0,
-    };
-    let lame = LameParameters::from_young_poisson(material.youngs_modulus, material.poisson_ratio)
+fn build_beam_basis(args: &Args, lame: LameParameters) -> Result<BeamBasis, String> {
+    let basis_grid = sample_box_grid(BEAM_MIN, BEAM_MAX, spacing_for(args.basis_points))
         .map_err(|e| e.to_string())?;
-
-    let t = Instant::now();
-    let basis_grid = sample_box_grid(BEAM_MIN, BEAM_MAX, spacing_for(basis_points))
+    let points = sample_box_grid(BEAM_MIN, BEAM_MAX, spacing_for(args.sim_points))
         .map_err(|e| e.to_string())?;
-    let points =
-        sample_box_grid(BEAM_MIN, BEAM_MAX, spacing_for(sim_points)).map_err(|e| e.to_string())?;
-    let params = BasisParams::default()
-        .with_modes(modes)
-        .with_kernels(kernels);
-    let mut params = params;
+    let mut params = BasisParams::default()
+        .with_modes(args.modes)
+        .with_kernels(args.kernels);
     // Exact pins: compact kernels, and the clamped end held on x ≤ 0.5 − inset (by default 1.5
     // median kernel radii, as `eval`'s EXACT_INSET_KERNEL_RADII), the band beyond by the penalty.
     let mut inset = 0.0;
-    if exact {
+    if args.exact {
         params.shape_functions.window = KernelWindow::CubicBSpline;
-        inset = match exact_inset {
+        inset = match args.exact_inset {
             Some(inset) => inset,
             None => {
                 let kernels = place_kernels(basis_grid.positions(), &params.kernels)
@@ -161,7 +135,7 @@ fn run() -> Result<(), String> {
         };
     }
     let materials = vec![lame; basis_grid.len()];
-    let (basis, _, _) = if exact {
+    let (basis, _, _) = if args.exact {
         // Held on both point sets: the basis grid's and the simulation's points in the end.
         let region: Vec<Vector3<f64>> = basis_grid
             .positions()
@@ -182,28 +156,22 @@ fn run() -> Result<(), String> {
         build_basis(&basis_grid, &materials, &params)
     }
     .map_err(|e| e.to_string())?;
-    let basis_seconds = t.elapsed().as_secs_f64();
+    Ok(BeamBasis {
+        basis_grid,
+        points,
+        basis,
+        inset,
+    })
+}
 
-    let t = Instant::now();
-    let model = ReducedModel::new(
-        &basis,
-        &points,
-        &vec![material; points.len()],
-        StableNeoHookean,
-    )
-    .map_err(|e| e.to_string())?;
-    let rule = if full_quadrature {
-        QuadratureRule::PAPER
-    } else {
-        QuadratureRule::default()
-    };
-    let (model, quadrature_report) = rule.apply(model).map_err(|e| e.to_string())?;
-    let cubature_report = quadrature_report.cubature;
+/// Gravity, and the clamped end x ≤ 0.5 pinned by the penalty, or held exactly on x ≤ 0.5 −
+/// inset with the band up to 0.5 pinned.
+fn beam_scene(model: &ReducedModel<StableNeoHookean>, exact: bool, inset: f64) -> Scene {
     let region = |keep: &dyn Fn(f64) -> bool| PinnedRegion {
         points: model.points_where(|x| keep(x.x)),
         target: PinTarget::Rest,
     };
-    let scene = Scene {
+    Scene {
         gravity: Some(Vector3::new(0.0, -9.8, 0.0)),
         pins: if !exact {
             vec![region(&|x| x <= 0.5)]
@@ -219,129 +187,255 @@ fn run() -> Result<(), String> {
         },
         floor: None,
         colliders: Vec::new(),
+    }
+}
+
+/// The simulator's options the flags ask for.
+fn simulation_params(args: &Args) -> SimulationParams {
+    let pin_modulus = match args.pin_modulus {
+        None => PenaltyParams::default().pin_modulus,
+        Some(PinModulusChoice::Young) => PinModulus::Young,
+        Some(PinModulusChoice::PWave) => PinModulus::PWave,
     };
-    let base = if fresh_hessians {
+    let base = if args.fresh_hessians {
         SimulationParams::paper_setting()
     } else {
         SimulationParams::default()
     };
-    let sim_params = SimulationParams {
+    SimulationParams {
         time_step: 0.01,
         newton: NewtonParams {
-            tolerance,
+            tolerance: args.tolerance,
             ..base.newton
         },
         penalty: PenaltyParams {
-            pin_factor,
+            pin_factor: args.pin_factor,
             pin_modulus,
             ..Default::default()
         },
-        tangent: if exact_tangent {
+        tangent: if args.exact_tangent {
             HessianTangent::Exact
         } else {
             HessianTangent::ProjectedPsd
         },
         ..base
-    };
-    let mut sim = Simulator::new(model, &scene, sim_params).map_err(|e| e.to_string())?;
-    let lattice: Vec<Vector3<f64>> = (0..11)
-        .flat_map(|a| (0..11).map(move |b| Vector3::new(5.0, a as f64 / 10.0, b as f64 / 10.0)))
-        .collect();
-    let tip = DeformationMap::new(&basis, &lattice).map_err(|e| e.to_string())?;
-    let setup_seconds = t.elapsed().as_secs_f64();
+    }
+}
 
-    let mut timings = NewtonTimings::default();
-    let mut iterations = 0usize;
-    let mut unconverged = 0usize;
-    let mut tip_y = Vec::new();
-    let (mut pin_deviation, mut held_deviation): (f64, f64) = (0.0, 0.0);
-    // Drift of every point of the clamped end x ≤ 0.5 (held, band or penalized) from rest.
-    let mut end_drift: f64 = 0.0;
-    let rest = sim.model().rest_positions();
-    let end_rest: Vec<Vector3<f64>> = rest.iter().copied().filter(|x| x.x <= 0.5).collect();
-    let end = DeformationMap::new(&basis, &end_rest).map_err(|e| e.to_string())?;
-    // Only the steps are timed, as the library's runner does; the diagnostics are not.
-    let mut stepping = 0.0;
+/// What the steps measured.
+#[derive(Default)]
+struct Measured {
+    timings: NewtonTimings,
+    /// Seconds in `step` alone.
+    stepping: f64,
+    iterations: usize,
+    unconverged: usize,
+    /// (t in s, mean y displacement of the end face in m) at t = 0.5 and 1.0 s.
+    tip_y: Vec<(&'static str, f64)>,
+    pin_deviation: f64,
+    held_deviation: f64,
+    /// Drift of every point of the clamped end x ≤ 0.5 (held, band or penalized) from rest.
+    end_drift: f64,
+}
+
+/// Runs `steps` steps, timing only the steps (as the library's runner does) and measuring the
+/// tip at `lattice` and the clamped end's drift.
+fn step_through(
+    sim: &mut Simulator<StableNeoHookean>,
+    basis: &skin_eigen::SkinningBasis,
+    lattice: &[Vector3<f64>],
+    steps: usize,
+) -> Result<Measured, String> {
+    let tip = DeformationMap::new(basis, lattice).map_err(|e| e.to_string())?;
+    let end_rest: Vec<Vector3<f64>> = sim
+        .model()
+        .rest_positions()
+        .iter()
+        .copied()
+        .filter(|x| x.x <= 0.5)
+        .collect();
+    let end = DeformationMap::new(basis, &end_rest).map_err(|e| e.to_string())?;
+    let mut m = Measured::default();
     for step in 1..=steps {
         let t = Instant::now();
         let report = sim.step().map_err(|e| format!("step {step} failed: {e}"))?;
-        stepping += t.elapsed().as_secs_f64();
-        iterations += report.iterations;
-        unconverged += usize::from(!report.converged());
-        timings.assembly += report.timings.assembly;
-        timings.solve += report.timings.solve;
-        timings.line_search += report.timings.line_search;
-        pin_deviation = pin_deviation.max(sim.max_pin_deviation().unwrap_or(0.0));
-        held_deviation = held_deviation.max(sim.max_held_deviation().unwrap_or(0.0));
+        m.stepping += t.elapsed().as_secs_f64();
+        m.iterations += report.iterations;
+        m.unconverged += usize::from(!report.converged());
+        m.timings.assembly += report.timings.assembly;
+        m.timings.solve += report.timings.solve;
+        m.timings.line_search += report.timings.line_search;
+        m.pin_deviation = m.pin_deviation.max(sim.max_pin_deviation().unwrap_or(0.0));
+        m.held_deviation = m
+            .held_deviation
+            .max(sim.max_held_deviation().unwrap_or(0.0));
         for (x, x0) in end.positions(&sim.state().z).iter().zip(&end_rest) {
-            end_drift = end_drift.max((x - x0).norm());
+            m.end_drift = m.end_drift.max((x - x0).norm());
         }
         if step == 50 || step == 100 {
             let x = tip.positions(&sim.state().z);
-            let dy = x.iter().zip(&lattice).map(|(x, r)| x.y - r.y).sum::<f64>() / 121.0;
-            tip_y.push((if step == 50 { "0.5" } else { "1.0" }, dy));
+            let dy = x.iter().zip(lattice).map(|(x, r)| x.y - r.y).sum::<f64>() / 121.0;
+            m.tip_y.push((if step == 50 { "0.5" } else { "1.0" }, dy));
         }
     }
-    let per_step = |s: f64| 1e3 * s / steps as f64;
-    let iterations_mean = iterations as f64 / steps as f64;
-    if json {
-        let tips: Vec<String> = tip_y
-            .iter()
-            .map(|(k, v)| format!("\"{k}\": {v:.8e}"))
-            .collect();
+    Ok(m)
+}
+
+/// The run's setup, for the report.
+struct Setup<'a> {
+    args: &'a Args,
+    basis_points: usize,
+    simulation_points: usize,
+    inset: f64,
+    basis_seconds: f64,
+    setup_seconds: f64,
+    quadrature: &'a reduced_sim::QuadratureReport,
+}
+
+fn print_json(s: &Setup, m: &Measured) {
+    let Args {
+        modes,
+        kernels,
+        steps,
+        ..
+    } = *s.args;
+    let per_step = |t: f64| 1e3 * t / steps as f64;
+    let tips: Vec<String> = m
+        .tip_y
+        .iter()
+        .map(|(k, v)| format!("\"{k}\": {v:.8e}"))
+        .collect();
+    println!(
+        "{{\"modes\": {modes}, \"kernels\": {kernels}, \"basis_points\": {}, \
+         \"simulation_points\": {}, \"steps\": {steps}, \"tip_y\": {{{}}}, \
+         \"ms_per_step\": {:.4}, \"ms_assembly\": {:.4}, \"ms_solve\": {:.4}, \
+         \"ms_line_search\": {:.4}, \"newton_iterations_mean\": {:.4}, \
+         \"unconverged_steps\": {}, \"max_pin_deviation\": {:.4e}, \"max_held_deviation\": {:.4e}, \"end_drift\": {:.4e}, \"exact_inset\": {:.4}, \"basis_seconds\": {:.4}, \
+         \"setup_seconds\": {:.4}, \
+         \"quadrature\": {{\"kind\": \"{}\", \"points\": {}}}}}",
+        s.basis_points,
+        s.simulation_points,
+        tips.join(", "),
+        per_step(m.stepping),
+        per_step(m.timings.assembly),
+        per_step(m.timings.solve),
+        per_step(m.timings.line_search),
+        m.iterations as f64 / steps as f64,
+        m.unconverged,
+        m.pin_deviation,
+        m.held_deviation,
+        m.end_drift,
+        s.inset,
+        s.basis_seconds,
+        s.setup_seconds,
+        s.quadrature.kind,
+        s.quadrature.points,
+    );
+}
+
+fn print_text(s: &Setup, m: &Measured) {
+    let Args {
+        modes,
+        kernels,
+        steps,
+        ..
+    } = *s.args;
+    let per_step = |t: f64| 1e3 * t / steps as f64;
+    println!(
+        "beam Bend, m = {modes}, K = {kernels}, basis on {} points, simulated on {} points",
+        s.basis_points, s.simulation_points
+    );
+    println!(
+        "basis {:.2} s, model setup {:.2} s; elastic energy on {} {} points",
+        s.basis_seconds, s.setup_seconds, s.quadrature.points, s.quadrature.kind
+    );
+    if let Some(r) = &s.quadrature.cubature {
         println!(
-            "{{\"modes\": {modes}, \"kernels\": {kernels}, \"basis_points\": {}, \
-             \"simulation_points\": {}, \"steps\": {steps}, \"tip_y\": {{{}}}, \
-             \"ms_per_step\": {:.4}, \"ms_assembly\": {:.4}, \"ms_solve\": {:.4}, \
-             \"ms_line_search\": {:.4}, \"newton_iterations_mean\": {iterations_mean:.4}, \
-             \"unconverged_steps\": {unconverged}, \"max_pin_deviation\": {pin_deviation:.4e}, \"max_held_deviation\": {held_deviation:.4e}, \"end_drift\": {end_drift:.4e}, \"exact_inset\": {inset:.4}, \"basis_seconds\": {basis_seconds:.4}, \
-             \"setup_seconds\": {setup_seconds:.4}, \
-             \"quadrature\": {{\"kind\": \"{}\", \"points\": {}}}}}",
-            basis_grid.len(),
-            sim.model().rest_positions().len(),
-            tips.join(", "),
-            per_step(stepping),
-            per_step(timings.assembly),
-            per_step(timings.solve),
-            per_step(timings.line_search),
-            quadrature_report.kind,
-            quadrature_report.points,
+            "cubature: {} points from {} training poses in {:.2} s, force error {:.2e} \
+             (training) / {:.2e} (unseen poses), Σw/V = {:.3}",
+            r.points,
+            r.training_poses,
+            r.seconds,
+            r.training_error,
+            r.validation_error,
+            r.weight_over_volume
         );
+    }
+    for (k, v) in &m.tip_y {
+        println!("tip y at t = {k} s: {v:.6} m");
+    }
+    println!(
+        "{:.2} ms/step (assembly {:.2}, solve {:.2}, line search {:.2}), \
+         {:.2} Newton iterations/step, {} unconverged steps, \
+         pinned points within {:.2e} m of their targets",
+        per_step(m.stepping),
+        per_step(m.timings.assembly),
+        per_step(m.timings.solve),
+        per_step(m.timings.line_search),
+        m.iterations as f64 / steps as f64,
+        m.unconverged,
+        m.pin_deviation
+    );
+}
+
+fn run() -> Result<(), String> {
+    let args: Args = clap::Parser::parse();
+    if args.modes == 0 || args.kernels == 0 || args.basis_points == 0 || args.sim_points == 0 {
+        return Err("--modes, --kernels, --basis-points and --points must be positive".into());
+    }
+    let material = MaterialSample {
+        youngs_modulus: 5e6,
+        poisson_ratio: 0.45,
+        density: 1000.0,
+    };
+    let lame = LameParameters::from_young_poisson(material.youngs_modulus, material.poisson_ratio)
+        .map_err(|e| e.to_string())?;
+
+    let t = Instant::now();
+    let BeamBasis {
+        basis_grid,
+        points,
+        basis,
+        inset,
+    } = build_beam_basis(&args, lame)?;
+    let basis_seconds = t.elapsed().as_secs_f64();
+
+    let t = Instant::now();
+    let model = ReducedModel::new(
+        &basis,
+        &points,
+        &vec![material; points.len()],
+        StableNeoHookean,
+    )
+    .map_err(|e| e.to_string())?;
+    let rule = if args.full_quadrature {
+        QuadratureRule::PAPER
     } else {
-        println!(
-            "beam Bend, m = {modes}, K = {kernels}, basis on {} points, simulated on {} points",
-            basis_grid.len(),
-            sim.model().rest_positions().len()
-        );
-        println!(
-            "basis {basis_seconds:.2} s, model setup {setup_seconds:.2} s; elastic energy on {} \
-             {} points",
-            quadrature_report.points, quadrature_report.kind
-        );
-        if let Some(r) = &cubature_report {
-            println!(
-                "cubature: {} points from {} training poses in {:.2} s, force error {:.2e} \
-                 (training) / {:.2e} (unseen poses), Σw/V = {:.3}",
-                r.points,
-                r.training_poses,
-                r.seconds,
-                r.training_error,
-                r.validation_error,
-                r.weight_over_volume
-            );
-        }
-        for (k, v) in &tip_y {
-            println!("tip y at t = {k} s: {v:.6} m");
-        }
-        println!(
-            "{:.2} ms/step (assembly {:.2}, solve {:.2}, line search {:.2}), \
-             {iterations_mean:.2} Newton iterations/step, {unconverged} unconverged steps, \
-             pinned points within {pin_deviation:.2e} m of their targets",
-            per_step(stepping),
-            per_step(timings.assembly),
-            per_step(timings.solve),
-            per_step(timings.line_search)
-        );
+        QuadratureRule::default()
+    };
+    let (model, quadrature) = rule.apply(model).map_err(|e| e.to_string())?;
+    let scene = beam_scene(&model, args.exact, inset);
+    let mut sim =
+        Simulator::new(model, &scene, simulation_params(&args)).map_err(|e| e.to_string())?;
+    let lattice: Vec<Vector3<f64>> = (0..11)
+        .flat_map(|a| (0..11).map(move |b| Vector3::new(5.0, a as f64 / 10.0, b as f64 / 10.0)))
+        .collect();
+    let setup_seconds = t.elapsed().as_secs_f64();
+
+    let measured = step_through(&mut sim, &basis, &lattice, args.steps)?;
+    let setup = Setup {
+        args: &args,
+        basis_points: basis_grid.len(),
+        simulation_points: sim.model().rest_positions().len(),
+        inset,
+        basis_seconds,
+        setup_seconds,
+        quadrature: &quadrature,
+    };
+    if args.json {
+        print_json(&setup, &measured);
+    } else {
+        print_text(&setup, &measured);
     }
     Ok(())
 }
