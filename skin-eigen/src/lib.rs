@@ -3,6 +3,7 @@
 pub mod assembly;
 pub mod basis_builder;
 pub mod generalized_eigen;
+pub mod pool_convergence;
 pub mod region_constraints;
 pub mod region_weight;
 pub mod skinning_basis;
@@ -17,6 +18,7 @@ pub use basis_builder::{
     build_basis_with_regions,
 };
 pub use generalized_eigen::{EigenError, EigenParams, EigenSolution, solve_skinning_modes};
+pub use pool_convergence::{PoolConvergence, pool_convergence};
 pub use region_constraints::{
     ConstrainedModes, RegionConstraintParams, RegionError, solve_constrained_modes,
 };

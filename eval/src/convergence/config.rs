@@ -39,6 +39,11 @@ pub struct ConvergenceConfig {
     pub fem: FemResolution,
     /// Coarse FEM runs of the dynamic Bend at ν = 0.45 placed beside FreeForm in the plot.
     pub coarse_fem: Vec<FemResolution>,
+    /// Check, per kernel count, that the basis grid is a converged integration pool: the
+    /// first 2m eigenvalues with the same kernels on twice the points move by at most
+    /// [`crate::convergence::POOL_TOLERANCE`] (default true).
+    #[serde(default)]
+    pub pool_check: bool,
     /// Cache folder (FEM trajectories, cubatures).
     pub cache_dir: PathBuf,
 }
@@ -84,6 +89,7 @@ impl ConvergenceConfig {
                 coarse(ElementOrder::Quadratic, 3),
                 coarse(ElementOrder::Quadratic, 4),
             ],
+            pool_check: true,
             cache_dir,
         }
     }

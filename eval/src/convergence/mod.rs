@@ -19,11 +19,13 @@
 
 //!
 //! Files: `options.rs` (what varies besides m, K and ν), `config.rs` (what the study runs),
-//! `result.rs` (what it measures), `static_reference.rs` (the static reference and the
+//! `result.rs` (what it measures), `pool_check.rs` (whether the basis's integration pool is
+//! converged), `static_reference.rs` (the static reference and the
 //! projections), `study.rs` (the run), `table.rs` (the Markdown).
 
 mod config;
 mod options;
+mod pool_check;
 mod result;
 mod static_reference;
 mod study;
@@ -33,6 +35,7 @@ mod tests;
 
 pub use config::ConvergenceConfig;
 pub use options::{BoundaryTreatment, ConvergenceTest, VolumetricTerm};
+pub use pool_check::{POOL_TOLERANCE, PoolCheckRow};
 pub use result::{CoarseFemRow, ConvergenceRow, ConvergenceStudy};
 pub use study::run_convergence;
 pub use table::convergence_table;

@@ -70,4 +70,8 @@ pub struct ConvergenceStudy {
     pub coarse_fem: Vec<CoarseFemRow>,
     /// References that failed their own check, and so scored nothing.
     pub refused_references: Vec<String>,
+    /// Per kernel count: whether the basis's integration pool is converged
+    /// ([`crate::convergence::ConvergenceConfig::pool_check`]).
+    #[serde(default)]
+    pub pool_checks: Vec<crate::convergence::PoolCheckRow>,
 }

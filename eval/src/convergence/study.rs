@@ -96,6 +96,10 @@ pub fn run_convergence(
         }
     }
     coarse_fem_rows(config, &materials, &dynamics, &mut study, progress)?;
+    if config.pool_check {
+        progress.status("checking the basis grid's integration pool (twice the points)");
+        study.pool_checks = super::pool_check::pool_checks(config)?;
+    }
     Ok(study)
 }
 

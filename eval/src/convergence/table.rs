@@ -2,6 +2,7 @@
 
 use std::fmt::Write as _;
 
+use crate::convergence::POOL_TOLERANCE;
 use crate::convergence::config::ConvergenceConfig;
 use crate::convergence::options::{BoundaryTreatment, ConvergenceTest, VolumetricTerm};
 use crate::convergence::result::ConvergenceStudy;
@@ -73,6 +74,28 @@ pub fn convergence_table(config: &ConvergenceConfig, study: &ConvergenceStudy) -
                 md += "\n";
             }
         }
+    }
+    if !study.pool_checks.is_empty() {
+        let _ = write!(
+            md,
+            "### Integration pool\n\nThe first 2m weight-space eigenvalues with the same kernels \
+             on the basis grid and on one of twice the points; converged when none moves by more \
+             than {POOL_TOLERANCE:e}.\n\n| K | points | finer points | eigenvalues | largest \
+             relative change | converged |\n|---|---|---|---|---|---|\n"
+        );
+        for p in &study.pool_checks {
+            let _ = writeln!(
+                md,
+                "| {} | {} | {} | {} | {:.2e} | {} |",
+                p.check.kernels,
+                p.check.points,
+                p.check.finer_points,
+                p.eigenvalues,
+                p.check.max_relative_change,
+                if p.converged { "yes" } else { "no" }
+            );
+        }
+        md += "\n";
     }
     if !study.coarse_fem.is_empty() {
         md += "### Coarse FEM, dynamic Bend ν = 0.45\n\n| FEM | MSE | ms/step |\n|---|---|---|\n";
