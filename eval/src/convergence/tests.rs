@@ -77,3 +77,30 @@ fn the_energy_projection_keeps_the_held_nodes_in_place() {
         "held nodes moved {drift:e} against the field's largest {largest:e}"
     );
 }
+
+#[test]
+fn the_pool_check_compares_2m_eigenvalues_per_kernel_count_on_twice_the_points() {
+    let config = super::ConvergenceConfig {
+        modes: vec![4, 6],
+        kernels: vec![80, 120],
+        settings: ReducedSettings {
+            basis_points: 1500,
+            ..ReducedSettings::default()
+        },
+        ..super::ConvergenceConfig::quick(std::path::PathBuf::from("unused"))
+    };
+    let rows = super::pool_check::pool_checks(&config).unwrap();
+    assert_eq!(rows.len(), 2);
+    for (row, kernels) in rows.iter().zip([80, 120]) {
+        assert_eq!(row.kernels, kernels);
+        assert_eq!(row.eigenvalues, 12, "2 × the largest m");
+        assert_eq!(row.check.eigenvalues.len(), 12);
+        let ratio = row.check.finer_points as f64 / row.check.points as f64;
+        assert!((1.6..2.4).contains(&ratio), "{ratio}");
+        assert!(row.check.max_relative_change.is_finite() && row.check.max_relative_change > 0.0);
+        assert_eq!(
+            row.converged,
+            row.check.max_relative_change <= super::POOL_TOLERANCE
+        );
+    }
+}
