@@ -2,7 +2,7 @@
 //! point counts, Newton and pin options, where the simulation integrates, the tangent. Keys are
 //! spelled as in scene files ([`freeform::settings_vocabulary`]).
 
-use freeform::PinHold;
+use freeform::{PinHold, PressureSpaceParams};
 use optimize::{HessianReuse, NewtonParams};
 use reduced_sim::{HessianTangent, PenaltyParams, PinModulus, QuadratureRule, SimulationParams};
 use rkpm_core::{
@@ -63,6 +63,12 @@ pub struct ReducedSettings {
     /// [`HessianTangent::ExactWhenDefinite`]).
     #[serde(default = "paper_tangent")]
     pub tangent: HessianTangent,
+    /// A locking-free volumetric term over a pressure space (default none: the material's own
+    /// volumetric term at every point, the paper's setting; `{}` for [`PressureSpaceParams`]'
+    /// defaults), as scene files' `simulation.pressure`. The space is built per test on the
+    /// basis grid ([`crate::beam_protocol::reduced::beam_pressure_space`]).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub pressure: Option<PressureSpaceParams>,
 }
 
 fn paper_tangent() -> HessianTangent {
@@ -173,6 +179,25 @@ impl ReducedSettings {
         }
     }
 
+    /// The volumetric term in words, for table preambles: "" for the material's own at every
+    /// point (the paper's setting), else "; volumetric term projected onto …".
+    pub fn pressure_label(&self) -> String {
+        self.pressure.map_or(String::new(), |p| {
+            format!(
+                "; volumetric term projected onto a pressure space of the constant{}, the \
+                 free part's first {} Neumann modes ({} × (m + 1)), min(λ, {} μ) kept pointwise",
+                if p.affine {
+                    ", the affine functions"
+                } else {
+                    ""
+                },
+                p.neumann_modes(self.modes),
+                p.mode_fraction,
+                p.retained_shear_multiple
+            )
+        })
+    }
+
     /// The pin penalty in words, for table preambles: "κ_pin = 3e3 · max E / L² (the library
     /// default, chosen against the FEM by `freeform-paper pins`)".
     pub fn pin_rule_label(&self) -> String {
@@ -258,6 +283,29 @@ impl Default for ReducedSettings {
             pin_modulus: PenaltyParams::default().pin_modulus,
             pins: PinHold::Penalty,
             tangent: paper_tangent(),
+            pressure: None,
         }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn the_pressure_key_is_written_only_when_set_and_reads_its_defaults_from_an_empty_table() {
+        let paper = ReducedSettings::default();
+        let value = serde_json::to_value(paper).unwrap();
+        assert!(value.get("pressure").is_none(), "{value}");
+        let mut table = toml::Table::try_from(paper).unwrap();
+        table.insert("pressure".into(), toml::Value::Table(toml::Table::new()));
+        let projected: ReducedSettings = table.try_into().unwrap();
+        assert_eq!(projected.pressure, Some(PressureSpaceParams::default()));
+        assert_eq!(paper.pressure_label(), "");
+        assert!(
+            projected
+                .pressure_label()
+                .contains("first 51 Neumann modes")
+        );
     }
 }

@@ -127,7 +127,8 @@ pub fn run_reduced_beam<B: SkinningField + ?Sized>(
 }
 
 /// [`run_reduced_beam`] with a material (the beam's is [`beam_material`]; the pin sweep varies
-/// its Poisson ratio) and a cache folder for the cubature (`None`: optimized every run).
+/// its Poisson ratio) and a cache folder for the cubature (`None`: optimized every run). With
+/// `settings.pressure`, the volumetric term is projected onto [`beam_pressure_space`].
 ///
 /// # Errors
 /// As [`run_reduced_beam`].
@@ -142,12 +143,16 @@ pub fn run_reduced_beam_with<B: SkinningField + ?Sized>(
     steps: usize,
     progress: &TerminalProgress,
 ) -> Result<ReducedRun, EvalError> {
+    let pressure = settings
+        .pressure
+        .map(|params| beam_pressure_space(test, settings, &params))
+        .transpose()?;
     run_reduced_beam_with_pressure(
         test,
         basis,
         settings,
         material,
-        None,
+        pressure.as_ref(),
         cache_dir,
         output_points,
         steps,

@@ -156,7 +156,7 @@ impl Bench<'_> {
         Ok(MethodRun {
             name: "freeform",
             label: format!(
-                "m={} K={} pts={} tol={:e} pin={}{}{}",
+                "m={} K={} pts={} tol={:e} pin={}{}{}{}",
                 s.modes,
                 s.kernels,
                 run.report.simulation_points,
@@ -173,6 +173,11 @@ impl Bench<'_> {
                     }
                 },
                 quadrature_label(&s.quadrature, run.report.quadrature.points),
+                if s.pressure.is_some() {
+                    " pressure"
+                } else {
+                    ""
+                },
             ),
             timing: Timing::of(&run.report),
             setup_seconds: basis.seconds + run.report.setup_seconds,
