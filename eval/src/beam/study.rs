@@ -132,7 +132,12 @@ pub fn run_beam_study(
             ..config.settings
         };
         progress.status(format!("basis m = {m}, K = {}", settings.kernels));
-        let basis = build_beam_basis(&settings)?;
+        // A penalty basis serves both tests; a basis that holds regions is built for each
+        // test's own (`settings.pins`).
+        let shared = match settings.pins {
+            PinHold::Penalty => Some(build_beam_basis(&settings)?),
+            PinHold::Exact { .. } | PinHold::Weighted { .. } => None,
+        };
         let exact = match config.exact_pins {
             Some(radii) => Some(ReducedSettings {
                 pins: exact_pin_hold(&settings, radii)?,
@@ -154,6 +159,14 @@ pub fn run_beam_study(
         };
         for (test, reference) in &references {
             let steps = config.steps_of(*test);
+            let own;
+            let basis = match &shared {
+                Some(basis) => basis,
+                None => {
+                    own = build_beam_basis_for(*test, &settings)?;
+                    &own
+                }
+            };
             let ours = evaluate_field(
                 *test,
                 &basis.basis,
@@ -204,7 +217,9 @@ pub fn run_beam_study(
     })
 }
 
-/// Simplicits' row of `test`: its network simulated and scored against the reference.
+/// Simplicits' row of `test`: its network simulated and scored against the reference, with
+/// `settings`' step but the baseline's own treatment: penalty pins (its field holds no region)
+/// and the material's volumetric term at every point.
 fn baseline_row(
     test: BeamTest,
     net: &CachedSimplicits,
@@ -214,10 +229,15 @@ fn baseline_row(
     config: &BeamStudyConfig,
     progress: &TerminalProgress,
 ) -> Result<BaselineRow, EvalError> {
+    let settings = ReducedSettings {
+        pins: PinHold::Penalty,
+        pressure: None,
+        ..*settings
+    };
     let e = evaluate_field(
         test,
         &net.trained.field,
-        settings,
+        &settings,
         reference,
         steps,
         &config.cache_dir,
