@@ -156,19 +156,27 @@ impl ProjectedDilatation {
             .map(|(w, v)| w * v.modulus)
             .collect();
         let size = pressure.ncols();
-        let mut gram = DMatrix::zeros(size, size);
-        for (q, wk) in weighted_modulus.iter().enumerate() {
-            let row = elastic_pressure.row(q);
-            gram += row.transpose() * row * *wk;
+        // G = Qᵀ diag(w κ) Q, one product.
+        let mut scaled = elastic_pressure.clone();
+        for (mut row, wk) in scaled.row_iter_mut().zip(&weighted_modulus) {
+            row *= *wk;
         }
+        let gram = elastic_pressure.tr_mul(&scaled);
         // All of the modulus kept pointwise: nothing is projected (and G is 0).
         let gram_inverse = if weighted_modulus.iter().all(|&w| w == 0.0) {
             DMatrix::zeros(size, size)
         } else {
-            gram.clone()
+            let factor = gram
+                .clone()
                 .cholesky()
-                .ok_or(ProjectedDilatationError::DependentFunctions { size })?
-                .inverse()
+                .ok_or(ProjectedDilatationError::DependentFunctions { size })?;
+            // A pivot lost to rounding against its diagonal entry: dependent functions (the
+            // product forming G may leave a dependent pair a rounding error from singular).
+            let l = factor.l_dirty();
+            if (0..size).any(|i| !(l[(i, i)] * l[(i, i)] > 1e-12 * gram[(i, i)])) {
+                return Err(ProjectedDilatationError::DependentFunctions { size });
+            }
+            factor.inverse()
         };
         Ok(ProjectedDilatation {
             pressure,
@@ -200,8 +208,6 @@ impl ProjectedDilatation {
     /// `energy` is +∞ when some `J_q ≤ 0`.
     #[allow(non_snake_case)]
     pub(crate) fn state(&self, f: &[Matrix3<f64>]) -> DilatationState {
-        let mut r = DVector::zeros(self.functions());
-        let mut pointwise = 0.0;
         let mut inverted = false;
         let dilatations: Vec<f64> = f
             .iter()
@@ -212,18 +218,28 @@ impl ProjectedDilatation {
                 J - v.rest_ratio
             })
             .collect();
-        for (q, (&d, &wk)) in dilatations.iter().zip(&self.weighted_modulus).enumerate() {
-            r += self.elastic_pressure.row(q).transpose() * (wk * d);
-            pointwise += 0.5 * wk * d * d;
-        }
+        let weighted = DVector::from_iterator(
+            dilatations.len(),
+            dilatations
+                .iter()
+                .zip(&self.weighted_modulus)
+                .map(|(&d, &wk)| wk * d),
+        );
+        let pointwise: f64 = 0.5
+            * weighted
+                .iter()
+                .zip(&dilatations)
+                .map(|(a, d)| a * d)
+                .sum::<f64>();
+        // r = Qᵀ (w κ ∘ d) and the projected pressure at the points, Q p̂: two products.
+        let r = self.elastic_pressure.tr_mul(&weighted);
         let p_hat = &self.gram_inverse * &r;
+        let projected = &self.elastic_pressure * &p_hat;
         let pressure_shift = dilatations
             .iter()
             .zip(&self.volumetric)
-            .enumerate()
-            .map(|(q, (&d, v))| {
-                v.modulus * (self.elastic_pressure.row(q).dot(&p_hat.transpose()) - d)
-            })
+            .zip(projected.iter())
+            .map(|((&d, v), &p)| v.modulus * (p - d))
             .collect();
         let energy = if inverted {
             f64::INFINITY
