@@ -42,7 +42,12 @@ def snakemake(work, *extra, check=True, background=False):
         "preset=--quick", "threads=1", *extra,
     ]
     if background:
-        return subprocess.Popen(command, stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True)
+        # Ctrl-C must reach the run even when this test was started in the background, which
+        # leaves SIGINT ignored in every child unless reset.
+        return subprocess.Popen(
+            command, stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True,
+            preexec_fn=lambda: signal.signal(signal.SIGINT, signal.SIG_DFL),
+        )
     run = subprocess.run(command, capture_output=True, text=True)
     if check:
         assert run.returncode == 0, run.stdout + run.stderr
