@@ -51,15 +51,18 @@ pub fn table6(study: &BeamStudy) -> RenderedTable {
     Table6::new(study).render()
 }
 
-/// How the Simplicits column was produced (or that it was not), from the Bend rows' (m,
-/// training seconds).
-fn simplicits_line(config: &BeamStudyConfig, bend_training: &[(usize, f64)]) -> String {
+/// How the Simplicits column was produced (or that it was not), from the rows' (test, m,
+/// Simplicits training seconds): the Bend rows' times are listed.
+fn simplicits_line<'r>(
+    config: &BeamStudyConfig,
+    rows: impl Iterator<Item = (&'r str, usize, Option<f64>)>,
+) -> String {
     match &config.simplicits {
         None => "\nSimplicits (ours) was not run (`--skip-simplicits`).\n".into(),
         Some(p) => {
-            let seconds: Vec<String> = bend_training
-                .iter()
-                .map(|(m, s)| format!("m={m}: {s:.0} s"))
+            let seconds: Vec<String> = rows
+                .filter(|(test, ..)| *test == "bend")
+                .filter_map(|(_, m, s)| s.map(|s| format!("m={m}: {s:.0} s")))
                 .collect();
             format!(
                 "\nSimplicits (ours): the baseline of design §3.9 trained on the same grid as our basis \

@@ -345,13 +345,12 @@ impl PaperTable for Table1<'_> {
                 sci(particle.map(|p| p.2)),
             );
         }
-        let bend_training: Vec<(usize, f64)> = self
-            .rows
-            .iter()
-            .filter(|r| r.test == "bend")
-            .filter_map(|r| r.simplicits_training_seconds.map(|s| (r.m, s)))
-            .collect();
-        md += &simplicits_line(config, &bend_training);
+        md += &simplicits_line(
+            config,
+            self.rows
+                .iter()
+                .map(|r| (r.test, r.m, r.simplicits_training_seconds)),
+        );
         md += &self.particle_baselines_section();
         md
     }
