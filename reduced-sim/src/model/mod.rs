@@ -6,6 +6,7 @@
 #[cfg(test)]
 pub(crate) mod analytic_field;
 pub mod deformation_map;
+pub(crate) mod elastic_deformation;
 pub mod elastic_energy;
 pub mod elastic_quadrature;
 pub mod projected_dilatation;

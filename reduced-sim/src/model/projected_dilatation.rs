@@ -23,6 +23,8 @@
 //! projected tangents project the whole per-point 9 × 9 matrix. Any `J_q ≤ 0` makes the energy
 //! +∞ (an inversion guard: pointwise J can invert while ΠJ stays positive).
 
+use faer::linalg::matmul::matmul;
+use faer::{Accum, Mat, MatRef, Par};
 use hyperelastic::{
     HyperelasticMaterial, LameParameters, Matrix9, Tangent, VolumetricPart, cofactor,
     determinant_hessian,
@@ -93,7 +95,7 @@ pub(crate) struct ProjectedDilatation {
     /// The options it was made with.
     params: ProjectedDilatationParams,
     /// q at the elastic points, N_e × P.
-    elastic_pressure: DMatrix<f64>,
+    elastic_pressure: Mat<f64>,
     /// κ_q, γ_q at the elastic points.
     volumetric: Vec<VolumetricPart>,
     /// w_q κ_q at the elastic points.
@@ -105,6 +107,7 @@ pub(crate) struct ProjectedDilatation {
 }
 
 /// `r`, `p̂` and the per-point factors of the term at some deformation gradients.
+#[derive(Debug)]
 pub(crate) struct DilatationState {
     /// `½ rᵀ G⁻¹ r − Σ_q w_q ½ κ_q (J_q − γ_q)²` (J).
     pub energy: f64,
@@ -133,8 +136,10 @@ impl ProjectedDilatation {
             return Err(ProjectedDilatationError::Empty);
         }
         let elastic_pressure = match elastic_points {
-            None => pressure.clone(),
-            Some(points) => pressure.select_rows(points),
+            None => Mat::from_fn(pressure.nrows(), pressure.ncols(), |q, b| pressure[(q, b)]),
+            Some(points) => Mat::from_fn(points.len(), pressure.ncols(), |q, b| {
+                pressure[(points[q], b)]
+            }),
         };
         let volumetric = lame
             .iter()
@@ -157,11 +162,19 @@ impl ProjectedDilatation {
             .collect();
         let size = pressure.ncols();
         // G = Qᵀ diag(w κ) Q, one product.
-        let mut scaled = elastic_pressure.clone();
-        for (mut row, wk) in scaled.row_iter_mut().zip(&weighted_modulus) {
-            row *= *wk;
-        }
-        let gram = elastic_pressure.tr_mul(&scaled);
+        let weighted_pressure = Mat::from_fn(elastic_pressure.nrows(), size, |q, b| {
+            weighted_modulus[q] * elastic_pressure[(q, b)]
+        });
+        let mut product = Mat::<f64>::zeros(size, size);
+        matmul(
+            product.as_mut(),
+            Accum::Replace,
+            elastic_pressure.transpose(),
+            weighted_pressure.as_ref(),
+            1.0,
+            Par::Seq,
+        );
+        let gram = DMatrix::from_fn(size, size, |a, b| product[(a, b)]);
         // All of the modulus kept pointwise: nothing is projected (and G is 0).
         let gram_inverse = if weighted_modulus.iter().all(|&w| w == 0.0) {
             DMatrix::zeros(size, size)
@@ -208,43 +221,51 @@ impl ProjectedDilatation {
     /// `energy` is +∞ when some `J_q ≤ 0`.
     #[allow(non_snake_case)]
     pub(crate) fn state(&self, f: &[Matrix3<f64>]) -> DilatationState {
+        let n = f.len();
         let mut inverted = false;
-        let dilatations: Vec<f64> = f
-            .iter()
-            .zip(&self.volumetric)
-            .map(|(f, v)| {
-                let J = f.determinant();
-                inverted |= J <= 0.0;
-                J - v.rest_ratio
-            })
-            .collect();
-        let weighted = DVector::from_iterator(
-            dilatations.len(),
-            dilatations
-                .iter()
-                .zip(&self.weighted_modulus)
-                .map(|(&d, &wk)| wk * d),
+        let mut dilatations = Vec::with_capacity(n);
+        let mut weighted = Mat::<f64>::zeros(n, 1);
+        let mut pointwise = 0.0;
+        for (q, (f, v)) in f.iter().zip(&self.volumetric).enumerate() {
+            let J = f.determinant();
+            inverted |= J <= 0.0;
+            let d = J - v.rest_ratio;
+            let wd = self.weighted_modulus[q] * d;
+            pointwise += wd * d;
+            weighted[(q, 0)] = wd;
+            dilatations.push(d);
+        }
+        // r = Qᵀ (w κ ∘ d), p̂ = G⁻¹ r and the projected pressure at the points, Q p̂: three
+        // matrix-vector products, two of them reading Q.
+        let size = self.functions();
+        let mut r = Mat::<f64>::zeros(size, 1);
+        matmul(
+            r.as_mut(),
+            Accum::Replace,
+            self.elastic_pressure.transpose(),
+            weighted.as_ref(),
+            1.0,
+            Par::Seq,
         );
-        let pointwise: f64 = 0.5
-            * weighted
-                .iter()
-                .zip(&dilatations)
-                .map(|(a, d)| a * d)
-                .sum::<f64>();
-        // r = Qᵀ (w κ ∘ d) and the projected pressure at the points, Q p̂: two products.
-        let r = self.elastic_pressure.tr_mul(&weighted);
+        let r = DVector::from_fn(size, |b, _| r[(b, 0)]);
         let p_hat = &self.gram_inverse * &r;
-        let projected = &self.elastic_pressure * &p_hat;
-        let pressure_shift = dilatations
-            .iter()
-            .zip(&self.volumetric)
-            .zip(projected.iter())
-            .map(|((&d, v), &p)| v.modulus * (p - d))
+        let p_hat_col = Mat::from_fn(size, 1, |b, _| p_hat[b]);
+        let mut projected = Mat::<f64>::zeros(n, 1);
+        matmul(
+            projected.as_mut(),
+            Accum::Replace,
+            self.elastic_pressure.as_ref(),
+            p_hat_col.as_ref(),
+            1.0,
+            Par::Seq,
+        );
+        let pressure_shift = (0..n)
+            .map(|q| self.volumetric[q].modulus * (projected[(q, 0)] - dilatations[q]))
             .collect();
         let energy = if inverted {
             f64::INFINITY
         } else {
-            0.5 * r.dot(&p_hat) - pointwise
+            0.5 * r.dot(&p_hat) - 0.5 * pointwise
         };
         DilatationState {
             energy,
@@ -252,9 +273,14 @@ impl ProjectedDilatation {
         }
     }
 
-    /// `w_q κ_q q_b(X_q)`: the weight of point q in row b of `∂r/∂z`.
-    pub(crate) fn jacobian_weight(&self, q: usize, b: usize) -> f64 {
-        self.weighted_modulus[q] * self.elastic_pressure[(q, b)]
+    /// `q_b(X_q)` at the elastic points (N_e × P).
+    pub(crate) fn elastic_pressure(&self) -> MatRef<'_, f64> {
+        self.elastic_pressure.as_ref()
+    }
+
+    /// `w_q κ_q` of elastic point q (N·m⁻² · m³): its weight in `r` and `∂r/∂z`.
+    pub(crate) fn weighted_modulus(&self, q: usize) -> f64 {
+        self.weighted_modulus[q]
     }
 
     /// G.

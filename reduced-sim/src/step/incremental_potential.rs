@@ -21,6 +21,7 @@ use hyperelastic::{HyperelasticMaterial, Tangent};
 use optimize::NewtonObjective;
 
 use crate::model::reduced_model::{ReducedModel, add_block_diagonal_product};
+use crate::step::deformation_cache::DeformationCache;
 use crate::step::hessian_tangent::{HessianTangent, StepTangents};
 use crate::terms::friction_term::ContactFriction;
 use crate::terms::scene_terms::{SceneTerms, term_point};
@@ -47,13 +48,16 @@ pub struct IncrementalPotential<'a, M: HyperelasticMaterial> {
     pub(crate) free: Option<&'a [usize]>,
     /// The floor's friction, lagged at the start of the step (dynamic steps only).
     pub(crate) friction: Option<ContactFriction>,
+    /// The elastic points' deformation at the z last evaluated.
+    pub(crate) deformation: DeformationCache,
 }
 
 impl<M: HyperelasticMaterial> IncrementalPotential<'_, M> {
     /// E(z) (J, up to a constant). Non-finite when some term is.
     pub fn energy(&self, z: &[f64]) -> f64 {
         let at = term_point(self.model, z, self.time);
-        let mut e = self.model.elastic_energy(z) + self.terms.energy(&at);
+        let deformation = self.deformation.at(self.model, z);
+        let mut e = self.model.elastic_energy_at(&deformation) + self.terms.energy(&at);
         if let Some(friction) = &self.friction {
             friction.add_energy(&at, &mut e);
         }
@@ -85,12 +89,14 @@ impl<M: HyperelasticMaterial> IncrementalPotential<'_, M> {
 
     /// [`IncrementalPotential::derivatives`] with the material tangent `tangent`.
     fn derivatives_with(&self, z: &[f64], tangent: Tangent) -> (Vec<f64>, Mat<f64>) {
-        // F formed once for the gradient and the Hessian; the same bits as the F of the
-        // one-pass gradient of `gradient` below, so the two gradients agree to the bit.
-        let f = self.model.elastic_map().deformation_gradients(z);
-        let mut gradient = self.model.elastic_gradient_at(&f);
+        // F formed once for the gradient and the Hessian (or taken from the energy at the
+        // same z), the same bits as the F of the one-pass gradient of `gradient` below, so
+        // the two gradients agree to the bit.
+        let deformation = self.deformation.at(self.model, z);
+        let mut gradient = self.model.elastic_gradient_at(&deformation);
         let mut hessian = Mat::zeros(z.len(), z.len());
-        self.model.add_elastic_hessian_at(&f, tangent, &mut hessian);
+        self.model
+            .add_elastic_hessian_at(&deformation, tangent, &mut hessian);
         let at = term_point(self.model, z, self.time);
         self.terms
             .add_derivatives(&at, tangent, &mut gradient, Some(&mut hessian));
@@ -101,9 +107,13 @@ impl<M: HyperelasticMaterial> IncrementalPotential<'_, M> {
         (gradient, hessian)
     }
 
-    /// `∂E/∂z` alone (no Hessian work).
+    /// `∂E/∂z` alone (no Hessian work): from the deformation of the last energy evaluation
+    /// when that was at this z, else in one pass that forms F as it goes.
     pub fn gradient(&self, z: &[f64]) -> Vec<f64> {
-        let mut gradient = self.model.elastic_gradient(z);
+        let mut gradient = match self.deformation.stored(z) {
+            Some(deformation) => self.model.elastic_gradient_at(&deformation),
+            None => self.model.elastic_gradient(z),
+        };
         let at = term_point(self.model, z, self.time);
         let tangent = self.tangent.first_try();
         self.terms
@@ -333,6 +343,7 @@ mod tests {
             tangent: tangent.into(),
             free: None,
             friction: terms.contact_friction(&model, &probe_z(len, -0.02), &predicted, 0.5, 0.01),
+            deformation: Default::default(),
         };
         let friction = potential.friction.as_ref().expect("points touch the floor");
         assert!(friction.points().len() > 10);
@@ -436,6 +447,7 @@ mod tests {
             tangent: HessianTangent::Exact,
             free: None,
             friction: terms.contact_friction(&model, &lag, &lag, 0.0, 0.01),
+            deformation: Default::default(),
         };
         let n = model.volumes().len();
         let contacts = terms.contacts(&term_point(&model, &z, 0.0));
@@ -505,6 +517,7 @@ mod tests {
             tangent,
             free: None,
             friction: None,
+            deformation: Default::default(),
         };
         let hessian = |tangent, k, z: &[f64]| potential(tangent, k).derivatives(z).1;
         let definite = |h: &Mat<f64>| h.llt(Side::Lower).is_ok();

@@ -512,6 +512,7 @@ impl<M: HyperelasticMaterial> Simulator<M> {
                 self.state.time,
                 h,
             ),
+            deformation: Default::default(),
         }
     }
 
@@ -531,6 +532,7 @@ impl<M: HyperelasticMaterial> Simulator<M> {
             tangent: self.params.tangent,
             free: self.terms.free_coordinates(),
             friction: None,
+            deformation: Default::default(),
         };
         let mut z = self.state.z.clone();
         self.terms.prescribe(&mut z, time);

@@ -8,6 +8,7 @@ use nalgebra::Matrix3;
 use rayon::prelude::*;
 
 use crate::model::deformation_map::{DeformationMap, deformation_gradient_of_block};
+use crate::model::elastic_deformation::ElasticDeformation;
 use crate::model::projected_dilatation::ProjectedDilatation;
 use crate::model::reduced_model::ReducedModel;
 
@@ -26,9 +27,10 @@ impl<M: HyperelasticMaterial> ReducedModel<M> {
     /// # Panics
     /// If `z.len() != 12(m + 1)`.
     pub fn elastic_energy(&self, z: &[f64]) -> f64 {
-        let dilatation = self.dilatation().map_or(0.0, |d| {
-            d.state(&self.elastic_map().deformation_gradients(z)).energy
-        });
+        if self.dilatation().is_some() {
+            // The projected term needs every J before any point's share: F formed once.
+            return self.elastic_energy_at(&self.elastic_deformation(z));
+        }
         let map = self.elastic_map();
         let z = map.z_columns(z);
         let (lame, weights, material) =
@@ -48,11 +50,31 @@ impl<M: HyperelasticMaterial> ReducedModel<M> {
                 })
             })
             .collect();
+        parts.iter().sum()
+    }
+
+    /// [`ReducedModel::elastic_energy`] at a deformation already formed: at
+    /// `self.elastic_deformation(z)` the same bits as `self.elastic_energy(z)` (the same
+    /// parts, summed in the same order), without reading the points' `G_i` again.
+    pub(crate) fn elastic_energy_at(&self, deformation: &ElasticDeformation) -> f64 {
+        let f = &deformation.gradients;
+        let (lame, weights, material) =
+            (self.elastic_lame(), self.elastic_weights(), self.material());
+        let parts: Vec<f64> = self
+            .elastic_map()
+            .point_parts()
+            .map(|range| {
+                let mut sum = 0.0;
+                for i in range {
+                    sum += weights[i] * material.energy_density(&lame[i], &f[i]);
+                }
+                sum
+            })
+            .collect();
         let pointwise: f64 = parts.iter().sum();
-        if self.dilatation().is_some() {
-            pointwise + dilatation
-        } else {
-            pointwise
+        match &deformation.dilatation {
+            Some(state) => pointwise + state.energy,
+            None => pointwise,
         }
     }
 
@@ -64,7 +86,7 @@ impl<M: HyperelasticMaterial> ReducedModel<M> {
     /// If `z.len() != 12(m + 1)`.
     pub fn elastic_gradient(&self, z: &[f64]) -> Vec<f64> {
         if self.dilatation().is_some() {
-            return self.elastic_gradient_at(&self.elastic_map().deformation_gradients(z));
+            return self.elastic_gradient_at(&self.elastic_deformation(z));
         }
         weighted_elastic_gradient_at_z(
             self.material(),
@@ -75,16 +97,12 @@ impl<M: HyperelasticMaterial> ReducedModel<M> {
         )
     }
 
-    /// [`ReducedModel::elastic_gradient`] at deformation gradients already formed, `f[i]` at
-    /// elastic point i: at `f = self.elastic_map().deformation_gradients(z)` the same bits as
-    /// `self.elastic_gradient(z)`, without forming F again.
-    ///
-    /// # Panics
-    /// If `f.len()` is not the number of elastic points.
-    pub(crate) fn elastic_gradient_at(&self, f: &[Matrix3<f64>]) -> Vec<f64> {
-        assert_eq!(f.len(), self.elastic_map().len(), "one F per elastic point");
-        if let Some(d) = self.dilatation() {
-            let state = d.state(f);
+    /// [`ReducedModel::elastic_gradient`] at a deformation already formed: at
+    /// `self.elastic_deformation(z)` the same bits as `self.elastic_gradient(z)`, without
+    /// forming F again.
+    pub(crate) fn elastic_gradient_at(&self, deformation: &ElasticDeformation) -> Vec<f64> {
+        let f = &deformation.gradients;
+        if let Some(state) = &deformation.dilatation {
             let (material, lame, weights) =
                 (self.material(), self.elastic_lame(), self.elastic_weights());
             return accumulate_point_gradients(
@@ -119,13 +137,12 @@ impl<M: HyperelasticMaterial> ReducedModel<M> {
     /// # Panics
     /// If `z.len() != 12(m + 1)`.
     pub fn elastic_hessian(&self, z: &[f64], tangent: Tangent) -> Mat<f64> {
-        let f = self.elastic_map().deformation_gradients(z);
         let mut h = Mat::zeros(z.len(), z.len());
-        self.add_elastic_hessian_at(&f, tangent, &mut h);
+        self.add_elastic_hessian_at(&self.elastic_deformation(z), tangent, &mut h);
         h
     }
 
-    /// Adds the elastic Hessian at the deformation gradients `f` to `h`.
+    /// Adds the elastic Hessian at `deformation` to `h`.
     ///
     /// The points are split into one contiguous part per thread. Each part walks its points
     /// [`POINTS_PER_CHUNK`] at a time: the chunk's material tangents, then for each block pair
@@ -134,10 +151,11 @@ impl<M: HyperelasticMaterial> ReducedModel<M> {
     /// in part order, so the result does not depend on scheduling.
     pub(crate) fn add_elastic_hessian_at(
         &self,
-        f: &[Matrix3<f64>],
+        deformation: &ElasticDeformation,
         tangent: Tangent,
         h: &mut Mat<f64>,
     ) {
+        let f = &deformation.gradients;
         let n = f.len();
         if n == 0 {
             return;
@@ -146,12 +164,15 @@ impl<M: HyperelasticMaterial> ReducedModel<M> {
         let n4 = map.layout().block_len();
         let parts = rayon::current_num_threads().clamp(1, n.div_ceil(POINTS_PER_CHUNK));
         let part_len = n.div_ceil(parts);
-        let shift = self.dilatation().map(|d| d.state(f).pressure_shift);
+        let shift = deformation
+            .dilatation
+            .as_ref()
+            .map(|state| &state.pressure_shift[..]);
         let blocks: Vec<[Mat<f64>; 6]> = (0..parts)
             .into_par_iter()
             .map(|part| {
                 let range = part * part_len..((part + 1) * part_len).min(n);
-                self.elastic_hessian_blocks(f, range, tangent, shift.as_deref())
+                self.elastic_hessian_blocks(f, range, tangent, shift)
             })
             .collect();
         for part in &blocks {
@@ -203,9 +224,9 @@ impl<M: HyperelasticMaterial> ReducedModel<M> {
         let rest_z = self.elastic_map().layout().rest();
         let f = vec![Matrix3::identity(); self.elastic_map().len()];
         let full = self.elastic_hessian(&rest_z, Tangent::Exact);
-        let jacobian = self.dilatation_jacobian(d, &f);
+        let jacobian_t = self.dilatation_jacobian_transpose(d, &f);
         let nf = free.len();
-        let b = nalgebra::DMatrix::from_fn(functions, nf, |a, k| jacobian[(a, free[k])]);
+        let b = nalgebra::DMatrix::from_fn(functions, nf, |a, k| jacobian_t[(free[k], a)]);
         let h = nalgebra::DMatrix::from_fn(nf, nf, |i, j| full[(free[i], free[j])]);
         let shear = h - b.transpose() * d.gram_inverse() * &b;
         let ridge = 1e-10 * shear.trace() / nf as f64;
@@ -228,7 +249,8 @@ impl<M: HyperelasticMaterial> ReducedModel<M> {
     }
 
     /// Adds `(∂r/∂z)ᵀ G⁻¹ (∂r/∂z)` of the projected dilatation to `h`
-    /// ([`crate::model::projected_dilatation`]).
+    /// ([`crate::model::projected_dilatation`]): `X = (∂r/∂z)ᵀ G⁻¹`, then the lower triangle
+    /// of `X (∂r/∂z)`, mirrored.
     fn add_dilatation_rank_update(
         &self,
         d: &ProjectedDilatation,
@@ -237,46 +259,79 @@ impl<M: HyperelasticMaterial> ReducedModel<M> {
     ) {
         let functions = d.functions();
         let len = h.nrows();
-        let jacobian = self.dilatation_jacobian(d, f);
+        let jacobian_t = self.dilatation_jacobian_transpose(d, f);
         let g = d.gram_inverse();
         let g = Mat::from_fn(functions, functions, |a, b| g[(a, b)]);
-        let update = jacobian.transpose() * (&g * &jacobian);
+        let mut x = Mat::<f64>::zeros(len, functions);
+        faer::linalg::matmul::matmul(
+            x.as_mut(),
+            Accum::Replace,
+            jacobian_t.as_ref(),
+            g.as_ref(),
+            1.0,
+            Par::Seq,
+        );
+        let mut update = Mat::<f64>::zeros(len, len);
+        triangular::matmul(
+            update.as_mut(),
+            BlockStructure::TriangularLower,
+            Accum::Replace,
+            x.as_ref(),
+            BlockStructure::Rectangular,
+            jacobian_t.transpose(),
+            BlockStructure::Rectangular,
+            1.0,
+            Par::rayon(0),
+        );
         for j in 0..len {
-            for i in 0..len {
-                h[(i, j)] += 0.5 * (update[(i, j)] + update[(j, i)]);
+            for i in j..len {
+                let v = update[(i, j)];
+                h[(i, j)] += v;
+                if i != j {
+                    h[(j, i)] += v;
+                }
             }
         }
     }
 
-    /// `∂r/∂z` of the projected dilatation (P × 12(m + 1)) at the elastic points' deformation
-    /// gradients `f`: row b is `Σ_q w_q κ_q q_b(X_q) ∂J_q/∂z`, formed as one product `Q_wᵀ V`
-    /// with `V[q, :] = ∂J_q/∂z` (entry `r·4(m+1) + a` is `Σ_s G_q[a, s] cof F_q[r, s]`).
-    fn dilatation_jacobian(&self, d: &ProjectedDilatation, f: &[Matrix3<f64>]) -> Mat<f64> {
+    /// `(∂r/∂z)ᵀ` of the projected dilatation (12(m + 1) × P) at the elastic points'
+    /// deformation gradients `f`: column b is `Σ_q w_q κ_q q_b(X_q) ∂J_q/∂z`, formed as one
+    /// product `V Q` with column q of V `w_q κ_q ∂J_q/∂z` (entry `r·4(m+1) + a` is
+    /// `w_q κ_q Σ_s G_q[a, s] cof F_q[r, s]`) and Q the pressure values (N × P).
+    fn dilatation_jacobian_transpose(
+        &self,
+        d: &ProjectedDilatation,
+        f: &[Matrix3<f64>],
+    ) -> Mat<f64> {
         let map = self.elastic_map();
         let n4 = map.layout().block_len();
-        let n = f.len();
-        let mut v = Mat::<f64>::zeros(n, 3 * n4);
+        let mut v = Mat::<f64>::zeros(3 * n4, f.len());
         for (q, fq) in f.iter().enumerate() {
-            let c = hyperelastic::cofactor(fq);
-            let g = map.gradient_block(q);
-            for r in 0..3 {
-                for a in 0..n4 {
-                    v[(q, r * n4 + a)] =
-                        g[a] * c[(r, 0)] + g[n4 + a] * c[(r, 1)] + g[2 * n4 + a] * c[(r, 2)];
+            let c = hyperelastic::cofactor(fq) * d.weighted_modulus(q);
+            let (g0, rest) = map.gradient_block(q).split_at(n4);
+            let (g1, g2) = rest.split_at(n4);
+            let column = v
+                .col_mut(q)
+                .try_as_col_major_mut()
+                .expect("a column of an owned matrix is contiguous")
+                .as_slice_mut();
+            for (r, out) in column.chunks_exact_mut(n4).enumerate() {
+                let [c0, c1, c2] = [c[(r, 0)], c[(r, 1)], c[(r, 2)]];
+                for (((o, x), y), w) in out.iter_mut().zip(g0).zip(g1).zip(g2) {
+                    *o = x * c0 + y * c1 + w * c2;
                 }
             }
         }
-        let weights = Mat::from_fn(n, d.functions(), |q, b| d.jacobian_weight(q, b));
-        let mut jacobian = Mat::<f64>::zeros(d.functions(), 3 * n4);
+        let mut jacobian_t = Mat::<f64>::zeros(3 * n4, d.functions());
         faer::linalg::matmul::matmul(
-            jacobian.as_mut(),
+            jacobian_t.as_mut(),
             Accum::Replace,
-            weights.transpose(),
             v.as_ref(),
+            d.elastic_pressure(),
             1.0,
             Par::rayon(0),
         );
-        jacobian
+        jacobian_t
     }
 
     /// The six blocks `Σ_i G_i A_i^{rq} G_iᵀ` (r, q in [`BLOCK_PAIRS`] order, each
