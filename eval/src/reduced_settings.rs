@@ -221,7 +221,7 @@ impl ReducedSettings {
             PinHold::Weighted {
                 transition_fraction,
             } => format!(
-                "exact (weighted basis, transition {transition_fraction} × the beam's thickness)"
+                "exact (weighted basis, transition {transition_fraction} × the object's thickness, the smallest side of its bounding box)"
             ),
         }
     }

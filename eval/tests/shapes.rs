@@ -8,6 +8,7 @@ use eval::shapes::study::run_shape_study;
 use fem_ref::{InteriorFeature, tetrahedralize};
 use freeform::scene::{Motion, SceneSpec};
 use freeform::terminal_progress::TerminalProgress;
+use freeform::{PinHold, PressureSpaceParams};
 use nalgebra::Vector3;
 use rkpm_core::TriangleMesh;
 use std::sync::Mutex;
@@ -352,4 +353,35 @@ fn the_study_hands_each_finished_shape_the_study_so_far_in_table_order_one_call_
     assert!(study.unfinished().is_empty());
     let returned: Vec<&str> = study.shapes.iter().map(|s| s.name.as_str()).collect();
     assert_eq!(returned, names);
+}
+
+#[test]
+fn the_study_holds_regions_exactly_and_projects_the_volumetric_term_when_its_settings_say() {
+    let data = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("../data/meshes");
+    let dir = test_support::fixtures::scratch_dir("shape-study-held");
+    let quick = |pins, pressure| {
+        let mut config = ShapeStudyConfig::quick(vec![data.join("93070.stl")], dir.join("cache"));
+        config.simplicits = None;
+        config.settings.pins = pins;
+        config.settings.pressure = pressure;
+        let quiet = TerminalProgress {
+            quiet: true,
+            hide_bars: true,
+        };
+        run_shape_study(&config, &quiet, |_, _| {}).unwrap().shapes[0]
+            .rows
+            .clone()
+    };
+    let penalty = quick(PinHold::Penalty, None);
+    let held = quick(PinHold::WEIGHTED, Some(PressureSpaceParams::default()));
+    assert_eq!(held.len(), 3);
+    for (p, h) in penalty.iter().zip(&held) {
+        assert_eq!(h.error, None, "{:?}", h.boundary);
+        let (p, h) = (p.ours.as_ref().unwrap(), h.ours.as_ref().unwrap());
+        // Every condition moves its regions by a prescribed motion: held exactly, they follow
+        // it to rounding; the penalty lets them lag.
+        assert!(h.max_pin_deviation < 1e-9, "{h:?}");
+        assert!(p.max_pin_deviation > 1e3 * h.max_pin_deviation, "{p:?}");
+        assert!(h.mse.is_finite() && h.mse != p.mse, "{h:?} against {p:?}");
+    }
 }

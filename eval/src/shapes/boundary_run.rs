@@ -13,7 +13,7 @@ use crate::shapes::result::MethodScores;
 use freeform::fem_reference::FemRun;
 use freeform::scene::SceneSpec;
 use freeform::terminal_progress::TerminalProgress;
-use freeform::{PinHold, Simulation};
+use freeform::{PinHold, PressureSpace, Simulation};
 
 /// One boundary condition of one shape, ready to run any skinning field on.
 pub(crate) struct BoundaryRun<'a> {
@@ -23,6 +23,9 @@ pub(crate) struct BoundaryRun<'a> {
     pub(crate) params: SimulationParams,
     /// Where the elastic energy is integrated (the paper's setting: every point).
     pub(crate) quadrature: QuadratureRule,
+    /// The projected volumetric term's pressure space (`None`: the material's own at every
+    /// point, the paper's setting).
+    pub(crate) pressure: Option<&'a PressureSpace>,
     /// Where an optimized cubature is cached.
     pub(crate) cache_dir: &'a Path,
     pub(crate) fem: &'a FemRun,
@@ -53,7 +56,8 @@ impl BoundaryRun<'_> {
                 .with_params(self.params)
                 .with_quadrature(self.quadrature)
                 .with_cache_dir(Some(self.cache_dir))
-                .with_pin_hold(pin_hold),
+                .with_pin_hold(pin_hold)
+                .with_pressure(self.pressure),
                 output_points: self.fem.vertices(),
                 steps: self.steps,
             },

@@ -26,12 +26,12 @@ use crate::shapes::reference::{ConditionLattice, FemMeshSummary, mesh_for_fem, m
 use crate::shapes::result::{FemRunSummary, MethodScores, ShapeResult, ShapeRow};
 use crate::shapes::stage::{ShapeStage, ShapeWork};
 use crate::simplicits_cache::train_cached_simplicits;
-use freeform::PinHold;
 use freeform::failure_chain;
 use freeform::fem_reference::{FemProblem, FemRun, cached_fem, run_fem};
 use freeform::metrics::trajectory_errors;
 use freeform::scene::SceneSpec;
 use freeform::terminal_progress::{BarProgress, TerminalProgress};
+use freeform::{PinHold, PressureSpace};
 
 /// The body of [`crate::shapes::study`]'s shape run, filling `result` as it goes so that what
 /// was measured before a failure stays; `work` says whether that is everything, one stage of
@@ -334,6 +334,10 @@ fn run_row(
 }
 
 /// Scores ours (and the exact holding, and the baseline, when asked) against `fem` into `row`.
+/// Ours holds the condition's regions as `settings.pins` says (a basis built for them when
+/// held exactly) and integrates the volumetric term as `settings.pressure` says; the exact
+/// holding's row shares that volumetric term; the baseline keeps the penalty and the
+/// material's own volumetric term.
 fn score_row(
     shape: &ShapeInputs<'_>,
     scene: &SceneSpec,
@@ -347,12 +351,43 @@ fn score_row(
     let Some(reduced) = &shape.reduced else {
         return Ok(());
     };
+    let held_basis = match settings.pins {
+        PinHold::Penalty => None,
+        hold => Some(
+            hold.build_basis(
+                scene,
+                reduced.basis_points,
+                reduced.lames,
+                reduced.points.positions(),
+                fem.vertices(),
+                settings.basis_params(),
+            )?
+            .0,
+        ),
+    };
+    let pressure = settings
+        .pressure
+        .as_ref()
+        .map(|params| {
+            PressureSpace::build(
+                scene,
+                settings.pins,
+                reduced.basis_points,
+                reduced.lames,
+                settings.basis_params(),
+                settings.modes,
+                params,
+            )
+        })
+        .transpose()
+        .map_err(EvalError::Basis)?;
     let run = BoundaryRun {
         points: reduced.points,
         material: shape.material,
         scene,
         params: settings.simulation_params(config.boundary.time_step),
         quadrature: settings.quadrature,
+        pressure: pressure.as_ref(),
         cache_dir: &config.cache_dir,
         fem,
         steps: config.boundary.steps,
@@ -360,7 +395,8 @@ fn score_row(
         label,
         progress: shape.progress,
     };
-    let (scores, region_points) = run.score(reduced.ours, "FreeForm", PinHold::Penalty)?;
+    let ours = held_basis.as_ref().unwrap_or(reduced.ours);
+    let (scores, region_points) = run.score(ours, "FreeForm", settings.pins)?;
     row.ours = Some(scores);
     row.region_points = region_points;
     if let Some(radii) = config.exact_pins {
@@ -382,6 +418,7 @@ fn score_row(
     if let Some(net) = reduced.simplicits {
         let baseline = BoundaryRun {
             quadrature: config.simplicits_quadrature.unwrap_or(run.quadrature),
+            pressure: None,
             ..run
         };
         row.simplicits = Some(baseline.score(net, "Simplicits", PinHold::Penalty)?.0);

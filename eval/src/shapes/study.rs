@@ -135,13 +135,6 @@ fn run_shapes(
             config.meshes.len()
         )));
     }
-    if config.settings.pressure.is_some() {
-        return Err(EvalError::InvalidInput(
-            "settings.pressure: the shapes study does not run the projected volumetric term \
-             yet (the beam studies do); leave it out"
-                .into(),
-        ));
-    }
     let start = Instant::now();
     // Parallel shapes print status lines only: their bars would draw over each other.
     let progress = if config.jobs > 1 {
