@@ -30,6 +30,7 @@ use hyperelastic::{
     determinant_hessian,
 };
 use nalgebra::{DMatrix, DVector, Matrix3, SMatrix};
+use rayon::prelude::*;
 use thiserror::Error;
 
 /// Options of the projected volumetric term.
@@ -94,8 +95,8 @@ pub(crate) struct ProjectedDilatation {
     pressure: DMatrix<f64>,
     /// The options it was made with.
     params: ProjectedDilatationParams,
-    /// q at the elastic points, N_e × P.
-    elastic_pressure: Mat<f64>,
+    /// q at the elastic points, row-major N_e × P: point q's values at `[q P, (q + 1) P)`.
+    elastic_pressure: Vec<f64>,
     /// κ_q, γ_q at the elastic points.
     volumetric: Vec<VolumetricPart>,
     /// w_q κ_q at the elastic points.
@@ -106,15 +107,22 @@ pub(crate) struct ProjectedDilatation {
     gram_inverse: DMatrix<f64>,
 }
 
-/// `r`, `p̂` and the per-point factors of the term at some deformation gradients.
+/// The term at some deformation gradients: its energy, each point's dilatation and the
+/// pressure coefficients p̂, from which [`ProjectedDilatation::pressure_shift`] gives each
+/// point's factor of `cof F`.
 #[derive(Debug)]
 pub(crate) struct DilatationState {
-    /// `½ rᵀ G⁻¹ r − Σ_q w_q ½ κ_q (J_q − γ_q)²` (J).
+    /// `½ rᵀ G⁻¹ r − Σ_q w_q ½ κ_q (J_q − γ_q)²` (J); +∞ when some `J_q ≤ 0`.
     pub energy: f64,
-    /// Per elastic point: `κ_q (p_q − (J_q − γ_q))` (Pa), the factor of `cof F` in the stress
-    /// and of `∂²J/∂F²` in the tangent.
-    pub pressure_shift: Vec<f64>,
+    /// `J_q − γ_q` per elastic point.
+    dilatations: Vec<f64>,
+    /// `p̂ = G⁻¹ r` (P).
+    coefficients: Vec<f64>,
 }
+
+/// Elastic points per part of [`ProjectedDilatation::state`]'s parallel sum (parts are summed
+/// in order, so `r` does not depend on the number of threads).
+const POINTS_PER_PART: usize = 256;
 
 impl ProjectedDilatation {
     /// The term for pressure values `pressure` (N × P, at every model point) on the elastic
@@ -135,12 +143,14 @@ impl ProjectedDilatation {
         if pressure.ncols() == 0 || pressure.iter().any(|v| !v.is_finite()) {
             return Err(ProjectedDilatationError::Empty);
         }
-        let elastic_pressure = match elastic_points {
-            None => Mat::from_fn(pressure.nrows(), pressure.ncols(), |q, b| pressure[(q, b)]),
-            Some(points) => Mat::from_fn(points.len(), pressure.ncols(), |q, b| {
-                pressure[(points[q], b)]
-            }),
+        let rows: Vec<usize> = match elastic_points {
+            None => (0..pressure.nrows()).collect(),
+            Some(points) => points.to_vec(),
         };
+        let elastic_pressure: Vec<f64> = rows
+            .iter()
+            .flat_map(|&q| pressure.row(q).iter().copied().collect::<Vec<_>>())
+            .collect();
         let volumetric = lame
             .iter()
             .map(|l| {
@@ -162,14 +172,14 @@ impl ProjectedDilatation {
             .collect();
         let size = pressure.ncols();
         // G = Qᵀ diag(w κ) Q, one product.
-        let weighted_pressure = Mat::from_fn(elastic_pressure.nrows(), size, |q, b| {
-            weighted_modulus[q] * elastic_pressure[(q, b)]
-        });
+        let q = MatRef::from_row_major_slice(&elastic_pressure, rows.len(), size);
+        let weighted_pressure =
+            Mat::from_fn(rows.len(), size, |i, b| weighted_modulus[i] * q[(i, b)]);
         let mut product = Mat::<f64>::zeros(size, size);
         matmul(
             product.as_mut(),
             Accum::Replace,
-            elastic_pressure.transpose(),
+            q.transpose(),
             weighted_pressure.as_ref(),
             1.0,
             Par::Seq,
@@ -217,51 +227,50 @@ impl ProjectedDilatation {
         self.pressure.ncols()
     }
 
-    /// The energy and per-point factors at the elastic points' deformation gradients `f`;
-    /// `energy` is +∞ when some `J_q ≤ 0`.
+    /// The term's state at the elastic points' deformation gradients `f`: r summed over
+    /// fixed parts of the points in parallel (one read of each point's pressure values),
+    /// then `p̂ = G⁻¹ r`.
     #[allow(non_snake_case)]
     pub(crate) fn state(&self, f: &[Matrix3<f64>]) -> DilatationState {
-        let n = f.len();
-        let mut inverted = false;
-        let mut dilatations = Vec::with_capacity(n);
-        let mut weighted = Mat::<f64>::zeros(n, 1);
-        let mut pointwise = 0.0;
-        for (q, (f, v)) in f.iter().zip(&self.volumetric).enumerate() {
-            let J = f.determinant();
-            inverted |= J <= 0.0;
-            let d = J - v.rest_ratio;
-            let wd = self.weighted_modulus[q] * d;
-            pointwise += wd * d;
-            weighted[(q, 0)] = wd;
-            dilatations.push(d);
-        }
-        // r = Qᵀ (w κ ∘ d), p̂ = G⁻¹ r and the projected pressure at the points, Q p̂: three
-        // matrix-vector products, two of them reading Q.
         let size = self.functions();
-        let mut r = Mat::<f64>::zeros(size, 1);
-        matmul(
-            r.as_mut(),
-            Accum::Replace,
-            self.elastic_pressure.transpose(),
-            weighted.as_ref(),
-            1.0,
-            Par::Seq,
-        );
-        let r = DVector::from_fn(size, |b, _| r[(b, 0)]);
-        let p_hat = &self.gram_inverse * &r;
-        let p_hat_col = Mat::from_fn(size, 1, |b, _| p_hat[b]);
-        let mut projected = Mat::<f64>::zeros(n, 1);
-        matmul(
-            projected.as_mut(),
-            Accum::Replace,
-            self.elastic_pressure.as_ref(),
-            p_hat_col.as_ref(),
-            1.0,
-            Par::Seq,
-        );
-        let pressure_shift = (0..n)
-            .map(|q| self.volumetric[q].modulus * (projected[(q, 0)] - dilatations[q]))
+        let mut inverted = false;
+        let dilatations: Vec<f64> = f
+            .iter()
+            .zip(&self.volumetric)
+            .map(|(f, v)| {
+                let J = f.determinant();
+                inverted |= J <= 0.0;
+                J - v.rest_ratio
+            })
             .collect();
+        // Per part: r = Σ w κ d q(X) and Σ w κ d².
+        let parts: Vec<(Vec<f64>, f64)> = dilatations
+            .par_chunks(POINTS_PER_PART)
+            .enumerate()
+            .map(|(part, chunk)| {
+                let first = part * POINTS_PER_PART;
+                let mut r = vec![0.0; size];
+                let mut pointwise = 0.0;
+                for (k, &d) in chunk.iter().enumerate() {
+                    let q = first + k;
+                    let wd = self.weighted_modulus[q] * d;
+                    pointwise += wd * d;
+                    for (r, v) in r.iter_mut().zip(self.pressure_row(q)) {
+                        *r += wd * v;
+                    }
+                }
+                (r, pointwise)
+            })
+            .collect();
+        let mut r = DVector::zeros(size);
+        let mut pointwise = 0.0;
+        for (part, sum) in &parts {
+            for (a, b) in r.iter_mut().zip(part) {
+                *a += b;
+            }
+            pointwise += sum;
+        }
+        let p_hat = &self.gram_inverse * &r;
         let energy = if inverted {
             f64::INFINITY
         } else {
@@ -269,13 +278,36 @@ impl ProjectedDilatation {
         };
         DilatationState {
             energy,
-            pressure_shift,
+            dilatations,
+            coefficients: p_hat.iter().copied().collect(),
         }
+    }
+
+    /// `κ_q (p_q − (J_q − γ_q))` (Pa) of elastic point q in `state`, with `p_q = p̂ · q(X_q)`:
+    /// the factor of `cof F` in its stress and of `∂²J/∂F²` in its tangent.
+    pub(crate) fn pressure_shift(&self, state: &DilatationState, q: usize) -> f64 {
+        let p: f64 = self
+            .pressure_row(q)
+            .iter()
+            .zip(&state.coefficients)
+            .map(|(a, b)| a * b)
+            .sum();
+        self.volumetric[q].modulus * (p - state.dilatations[q])
+    }
+
+    /// `q(X_q)` of elastic point q (P).
+    fn pressure_row(&self, q: usize) -> &[f64] {
+        let size = self.functions();
+        &self.elastic_pressure[q * size..(q + 1) * size]
     }
 
     /// `q_b(X_q)` at the elastic points (N_e × P).
     pub(crate) fn elastic_pressure(&self) -> MatRef<'_, f64> {
-        self.elastic_pressure.as_ref()
+        MatRef::from_row_major_slice(
+            &self.elastic_pressure,
+            self.weighted_modulus.len(),
+            self.functions(),
+        )
     }
 
     /// `w_q κ_q` of elastic point q (N·m⁻² · m³): its weight in `r` and `∂r/∂z`.

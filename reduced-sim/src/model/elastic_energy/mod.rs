@@ -102,7 +102,7 @@ impl<M: HyperelasticMaterial> ReducedModel<M> {
     /// forming F again.
     pub(crate) fn elastic_gradient_at(&self, deformation: &ElasticDeformation) -> Vec<f64> {
         let f = &deformation.gradients;
-        if let Some(state) = &deformation.dilatation {
+        if let (Some(state), Some(d)) = (&deformation.dilatation, self.dilatation()) {
             let (material, lame, weights) =
                 (self.material(), self.elastic_lame(), self.elastic_weights());
             return accumulate_point_gradients(
@@ -112,7 +112,7 @@ impl<M: HyperelasticMaterial> ReducedModel<M> {
                     ProjectedDilatation::shifted_stress(
                         material.first_piola_kirchhoff(&lame[i], f),
                         f,
-                        state.pressure_shift[i],
+                        d.pressure_shift(state, i),
                     ) * weights[i]
                 },
             );
@@ -164,15 +164,16 @@ impl<M: HyperelasticMaterial> ReducedModel<M> {
         let n4 = map.layout().block_len();
         let parts = rayon::current_num_threads().clamp(1, n.div_ceil(POINTS_PER_CHUNK));
         let part_len = n.div_ceil(parts);
-        let shift = deformation
+        let shift: Option<Vec<f64>> = deformation
             .dilatation
             .as_ref()
-            .map(|state| &state.pressure_shift[..]);
+            .zip(self.dilatation())
+            .map(|(state, d)| (0..n).map(|q| d.pressure_shift(state, q)).collect());
         let blocks: Vec<[Mat<f64>; 6]> = (0..parts)
             .into_par_iter()
             .map(|part| {
                 let range = part * part_len..((part + 1) * part_len).min(n);
-                self.elastic_hessian_blocks(f, range, tangent, shift)
+                self.elastic_hessian_blocks(f, range, tangent, shift.as_deref())
             })
             .collect();
         for part in &blocks {
