@@ -394,7 +394,8 @@ impl DeformationMap {
 }
 
 /// Points per part of the passes over all points (deformation gradients, elastic energy and
-/// gradient). Parts are summed in part order, so sums do not depend on the number of threads.
+/// gradient, the projected dilatation's r). Parts are summed in part order, so sums do not
+/// depend on the number of threads.
 pub(crate) const POINTS_PER_PART: usize = 256;
 
 /// `F = I + Zᵀ G_i` from the columns `z_r` of Z (each `4(m+1)`) and G_i (column-major

@@ -1,6 +1,6 @@
 //! What the elastic energy, gradient and Hessian at one z share: the elastic points'
 //! deformation gradients `F_i(z) = I + Zᵀ G_i` and, with a projected dilatation, its state
-//! there (`r`, `p̂` and each point's pressure shift).
+//! there (its energy, each point's dilatation `J − γ` and the pressure coefficients `p̂`).
 
 use hyperelastic::HyperelasticMaterial;
 use nalgebra::Matrix3;

@@ -33,6 +33,8 @@ use nalgebra::{DMatrix, DVector, Matrix3, SMatrix};
 use rayon::prelude::*;
 use thiserror::Error;
 
+use crate::model::deformation_map::POINTS_PER_PART;
+
 /// Options of the projected volumetric term.
 #[derive(Clone, Copy, Debug, PartialEq, serde::Serialize, serde::Deserialize)]
 pub struct ProjectedDilatationParams {
@@ -120,10 +122,6 @@ pub(crate) struct DilatationState {
     coefficients: Vec<f64>,
 }
 
-/// Elastic points per part of [`ProjectedDilatation::state`]'s parallel sum (parts are summed
-/// in order, so `r` does not depend on the number of threads).
-const POINTS_PER_PART: usize = 256;
-
 impl ProjectedDilatation {
     /// The term for pressure values `pressure` (N × P, at every model point) on the elastic
     /// points `elastic_points` (indices into the model's points) with weights `weights` and
@@ -147,9 +145,10 @@ impl ProjectedDilatation {
             None => (0..pressure.nrows()).collect(),
             Some(points) => points.to_vec(),
         };
+        let values = &pressure;
         let elastic_pressure: Vec<f64> = rows
             .iter()
-            .flat_map(|&q| pressure.row(q).iter().copied().collect::<Vec<_>>())
+            .flat_map(|&q| (0..values.ncols()).map(move |b| values[(q, b)]))
             .collect();
         let volumetric = lame
             .iter()
@@ -228,8 +227,9 @@ impl ProjectedDilatation {
     }
 
     /// The term's state at the elastic points' deformation gradients `f`: r summed over
-    /// fixed parts of the points in parallel (one read of each point's pressure values),
-    /// then `p̂ = G⁻¹ r`.
+    /// fixed parts of the points in parallel (one read of each point's pressure values; the
+    /// parts of the elastic passes, summed in order, so r does not depend on the number of
+    /// threads), then `p̂ = G⁻¹ r`.
     #[allow(non_snake_case)]
     pub(crate) fn state(&self, f: &[Matrix3<f64>]) -> DilatationState {
         let size = self.functions();
