@@ -32,6 +32,10 @@ pub const PRESETS: &[(&str, &str)] = &[
     ("beam", include_str!("../presets/beam.toml")),
     ("beam-quick", include_str!("../presets/beam-quick.toml")),
     ("beam-library", include_str!("../presets/beam-library.toml")),
+    (
+        "beam-converging",
+        include_str!("../presets/beam-converging.toml"),
+    ),
     ("ablation", include_str!("../presets/ablation.toml")),
     (
         "ablation-quick",
@@ -39,6 +43,10 @@ pub const PRESETS: &[(&str, &str)] = &[
     ),
     ("shapes", include_str!("../presets/shapes.toml")),
     ("shapes-quick", include_str!("../presets/shapes-quick.toml")),
+    (
+        "shapes-converging",
+        include_str!("../presets/shapes-converging.toml"),
+    ),
     (
         "shapes-quick-graded",
         include_str!("../presets/shapes-quick-graded.toml"),

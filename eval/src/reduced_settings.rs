@@ -197,8 +197,9 @@ impl ReducedSettings {
         })
     }
 
-    /// The pin penalty in words, for table preambles: "κ_pin = 3e3 · max E / L² (the library
-    /// default, chosen against the FEM by `freeform-paper pins`)".
+    /// How the held regions are held, in words, for table preambles: "pin penalty κ_pin = 3e3 ·
+    /// max E / L² (the library default, chosen against the FEM by `freeform-paper pins`)", or
+    /// the exact holds.
     pub fn pin_rule_label(&self) -> String {
         let modulus = match self.pin_modulus {
             PinModulus::Young => "max E",
@@ -213,15 +214,22 @@ impl ReducedSettings {
             };
         match self.pins {
             PinHold::Penalty => {
-                format!("κ_pin = {:e} · {modulus} / L²{origin}", self.pin_factor)
+                format!(
+                    "pin penalty κ_pin = {:e} · {modulus} / L²{origin}",
+                    self.pin_factor
+                )
             }
             PinHold::Exact { inset } => {
-                format!("exact (held regions shrunk by {inset:.3} m, compact kernels)")
+                format!(
+                    "pins exact (held regions shrunk by {inset:.3} m, compact kernels, the band \
+                     between by the penalty)"
+                )
             }
             PinHold::Weighted {
                 transition_fraction,
             } => format!(
-                "exact (weighted basis, transition {transition_fraction} × the object's thickness, the smallest side of its bounding box)"
+                "regions held exactly by a weighted basis (transition {transition_fraction} × \
+                 the object's thickness, the smallest side of its bounding box)"
             ),
         }
     }
@@ -236,6 +244,26 @@ impl ReducedSettings {
             hessian_reuse: SimulationParams::HESSIAN_REUSE,
             tangent: HessianTangent::default(),
             ..ReducedSettings::default()
+        }
+    }
+
+    /// These settings with the regions held by the weighted basis ([`PinHold::WEIGHTED`]),
+    /// the volumetric term projected onto the default pressure space
+    /// ([`PressureSpaceParams::default`]), 40 000 basis and simulation points (an integration
+    /// pool that `freeform-paper convergence`'s pool check finds converged for K ≤ 2000), the
+    /// elastic energy on an optimized cubature trained on them, the Hessian carried across
+    /// steps and the exact tangent where the step's system factors: the setting under which
+    /// the beam's error falls monotonically in m, with no pin factor and nothing chosen per ν.
+    pub fn converging(self) -> Self {
+        ReducedSettings {
+            pins: PinHold::WEIGHTED,
+            pressure: Some(PressureSpaceParams::default()),
+            basis_points: 40_000,
+            simulation_points: 40_000,
+            quadrature: QuadratureRule::default(),
+            hessian_reuse: SimulationParams::HESSIAN_REUSE,
+            tangent: HessianTangent::default(),
+            ..self
         }
     }
 

@@ -12,8 +12,8 @@ pub(crate) fn settings_lines(config: &BeamStudyConfig, fem: &[FemSummary]) -> St
     let s = &config.settings;
     let mut out = format!(
         "Settings: beam 5×1×1 m, E = 5 MPa, ν = 0.45, ρ = 1000 kg/m³, h = 0.01 s; K = {} kernels, \
-         basis on ≈{} grid points, simulation on ≈{} grid points, Newton tolerance {:e}, pin \
-         penalty {}. Elastic quadrature: {}; Hessians: {}{}.\n",
+         basis on ≈{} grid points, simulation on ≈{} grid points, Newton tolerance {:e}, {}. \
+         Elastic quadrature: {}; Hessians: {}{}.\n",
         s.kernels,
         s.basis_points,
         s.simulation_points,

@@ -5,7 +5,8 @@ use std::path::Path;
 
 use anyhow::Result;
 use artifact::write_atomically;
-use eval::pins::{PinSweepConfig, exact_sweep_table, pin_sweep_table, run_pin_sweep};
+use eval::pins::table::{held_sweep_table, pin_sweep_table};
+use eval::pins::{PinSweepConfig, run_pin_sweep};
 use eval::presets::{StudyKind, set_folder};
 use freeform::terminal_progress::TerminalProgress;
 
@@ -22,7 +23,7 @@ pub(crate) fn run(
     })?;
     let sweep = run_pin_sweep(&config, progress)?;
     let mut md = pin_sweep_table(&config, &sweep);
-    md += &exact_sweep_table(&config, &sweep);
+    md += &held_sweep_table(&config, &sweep);
     let data =
         serde_json::to_string_pretty(&serde_json::json!({"config": config, "sweep": sweep}))?;
     std::fs::create_dir_all(out)?;

@@ -56,7 +56,7 @@ fn run_lines(study: &ShapeStudy) -> String {
         "Settings: every mesh scaled so its largest bounding-box side is L = 1 m; ν = {}, ρ = {} \
          kg/m³, E per shape (10⁵ Pa organic, 10⁸ Pa manufactured; `eval::shapes::catalog`, shown \
          per shape below). m = {}, K = {} kernels; our basis and Simplicits on the same ≈{} grid \
-         points; simulation on ≈{} grid points; Newton tolerance {:e}; pin penalty {}. Elastic \
+         points; simulation on ≈{} grid points; Newton tolerance {:e}; {}. Elastic \
          quadrature: {}{}; Hessians: {}.\n",
         SHAPE_POISSON_RATIO,
         SHAPE_DENSITY,

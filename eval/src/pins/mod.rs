@@ -1,8 +1,11 @@
 //! The pin sweep: the beam tests at several Poisson ratios and m, each with every
 //! pin factor under both pin moduli, against the FEM reference at the same material: which rule
-//! and factor are accurate across materials, and how far the pinned points drift.
+//! and factor are accurate across materials, and how far the pinned points drift. Beside them,
+//! the regions held exactly (the exact pins, and one setting with no parameter to tune, such as
+//! the weighted basis), run unchanged at every ν.
 
-use std::fmt::Write as _;
+use std::collections::HashMap;
+use std::collections::hash_map::Entry;
 use std::path::PathBuf;
 
 use hyperelastic::MaterialSample;
@@ -24,6 +27,10 @@ use crate::reduced_settings::{EXACT_INSET_KERNEL_RADII, ReducedSettings};
 use freeform::failure_chain;
 use freeform::metrics::{TrajectoryErrors, trajectory_errors};
 use freeform::terminal_progress::TerminalProgress;
+
+use self::table::modulus_name;
+
+pub mod table;
 
 /// What the sweep runs.
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
@@ -51,6 +58,11 @@ pub struct PinSweepConfig {
     /// kernel radii ([`exact_pin_hold`]); `None` leaves them out.
     #[serde(default)]
     pub exact_inset_radii: Option<f64>,
+    /// Also run each (ν, test, m) with these settings (their `modes` set per row), the same at
+    /// every ν: a hold with nothing to tune per material, such as the weighted basis
+    /// ([`ReducedSettings::converging`]); `None` leaves them out.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub parameter_free: Option<ReducedSettings>,
 }
 
 impl PinSweepConfig {
@@ -71,6 +83,7 @@ impl PinSweepConfig {
             fem: FemResolution::GROUND_TRUTH,
             cache_dir,
             exact_inset_radii: Some(EXACT_INSET_KERNEL_RADII),
+            parameter_free: Some(ReducedSettings::default().converging()),
         }
     }
 
@@ -90,6 +103,12 @@ impl PinSweepConfig {
                 cells_per_metre: 4,
                 ..FemResolution::GROUND_TRUTH
             },
+            parameter_free: Some(ReducedSettings {
+                kernels: 500,
+                basis_points: 10_000,
+                simulation_points: 5000,
+                ..ReducedSettings::default().converging()
+            }),
             ..PinSweepConfig::full(cache_dir)
         }
     }
@@ -120,9 +139,10 @@ pub struct PinSweepRow {
     pub failure: Option<String>,
 }
 
-/// One (ν, test, m) run with the regions held exactly.
+/// One (ν, test, m) run with the regions held exactly (the exact pins, or the parameter-free
+/// setting).
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
-pub struct ExactSweepRow {
+pub struct HeldSweepRow {
     /// Poisson ratio.
     pub poisson_ratio: f64,
     /// Bend or Twist.
@@ -150,7 +170,10 @@ pub struct PinSweep {
     pub rows: Vec<PinSweepRow>,
     /// One per (ν, test, m) with exact pins, when the sweep ran them.
     #[serde(default)]
-    pub exact_rows: Vec<ExactSweepRow>,
+    pub exact_rows: Vec<HeldSweepRow>,
+    /// One per (ν, test, m) with [`PinSweepConfig::parameter_free`], when the sweep ran it.
+    #[serde(default)]
+    pub parameter_free_rows: Vec<HeldSweepRow>,
     /// "ν = …, test: why" for each FEM reference with an unconverged step (its test has no rows
     /// at that ν).
     pub refused_references: Vec<String>,
@@ -168,6 +191,10 @@ pub fn run_pin_sweep(
 ) -> Result<PinSweep, EvalError> {
     let mut rows = Vec::new();
     let mut exact_rows = Vec::new();
+    let mut parameter_free_rows = Vec::new();
+    // The held bases per (test, m): a uniform material scales the weight-space Hessian, not its
+    // eigenvectors, so one serves every ν.
+    let mut parameter_free_bases = HashMap::new();
     let mut refused_references = Vec::new();
     for &nu in &config.poisson_ratios {
         let material = MaterialSample {
@@ -206,7 +233,29 @@ pub fn run_pin_sweep(
                     ..config.settings
                 };
                 if let Some(radii) = config.exact_inset_radii {
-                    exact_rows.push(scored.exact_row(&base, radii)?);
+                    let exact = ReducedSettings {
+                        pins: exact_pin_hold(&base, radii)?,
+                        ..base
+                    };
+                    let basis = build_beam_basis_for(test, &exact)?;
+                    exact_rows.push(scored.held_row(&basis.basis, &exact, "exact")?);
+                }
+                if let Some(settings) = config.parameter_free {
+                    let settings = ReducedSettings {
+                        modes: m,
+                        ..settings
+                    };
+                    let basis = match parameter_free_bases.entry((test, m)) {
+                        Entry::Occupied(basis) => basis.into_mut(),
+                        Entry::Vacant(entry) => {
+                            entry.insert(build_beam_basis_for(test, &settings)?.basis)
+                        }
+                    };
+                    parameter_free_rows.push(scored.held_row(
+                        basis,
+                        &settings,
+                        "parameter-free",
+                    )?);
                 }
                 // A uniform material scales the weight-space Hessian, not its eigenvectors: the
                 // basis is the same at every ν.
@@ -222,6 +271,7 @@ pub fn run_pin_sweep(
     Ok(PinSweep {
         rows,
         exact_rows,
+        parameter_free_rows,
         refused_references,
     })
 }
@@ -238,20 +288,21 @@ struct ScoredRuns<'a> {
 }
 
 impl ScoredRuns<'_> {
-    /// The row of the exact pins at `base`'s m, the regions shrunk by `radii` kernel radii.
-    fn exact_row(&self, base: &ReducedSettings, radii: f64) -> Result<ExactSweepRow, EvalError> {
+    /// The row of `basis` under `settings`, whose hold keeps the regions exactly; `what`
+    /// names it in the progress line.
+    fn held_row(
+        &self,
+        basis: &SkinningBasis,
+        settings: &ReducedSettings,
+        what: &str,
+    ) -> Result<HeldSweepRow, EvalError> {
         let (test, nu, m, progress) = (
             self.test,
             self.material.poisson_ratio,
-            base.modes,
+            settings.modes,
             self.progress,
         );
-        let exact = ReducedSettings {
-            pins: exact_pin_hold(base, radii)?,
-            ..*base
-        };
-        let basis = build_beam_basis_for(test, &exact)?;
-        let mut row = ExactSweepRow {
+        let mut row = HeldSweepRow {
             poisson_ratio: nu,
             test,
             m,
@@ -262,7 +313,7 @@ impl ScoredRuns<'_> {
             unconverged_steps: 0,
             failure: None,
         };
-        match self.run(&basis.basis, &exact)? {
+        match self.run(basis, settings)? {
             Ok((errors, run)) => {
                 row.mse = errors.normalized_mse;
                 row.max = errors.normalized_max;
@@ -273,7 +324,7 @@ impl ScoredRuns<'_> {
             Err(why) => row.failure = Some(why),
         }
         progress.status(format!(
-            "ν = {nu} {} m = {m} exact: MSE {:.3e}, held drift {:.2e} m",
+            "ν = {nu} {} m = {m} {what}: MSE {:.3e}, held drift {:.2e} m",
             test.name(),
             row.mse,
             row.max_held_deviation
@@ -362,235 +413,5 @@ impl ScoredRuns<'_> {
             }
             Err(e) => Ok(Err(failure_chain(&e))),
         }
-    }
-}
-
-/// The sweep as Markdown: one row per (test, m, modulus, factor), one MSE and pin-drift column
-/// pair per ν, and the best factor of each (test, m, ν, modulus) marked.
-pub fn pin_sweep_table(config: &PinSweepConfig, sweep: &PinSweep) -> String {
-    let rows = &sweep.rows;
-    let mut md = format!(
-        "## Pin sweep: beam, MSE against the FEM ({}) and largest pin drift (m)\n\n\
-         E = 5 MPa, ρ = 1000 kg/m³, K = {}, {} simulation points, every point with Hessian \
-         reuse. κ_pin = factor · (λ + 2μ or E) / L². ★ = lowest MSE of its (test, m, ν, \
-         modulus).\n\n",
-        config.fem.label(),
-        config.settings.kernels,
-        config.settings.simulation_points
-    );
-    for why in &sweep.refused_references {
-        let _ = writeln!(md, "Not scored: {why}.\n");
-    }
-    md += "| test | m | modulus | factor |";
-    for nu in &config.poisson_ratios {
-        let _ = write!(md, " MSE ν={nu} | drift ν={nu} |");
-    }
-    md += "\n|---|---|---|---|";
-    md += &"---|---|".repeat(config.poisson_ratios.len());
-    md += "\n";
-    let find = |test, m, modulus, factor, nu| {
-        rows.iter().find(|r| {
-            r.test == test
-                && r.m == m
-                && r.modulus == modulus
-                && r.factor == factor
-                && r.poisson_ratio == nu
-        })
-    };
-    let best = |test, m, modulus, nu| {
-        rows.iter()
-            .filter(|r| {
-                r.test == test
-                    && r.m == m
-                    && r.modulus == modulus
-                    && r.poisson_ratio == nu
-                    && r.failure.is_none()
-            })
-            .min_by(|a, b| a.mse.total_cmp(&b.mse))
-            .map(|r| r.factor)
-    };
-    for &test in &config.tests {
-        for &m in &config.modes {
-            for &modulus in &config.moduli {
-                for &factor in &config.factors {
-                    let _ = write!(
-                        md,
-                        "| {} | {m} | {} | {factor:e} |",
-                        test.name(),
-                        modulus_name(modulus)
-                    );
-                    for &nu in &config.poisson_ratios {
-                        match find(test, m, modulus, factor, nu) {
-                            Some(r) if r.failure.is_some() => md += " failed | — |",
-                            Some(r) => {
-                                let star = if best(test, m, modulus, nu) == Some(factor) {
-                                    " ★"
-                                } else {
-                                    ""
-                                };
-                                let _ = write!(
-                                    md,
-                                    " {:.3e}{star} | {:.2e} |",
-                                    r.mse, r.max_pin_deviation
-                                );
-                            }
-                            None => md += " — | — |",
-                        }
-                    }
-                    md += "\n";
-                }
-            }
-        }
-    }
-    md
-}
-
-/// The exact-pin rows as Markdown beside the best penalty of each (test, m, ν) (empty when the
-/// sweep ran none).
-pub fn exact_sweep_table(config: &PinSweepConfig, sweep: &PinSweep) -> String {
-    let Some(radii) = config.exact_inset_radii else {
-        return String::new();
-    };
-    let mut md = format!(
-        "\n## Exact pins beside the best penalty\n\nRegions held exactly on the region shrunk by \
-         {radii} median kernel radii (compact kernels, a basis per test), the band between kept \
-         by the penalty. Drift: held points / FEM vertices of the whole region (m). Best \
-         penalty: the lowest MSE of the sweep's factors and moduli at that (test, m, ν).\n\n\
-         | test | m |"
-    );
-    for nu in &config.poisson_ratios {
-        let _ = write!(
-            md,
-            " exact MSE ν={nu} | drift ν={nu} | best penalty ν={nu} |"
-        );
-    }
-    md += "\n|---|---|";
-    md += &"---|---|---|".repeat(config.poisson_ratios.len());
-    md += "\n";
-    for &test in &config.tests {
-        for &m in &config.modes {
-            let _ = write!(md, "| {} | {m} |", test.name());
-            for &nu in &config.poisson_ratios {
-                let exact = sweep
-                    .exact_rows
-                    .iter()
-                    .find(|r| r.test == test && r.m == m && r.poisson_ratio == nu);
-                let best = sweep
-                    .rows
-                    .iter()
-                    .filter(|r| {
-                        r.test == test && r.m == m && r.poisson_ratio == nu && r.failure.is_none()
-                    })
-                    .map(|r| r.mse)
-                    .min_by(f64::total_cmp);
-                let best = best.map_or("—".to_string(), |v| format!("{v:.3e}"));
-                match exact {
-                    Some(r) if r.failure.is_some() => {
-                        let _ = write!(md, " failed | — | {best} |");
-                    }
-                    Some(r) => {
-                        let _ = write!(
-                            md,
-                            " {:.3e} | {:.1e} / {:.2e} | {best} |",
-                            r.mse, r.max_held_deviation, r.region_drift
-                        );
-                    }
-                    None => {
-                        let _ = write!(md, " — | — | {best} |");
-                    }
-                }
-            }
-            md += "\n";
-        }
-    }
-    md
-}
-
-/// "λ+2μ" or "E".
-fn modulus_name(modulus: PinModulus) -> &'static str {
-    match modulus {
-        PinModulus::PWave => "λ+2μ",
-        PinModulus::Young => "E",
-    }
-}
-
-#[cfg(test)]
-mod tests {
-    use super::*;
-
-    fn row(nu: f64, modulus: PinModulus, factor: f64, mse: f64) -> PinSweepRow {
-        PinSweepRow {
-            poisson_ratio: nu,
-            test: BeamTest::Bend,
-            m: 16,
-            modulus,
-            factor,
-            mse,
-            max: 0.1,
-            max_pin_deviation: 0.01,
-            unconverged_steps: 0,
-            failure: None,
-        }
-    }
-
-    #[test]
-    fn the_table_stars_the_lowest_mse_per_material_and_modulus_and_names_failures() {
-        let config = PinSweepConfig {
-            poisson_ratios: vec![0.3, 0.49],
-            modes: vec![16],
-            tests: vec![BeamTest::Bend],
-            factors: vec![1e2, 1e3],
-            moduli: vec![PinModulus::Young],
-            ..PinSweepConfig::quick(PathBuf::from("unused"))
-        };
-        let mut failed = row(0.49, PinModulus::Young, 1e3, f64::NAN);
-        failed.failure = Some("step 3 failed".into());
-        let rows = vec![
-            row(0.3, PinModulus::Young, 1e2, 2e-4),
-            row(0.3, PinModulus::Young, 1e3, 1e-4),
-            row(0.49, PinModulus::Young, 1e2, 3e-4),
-            failed,
-        ];
-        let sweep = PinSweep {
-            rows,
-            exact_rows: vec![ExactSweepRow {
-                poisson_ratio: 0.3,
-                test: BeamTest::Bend,
-                m: 16,
-                mse: 5e-5,
-                max: 1e-2,
-                max_held_deviation: 1e-12,
-                region_drift: 2e-2,
-                unconverged_steps: 0,
-                failure: None,
-            }],
-            refused_references: vec!["ν = 0.3, twist: not converged".into()],
-        };
-        let md = pin_sweep_table(&config, &sweep);
-        assert!(
-            md.contains("Not scored: ν = 0.3, twist: not converged."),
-            "{md}"
-        );
-        let lines: Vec<&str> = md.lines().filter(|l| l.starts_with("| bend")).collect();
-        assert_eq!(lines.len(), 2, "{md}");
-        // ν = 0.3: 1e3 is best; ν = 0.49: 1e2 is the only one that ran.
-        assert!(
-            lines[0].contains("2.000e-4 |") && lines[0].contains("3.000e-4 ★"),
-            "{md}"
-        );
-        assert!(
-            lines[1].contains("1.000e-4 ★") && lines[1].contains("failed"),
-            "{md}"
-        );
-        // The exact row sits beside the best penalty of its (test, m, ν).
-        let exact = exact_sweep_table(&config, &sweep);
-        let line = exact
-            .lines()
-            .find(|l| l.starts_with("| bend | 16 |"))
-            .expect("an exact row");
-        assert!(
-            line.contains("5.000e-5 | 1.0e-12 / 2.00e-2 | 1.000e-4 |"),
-            "{exact}"
-        );
     }
 }
