@@ -160,7 +160,8 @@ impl BenchConfig {
 }
 
 /// The full sweep's FreeForm runs past the plain m series: the fast step, the basis grid, the
-/// exact pins, fewer quadrature points, and K, points, tolerance and pin factor about `base`.
+/// exact pins, the converging setting ([`ReducedSettings::converging`]) at m = 16 … 64, fewer
+/// quadrature points, and K, points, tolerance and pin factor about `base`.
 fn freeform_sweeps(base: ReducedSettings) -> Vec<(String, BenchMethod)> {
     let mut runs = Vec::new();
     runs.extend(fast_step_runs(base, &[6, 9, 16, 32]));
@@ -188,6 +189,16 @@ fn freeform_sweeps(base: ReducedSettings) -> Vec<(String, BenchMethod)> {
                 },
                 EXACT_INSET_KERNEL_RADII,
             ),
+        ));
+    }
+    // The setting whose error falls monotonically in m, on to m = 64.
+    for m in [16, 32, 48, 64] {
+        runs.push((
+            "converging".into(),
+            BenchMethod::FreeForm(ReducedSettings {
+                modes: m,
+                ..base.converging()
+            }),
         ));
     }
     for tolerance in [0.05, 0.005] {
