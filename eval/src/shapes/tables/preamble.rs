@@ -56,7 +56,7 @@ fn run_lines(study: &ShapeStudy) -> String {
         "Settings: every mesh scaled so its largest bounding-box side is L = 1 m; ν = {}, ρ = {} \
          kg/m³, E per shape (10⁵ Pa organic, 10⁸ Pa manufactured; `eval::shapes::catalog`, shown \
          per shape below). m = {}, K = {} kernels; our basis and Simplicits on the same ≈{} grid \
-         points; simulation on ≈{} grid points; Newton tolerance {:e}; {}. Elastic \
+         points; simulation on ≈{} grid points; Newton tolerance {:e}; {}{}. Elastic \
          quadrature: {}{}; Hessians: {}.\n",
         SHAPE_POISSON_RATIO,
         SHAPE_DENSITY,
@@ -66,6 +66,7 @@ fn run_lines(study: &ShapeStudy) -> String {
         s.simulation_points,
         s.newton_tolerance,
         s.pin_rule_label(),
+        s.pressure_label(),
         s.quadrature_label(),
         match c.simplicits_quadrature {
             Some(rule) if c.simplicits.is_some() =>

@@ -304,3 +304,34 @@ fn references_that_lost_volume_stalled_or_change_under_refinement_are_named_and_
         assert_eq!(shapes, [1, 2, 2], "{collection:?}");
     }
 }
+
+#[test]
+fn the_settings_line_names_the_projected_volumetric_term_and_the_hold_only_when_set() {
+    let study = |settings| ShapeStudy {
+        config: ShapeStudyConfig {
+            settings,
+            simplicits: None,
+            ..ShapeStudyConfig::full(Vec::new(), PathBuf::from("unused"))
+        },
+        shapes: vec![shape("one", 0.0, 0, 1e-3)],
+        seconds: 1.0,
+    };
+    let paper = ShapeStudyConfig::full(Vec::new(), PathBuf::from("unused")).settings;
+    let md = table2(&study(paper)).markdown;
+    assert!(
+        md.contains("; pin penalty κ_pin = 3e3 · max E / L²"),
+        "{md}"
+    );
+    assert!(!md.contains("volumetric term"), "{md}");
+    let md = table2(&study(paper.converging())).markdown;
+    assert!(
+        md.contains(
+            "; regions held exactly by a weighted basis (transition 1 × the object's thickness"
+        ),
+        "{md}"
+    );
+    assert!(
+        md.contains("; volumetric term projected onto a pressure space of the constant"),
+        "{md}"
+    );
+}
