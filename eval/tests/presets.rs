@@ -216,14 +216,14 @@ fn bench_pins_convergence_and_stress_presets() {
     check(
         "pins",
         StudyKind::Pins,
-        "The pin sweep: the beam Bend and Twist at nu = 0.3, 0.45, 0.49 and m = 16, 32, pin\nfactors 1e2 to 3e4 under both moduli and the exact pins, each against the FEM.",
+        "The pin sweep: the beam Bend and Twist at nu = 0.3, 0.45, 0.49 and m = 16, 32, pin\nfactors 1e2 to 3e4 under both moduli, the exact pins and the parameter-free converging\nsetting, each against the FEM.",
         PinSweepConfig::full(cache()),
         &["cache_dir"],
     );
     check(
         "pins-quick",
         StudyKind::Pins,
-        "The pin sweep in minutes: nu = 0.3 and 0.49, m = 16, 100 Bend steps, FEM P2 res 4.",
+        "The pin sweep in minutes: nu = 0.3 and 0.49, m = 16, 100 Bend steps, FEM P2 res 4, the\nparameter-free rows on K = 500 and 10 000 / 5000 points.",
         PinSweepConfig::quick(cache()),
         &["cache_dir"],
     );

@@ -67,7 +67,8 @@ pub struct PinSweepConfig {
 
 impl PinSweepConfig {
     /// ν ∈ {0.3, 0.45, 0.49}, m ∈ {16, 32}, Bend and Twist, factors 1e2…3e4 under both moduli,
-    /// every point with Hessian reuse (same MSE as fresh Hessians, 5× faster), FEM P2 res 6.
+    /// every point with Hessian reuse (same MSE as fresh Hessians, 5× faster), FEM P2 res 6;
+    /// beside them the exact pins and the parameter-free [`ReducedSettings::converging`].
     pub fn full(cache_dir: PathBuf) -> Self {
         PinSweepConfig {
             poisson_ratios: vec![0.3, 0.45, 0.49],
@@ -87,7 +88,8 @@ impl PinSweepConfig {
         }
     }
 
-    /// A few-minute version: ν ∈ {0.3, 0.49}, m = 16, 100 Bend steps, FEM P2 res 4, K = 500.
+    /// A few-minute version: ν ∈ {0.3, 0.49}, m = 16, 100 Bend steps, FEM P2 res 4, K = 500
+    /// (the parameter-free rows too, on 10 000 basis and 5000 simulation points).
     pub fn quick(cache_dir: PathBuf) -> Self {
         PinSweepConfig {
             poisson_ratios: vec![0.3, 0.49],
