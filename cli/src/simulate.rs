@@ -78,6 +78,12 @@ pub(crate) fn run(
                     c.training_error,
                     c.validation_error
                 );
+                if !c.reached_tolerance {
+                    eprintln!(
+                        "note: the cubature stopped short of its force tolerance: {}",
+                        c.stop.describe()
+                    );
+                }
                 if let Some(warning) = &c.cache_warning {
                     eprintln!("warning: the cubature was not cached: {warning}");
                 }

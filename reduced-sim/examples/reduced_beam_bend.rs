@@ -352,13 +352,14 @@ fn print_text(s: &Setup, m: &Measured) {
     if let Some(r) = &s.quadrature.cubature {
         println!(
             "cubature: {} points from {} training poses in {:.2} s, force error {:.2e} \
-             (training) / {:.2e} (unseen poses), Σw/V = {:.3}",
+             (training) / {:.2e} (unseen poses), Σw/V = {:.3}; stopped because {}",
             r.points,
             r.training_poses,
             r.seconds,
             r.training_error,
             r.validation_error,
-            r.weight_over_volume
+            r.weight_over_volume,
+            r.stop.describe()
         );
     }
     for (k, v) in &m.tip_y {

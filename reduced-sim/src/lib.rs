@@ -24,7 +24,7 @@ pub use multibody::{
 };
 pub use quadrature::automatic_quadrature::QuadratureChoice;
 pub use quadrature::cubature::{
-    CubatureBudget, CubatureError, CubatureParams, CubatureReport, optimize_cubature,
+    CubatureBudget, CubatureError, CubatureParams, CubatureReport, CubatureStop, optimize_cubature,
 };
 pub use quadrature::elastic_cost::{ElasticCost, PlannedRun};
 pub use quadrature::rule::{ElasticQuadrature, QuadratureError, QuadratureReport, QuadratureRule};

@@ -9,10 +9,25 @@ use reduced_sim::quadrature::cubature::{
     cubature_cache_path, force_error, force_weights, optimize_cubature_cached, training_poses,
 };
 use reduced_sim::{
-    CubatureError, CubatureParams, ElasticQuadrature, QuadratureError, QuadratureRule,
-    SimulationParams, Simulator, optimize_cubature,
+    CubatureError, CubatureParams, CubatureStop, ElasticQuadrature, QuadratureError,
+    QuadratureRule, SimulationParams, Simulator, optimize_cubature,
 };
 use support::bar_model;
+
+/// Poses the cubature was not trained on: its generator with another seed.
+fn unseen_poses<M: hyperelastic::HyperelasticMaterial>(
+    model: &reduced_sim::ReducedModel<M>,
+    params: &CubatureParams,
+) -> Vec<Vec<f64>> {
+    training_poses(
+        model,
+        &CubatureParams {
+            seed: 12345,
+            ..*params
+        },
+    )
+    .unwrap()
+}
 
 fn cubature_params() -> CubatureParams {
     CubatureParams {
@@ -57,7 +72,7 @@ fn a_cubature_integrates_its_training_forces_to_its_tolerance_and_unseen_poses_w
     // The stated training error, recomputed independently from the quadrature alone.
     let weights = force_weights(&model, params.time_step);
     let poses = training_poses(&model, &params).unwrap();
-    let recomputed = force_error(&model, &quadrature, &poses, &weights);
+    let recomputed = force_error(&model, &quadrature, &poses, &weights).unwrap();
     assert!(
         (recomputed - report.training_error).abs() <= 1e-6 + 1e-3 * report.training_error,
         "recomputed {recomputed:e}, reported {:e}",
@@ -65,21 +80,14 @@ fn a_cubature_integrates_its_training_forces_to_its_tolerance_and_unseen_poses_w
     );
     // Unseen poses: another seed. The stated bound is five times the tolerance (on the beam,
     // unseen poses came out 2.5-3.2× the training error at m = 6-32; 3.1× here).
-    let unseen = training_poses(
-        &model,
-        &CubatureParams {
-            seed: 12345,
-            ..params
-        },
-    )
-    .unwrap();
-    let error = force_error(&model, &quadrature, &unseen, &weights);
+    let unseen = unseen_poses(&model, &params);
+    let error = force_error(&model, &quadrature, &unseen, &weights).unwrap();
     assert!(
         error <= 5.0 * params.tolerance,
         "unseen-pose force error {error:e}"
     );
     // The plain norm is bounded too (all weights one).
-    let plain = force_error(&model, &quadrature, &unseen, &vec![1.0; weights.len()]);
+    let plain = force_error(&model, &quadrature, &unseen, &vec![1.0; weights.len()]).unwrap();
     assert!(plain <= 0.1, "plain-norm unseen force error {plain:e}");
 }
 
@@ -222,4 +230,84 @@ fn a_cached_cubature_is_reloaded_identical_and_a_corrupt_cache_file_is_replaced(
             .1
             .cached
     );
+}
+
+/// The bar with its volumetric term projected onto 1, x, y, z and a smooth function of x.
+fn bar_model_with_pressure() -> reduced_sim::ReducedModel<hyperelastic::StableNeoHookean> {
+    let model = bar_model();
+    let positions = model.rest_positions().to_vec();
+    let pressure = nalgebra::DMatrix::from_fn(positions.len(), 5, |i, b| match b {
+        0 => 1.0,
+        1..=3 => positions[i][b - 1],
+        _ => (std::f64::consts::PI * positions[i].x / 3.0).cos(),
+    });
+    model
+        .with_projected_dilatation(pressure, reduced_sim::ProjectedDilatationParams::default())
+        .unwrap()
+}
+
+#[test]
+fn a_cubature_of_a_projected_dilatation_reaches_its_tolerance_and_its_model_follows_unseen_forces()
+{
+    let model = bar_model_with_pressure();
+    let params = CubatureParams::DEFAULT;
+    let (quadrature, report) = optimize_cubature(&model, &params).unwrap();
+    assert!(report.reached_tolerance, "{report:?}");
+    // Unseen poses, on the model integrated by the cubature (its pressure projection formed
+    // on the cubature's points), against the full model: force_error says the same.
+    let unseen = unseen_poses(&model, &params);
+    let weights = force_weights(&model, params.time_step);
+    let error = force_error(&model, &quadrature, &unseen, &weights).unwrap();
+    assert!(
+        error <= 10.0 * params.tolerance,
+        "unseen-pose force error {error:e}"
+    );
+    let full: Vec<Vec<f64>> = unseen.iter().map(|z| model.elastic_gradient(z)).collect();
+    let integrated = bar_model_with_pressure()
+        .with_elastic_quadrature(quadrature)
+        .unwrap();
+    let mut sum = 0.0;
+    for (z, f) in unseen.iter().zip(&full) {
+        let g = integrated.elastic_gradient(z);
+        let norm = |v: &dyn Fn(usize) -> f64| (0..f.len()).map(|k| v(k).powi(2)).sum::<f64>();
+        sum += norm(&|k| (g[k] - f[k]) * weights[k]) / norm(&|k| f[k] * weights[k]);
+    }
+    let recomputed = (sum / unseen.len() as f64).sqrt();
+    assert!(
+        (recomputed - error).abs() <= 1e-9 * error,
+        "{recomputed:e} vs {error:e}"
+    );
+}
+
+#[test]
+fn a_model_with_a_projected_dilatation_does_not_share_a_cached_cubature_with_one_without() {
+    let dir = std::env::temp_dir();
+    let params = CubatureParams::DEFAULT;
+    assert_ne!(
+        cubature_cache_path(&bar_model(), &params, &dir),
+        cubature_cache_path(&bar_model_with_pressure(), &params, &dir)
+    );
+}
+
+#[test]
+fn the_report_names_what_stopped_the_selection() {
+    let model = bar_model();
+    let run = |params: CubatureParams| optimize_cubature(&model, &params).unwrap().1;
+    let reached = run(cubature_params());
+    assert_eq!(reached.stop, CubatureStop::Tolerance, "{reached:?}");
+    let budget = run(CubatureParams {
+        max_points: 8,
+        ..cubature_params()
+    });
+    assert!(!budget.reached_tolerance);
+    assert_eq!(budget.stop, CubatureStop::PointBudget, "{budget:?}");
+    assert_eq!(budget.points, 8);
+    let pool = run(CubatureParams {
+        candidates: 40,
+        tolerance: 1e-6,
+        ..cubature_params()
+    });
+    assert!(!pool.reached_tolerance);
+    assert_eq!(pool.stop, CubatureStop::Candidates, "{pool:?}");
+    assert!(pool.points <= 40);
 }

@@ -122,6 +122,13 @@ pub(crate) struct DilatationState {
     coefficients: Vec<f64>,
 }
 
+impl DilatationState {
+    /// `p̂ = G⁻¹ r` (P): the pressure coefficients.
+    pub(crate) fn coefficients(&self) -> &[f64] {
+        &self.coefficients
+    }
+}
+
 impl ProjectedDilatation {
     /// The term for pressure values `pressure` (N × P, at every model point) on the elastic
     /// points `elastic_points` (indices into the model's points) with weights `weights` and
@@ -286,13 +293,43 @@ impl ProjectedDilatation {
     /// `κ_q (p_q − (J_q − γ_q))` (Pa) of elastic point q in `state`, with `p_q = p̂ · q(X_q)`:
     /// the factor of `cof F` in its stress and of `∂²J/∂F²` in its tangent.
     pub(crate) fn pressure_shift(&self, state: &DilatationState, q: usize) -> f64 {
+        self.pressure_shift_at(&state.coefficients, q, state.dilatations[q])
+    }
+
+    /// [`Self::pressure_shift`] for given pressure coefficients p̂ (P, e.g. a state of another
+    /// quadrature of the same points) and dilatation `J_q − γ_q` of elastic point q.
+    pub(crate) fn pressure_shift_at(&self, coefficients: &[f64], q: usize, dilatation: f64) -> f64 {
         let p: f64 = self
             .pressure_row(q)
             .iter()
-            .zip(&state.coefficients)
+            .zip(coefficients)
             .map(|(a, b)| a * b)
             .sum();
-        self.volumetric[q].modulus * (p - state.dilatations[q])
+        self.volumetric[q].modulus * (p - dilatation)
+    }
+
+    /// `γ_q`: the rest volume ratio of elastic point q's volumetric term.
+    pub(crate) fn rest_ratio(&self, q: usize) -> f64 {
+        self.volumetric[q].rest_ratio
+    }
+
+    /// The same term on the elastic points `points` (indices into the current elastic points)
+    /// with weights `weights` and Lamé parameters `lame`, its pressure values restricted to
+    /// those points.
+    ///
+    /// # Errors
+    /// [`ProjectedDilatationError::DependentFunctions`] when the functions are dependent at
+    /// `points` with these weights.
+    pub(crate) fn on_points<M: HyperelasticMaterial>(
+        &self,
+        material: &M,
+        points: &[usize],
+        weights: &[f64],
+        lame: &[LameParameters],
+    ) -> Result<Self, ProjectedDilatationError> {
+        let size = self.functions();
+        let values = DMatrix::from_fn(points.len(), size, |i, b| self.pressure_row(points[i])[b]);
+        ProjectedDilatation::new(material, values, self.params, None, weights, lame)
     }
 
     /// `q(X_q)` of elastic point q (P).

@@ -9,7 +9,7 @@ use rayon::prelude::*;
 
 use crate::model::deformation_map::{DeformationMap, deformation_gradient_of_block};
 use crate::model::elastic_deformation::ElasticDeformation;
-use crate::model::projected_dilatation::ProjectedDilatation;
+use crate::model::projected_dilatation::{DilatationState, ProjectedDilatation};
 use crate::model::reduced_model::ReducedModel;
 
 /// The three diagonal and three upper row-block pairs (r, q) of the reduced Hessian.
@@ -101,28 +101,13 @@ impl<M: HyperelasticMaterial> ReducedModel<M> {
     /// `self.elastic_deformation(z)` the same bits as `self.elastic_gradient(z)`, without
     /// forming F again.
     pub(crate) fn elastic_gradient_at(&self, deformation: &ElasticDeformation) -> Vec<f64> {
-        let f = &deformation.gradients;
-        if let (Some(state), Some(d)) = (&deformation.dilatation, self.dilatation()) {
-            let (material, lame, weights) =
-                (self.material(), self.elastic_lame(), self.elastic_weights());
-            return accumulate_point_gradients(
-                self.elastic_map(),
-                PointDeformation::Given(f),
-                |i, f| {
-                    ProjectedDilatation::shifted_stress(
-                        material.first_piola_kirchhoff(&lame[i], f),
-                        f,
-                        d.pressure_shift(state, i),
-                    ) * weights[i]
-                },
-            );
-        }
-        weighted_elastic_gradient(
+        projected_elastic_gradient(
             self.material(),
             self.elastic_map(),
             self.elastic_lame(),
             self.elastic_weights(),
-            f,
+            self.dilatation().zip(deformation.dilatation.as_ref()),
+            &deformation.gradients,
         )
     }
 
@@ -449,6 +434,30 @@ pub(crate) fn weighted_elastic_gradient<M: HyperelasticMaterial>(
 ) -> Vec<f64> {
     accumulate_point_gradients(map, PointDeformation::Given(f), |i, f| {
         material.first_piola_kirchhoff(&lame[i], f) * weights[i]
+    })
+}
+
+/// [`weighted_elastic_gradient`] with the projected volumetric term `dilatation` in its
+/// `state` at `f`, when given: each point's stress is `P(F_i) + κ_i (p_i − (J_i − γ_i)) cof F_i`
+/// ([`ProjectedDilatation::shifted_stress`]). The elastic gradient of
+/// [`ReducedModel::elastic_gradient`] on a model with a projected dilatation.
+pub(crate) fn projected_elastic_gradient<M: HyperelasticMaterial>(
+    material: &M,
+    map: &DeformationMap,
+    lame: &[LameParameters],
+    weights: &[f64],
+    dilatation: Option<(&ProjectedDilatation, &DilatationState)>,
+    f: &[Matrix3<f64>],
+) -> Vec<f64> {
+    let Some((d, state)) = dilatation else {
+        return weighted_elastic_gradient(material, map, lame, weights, f);
+    };
+    accumulate_point_gradients(map, PointDeformation::Given(f), |i, f| {
+        ProjectedDilatation::shifted_stress(
+            material.first_piola_kirchhoff(&lame[i], f),
+            f,
+            d.pressure_shift(state, i),
+        ) * weights[i]
     })
 }
 

@@ -15,9 +15,11 @@ use super::{CubatureError, CubatureParams, CubatureReport, optimize_cubature};
 /// bump it whenever the optimization changes its result (2: zero-weight candidates leave the
 /// greedy set; 3: the targets from the one-pass elastic gradient and the residual as one
 /// product, which round differently; 4: the approximations' F from the targets' SIMD kernel
-/// and the Gram columns from per-point factors, which round differently again).
+/// and the Gram columns from per-point factors, which round differently again; 5: on a model
+/// with a projected dilatation, the candidates' stresses shifted by the full model's pressure
+/// and the pressure space in the key).
 const CUBATURE_MAGIC: &[u8] = b"FREEFORM-CUBATURE";
-const CUBATURE_FORMAT_VERSION: u32 = 4;
+const CUBATURE_FORMAT_VERSION: u32 = 5;
 
 /// A cached cubature: its points, weights and the report of its optimization.
 #[derive(Serialize, Deserialize)]
@@ -30,7 +32,8 @@ struct CachedCubature {
 /// Where [`optimize_cubature_cached`] keeps the cubature of `model` and `params`:
 /// `<cache_dir>/cubature/cubature-<hash>.bin`, the hash of everything that determines it (the
 /// deformation map's G at every point, volumes, densities, Lamé parameters, the material's
-/// name, every option).
+/// name, the projected dilatation's pressure values and options when it has one, every
+/// option).
 pub fn cubature_cache_path<M: HyperelasticMaterial>(
     model: &ReducedModel<M>,
     params: &CubatureParams,
@@ -47,6 +50,12 @@ pub fn cubature_cache_path<M: HyperelasticMaterial>(
     for l in model.lame_parameters() {
         key.f64s(&[l.lambda(), l.mu()]);
     }
+    match model.dilatation() {
+        None => key.str("pointwise volumetric term"),
+        Some(d) => key
+            .str(&format!("projected dilatation {:?}", d.params()))
+            .f64s(d.pressure().as_slice()),
+    };
     cache_dir
         .join("cubature")
         .join(format!("cubature-{}.bin", key.finish().hex()))

@@ -1,10 +1,11 @@
 //! The candidate points' force columns over the training poses, held as per-point factors.
 
 use faer::{Accum, Mat, MatMut, MatRef, Par};
-use hyperelastic::{HyperelasticMaterial, LameParameters};
+use hyperelastic::HyperelasticMaterial;
 use nalgebra::Matrix3;
 use rayon::prelude::*;
 
+use crate::model::projected_dilatation::ProjectedDilatation;
 use crate::model::reduced_model::ReducedModel;
 
 /// Candidate c's column holds, pose after pose, its weighted, normalized force density
@@ -29,28 +30,41 @@ pub(super) struct CandidateForces {
 
 impl CandidateForces {
     /// The candidates `pool` (integration points of `model`) over `poses` (each 12(m+1) long)
-    /// whose targets have norms `norms`, with the force weights `omega`.
+    /// whose targets have norms `norms`, with the force weights `omega`. On a model with a
+    /// projected dilatation, `pressure_coefficients` holds the full model's p̂ at each pose
+    /// (P each), and a candidate's stress is the shifted one,
+    /// `P(F) + κ (p̂ · q(X) − (J − γ)) cof F`: summed with the volumes over every point, the
+    /// columns are then exactly the targets (empty without a dilatation).
     pub(super) fn new<M: HyperelasticMaterial>(
         model: &ReducedModel<M>,
         pool: &[usize],
         poses: &[&[f64]],
         norms: &[f64],
         omega: &[f64],
+        pressure_coefficients: &[Vec<f64>],
     ) -> Self {
         let map = model.deformation_map();
         let block_len = map.layout().block_len();
         let all_poses: Vec<f64> = poses.iter().flat_map(|p| p.iter().copied()).collect();
         let lame = model.lame_parameters();
+        let material = model.material();
+        let dilatation = model.dilatation();
         let stresses = pool
             .par_iter()
             .map(|&i| {
-                stresses_at(
-                    model.material(),
-                    &lame[i],
-                    map.gradient_block(i),
-                    &all_poses,
-                    poses.len(),
-                )
+                let stress = |pose: usize, f: &Matrix3<f64>| {
+                    let p = material.first_piola_kirchhoff(&lame[i], f);
+                    match dilatation {
+                        None => p,
+                        Some(d) => {
+                            let dilatation = f.determinant() - d.rest_ratio(i);
+                            let shift =
+                                d.pressure_shift_at(&pressure_coefficients[pose], i, dilatation);
+                            ProjectedDilatation::shifted_stress(p, f, shift)
+                        }
+                    }
+                };
+                stresses_at(stress, map.gradient_block(i), &all_poses, poses.len())
             })
             .collect();
         CandidateForces {
@@ -177,11 +191,11 @@ impl CandidateForces {
     }
 }
 
-/// A point's stresses at every pose (`3 × 3K`, `[(t, 3k + r)] = P_k[r, t]`) from its gradient
-/// block `gradient` (`4(m+1) × 3`) and the `poses` side by side (`4(m+1) × 3K`).
-fn stresses_at<M: HyperelasticMaterial>(
-    material: &M,
-    lame: &LameParameters,
+/// A point's stresses `stress(k, F_k)` at every pose k (`3 × 3K`, `[(t, 3k + r)] = P_k[r, t]`)
+/// from its gradient block `gradient` (`4(m+1) × 3`) and the `poses` side by side
+/// (`4(m+1) × 3K`).
+fn stresses_at(
+    stress: impl Fn(usize, &Matrix3<f64>) -> Matrix3<f64>,
     gradient: &[f64],
     poses: &[f64],
     pose_count: usize,
@@ -199,7 +213,7 @@ fn stresses_at<M: HyperelasticMaterial>(
     let mut stresses = Mat::<f64>::zeros(3, 3 * pose_count);
     for pose in 0..pose_count {
         let f = Matrix3::from_fn(|r, s| strain[(3 * pose + r, s)] + f64::from(u8::from(r == s)));
-        let p = material.first_piola_kirchhoff(lame, &f);
+        let p = stress(pose, &f);
         for r in 0..3 {
             for s in 0..3 {
                 stresses[(s, 3 * pose + r)] = p[(r, s)];
@@ -207,4 +221,55 @@ fn stresses_at<M: HyperelasticMaterial>(
         }
     }
     stresses
+}
+
+#[cfg(test)]
+mod tests {
+    use nalgebra::DMatrix;
+
+    use super::*;
+    use crate::ProjectedDilatationParams;
+    use crate::model::analytic_field::analytic_model;
+    use crate::quadrature::cubature::{CubatureParams, force_weights, norm, training_poses};
+
+    /// The full quadrature (every point at its volume) is an exact cubature of the targets,
+    /// with or without a projected dilatation: the columns are split as the targets are.
+    #[test]
+    fn every_point_at_its_volume_sums_to_the_targets_with_a_projected_dilatation() {
+        let (model, points) = analytic_model();
+        let pressure = DMatrix::from_fn(points.len(), 4, |i, b| match b {
+            0 => 1.0,
+            _ => points.positions()[i][b - 1],
+        });
+        let model = model
+            .with_projected_dilatation(pressure, ProjectedDilatationParams::default())
+            .expect("independent functions");
+        let params = CubatureParams::FEW_POSES;
+        let poses = training_poses(&model, &params).expect("poses");
+        let omega = force_weights(&model, params.time_step);
+        let mut targets = Vec::new();
+        let mut norms = Vec::new();
+        let mut coefficients = Vec::new();
+        for z in &poses {
+            let deformation = model.elastic_deformation(z);
+            let state = deformation.dilatation.as_ref().expect("a dilatation");
+            coefficients.push(state.coefficients().to_vec());
+            let target: Vec<f64> = model
+                .elastic_gradient_at(&deformation)
+                .iter()
+                .zip(&omega)
+                .map(|(f, w)| f * w)
+                .collect();
+            norms.push(norm(&target));
+            targets.extend(target.iter().map(|f| f / norm(&target)));
+        }
+        let pose_refs: Vec<&[f64]> = poses.iter().map(Vec::as_slice).collect();
+        let pool: Vec<usize> = (0..points.len()).collect();
+        let candidates =
+            CandidateForces::new(&model, &pool, &pose_refs, &norms, &omega, &coefficients);
+        let sum = candidates.combination(&pool, model.volumes());
+        let difference: Vec<f64> = sum.iter().zip(&targets).map(|(a, b)| a - b).collect();
+        let error = norm(&difference) / norm(&targets);
+        assert!(error < 1e-12, "relative difference {error:e}");
+    }
 }

@@ -8,7 +8,7 @@ use crate::quadrature::cubature::gram::ForceGramFactors;
 
 use super::candidates::CandidateForces;
 use super::ranking::ResidualCorrelation;
-use super::{CubatureError, CubatureParams, norm};
+use super::{CubatureError, CubatureParams, CubatureStop, norm};
 
 /// The chosen candidates (indices into the pool), their weights (all positive) and the
 /// residual `b − A_S w` they leave.
@@ -16,13 +16,14 @@ pub(super) struct Selection {
     pub(super) selected: Vec<usize>,
     pub(super) weights: Vec<f64>,
     pub(super) residual: Vec<f64>,
+    pub(super) stop: CubatureStop,
 }
 
 /// Grows the set a batch at a time by the candidates most correlated with the residual
 /// (`ranking`, f32 products of per-point factors, divided by the columns' norms), re-solving the weights by NNLS on
 /// the Gram matrix (from per-point factors, `cubature_gram`) after each batch and dropping the
-/// candidates left at zero, until the relative residual against `b` is within the tolerance or
-/// the set is full. `omega` are the force weights and `pose_scales` `1/‖f_k‖`; `check_budget`
+/// candidates left at zero, until the relative residual against `b` is within the tolerance,
+/// the set is full or no candidate left is positively correlated with the residual. `omega` are the force weights and `pose_scales` `1/‖f_k‖`; `check_budget`
 /// is asked with the support size before each batch.
 ///
 /// # Errors
@@ -54,11 +55,17 @@ pub(super) fn select_greedily(
     };
     // The support's factor, carried from batch to batch: each solve factors only what joined.
     let mut nnls_factor = NnlsFactor::new();
-    loop {
+    let stop = loop {
         let error = norm(&residual) / b_norm;
         let support = weights.iter().filter(|&&w| w > 0.0).count();
-        if error <= params.tolerance || support >= params.max_points || selected.len() >= pool {
-            break;
+        if error <= params.tolerance {
+            break CubatureStop::Tolerance;
+        }
+        if support >= params.max_points {
+            break CubatureStop::PointBudget;
+        }
+        if selected.len() >= pool {
+            break CubatureStop::Candidates;
         }
         check_budget(support)?;
         ranking.retire(&in_set);
@@ -71,7 +78,7 @@ pub(super) fn select_greedily(
             .filter(|&(_, s)| s > 0.0)
             .collect();
         if scores.is_empty() {
-            break;
+            break CubatureStop::Candidates;
         }
         // Batches grow with the set (an eighth of it), so the weight solves stay few.
         let take = params
@@ -128,11 +135,12 @@ pub(super) fn select_greedily(
         for ((r, b), f) in residual.iter_mut().zip(b).zip(&fitted) {
             *r = b - f;
         }
-    }
+    };
     Ok(Selection {
         selected,
         weights,
         residual,
+        stop,
     })
 }
 

@@ -23,6 +23,14 @@
 //! of the chosen columns (`cubature_gram`) are formed from small per-point factors (gradient
 //! blocks and stresses) instead of the force columns.
 //!
+//! On a model with a projected dilatation ([`ReducedModel::with_projected_dilatation`]) the
+//! target is that model's force, `Σ_i v_i G_i [P(F_i) + κ_i (p_i − (J_i − γ_i)) cof F_i]` with
+//! `p = Π(J − γ)` projected over every point, and each candidate's column is its term of that
+//! sum at the same p (the full model's, pose by pose): the volumes over every point are then an
+//! exact cubature, as without the dilatation. The model integrated by the cubature projects
+//! its pressure over the cubature's points; the validation error measures that model
+//! ([`force_error`]).
+//!
 //! One cubature serves every scene on that shape and material; a scene may add poses of its own
 //! ([`optimize_cubature_on`]).
 
@@ -36,7 +44,7 @@ use rand_chacha::ChaCha8Rng;
 use serde::{Deserialize, Serialize};
 use thiserror::Error;
 
-use crate::model::elastic_energy::weighted_elastic_gradient;
+use crate::model::elastic_energy::projected_elastic_gradient;
 use crate::model::elastic_quadrature::{ElasticQuadrature, QuadratureError};
 use crate::model::reduced_model::ReducedModel;
 
@@ -86,7 +94,8 @@ pub struct CubatureParams {
     pub time_step: f64,
     /// Points the greedy selection chooses from, drawn at random (default 5000; every point
     /// when the model has fewer). Too few limit the error reachable with non-negative weights
-    /// (`results/RESULTS.md`, "The cubature's candidate pool"). Memory:
+    /// (`results/RESULTS.md`, "The cubature's candidate pool"; the report's `stop` is then
+    /// [`CubatureStop::Candidates`]). Memory:
     /// 4 · (12(m+1) + 18 · poses) · candidates bytes (30 MB at m = 32 with 60 poses).
     pub candidates: usize,
     /// Relative force error over the training poses (in the weighted norm of
@@ -126,6 +135,15 @@ impl CubatureParams {
         seed: 0,
     };
 
+    /// Few training poses (two levels of two, two field poses): for unit tests.
+    #[cfg(test)]
+    pub(crate) const FEW_POSES: CubatureParams = CubatureParams {
+        amplitude_levels: 2,
+        poses_per_amplitude: 2,
+        field_poses: 2,
+        ..CubatureParams::DEFAULT
+    };
+
     /// The amplitudes of the pose groups: `amplitude_levels` values from the smallest to the
     /// largest, geometrically spaced.
     pub fn amplitudes(&self) -> Vec<f64> {
@@ -154,12 +172,17 @@ pub struct CubatureReport {
     /// Training poses used.
     pub training_poses: usize,
     /// Relative force error over the training poses, `‖Σ_q w_q g_q − f‖ / ‖f‖` with every pose
-    /// normalized to `‖f_p‖ = 1`.
+    /// normalized to `‖f_p‖ = 1` (with a projected dilatation, `g_q` at the full model's
+    /// pressure: the columns the weights were fit to).
     pub training_error: f64,
-    /// The same error on poses drawn independently of the training poses.
+    /// The error on poses drawn independently of the training poses, of the model integrated
+    /// by the cubature ([`force_error`]).
     pub validation_error: f64,
-    /// Whether the tolerance was met (otherwise the point budget stopped selection).
+    /// Whether the tolerance was met (otherwise `stop` says what stopped selection).
     pub reached_tolerance: bool,
+    /// What stopped the selection.
+    #[serde(default)]
+    pub stop: CubatureStop,
     /// Σ w_q over Σ v_i: how far the weights are from a volume-preserving quadrature.
     pub weight_over_volume: f64,
     /// Wall time of pose generation, selection and weight solves (s), as first optimized.
@@ -171,6 +194,33 @@ pub struct CubatureReport {
     /// is still used).
     #[serde(default)]
     pub cache_warning: Option<String>,
+}
+
+/// What stopped the greedy selection of a cubature.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Serialize, Deserialize)]
+#[serde(rename_all = "snake_case")]
+pub enum CubatureStop {
+    /// The training error reached [`CubatureParams::tolerance`].
+    #[default]
+    Tolerance,
+    /// The cubature holds [`CubatureParams::max_points`] points.
+    PointBudget,
+    /// No candidate left is positively correlated with the residual, or every candidate has
+    /// been tried: a larger [`CubatureParams::candidates`] pool can reach lower.
+    Candidates,
+}
+
+impl CubatureStop {
+    /// What stopped the selection, in words (for reports).
+    pub fn describe(self) -> &'static str {
+        match self {
+            CubatureStop::Tolerance => "it reached its tolerance",
+            CubatureStop::PointBudget => "it holds its most points (`max_points`)",
+            CubatureStop::Candidates => {
+                "no candidate left improves it (a larger `candidates` pool can go lower)"
+            }
+        }
+    }
 }
 
 /// The cubature could not be optimized.
@@ -318,10 +368,22 @@ fn optimize<M: HyperelasticMaterial>(
     // same scaling.
     let omega = force_weights(model, params.time_step);
     let weigh = |f: Vec<f64>| -> Vec<f64> { f.iter().zip(&omega).map(|(f, w)| f * w).collect() };
-    let targets: Vec<Vec<f64>> = poses
+    // With a projected dilatation, the full model's pressure coefficients p̂ at each pose
+    // shift every candidate's stress as they shift the target's.
+    let (targets, coefficients): (Vec<Vec<f64>>, Vec<Option<Vec<f64>>>) = poses
         .iter()
-        .map(|z| weigh(model.elastic_gradient(z)))
-        .collect();
+        .map(|z| match model.dilatation() {
+            None => (weigh(model.elastic_gradient(z)), None),
+            Some(_) => {
+                let deformation = model.elastic_deformation(z);
+                let coefficients = deformation
+                    .dilatation
+                    .as_ref()
+                    .map(|state| state.coefficients().to_vec());
+                (weigh(model.elastic_gradient_at(&deformation)), coefficients)
+            }
+        })
+        .unzip();
     check_budget(0)?;
     let norms: Vec<f64> = targets.iter().map(|f| norm(f)).collect();
     let kept: Vec<usize> = (0..poses.len()).filter(|&p| norms[p] > 0.0).collect();
@@ -337,7 +399,18 @@ fn optimize<M: HyperelasticMaterial>(
         .collect();
     let kept_poses: Vec<&[f64]> = kept.iter().map(|&p| poses[p].as_slice()).collect();
     let kept_norms: Vec<f64> = kept.iter().map(|&p| norms[p]).collect();
-    let candidates = CandidateForces::new(model, &pool, &kept_poses, &kept_norms, &omega);
+    let kept_coefficients: Vec<Vec<f64>> = kept
+        .iter()
+        .filter_map(|&p| coefficients[p].clone())
+        .collect();
+    let candidates = CandidateForces::new(
+        model,
+        &pool,
+        &kept_poses,
+        &kept_norms,
+        &omega,
+        &kept_coefficients,
+    );
     let pose_scales: Vec<f64> = kept_norms.iter().map(|norm| 1.0 / norm).collect();
     let mut ranking = ResidualCorrelation::new(&candidates, &omega, &pose_scales);
     check_budget(0)?;
@@ -359,7 +432,7 @@ fn optimize<M: HyperelasticMaterial>(
         .map(|(&c, &w)| (pool[c], w))
         .unzip();
     let quadrature = ElasticQuadrature::new(points, weights)?;
-    let validation_error = force_error(model, &quadrature, &validation, &omega);
+    let validation_error = force_error(model, &quadrature, &validation, &omega)?;
     let total_volume: f64 = model.volumes().iter().sum();
     let report = CubatureReport {
         points: quadrature.len(),
@@ -367,6 +440,7 @@ fn optimize<M: HyperelasticMaterial>(
         training_error,
         validation_error,
         reached_tolerance: training_error <= params.tolerance,
+        stop: selection.stop,
         weight_over_volume: quadrature.total_weight() / total_volume,
         seconds: start.elapsed().as_secs_f64(),
         cached: false,
@@ -395,26 +469,49 @@ pub fn force_weights<M: HyperelasticMaterial>(model: &ReducedModel<M>, time_step
 /// The relative force error of `quadrature` on `poses` in the `weights` norm (one weight per
 /// component of z, e.g. [`force_weights`]; all ones for the plain norm), each pose normalized
 /// to unit force: `sqrt(Σ_p ‖ω∘(f̃_p − f_p)‖² / ‖ω∘f_p‖² / #poses)` with f the full-quadrature
-/// force and f̃ the quadrature's. Poses with zero force are skipped.
+/// force and f̃ the force of the model integrated by `quadrature`
+/// ([`ReducedModel::with_elastic_quadrature`]; with a projected dilatation, its pressure
+/// projection is formed on the quadrature's points too). Poses with zero force are skipped.
+///
+/// # Errors
+/// [`QuadratureError::OutOfRange`] for a quadrature point that is not a point of the model;
+/// [`QuadratureError::Dilatation`] when the model's pressure functions are dependent at the
+/// quadrature's points.
 ///
 /// # Panics
-/// If `model` already has a quadrature, or a quadrature point is out of range.
+/// If `model` already has a quadrature.
 pub fn force_error<M: HyperelasticMaterial>(
     model: &ReducedModel<M>,
     quadrature: &ElasticQuadrature,
     poses: &[Vec<f64>],
     weights: &[f64],
-) -> f64 {
+) -> Result<f64, QuadratureError> {
     assert!(
         model.elastic_quadrature().is_none(),
         "force errors are measured against the full model"
     );
+    let n = model.deformation_map().len();
+    if let Some(&point) = quadrature.points().iter().find(|&&p| p >= n) {
+        return Err(QuadratureError::OutOfRange { point, points: n });
+    }
     let map = model.deformation_map().subset(quadrature.points());
     let lame: Vec<LameParameters> = quadrature
         .points()
         .iter()
         .map(|&i| model.lame_parameters()[i])
         .collect();
+    let dilatation = model
+        .dilatation()
+        .map(|d| {
+            d.on_points(
+                model.material(),
+                quadrature.points(),
+                quadrature.weights(),
+                &lame,
+            )
+        })
+        .transpose()
+        .map_err(QuadratureError::Dilatation)?;
     let mut sum = 0.0;
     let mut count = 0usize;
     for z in poses {
@@ -428,12 +525,15 @@ pub fn force_error<M: HyperelasticMaterial>(
         if reference == 0.0 {
             continue;
         }
-        let approx = weighted_elastic_gradient(
+        let f = map.deformation_gradients(z);
+        let state = dilatation.as_ref().map(|d| d.state(&f));
+        let approx = projected_elastic_gradient(
             model.material(),
             &map,
             &lame,
             quadrature.weights(),
-            &map.deformation_gradients(z),
+            dilatation.as_ref().zip(state.as_ref()),
+            &f,
         );
         let diff: Vec<f64> = approx
             .iter()
@@ -444,11 +544,11 @@ pub fn force_error<M: HyperelasticMaterial>(
         sum += (norm(&diff) / reference).powi(2);
         count += 1;
     }
-    if count == 0 {
+    Ok(if count == 0 {
         0.0
     } else {
         (sum / count as f64).sqrt()
-    }
+    })
 }
 
 /// The ranges the pose generator samples from must be finite (and amplitudes positive, angles

@@ -197,12 +197,7 @@ mod tests {
     #[test]
     fn correlations_and_norms_equal_those_of_the_force_columns() {
         let (model, _) = analytic_model();
-        let params = CubatureParams {
-            amplitude_levels: 2,
-            poses_per_amplitude: 2,
-            field_poses: 2,
-            ..CubatureParams::DEFAULT
-        };
+        let params = CubatureParams::FEW_POSES;
         let poses = training_poses(&model, &params).expect("poses");
         let pose_refs: Vec<&[f64]> = poses.iter().map(Vec::as_slice).collect();
         let pose_norms: Vec<f64> = (0..poses.len()).map(|k| 1.0 + k as f64).collect();
@@ -211,7 +206,7 @@ mod tests {
         // Every point: more candidates than one task's block of rows.
         let pool: Vec<usize> = (0..model.deformation_map().len()).collect();
         assert!(3 * pool.len() > ROWS_PER_TASK);
-        let candidates = CandidateForces::new(&model, &pool, &pose_refs, &pose_norms, &omega);
+        let candidates = CandidateForces::new(&model, &pool, &pose_refs, &pose_norms, &omega, &[]);
         let mut ranking = ResidualCorrelation::new(&candidates, &omega, &pose_scales);
         let rows = candidates.rows();
         let residual: Vec<f64> = (0..rows).map(|i| ((i * 7919) % 13) as f64 - 6.0).collect();
