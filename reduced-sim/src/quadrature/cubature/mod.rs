@@ -36,7 +36,7 @@
 
 use std::time::Instant;
 
-use hyperelastic::{HyperelasticMaterial, LameParameters};
+use hyperelastic::HyperelasticMaterial;
 use optimize::NnlsError;
 use rand::SeedableRng;
 use rand::seq::index::sample;
@@ -44,12 +44,12 @@ use rand_chacha::ChaCha8Rng;
 use serde::{Deserialize, Serialize};
 use thiserror::Error;
 
-use crate::model::elastic_energy::projected_elastic_gradient;
 use crate::model::elastic_quadrature::{ElasticQuadrature, QuadratureError};
 use crate::model::reduced_model::ReducedModel;
 
 mod cache;
 mod candidates;
+mod force_accuracy;
 pub(crate) mod gram;
 mod greedy;
 mod ranking;
@@ -58,6 +58,7 @@ mod training;
 pub use cache::{
     cubature_cache_path, load_cached_cubature, optimize_cubature_cached, save_cached_cubature,
 };
+pub use force_accuracy::{force_error, force_weights};
 pub use training::training_poses;
 
 use candidates::CandidateForces;
@@ -367,23 +368,7 @@ fn optimize<M: HyperelasticMaterial>(
     // Targets, weighted and normalized per pose, and the candidates' force columns with the
     // same scaling.
     let omega = force_weights(model, params.time_step);
-    let weigh = |f: Vec<f64>| -> Vec<f64> { f.iter().zip(&omega).map(|(f, w)| f * w).collect() };
-    // With a projected dilatation, the full model's pressure coefficients p̂ at each pose
-    // shift every candidate's stress as they shift the target's.
-    let (targets, coefficients): (Vec<Vec<f64>>, Vec<Option<Vec<f64>>>) = poses
-        .iter()
-        .map(|z| match model.dilatation() {
-            None => (weigh(model.elastic_gradient(z)), None),
-            Some(_) => {
-                let deformation = model.elastic_deformation(z);
-                let coefficients = deformation
-                    .dilatation
-                    .as_ref()
-                    .map(|state| state.coefficients().to_vec());
-                (weigh(model.elastic_gradient_at(&deformation)), coefficients)
-            }
-        })
-        .unzip();
+    let (targets, coefficients) = weighted_targets(model, &poses, &omega);
     check_budget(0)?;
     let norms: Vec<f64> = targets.iter().map(|f| norm(f)).collect();
     let kept: Vec<usize> = (0..poses.len()).filter(|&p| norms[p] > 0.0).collect();
@@ -449,106 +434,29 @@ fn optimize<M: HyperelasticMaterial>(
     Ok((quadrature, report))
 }
 
-/// The weights `ω_k = 1/sqrt(H_kk)` of the force components, with `H = M_z/h² + K₀` the
-/// step system at rest (K₀ the exact elastic Hessian at z = 0, M_z the reduced mass matrix,
-/// h = `time_step` in s): a force error δf moves a Newton step by about `H⁻¹ δf`, whose
-/// Jacobi approximation is `diag(ω)² δf`.
-pub fn force_weights<M: HyperelasticMaterial>(model: &ReducedModel<M>, time_step: f64) -> Vec<f64> {
-    let layout = model.deformation_map().layout();
-    let stiffness = model.elastic_hessian(&layout.rest(), hyperelastic::Tangent::Exact);
-    let mass = model.mass_block();
-    let n4 = layout.block_len();
-    (0..layout.len())
-        .map(|k| {
-            let h = stiffness[(k, k)] + mass[(k % n4, k % n4)] / (time_step * time_step);
-            if h > 0.0 { 1.0 / h.sqrt() } else { 0.0 }
-        })
-        .collect()
-}
-
-/// The relative force error of `quadrature` on `poses` in the `weights` norm (one weight per
-/// component of z, e.g. [`force_weights`]; all ones for the plain norm), each pose normalized
-/// to unit force: `sqrt(Σ_p ‖ω∘(f̃_p − f_p)‖² / ‖ω∘f_p‖² / #poses)` with f the full-quadrature
-/// force and f̃ the force of the model integrated by `quadrature`
-/// ([`ReducedModel::with_elastic_quadrature`]; with a projected dilatation, its pressure
-/// projection is formed on the quadrature's points too). Poses with zero force are skipped.
-///
-/// # Errors
-/// [`QuadratureError::OutOfRange`] for a quadrature point that is not a point of the model;
-/// [`QuadratureError::Dilatation`] when the model's pressure functions are dependent at the
-/// quadrature's points.
-///
-/// # Panics
-/// If `model` already has a quadrature.
-pub fn force_error<M: HyperelasticMaterial>(
+/// The full model's elastic force at each pose weighted by `omega` (`ω ∘ f_p`), and with a
+/// projected dilatation its pressure coefficients p̂ there, which shift every candidate's
+/// stress as they shift the target's (`None` without one).
+fn weighted_targets<M: HyperelasticMaterial>(
     model: &ReducedModel<M>,
-    quadrature: &ElasticQuadrature,
     poses: &[Vec<f64>],
-    weights: &[f64],
-) -> Result<f64, QuadratureError> {
-    assert!(
-        model.elastic_quadrature().is_none(),
-        "force errors are measured against the full model"
-    );
-    let n = model.deformation_map().len();
-    if let Some(&point) = quadrature.points().iter().find(|&&p| p >= n) {
-        return Err(QuadratureError::OutOfRange { point, points: n });
-    }
-    let map = model.deformation_map().subset(quadrature.points());
-    let lame: Vec<LameParameters> = quadrature
-        .points()
+    omega: &[f64],
+) -> (Vec<Vec<f64>>, Vec<Option<Vec<f64>>>) {
+    let weigh = |f: Vec<f64>| -> Vec<f64> { f.iter().zip(omega).map(|(f, w)| f * w).collect() };
+    poses
         .iter()
-        .map(|&i| model.lame_parameters()[i])
-        .collect();
-    let dilatation = model
-        .dilatation()
-        .map(|d| {
-            d.on_points(
-                model.material(),
-                quadrature.points(),
-                quadrature.weights(),
-                &lame,
-            )
+        .map(|z| match model.dilatation() {
+            None => (weigh(model.elastic_gradient(z)), None),
+            Some(_) => {
+                let deformation = model.elastic_deformation(z);
+                let coefficients = deformation
+                    .dilatation
+                    .as_ref()
+                    .map(|state| state.coefficients().to_vec());
+                (weigh(model.elastic_gradient_at(&deformation)), coefficients)
+            }
         })
-        .transpose()
-        .map_err(QuadratureError::Dilatation)?;
-    let mut sum = 0.0;
-    let mut count = 0usize;
-    for z in poses {
-        let full: Vec<f64> = model
-            .elastic_gradient(z)
-            .iter()
-            .zip(weights)
-            .map(|(f, w)| f * w)
-            .collect();
-        let reference = norm(&full);
-        if reference == 0.0 {
-            continue;
-        }
-        let f = map.deformation_gradients(z);
-        let state = dilatation.as_ref().map(|d| d.state(&f));
-        let approx = projected_elastic_gradient(
-            model.material(),
-            &map,
-            &lame,
-            quadrature.weights(),
-            dilatation.as_ref().zip(state.as_ref()),
-            &f,
-        );
-        let diff: Vec<f64> = approx
-            .iter()
-            .zip(&full)
-            .zip(weights)
-            .map(|((a, f), w)| a * w - f)
-            .collect();
-        sum += (norm(&diff) / reference).powi(2);
-        count += 1;
-    }
-    Ok(if count == 0 {
-        0.0
-    } else {
-        (sum / count as f64).sqrt()
-    })
+        .unzip()
 }
 
 /// The ranges the pose generator samples from must be finite (and amplitudes positive, angles
