@@ -57,9 +57,9 @@ impl CandidateForces {
                     match dilatation {
                         None => p,
                         Some(d) => {
-                            let dilatation = f.determinant() - d.rest_ratio(i);
+                            let volume_change = f.determinant() - d.rest_ratio(i);
                             let shift =
-                                d.pressure_shift_at(&pressure_coefficients[pose], i, dilatation);
+                                d.pressure_shift_at(&pressure_coefficients[pose], i, volume_change);
                             ProjectedDilatation::shifted_stress(p, f, shift)
                         }
                     }
