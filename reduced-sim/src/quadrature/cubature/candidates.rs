@@ -230,7 +230,9 @@ mod tests {
     use super::*;
     use crate::ProjectedDilatationParams;
     use crate::model::analytic_field::analytic_model;
-    use crate::quadrature::cubature::{CubatureParams, force_weights, norm, training_poses};
+    use crate::quadrature::cubature::{
+        CubatureParams, force_weights, norm, training_poses, weighted_targets,
+    };
 
     /// The full quadrature (every point at its volume) is an exact cubature of the targets,
     /// with or without a projected dilatation: the columns are split as the targets are.
@@ -247,22 +249,18 @@ mod tests {
         let params = CubatureParams::FEW_POSES;
         let poses = training_poses(&model, &params).expect("poses");
         let omega = force_weights(&model, params.time_step);
-        let mut targets = Vec::new();
-        let mut norms = Vec::new();
-        let mut coefficients = Vec::new();
-        for z in &poses {
-            let deformation = model.elastic_deformation(z);
-            let state = deformation.dilatation.as_ref().expect("a dilatation");
-            coefficients.push(state.coefficients().to_vec());
-            let target: Vec<f64> = model
-                .elastic_gradient_at(&deformation)
-                .iter()
-                .zip(&omega)
-                .map(|(f, w)| f * w)
-                .collect();
-            norms.push(norm(&target));
-            targets.extend(target.iter().map(|f| f / norm(&target)));
-        }
+        // The targets and pressure coefficients as the optimization forms them.
+        let (weighted, coefficients) = weighted_targets(&model, &poses, &omega);
+        let coefficients: Vec<Vec<f64>> = coefficients
+            .into_iter()
+            .map(|c| c.expect("a dilatation"))
+            .collect();
+        let norms: Vec<f64> = weighted.iter().map(|f| norm(f)).collect();
+        let targets: Vec<f64> = weighted
+            .iter()
+            .zip(&norms)
+            .flat_map(|(f, n)| f.iter().map(move |x| x / n))
+            .collect();
         let pose_refs: Vec<&[f64]> = poses.iter().map(Vec::as_slice).collect();
         let pool: Vec<usize> = (0..points.len()).collect();
         let candidates =
