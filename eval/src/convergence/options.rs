@@ -51,7 +51,8 @@ pub enum BoundaryTreatment {
     /// Exact on the regions shrunk by [`EXACT_INSET_KERNEL_RADII`], penalty on the band
     /// ([`PinHold::Exact`]).
     ExactInset,
-    /// The weighted basis ([`PinHold::WEIGHTED`]): exact on the whole regions, no parameter.
+    /// The weighted basis: exact on the whole regions, no parameter; the settings' transition
+    /// when their hold is weighted, else [`PinHold::WEIGHTED`]'s.
     Weighted,
 }
 
@@ -73,7 +74,10 @@ impl BoundaryTreatment {
         let pins = match self {
             BoundaryTreatment::Penalty => PinHold::Penalty,
             BoundaryTreatment::ExactInset => exact_pin_hold(base, EXACT_INSET_KERNEL_RADII)?,
-            BoundaryTreatment::Weighted => PinHold::WEIGHTED,
+            BoundaryTreatment::Weighted => match base.pins {
+                weighted @ PinHold::Weighted { .. } => weighted,
+                _ => PinHold::WEIGHTED,
+            },
         };
         Ok(ReducedSettings { pins, ..*base })
     }
