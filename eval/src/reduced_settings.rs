@@ -343,7 +343,7 @@ mod tests {
         assert!(
             projected
                 .pressure_label()
-                .contains("first ⌈3 (m + 1)⌉ Neumann modes")
+                .contains("first ⌈1 (m + 1)⌉ Neumann modes, min(λ, 0.5 μ) kept pointwise")
         );
     }
 }

@@ -301,12 +301,13 @@ fn a_projected_volumetric_term_runs_holds_its_regions_and_reports_inf_sup_consta
         6,
         // RUBBER has ν = 0.3 (λ = 1.5 μ): keep nothing pointwise, so that something is projected.
         &freeform::PressureSpaceParams {
+            mode_fraction: 3.0,
+            affine: true,
             retained_shear_multiple: 0.0,
-            ..Default::default()
         },
     )
     .unwrap();
-    // ⌈3 · (6 + 1)⌉ = 21 Neumann modes by default.
+    // The constant, the three affine functions and ⌈3 · (6 + 1)⌉ = 21 Neumann modes.
     assert_eq!(space.functions(), 1 + 3 + 21);
     let values = space.values(bar.points.positions()).unwrap();
     for (i, x) in bar.points.positions().iter().enumerate() {
