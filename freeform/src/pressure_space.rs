@@ -1,9 +1,9 @@
 //! The pressure space of the locking-free volumetric term
-//! ([`reduced_sim::ReducedModel::with_projected_dilatation`]): the constant, the affine functions
-//! and the lowest Neumann eigenmodes of the part of the object that deforms.
+//! ([`reduced_sim::ReducedModel::with_projected_dilatation`]): the constant, the lowest Neumann
+//! eigenmodes of the part of the object that deforms and, when asked for, the affine functions.
 //!
 //! ```text
-//! Q = span{ 1, (X − c)/L, W^1 … W^P }     W^j: skinning eigenmodes with free boundaries (Eq. 15)
+//! Q = span{ 1, W^1 … W^P [, (X − c)/L] }   W^j: skinning eigenmodes with free boundaries (Eq. 15)
 //! ```
 //!
 //! on the points outside the scene's held regions (values 0 inside them, so held points carry no
@@ -38,8 +38,8 @@ pub struct PressureSpaceParams {
     pub affine: bool,
     /// c: the part `min(κ, c μ)` of the volumetric modulus kept pointwise
     /// ([`reduced_sim::ProjectedDilatationParams`]; default 0.5: enough to keep a point from
-    /// flattening in a large twist, where the projected term alone lets it invert, small
-    /// enough not to lock).
+    /// flattening in a large twist, where the projected term alone lets it invert; each shear
+    /// modulus kept pointwise stiffens a bend again).
     pub retained_shear_multiple: f64,
 }
 
