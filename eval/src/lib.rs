@@ -98,6 +98,18 @@ pub enum EvalError {
     /// A reduced run could not start or stopped.
     #[error(transparent)]
     Run(#[from] freeform::RunError),
+    /// A reduced run of the beam (a row of Tables 1, 5 and 6 or of the ablation) failed;
+    /// `source` says why.
+    #[error("the beam {test} at m = {modes}")]
+    BeamRun {
+        /// The test ("bend", "twist").
+        test: &'static str,
+        /// m.
+        modes: usize,
+        /// Why it failed.
+        #[source]
+        source: Box<EvalError>,
+    },
     /// Metrics could not be computed.
     #[error(transparent)]
     Metrics(#[from] freeform::metrics::MetricsError),

@@ -141,7 +141,12 @@ pub(crate) fn evaluate_field<B: SkinningField + ?Sized>(
         reference.vertices(),
         steps,
         progress,
-    )?;
+    )
+    .map_err(|source| EvalError::BeamRun {
+        test: test.name(),
+        modes: settings.modes,
+        source: Box::new(source),
+    })?;
     let scores = reference.score(field, &run.frames, beam_length_scale())?;
     Ok(FieldEvaluation {
         run,
