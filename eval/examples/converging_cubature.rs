@@ -32,6 +32,15 @@ struct Args {
     /// Unseen poses per amplitude level (twice as many field poses).
     #[arg(long, default_value_t = 3)]
     unseen_per_amplitude: usize,
+    /// Points the greedy selection adds at least per batch.
+    #[arg(long, default_value_t = CubatureParams::DEFAULT.batch)]
+    batch: usize,
+    /// Training poses per amplitude level.
+    #[arg(long, default_value_t = CubatureParams::DEFAULT.poses_per_amplitude)]
+    poses_per_amplitude: usize,
+    /// Training twists and bends.
+    #[arg(long, default_value_t = CubatureParams::DEFAULT.field_poses)]
+    field_poses: usize,
 }
 
 /// `‖ω ∘ (a − b)‖ / ‖ω ∘ b‖`.
@@ -86,6 +95,9 @@ fn main() -> anyhow::Result<()> {
             let full = model(projected)?;
             let params = CubatureParams {
                 candidates,
+                batch: args.batch,
+                poses_per_amplitude: args.poses_per_amplitude,
+                field_poses: args.field_poses,
                 ..CubatureParams::DEFAULT
             };
             let start = Instant::now();

@@ -124,6 +124,7 @@ pub(crate) struct DilatationState {
 
 impl DilatationState {
     /// `p̂ = G⁻¹ r` (P): the pressure coefficients.
+    #[cfg(test)]
     pub(crate) fn coefficients(&self) -> &[f64] {
         &self.coefficients
     }
@@ -333,7 +334,7 @@ impl ProjectedDilatation {
     }
 
     /// `q(X_q)` of elastic point q (P).
-    fn pressure_row(&self, q: usize) -> &[f64] {
+    pub(crate) fn pressure_row(&self, q: usize) -> &[f64] {
         let size = self.functions();
         &self.elastic_pressure[q * size..(q + 1) * size]
     }

@@ -381,15 +381,20 @@ impl<M: HyperelasticMaterial> ReducedModel<M> {
             "one vector per integration point"
         );
         let n4 = self.map.layout().block_len();
+        // Σ_i ρ_i v_i B_iᵀ u_i as one product: the points' b_i side by side times the weighted
+        // field (N × 3).
+        let weighted = Mat::<f64>::from_fn(field.len(), 3, |i, r| {
+            self.densities[i] * self.volumes[i] * field[i][r]
+        });
         let mut rhs = Mat::<f64>::zeros(n4, 3);
-        for (i, u) in field.iter().enumerate() {
-            let w = self.densities[i] * self.volumes[i];
-            for (k, b) in self.map.position_row(i).iter().enumerate() {
-                for r in 0..3 {
-                    rhs[(k, r)] += w * b * u[r];
-                }
-            }
-        }
+        faer::linalg::matmul::matmul(
+            rhs.as_mut(),
+            faer::Accum::Replace,
+            self.map.position_matrix(),
+            weighted.as_ref(),
+            1.0,
+            faer::Par::rayon(0),
+        );
         use faer::linalg::solvers::Solve;
         self.mass_factor.solve_in_place(rhs.as_mut());
         (0..3)

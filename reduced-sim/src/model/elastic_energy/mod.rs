@@ -592,5 +592,7 @@ impl<E: Fn(usize, &Matrix3<f64>) -> f64> pulp::WithSimd for EnergyPart<'_, E> {
     }
 }
 
+mod hessian_diagonal;
+mod many_poses;
 #[cfg(test)]
 mod tests;

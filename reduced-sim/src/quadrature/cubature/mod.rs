@@ -436,31 +436,27 @@ fn optimize<M: HyperelasticMaterial>(
 
 /// The full model's elastic force at each pose weighted by `omega` (`ω ∘ f_p`), and with a
 /// projected dilatation its pressure coefficients p̂ there, which shift every candidate's
-/// stress as they shift the target's (`None` without one).
+/// stress as they shift the target's (`None` without one). All poses at once
+/// ([`ReducedModel::elastic_gradients`]).
 fn weighted_targets<M: HyperelasticMaterial>(
     model: &ReducedModel<M>,
     poses: &[Vec<f64>],
     omega: &[f64],
 ) -> (Vec<Vec<f64>>, Vec<Option<Vec<f64>>>) {
-    let weigh = |f: Vec<f64>| -> Vec<f64> { f.iter().zip(omega).map(|(f, w)| f * w).collect() };
-    poses
+    let many = model.many_pose_gradients(poses);
+    let targets = many
+        .gradients
         .iter()
-        .map(|z| match model.dilatation() {
-            None => (weigh(model.elastic_gradient(z)), None),
-            Some(_) => {
-                let deformation = model.elastic_deformation(z);
-                let coefficients = deformation
-                    .dilatation
-                    .as_ref()
-                    .map(|state| state.coefficients().to_vec());
-                (weigh(model.elastic_gradient_at(&deformation)), coefficients)
-            }
-        })
-        .unzip()
+        .map(|f| f.iter().zip(omega).map(|(f, w)| f * w).collect())
+        .collect();
+    let coefficients = if many.pressure_coefficients.is_empty() {
+        vec![None; poses.len()]
+    } else {
+        many.pressure_coefficients.into_iter().map(Some).collect()
+    };
+    (targets, coefficients)
 }
 
-/// The ranges the pose generator samples from must be finite (and amplitudes positive, angles
-/// non-negative): checked before any is drawn.
 fn check_pose_ranges(params: &CubatureParams, amplitudes: &[f64]) -> Result<(), CubatureError> {
     if let Some(a) = amplitudes.iter().find(|a| !(a.is_finite() && **a > 0.0)) {
         return Err(CubatureError::Params(format!(

@@ -5,6 +5,7 @@ use nalgebra::{Matrix3, Rotation3, Unit, Vector3};
 use rand::seq::index::sample;
 use rand::{Rng, SeedableRng};
 use rand_chacha::ChaCha8Rng;
+use rayon::prelude::*;
 
 use crate::model::deformation_map::DeformationMap;
 use crate::model::reduced_model::ReducedModel;
@@ -81,7 +82,7 @@ pub fn training_poses<M: HyperelasticMaterial>(
         };
         let displacement: Vec<Vector3<f64>> = model
             .rest_positions()
-            .iter()
+            .par_iter()
             .map(|x| {
                 let r = x - center;
                 let angle = total * r.dot(&axis) / extent;
