@@ -314,25 +314,6 @@ impl ProjectedDilatation {
         self.volumetric[q].rest_ratio
     }
 
-    /// The same term on the elastic points `points` (indices into the current elastic points)
-    /// with weights `weights` and Lamé parameters `lame`, its pressure values restricted to
-    /// those points.
-    ///
-    /// # Errors
-    /// [`ProjectedDilatationError::DependentFunctions`] when the functions are dependent at
-    /// `points` with these weights.
-    pub(crate) fn on_points<M: HyperelasticMaterial>(
-        &self,
-        material: &M,
-        points: &[usize],
-        weights: &[f64],
-        lame: &[LameParameters],
-    ) -> Result<Self, ProjectedDilatationError> {
-        let size = self.functions();
-        let values = DMatrix::from_fn(points.len(), size, |i, b| self.pressure_row(points[i])[b]);
-        ProjectedDilatation::new(material, values, self.params, None, weights, lame)
-    }
-
     /// `q(X_q)` of elastic point q (P).
     pub(crate) fn pressure_row(&self, q: usize) -> &[f64] {
         let size = self.functions();

@@ -247,26 +247,52 @@ impl<M: HyperelasticMaterial> ReducedModel<M> {
         &mut self,
         quadrature: ElasticQuadrature,
     ) -> Result<(), QuadratureError> {
+        let (subset, dilatation) = self.elastic_subset(quadrature)?;
+        self.elastic = Some(subset);
+        if dilatation.is_some() {
+            self.dilatation = dilatation;
+        }
+        Ok(())
+    }
+
+    /// The map, Lamé parameters and projected dilatation (if the model has one) of the
+    /// model's points integrated by `quadrature`, without changing the model: what
+    /// [`ReducedModel::set_elastic_quadrature`] installs, and what a force error of the
+    /// quadrature against the full model reads.
+    ///
+    /// # Errors
+    /// [`QuadratureError::OutOfRange`] for a quadrature point that is not a point of the model;
+    /// [`QuadratureError::Dilatation`] when the pressure functions are dependent at the
+    /// quadrature's points.
+    pub(crate) fn elastic_subset(
+        &self,
+        quadrature: ElasticQuadrature,
+    ) -> Result<(ElasticSubset, Option<ProjectedDilatation>), QuadratureError> {
         let n = self.map.len();
         if let Some(&point) = quadrature.points().iter().find(|&&p| p >= n) {
             return Err(QuadratureError::OutOfRange { point, points: n });
         }
-        let previous = self.elastic.replace(ElasticSubset {
+        let subset = ElasticSubset {
             map: self.map.subset(quadrature.points()),
             lame: quadrature.points().iter().map(|&i| self.lame[i]).collect(),
             quadrature,
-        });
-        if let Some(dilatation) = &self.dilatation {
-            let pressure = dilatation.pressure().clone();
-            match self.dilatation_on_elastic_points(pressure, dilatation.params()) {
-                Ok(moved) => self.dilatation = Some(moved),
-                Err(e) => {
-                    self.elastic = previous;
-                    return Err(QuadratureError::Dilatation(e));
-                }
-            }
-        }
-        Ok(())
+        };
+        let dilatation = self
+            .dilatation
+            .as_ref()
+            .map(|d| {
+                ProjectedDilatation::new(
+                    &self.material,
+                    d.pressure().clone(),
+                    d.params(),
+                    Some(subset.quadrature.points()),
+                    subset.quadrature.weights(),
+                    &subset.lame,
+                )
+            })
+            .transpose()
+            .map_err(QuadratureError::Dilatation)?;
+        Ok((subset, dilatation))
     }
 
     /// The elastic quadrature set by [`ReducedModel::with_elastic_quadrature`], or `None` when
@@ -405,10 +431,13 @@ impl<M: HyperelasticMaterial> ReducedModel<M> {
 }
 
 /// An elastic quadrature with the deformation map and materials restricted to its points.
-struct ElasticSubset {
-    quadrature: ElasticQuadrature,
-    map: DeformationMap,
-    lame: Vec<LameParameters>,
+pub(crate) struct ElasticSubset {
+    /// The points and their weights (m³).
+    pub(crate) quadrature: ElasticQuadrature,
+    /// The deformation map at the quadrature's points.
+    pub(crate) map: DeformationMap,
+    /// The Lamé parameters at the quadrature's points.
+    pub(crate) lame: Vec<LameParameters>,
 }
 
 /// `y ← y + s · blockdiag(A, A, A) x` for a small dense square A (`n × n`; x and y of length

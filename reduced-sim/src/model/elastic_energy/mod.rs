@@ -234,92 +234,6 @@ impl<M: HyperelasticMaterial> ReducedModel<M> {
             .collect()
     }
 
-    /// Adds `(∂r/∂z)ᵀ G⁻¹ (∂r/∂z)` of the projected dilatation to `h`
-    /// ([`crate::model::projected_dilatation`]): `X = (∂r/∂z)ᵀ G⁻¹`, then the lower triangle
-    /// of `X (∂r/∂z)`, mirrored.
-    fn add_dilatation_rank_update(
-        &self,
-        d: &ProjectedDilatation,
-        f: &[Matrix3<f64>],
-        h: &mut Mat<f64>,
-    ) {
-        let functions = d.functions();
-        let len = h.nrows();
-        let jacobian_t = self.dilatation_jacobian_transpose(d, f);
-        let g = d.gram_inverse();
-        let g = Mat::from_fn(functions, functions, |a, b| g[(a, b)]);
-        let mut x = Mat::<f64>::zeros(len, functions);
-        faer::linalg::matmul::matmul(
-            x.as_mut(),
-            Accum::Replace,
-            jacobian_t.as_ref(),
-            g.as_ref(),
-            1.0,
-            Par::Seq,
-        );
-        let mut update = Mat::<f64>::zeros(len, len);
-        triangular::matmul(
-            update.as_mut(),
-            BlockStructure::TriangularLower,
-            Accum::Replace,
-            x.as_ref(),
-            BlockStructure::Rectangular,
-            jacobian_t.transpose(),
-            BlockStructure::Rectangular,
-            1.0,
-            Par::rayon(0),
-        );
-        for j in 0..len {
-            for i in j..len {
-                let v = update[(i, j)];
-                h[(i, j)] += v;
-                if i != j {
-                    h[(j, i)] += v;
-                }
-            }
-        }
-    }
-
-    /// `(∂r/∂z)ᵀ` of the projected dilatation (12(m + 1) × P) at the elastic points'
-    /// deformation gradients `f`: column b is `Σ_q w_q κ_q q_b(X_q) ∂J_q/∂z`, formed as one
-    /// product `V Q` with column q of V `w_q κ_q ∂J_q/∂z` (entry `r·4(m+1) + a` is
-    /// `w_q κ_q Σ_s G_q[a, s] cof F_q[r, s]`) and Q the pressure values (N × P).
-    fn dilatation_jacobian_transpose(
-        &self,
-        d: &ProjectedDilatation,
-        f: &[Matrix3<f64>],
-    ) -> Mat<f64> {
-        let map = self.elastic_map();
-        let n4 = map.layout().block_len();
-        let mut v = Mat::<f64>::zeros(3 * n4, f.len());
-        for (q, fq) in f.iter().enumerate() {
-            let c = hyperelastic::cofactor(fq) * d.weighted_modulus(q);
-            let (g0, rest) = map.gradient_block(q).split_at(n4);
-            let (g1, g2) = rest.split_at(n4);
-            let column = v
-                .col_mut(q)
-                .try_as_col_major_mut()
-                .expect("a column of an owned matrix is contiguous")
-                .as_slice_mut();
-            for (r, out) in column.chunks_exact_mut(n4).enumerate() {
-                let [c0, c1, c2] = [c[(r, 0)], c[(r, 1)], c[(r, 2)]];
-                for (((o, x), y), w) in out.iter_mut().zip(g0).zip(g1).zip(g2) {
-                    *o = x * c0 + y * c1 + w * c2;
-                }
-            }
-        }
-        let mut jacobian_t = Mat::<f64>::zeros(3 * n4, d.functions());
-        faer::linalg::matmul::matmul(
-            jacobian_t.as_mut(),
-            Accum::Replace,
-            v.as_ref(),
-            d.elastic_pressure(),
-            1.0,
-            Par::rayon(0),
-        );
-        jacobian_t
-    }
-
     /// The six blocks `Σ_i G_i A_i^{rq} G_iᵀ` (r, q in [`BLOCK_PAIRS`] order, each
     /// `4(m+1) × 4(m+1)`, the diagonal ones lower triangle only) over the points in `range`,
     /// on this thread.
@@ -592,6 +506,7 @@ impl<E: Fn(usize, &Matrix3<f64>) -> f64> pulp::WithSimd for EnergyPart<'_, E> {
     }
 }
 
+mod dilatation_jacobian;
 mod hessian_diagonal;
 mod many_poses;
 #[cfg(test)]

@@ -1,7 +1,7 @@
 //! How far a quadrature's reduced elastic forces are from the full model's: the compliance
 //! weights of the force components and the relative force error over poses.
 
-use hyperelastic::{HyperelasticMaterial, LameParameters};
+use hyperelastic::HyperelasticMaterial;
 
 use crate::model::elastic_energy::projected_elastic_gradient;
 use crate::model::elastic_quadrature::{ElasticQuadrature, QuadratureError};
@@ -50,28 +50,7 @@ pub fn force_error<M: HyperelasticMaterial>(
         model.elastic_quadrature().is_none(),
         "force errors are measured against the full model"
     );
-    let n = model.deformation_map().len();
-    if let Some(&point) = quadrature.points().iter().find(|&&p| p >= n) {
-        return Err(QuadratureError::OutOfRange { point, points: n });
-    }
-    let map = model.deformation_map().subset(quadrature.points());
-    let lame: Vec<LameParameters> = quadrature
-        .points()
-        .iter()
-        .map(|&i| model.lame_parameters()[i])
-        .collect();
-    let dilatation = model
-        .dilatation()
-        .map(|d| {
-            d.on_points(
-                model.material(),
-                quadrature.points(),
-                quadrature.weights(),
-                &lame,
-            )
-        })
-        .transpose()
-        .map_err(QuadratureError::Dilatation)?;
+    let (subset, dilatation) = model.elastic_subset(quadrature.clone())?;
     let mut sum = 0.0;
     let mut count = 0usize;
     for (z, full) in poses.iter().zip(model.elastic_gradients(poses)) {
@@ -80,13 +59,13 @@ pub fn force_error<M: HyperelasticMaterial>(
         if reference == 0.0 {
             continue;
         }
-        let f = map.deformation_gradients(z);
+        let f = subset.map.deformation_gradients(z);
         let state = dilatation.as_ref().map(|d| d.state(&f));
         let approx = projected_elastic_gradient(
             model.material(),
-            &map,
-            &lame,
-            quadrature.weights(),
+            &subset.map,
+            &subset.lame,
+            subset.quadrature.weights(),
             dilatation.as_ref().zip(state.as_ref()),
             &f,
         );

@@ -53,9 +53,10 @@ impl ResidualCorrelation {
         let gradients: Vec<f32> = (0..count)
             .flat_map(|c| candidates.gradient_block(c).iter().map(|&g| g as f32))
             .collect();
-        // Per candidate: its stresses (3 × 3K) into S, and its column's norm from the factors:
+        // Per candidate, its column's norm from the factors:
         // ‖A_c‖² = Σ_r Σ_{t,u} (Σ_a ω_ra² G[a,t] G[a,u]) (Σ_k P_k[r,t] P_k[r,u] / ‖f_k‖²).
-        let per_candidate: Vec<(Vec<f64>, f64)> = (0..count)
+        let squared_scales: Vec<f64> = pose_scales.iter().map(|p| p * p).collect();
+        let norms: Vec<f64> = (0..count)
             .into_par_iter()
             .map(|c| {
                 let stresses = candidates.stresses(c);
@@ -63,43 +64,56 @@ impl ResidualCorrelation {
                 let mut squared = 0.0;
                 for r in 0..3 {
                     let w = &omega[r * n4..(r + 1) * n4];
+                    let column = |t: usize| &g[t * n4..(t + 1) * n4];
+                    let mut gradient_part = [[0.0; 3]; 3];
+                    let mut stress_part = [[0.0; 3]; 3];
                     for t in 0..3 {
-                        for u in 0..3 {
-                            let gradient_part: f64 = (0..n4)
-                                .map(|a| w[a] * w[a] * g[t * n4 + a] * g[u * n4 + a])
+                        for u in t..3 {
+                            let x: f64 = w
+                                .iter()
+                                .zip(column(t))
+                                .zip(column(u))
+                                .map(|((w, a), b)| w * w * a * b)
                                 .sum();
-                            let stress_part: f64 = pose_scales
+                            let y: f64 = squared_scales
                                 .iter()
                                 .enumerate()
                                 .map(|(k, p)| {
-                                    p * p * stresses[(t, 3 * k + r)] * stresses[(u, 3 * k + r)]
+                                    p * stresses[(t, 3 * k + r)] * stresses[(u, 3 * k + r)]
                                 })
                                 .sum();
-                            squared += gradient_part * stress_part;
+                            (gradient_part[t][u], gradient_part[u][t]) = (x, x);
+                            (stress_part[t][u], stress_part[u][t]) = (y, y);
+                        }
+                    }
+                    for t in 0..3 {
+                        for u in 0..3 {
+                            squared += gradient_part[t][u] * stress_part[t][u];
                         }
                     }
                 }
-                let flat = (0..3 * poses)
-                    .flat_map(|j| (0..3).map(move |t| (t, j)))
-                    .map(|(t, j)| stresses[(t, j)])
-                    .collect();
-                (flat, squared.max(0.0).sqrt())
+                squared.max(0.0).sqrt()
             })
             .collect();
+        // S in f32, a column (pose and row r) at a time: each task writes contiguous memory.
         let mut stresses = vec![0.0_f32; rows * 3 * poses];
-        for (c, (flat, _)) in per_candidate.iter().enumerate() {
-            for j in 0..3 * poses {
-                for t in 0..3 {
-                    stresses[j * rows + 3 * c + t] = flat[3 * j + t] as f32;
+        stresses
+            .par_chunks_mut(rows)
+            .enumerate()
+            .for_each(|(j, column)| {
+                for (c, out) in column.chunks_exact_mut(3).enumerate() {
+                    let s = candidates.stresses(c);
+                    for (t, out) in out.iter_mut().enumerate() {
+                        *out = s[(t, j)] as f32;
+                    }
                 }
-            }
-        }
+            });
         ResidualCorrelation {
             block_len: n4,
             gradients,
             stresses,
             scale: candidates.scales().to_vec(),
-            norms: per_candidate.into_iter().map(|(_, norm)| norm).collect(),
+            norms,
             members: (0..count).collect(),
         }
     }
