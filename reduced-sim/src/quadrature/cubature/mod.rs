@@ -457,6 +457,8 @@ fn weighted_targets<M: HyperelasticMaterial>(
     (targets, coefficients)
 }
 
+/// The ranges the pose generator samples from must be finite (and amplitudes positive, angles
+/// non-negative): checked before any is drawn.
 fn check_pose_ranges(params: &CubatureParams, amplitudes: &[f64]) -> Result<(), CubatureError> {
     if let Some(a) = amplitudes.iter().find(|a| !(a.is_finite() && **a > 0.0)) {
         return Err(CubatureError::Params(format!(
