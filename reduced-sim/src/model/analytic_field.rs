@@ -77,6 +77,15 @@ pub(crate) fn analytic_model_with_spacing(
     (model, points)
 }
 
+/// The constant and the three linear functions at `points` (N × 4): a pressure space for a
+/// projected dilatation in tests.
+pub(crate) fn affine_pressure(points: &IntegrationPoints) -> DMatrix<f64> {
+    DMatrix::from_fn(points.len(), 4, |i, b| match b {
+        0 => 1.0,
+        _ => points.positions()[i][b - 1],
+    })
+}
+
 /// A deterministic z of length `len` and moderate amplitude (|F − I| about 0.1 at 0.02).
 pub(crate) fn probe_z(len: usize, amplitude: f64) -> Vec<f64> {
     (0..len)

@@ -106,19 +106,14 @@ impl<M: HyperelasticMaterial> ReducedModel<M> {
 
 #[cfg(test)]
 mod tests {
-    use hyperelastic::Tangent;
-    use nalgebra::DMatrix;
-
     use crate::ProjectedDilatationParams;
-    use crate::model::analytic_field::{analytic_model, probe_z};
+    use crate::model::analytic_field::{affine_pressure, analytic_model, probe_z};
+    use hyperelastic::Tangent;
 
     #[test]
     fn hessian_diagonal_equals_the_diagonal_of_the_hessian_with_and_without_a_dilatation() {
         let (model, points) = analytic_model();
-        let pressure = DMatrix::from_fn(points.len(), 4, |i, b| match b {
-            0 => 1.0,
-            _ => points.positions()[i][b - 1],
-        });
+        let pressure = affine_pressure(&points);
         let projected = analytic_model()
             .0
             .with_projected_dilatation(pressure, ProjectedDilatationParams::default())

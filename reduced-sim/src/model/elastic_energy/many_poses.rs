@@ -230,10 +230,8 @@ fn pressure_coefficients(
 
 #[cfg(test)]
 mod tests {
-    use nalgebra::DMatrix;
-
     use crate::ProjectedDilatationParams;
-    use crate::model::analytic_field::{analytic_model_with_spacing, probe_z};
+    use crate::model::analytic_field::{affine_pressure, analytic_model_with_spacing, probe_z};
 
     /// Largest relative difference of `many` from `single`, pose by pose.
     fn largest_relative_difference(many: &[Vec<f64>], single: &[Vec<f64>]) -> f64 {
@@ -270,10 +268,7 @@ mod tests {
     #[test]
     fn gradients_and_pressures_at_many_poses_equal_those_of_one_pose_with_a_projected_dilatation() {
         let (model, points) = analytic_model_with_spacing(0.1);
-        let pressure = DMatrix::from_fn(points.len(), 4, |i, b| match b {
-            0 => 1.0,
-            _ => points.positions()[i][b - 1],
-        });
+        let pressure = affine_pressure(&points);
         let model = model
             .with_projected_dilatation(pressure, ProjectedDilatationParams::default())
             .expect("independent functions");

@@ -225,11 +225,9 @@ fn stresses_at(
 
 #[cfg(test)]
 mod tests {
-    use nalgebra::DMatrix;
-
     use super::*;
     use crate::ProjectedDilatationParams;
-    use crate::model::analytic_field::analytic_model;
+    use crate::model::analytic_field::{affine_pressure, analytic_model};
     use crate::quadrature::cubature::{
         CubatureParams, force_weights, norm, training_poses, weighted_targets,
     };
@@ -239,10 +237,7 @@ mod tests {
     #[test]
     fn every_point_at_its_volume_sums_to_the_targets_with_a_projected_dilatation() {
         let (model, points) = analytic_model();
-        let pressure = DMatrix::from_fn(points.len(), 4, |i, b| match b {
-            0 => 1.0,
-            _ => points.positions()[i][b - 1],
-        });
+        let pressure = affine_pressure(&points);
         let model = model
             .with_projected_dilatation(pressure, ProjectedDilatationParams::default())
             .expect("independent functions");
