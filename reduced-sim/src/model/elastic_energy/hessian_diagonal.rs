@@ -4,7 +4,6 @@
 use hyperelastic::{HyperelasticMaterial, Matrix9, Tangent};
 use rayon::prelude::*;
 
-use crate::model::projected_dilatation::ProjectedDilatation;
 use crate::model::reduced_model::ReducedModel;
 
 /// Points whose tangents are formed together.
@@ -23,9 +22,7 @@ impl<M: HyperelasticMaterial> ReducedModel<M> {
         let f = &deformation.gradients;
         let map = self.elastic_map();
         let n4 = map.layout().block_len();
-        let (material, lame, weights) =
-            (self.material(), self.elastic_lame(), self.elastic_weights());
-        let dilatation = self.dilatation().zip(deformation.dilatation.as_ref());
+        let shift = self.pressure_shifts(&deformation);
         let chunks: Vec<Vec<f64>> = (0..f.len().div_ceil(POINTS_PER_CHUNK))
             .into_par_iter()
             .map(|chunk| {
@@ -33,36 +30,10 @@ impl<M: HyperelasticMaterial> ReducedModel<M> {
                 let end = (start + POINTS_PER_CHUNK).min(f.len());
                 let mut tangents = [Matrix9::zeros(); POINTS_PER_CHUNK];
                 let tangents = &mut tangents[..end - start];
-                match dilatation {
-                    Some((d, state)) => {
-                        material.stress_derivatives(
-                            &lame[start..end],
-                            &f[start..end],
-                            Tangent::Exact,
-                            tangents,
-                        );
-                        for (k, t) in tangents.iter_mut().enumerate() {
-                            let i = start + k;
-                            let shift = d.pressure_shift(state, i);
-                            *t = ProjectedDilatation::shifted_tangent(
-                                t,
-                                &f[i],
-                                d.modulus(i),
-                                shift,
-                                tangent,
-                            );
-                        }
-                    }
-                    None => material.stress_derivatives(
-                        &lame[start..end],
-                        &f[start..end],
-                        tangent,
-                        tangents,
-                    ),
-                }
+                self.weighted_tangents(f, start..end, tangent, shift.as_deref(), tangents);
                 let mut sum = vec![0.0; 3 * n4];
                 for (k, d) in tangents.iter().enumerate() {
-                    let (g, w) = (map.gradient_block(start + k), weights[start + k]);
+                    let g = map.gradient_block(start + k);
                     for (r, out) in sum.chunks_exact_mut(n4).enumerate() {
                         for (a, out) in out.iter_mut().enumerate() {
                             let ga = [g[a], g[n4 + a], g[2 * n4 + a]];
@@ -72,7 +43,7 @@ impl<M: HyperelasticMaterial> ReducedModel<M> {
                                     x += ga[s] * d[(3 * s + r, 3 * t + r)] * ga[t];
                                 }
                             }
-                            *out += w * x;
+                            *out += x;
                         }
                     }
                 }

@@ -149,11 +149,7 @@ impl<M: HyperelasticMaterial> ReducedModel<M> {
         let n4 = map.layout().block_len();
         let parts = rayon::current_num_threads().clamp(1, n.div_ceil(POINTS_PER_CHUNK));
         let part_len = n.div_ceil(parts);
-        let shift: Option<Vec<f64>> = deformation
-            .dilatation
-            .as_ref()
-            .zip(self.dilatation())
-            .map(|(state, d)| (0..n).map(|q| d.pressure_shift(state, q)).collect());
+        let shift = self.pressure_shifts(deformation);
         let blocks: Vec<[Mat<f64>; 6]> = (0..parts)
             .into_par_iter()
             .map(|part| {
@@ -234,6 +230,51 @@ impl<M: HyperelasticMaterial> ReducedModel<M> {
             .collect()
     }
 
+    /// Each elastic point's `κ_q (p_q − (J_q − γ_q))` in `deformation`
+    /// ([`ProjectedDilatation::pressure_shift`]); `None` without a projected dilatation.
+    fn pressure_shifts(&self, deformation: &ElasticDeformation) -> Option<Vec<f64>> {
+        let n = deformation.gradients.len();
+        deformation
+            .dilatation
+            .as_ref()
+            .zip(self.dilatation())
+            .map(|(state, d)| (0..n).map(|q| d.pressure_shift(state, q)).collect())
+    }
+
+    /// The weighted tangents `w_i ∂P/∂F(F_i)` of the elastic points `range` into `out` (one
+    /// per point), shifted by the projected dilatation (`pressure_shift`, one per elastic
+    /// point, when given) and treated as `tangent` asks.
+    fn weighted_tangents(
+        &self,
+        f: &[Matrix3<f64>],
+        range: std::ops::Range<usize>,
+        tangent: Tangent,
+        pressure_shift: Option<&[f64]>,
+        out: &mut [Matrix9],
+    ) {
+        let (material, lame) = (self.material(), self.elastic_lame());
+        let (start, end) = (range.start, range.end);
+        match (pressure_shift, self.dilatation()) {
+            (Some(shift), Some(d)) => {
+                material.stress_derivatives(&lame[start..end], &f[start..end], Tangent::Exact, out);
+                for (k, t) in out.iter_mut().enumerate() {
+                    let i = start + k;
+                    *t = ProjectedDilatation::shifted_tangent(
+                        t,
+                        &f[i],
+                        d.modulus(i),
+                        shift[i],
+                        tangent,
+                    );
+                }
+            }
+            _ => material.stress_derivatives(&lame[start..end], &f[start..end], tangent, out),
+        }
+        for (d, w) in out.iter_mut().zip(&self.elastic_weights()[start..end]) {
+            *d *= *w;
+        }
+    }
+
     /// The six blocks `Σ_i G_i A_i^{rq} G_iᵀ` (r, q in [`BLOCK_PAIRS`] order, each
     /// `4(m+1) × 4(m+1)`, the diagonal ones lower triangle only) over the points in `range`,
     /// on this thread.
@@ -244,9 +285,6 @@ impl<M: HyperelasticMaterial> ReducedModel<M> {
         tangent: Tangent,
         pressure_shift: Option<&[f64]>,
     ) -> [Mat<f64>; 6] {
-        let material = self.material();
-        let lame = self.elastic_lame();
-        let weights = self.elastic_weights();
         let map = self.elastic_map();
         let n4 = map.layout().block_len();
         let g = map.gradient_matrix();
@@ -259,35 +297,7 @@ impl<M: HyperelasticMaterial> ReducedModel<M> {
         for start in range.clone().step_by(POINTS_PER_CHUNK) {
             let end = (start + POINTS_PER_CHUNK).min(range.end);
             let len = end - start;
-            match (pressure_shift, self.dilatation()) {
-                (Some(shift), Some(d)) => {
-                    material.stress_derivatives(
-                        &lame[start..end],
-                        &f[start..end],
-                        Tangent::Exact,
-                        &mut tangents[..len],
-                    );
-                    for (k, t) in tangents[..len].iter_mut().enumerate() {
-                        let i = start + k;
-                        *t = ProjectedDilatation::shifted_tangent(
-                            t,
-                            &f[i],
-                            d.modulus(i),
-                            shift[i],
-                            tangent,
-                        );
-                    }
-                }
-                _ => material.stress_derivatives(
-                    &lame[start..end],
-                    &f[start..end],
-                    tangent,
-                    &mut tangents[..len],
-                ),
-            }
-            for (d, w) in tangents.iter_mut().zip(&weights[start..end]) {
-                *d *= *w;
-            }
+            self.weighted_tangents(f, start..end, tangent, pressure_shift, &mut tangents[..len]);
             let g_chunk = g.subcols(3 * start, 3 * len);
             for ((r, q), block) in BLOCK_PAIRS.into_iter().zip(blocks.iter_mut()) {
                 let t_chunk = &mut t_buffer[..3 * n4 * len];
