@@ -35,6 +35,9 @@ struct Args {
     /// Points the greedy selection adds at least per batch.
     #[arg(long, default_value_t = CubatureParams::DEFAULT.batch)]
     batch: usize,
+    /// Least distance between the points of one batch, in candidate spacings (0: none).
+    #[arg(long, default_value_t = CubatureParams::DEFAULT.batch_spacing)]
+    batch_spacing: f64,
     /// Training poses per amplitude level.
     #[arg(long, default_value_t = CubatureParams::DEFAULT.poses_per_amplitude)]
     poses_per_amplitude: usize,
@@ -96,6 +99,7 @@ fn main() -> anyhow::Result<()> {
             let params = CubatureParams {
                 candidates,
                 batch: args.batch,
+                batch_spacing: args.batch_spacing,
                 poses_per_amplitude: args.poses_per_amplitude,
                 field_poses: args.field_poses,
                 ..CubatureParams::DEFAULT

@@ -189,6 +189,16 @@ fn invalid_quadratures_and_options_are_refused_with_the_problem_named() {
         optimize_cubature(&model, &bad),
         Err(CubatureError::Params(_))
     ));
+    for batch_spacing in [-1.0, f64::NAN] {
+        let bad = CubatureParams {
+            batch_spacing,
+            ..CubatureParams::DEFAULT
+        };
+        assert!(matches!(
+            optimize_cubature(&model, &bad),
+            Err(CubatureError::Params(message)) if message.contains("batch_spacing")
+        ));
+    }
     // A range the poses are drawn from that is not finite is refused before any draw.
     let bad = CubatureParams {
         max_twist: f64::NAN,

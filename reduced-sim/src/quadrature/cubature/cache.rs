@@ -17,9 +17,9 @@ use super::{CubatureError, CubatureParams, CubatureReport, optimize_cubature};
 /// product, which round differently; 4: the approximations' F from the targets' SIMD kernel
 /// and the Gram columns from per-point factors, which round differently again; 5: on a model
 /// with a projected dilatation, the candidates' stresses shifted by the full model's pressure
-/// and the pressure space in the key).
+/// and the pressure space in the key; 6: batches spread out by `batch_spacing`).
 const CUBATURE_MAGIC: &[u8] = b"FREEFORM-CUBATURE";
-const CUBATURE_FORMAT_VERSION: u32 = 5;
+const CUBATURE_FORMAT_VERSION: u32 = 6;
 
 /// A cached cubature: its points, weights and the report of its optimization.
 #[derive(Serialize, Deserialize)]

@@ -2,7 +2,7 @@
 
 use faer::{Accum, Mat, MatMut, MatRef, Par};
 use hyperelastic::HyperelasticMaterial;
-use nalgebra::Matrix3;
+use nalgebra::{Matrix3, Vector3};
 use rayon::prelude::*;
 
 use crate::model::projected_dilatation::ProjectedDilatation;
@@ -26,6 +26,11 @@ pub(super) struct CandidateForces {
     block_len: usize,
     /// K.
     pose_count: usize,
+    /// Rest position of each candidate (m).
+    positions: Vec<Vector3<f64>>,
+    /// The mean distance between candidates, `(V / C)^(1/3)` (m; V the model's volume, C the
+    /// candidates).
+    spacing: f64,
 }
 
 impl CandidateForces {
@@ -79,7 +84,20 @@ impl CandidateForces {
                 .collect(),
             block_len,
             pose_count: poses.len(),
+            positions: pool.iter().map(|&i| model.rest_positions()[i]).collect(),
+            spacing: (model.volumes().iter().sum::<f64>() / pool.len().max(1) as f64).cbrt(),
         }
+    }
+
+    /// Candidate c's rest position (m).
+    pub(super) fn position(&self, c: usize) -> Vector3<f64> {
+        self.positions[c]
+    }
+
+    /// The mean distance between candidates, `(V / C)^(1/3)` (m): V the model's volume, C the
+    /// candidates.
+    pub(super) fn spacing(&self) -> f64 {
+        self.spacing
     }
 
     /// The scale of each row of a column: `ω / ‖f_k‖` (`3K · 4(m+1)`).

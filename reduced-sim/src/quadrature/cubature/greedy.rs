@@ -1,6 +1,7 @@
 //! The greedy selection of cubature points with warm-started non-negative weights.
 
 use faer::Mat;
+use nalgebra::Vector3;
 use optimize::{NnlsFactor, NnlsParams, NnlsWarmStart, nnls_normal_carried};
 use rayon::prelude::*;
 
@@ -20,7 +21,8 @@ pub(super) struct Selection {
 }
 
 /// Grows the set a batch at a time by the candidates most correlated with the residual
-/// (`ranking`, f32 products of per-point factors, divided by the columns' norms), re-solving the weights by NNLS on
+/// (`ranking`, f32 products of per-point factors, divided by the columns' norms; no two of a
+/// batch nearer than [`CubatureParams::batch_spacing`] candidate spacings), re-solving the weights by NNLS on
 /// the Gram matrix (from per-point factors, `cubature_gram`) after each batch and dropping the
 /// candidates left at zero, until the relative residual against `b` is within the tolerance,
 /// the set is full or no candidate left is positively correlated with the residual. `omega` are the force weights and `pose_scales` `1/‖f_k‖`; `check_budget`
@@ -86,7 +88,12 @@ pub(super) fn select_greedily(
             .max(support / 8)
             .min(params.max_points - support);
         scores.sort_by(|x, y| y.1.total_cmp(&x.1));
-        let added: Vec<usize> = scores.iter().take(take).map(|&(c, _)| c).collect();
+        let added = spread_out(
+            &scores,
+            take,
+            params.batch_spacing * candidates.spacing(),
+            |c| candidates.position(c),
+        );
         let old = selected.len();
         selected.extend_from_slice(&added);
         for &c in &added {
@@ -144,6 +151,28 @@ pub(super) fn select_greedily(
     })
 }
 
+/// Up to `take` of the `ranked` candidates (best first), in that order, each at least
+/// `min_distance` (m) from those taken before it: the best candidate is always taken, a
+/// candidate nearer than `min_distance` to one already taken is passed over.
+fn spread_out(
+    ranked: &[(usize, f64)],
+    take: usize,
+    min_distance: f64,
+    position: impl Fn(usize) -> Vector3<f64>,
+) -> Vec<usize> {
+    let mut taken: Vec<(usize, Vector3<f64>)> = Vec::with_capacity(take);
+    for &(c, _) in ranked {
+        if taken.len() >= take {
+            break;
+        }
+        let x = position(c);
+        if taken.iter().all(|(_, y)| (x - y).norm() >= min_distance) {
+            taken.push((c, x));
+        }
+    }
+    taken.into_iter().map(|(c, _)| c).collect()
+}
+
 /// The Gram matrix of the set grown from `old` to `old + cross.ncols()` members: `gram` (the
 /// old members') and the new columns `cross` = `[A_S]ᵀ A_new` from the points' factors
 /// (`cubature_gram`), mirrored.
@@ -175,4 +204,44 @@ fn compacted(gram: &Mat<f64>, keep: &[usize]) -> Mat<f64> {
         }
     }
     kept
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// Candidates on a line, 0.1 m apart, ranked by the given order.
+    fn on_a_line(order: &[usize]) -> (Vec<(usize, f64)>, impl Fn(usize) -> Vector3<f64>) {
+        let ranked = order
+            .iter()
+            .enumerate()
+            .map(|(rank, &c)| (c, 1.0 / (1.0 + rank as f64)))
+            .collect();
+        (ranked, |c: usize| Vector3::new(0.1 * c as f64, 0.0, 0.0))
+    }
+
+    #[test]
+    fn spread_out_without_a_distance_takes_the_best_in_order() {
+        let (ranked, position) = on_a_line(&[3, 4, 2, 9, 0]);
+        assert_eq!(spread_out(&ranked, 3, 0.0, position), vec![3, 4, 2]);
+    }
+
+    #[test]
+    fn spread_out_passes_over_neighbours_of_the_taken_and_keeps_rank_order() {
+        // 0.25 m apart at least: 4 and 2 are within 0.2 m of 3, 5 within 0.2 m of 3.
+        let (ranked, position) = on_a_line(&[3, 4, 2, 5, 9, 0, 6, 7]);
+        let taken = spread_out(&ranked, 4, 0.25, &position);
+        assert_eq!(taken, vec![3, 9, 0, 6]);
+        for (i, &a) in taken.iter().enumerate() {
+            for &b in &taken[i + 1..] {
+                assert!((position(a) - position(b)).norm() >= 0.25);
+            }
+        }
+    }
+
+    #[test]
+    fn spread_out_takes_fewer_when_every_other_candidate_is_too_near() {
+        let (ranked, position) = on_a_line(&[5, 4, 6]);
+        assert_eq!(spread_out(&ranked, 3, 0.5, position), vec![5]);
+    }
 }

@@ -14,7 +14,8 @@
 //! ```
 //!
 //! found greedily: the candidates (a seeded pool of the points) most aligned with the residual
-//! join Q a batch at a time, and w is re-solved by non-negative least squares
+//! join Q a batch at a time (no two of a batch nearer than [`CubatureParams::batch_spacing`]
+//! candidate spacings), and w is re-solved by non-negative least squares
 //! ([`optimize::nnls_normal_carried`], warm-started, its factor carried from batch to batch)
 //! after each batch; candidates the solve leaves at zero weight leave Q for good. Selection stops when the relative residual
 //! `‖Σ_q w_q g_q − f‖ / ‖f‖` over all poses is at most [`CubatureParams::tolerance`] or Q holds
@@ -109,6 +110,12 @@ pub struct CubatureParams {
     /// Points added between weight solves while the cubature is small (default 16; later an
     /// eighth of the points it holds).
     pub batch: usize,
+    /// How far apart the points of one batch must be, in candidate spacings `(V / C)^(1/3)`
+    /// (V the model's volume, C the candidates; default 2, ≥ 0; 0 lets neighbours join in the
+    /// same batch). The candidates most correlated with the residual are often neighbours with
+    /// nearly equal columns, of which the weight solve keeps one: batches spread out this way
+    /// reach the tolerance in fewer weight solves (`results/RESULTS.md`, "tenth part").
+    pub batch_spacing: f64,
     /// Poses per amplitude not used for training, on which the error is also reported
     /// (default 3).
     pub validation_poses_per_amplitude: usize,
@@ -132,6 +139,7 @@ impl CubatureParams {
         tolerance: 0.001,
         max_points: 2000,
         batch: 16,
+        batch_spacing: 2.0,
         validation_poses_per_amplitude: 3,
         seed: 0,
     };
@@ -488,6 +496,11 @@ fn check_params(params: &CubatureParams) -> Result<(), CubatureError> {
         ))
     } else if params.max_points == 0 || params.batch == 0 || params.candidates == 0 {
         Some("max_points, batch and candidates must be at least 1".to_string())
+    } else if !(params.batch_spacing.is_finite() && params.batch_spacing >= 0.0) {
+        Some(format!(
+            "batch_spacing must be finite and at least 0, got {}",
+            params.batch_spacing
+        ))
     } else if !(params.time_step.is_finite() && params.time_step > 0.0) {
         Some(format!(
             "time_step must be positive, got {} s",
