@@ -22,11 +22,12 @@ pub(super) struct Selection {
 
 /// Grows the set a batch at a time by the candidates most correlated with the residual
 /// (`ranking`, f32 products of per-point factors, divided by the columns' norms; no two of a
-/// batch nearer than [`CubatureParams::batch_spacing`] candidate spacings), re-solving the weights by NNLS on
-/// the Gram matrix (from per-point factors, `cubature_gram`) after each batch and dropping the
-/// candidates left at zero, until the relative residual against `b` is within the tolerance,
-/// the set is full or no candidate left is positively correlated with the residual. `omega` are the force weights and `pose_scales` `1/‖f_k‖`; `check_budget`
-/// is asked with the support size before each batch.
+/// batch nearer than [`CubatureParams::batch_spacing`] candidate spacings), re-solving the
+/// weights by NNLS on the Gram matrix (from per-point factors, `cubature_gram`) after each
+/// batch and dropping the candidates left at zero, until the relative residual against `b` is
+/// within the tolerance, the set is full or no candidate left is positively correlated with the
+/// residual. `omega` are the force weights and `pose_scales` `1/‖f_k‖`; `check_budget` is asked
+/// with the support size before each batch.
 ///
 /// # Errors
 /// [`CubatureError::Nnls`] from the weight solve, or what `check_budget` returns.
