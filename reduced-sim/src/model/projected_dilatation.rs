@@ -353,6 +353,26 @@ impl ProjectedDilatation {
         stress + cofactor(f) * shift
     }
 
+    /// The stress `P(F) + κ_q (p̂ · q(X_q) − (J − γ_q)) cof F` of elastic point q at
+    /// deformation `f` for the pressure coefficients p̂ (P, e.g. a pose's of
+    /// [`ReducedModel::elastic_gradients`]), its material stress being `stress`.
+    ///
+    /// [`ReducedModel::elastic_gradients`]: crate::ReducedModel::elastic_gradients
+    pub(crate) fn stress_at(
+        &self,
+        stress: Matrix3<f64>,
+        f: &Matrix3<f64>,
+        coefficients: &[f64],
+        q: usize,
+    ) -> Matrix3<f64> {
+        let dilatation = f.determinant() - self.rest_ratio(q);
+        Self::shifted_stress(
+            stress,
+            f,
+            self.pressure_shift_at(coefficients, q, dilatation),
+        )
+    }
+
     /// The tangent of an elastic point: `∂P/∂F − κ cof⊗cof + shift · ∂²J/∂F²` from the exact
     /// material tangent `exact`, then treated as `tangent` asks (projected or mirrored as a
     /// whole).

@@ -80,12 +80,11 @@ impl<M: HyperelasticMaterial> ReducedModel<M> {
             Some(d) => {
                 let coefficients = pressure_coefficients(d, &strains, count);
                 let sum = strains.gradient_sum(|i, k, f| {
-                    let dilatation = f.determinant() - d.rest_ratio(i);
-                    let shift = d.pressure_shift_at(&coefficients[k], i, dilatation);
-                    ProjectedDilatation::shifted_stress(
+                    d.stress_at(
                         material.first_piola_kirchhoff(&lame[i], f),
                         f,
-                        shift,
+                        &coefficients[k],
+                        i,
                     ) * weights[i]
                 });
                 (sum, coefficients)

@@ -5,7 +5,6 @@ use hyperelastic::HyperelasticMaterial;
 use nalgebra::{Matrix3, Vector3};
 use rayon::prelude::*;
 
-use crate::model::projected_dilatation::ProjectedDilatation;
 use crate::model::reduced_model::ReducedModel;
 
 /// Candidate c's column holds, pose after pose, its weighted, normalized force density
@@ -61,12 +60,7 @@ impl CandidateForces {
                     let p = material.first_piola_kirchhoff(&lame[i], f);
                     match dilatation {
                         None => p,
-                        Some(d) => {
-                            let volume_change = f.determinant() - d.rest_ratio(i);
-                            let shift =
-                                d.pressure_shift_at(&pressure_coefficients[pose], i, volume_change);
-                            ProjectedDilatation::shifted_stress(p, f, shift)
-                        }
+                        Some(d) => d.stress_at(p, f, &pressure_coefficients[pose], i),
                     }
                 };
                 stresses_at(stress, map.gradient_block(i), &all_poses, poses.len())
