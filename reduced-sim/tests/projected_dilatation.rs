@@ -1,21 +1,28 @@
 //! The projected volumetric term: its gradient and exact Hessian against central differences,
 //! the full pressure space giving back the pointwise energy, the PSD tangent staying PSD, the
-//! inversion guard, and clear errors.
+//! inversion guard (and a step whose prediction it refuses), and clear errors.
 
 mod support;
 
-use hyperelastic::{LinearElastic, StableNeoHookean, Tangent};
+use hyperelastic::{LinearElastic, MaterialSample, StableNeoHookean, Tangent};
 use nalgebra::{DMatrix, Vector3};
-use reduced_sim::{ProjectedDilatationError, ProjectedDilatationParams, ReducedModel};
+use reduced_sim::{
+    ProjectedDilatationError, ProjectedDilatationParams, ReducedModel, ReducedState, Scene,
+    SimulationParams, Simulator,
+};
 use support::BEAM_MATERIAL;
 use test_support::finite_difference::{gradient, jacobian, relative_error};
 
 /// A 2 × 0.5 × 0.5 m box model (4 modes) and its pressure values: 1, the affine functions
 /// and two smooth functions of x.
 fn model() -> ReducedModel<StableNeoHookean> {
-    let (basis, points) =
-        support::box_basis(Vector3::new(2.0, 0.5, 0.5), 0.125, 80, 4, &BEAM_MATERIAL);
-    let model = support::uniform_model(&basis, &points, &BEAM_MATERIAL);
+    model_of(&BEAM_MATERIAL)
+}
+
+/// [`model`] of `material`.
+fn model_of(material: &MaterialSample) -> ReducedModel<StableNeoHookean> {
+    let (basis, points) = support::box_basis(Vector3::new(2.0, 0.5, 0.5), 0.125, 80, 4, material);
+    let model = support::uniform_model(&basis, &points, material);
     let pressure = DMatrix::from_fn(points.len(), 6, |i, b| {
         let x = points.positions()[i];
         match b {
@@ -188,4 +195,54 @@ fn a_modulus_kept_pointwise_up_to_c_shear_moduli_gives_back_the_pointwise_energy
         negative,
         Err(ProjectedDilatationError::RetainedMultiple { .. })
     ));
+}
+
+#[test]
+fn a_step_whose_inertial_prediction_inverts_a_point_starts_where_the_energy_is_finite() {
+    // Stiff enough that the implicit step stays well inside J > 0 (h²E / (ρ L²) = 200 on the
+    // 0.5 m side): the step's solution is finite while its inertial prediction is not.
+    let model = model_of(&MaterialSample {
+        youngs_modulus: 5e8,
+        ..BEAM_MATERIAL
+    });
+    let layout = reduced_sim::ReducedLayout::new(5);
+    // Handle 0's affine part compressing at 101 /s: the prediction z + h ż has F = −0.01 I
+    // everywhere, where the projected term's energy is +∞.
+    let mut velocity = vec![0.0; 60];
+    for r in 0..3 {
+        velocity[layout.index(0, r, r)] = -101.0;
+    }
+    let scene = Scene {
+        gravity: None,
+        pins: Vec::new(),
+        floor: None,
+        held: Vec::new(),
+        colliders: Vec::new(),
+    };
+    let mut simulator = Simulator::new(model, &scene, SimulationParams::default()).unwrap();
+    simulator
+        .set_state(ReducedState {
+            z: vec![0.0; 60],
+            velocity,
+            time: 0.0,
+        })
+        .unwrap();
+    let predicted = simulator.predicted_coordinates();
+    assert_eq!(simulator.model().elastic_energy(&predicted), f64::INFINITY);
+    let report = simulator
+        .step()
+        .expect("the step starts from a finite energy");
+    assert!(report.converged(), "{report:?}");
+    let z = &simulator.state().z;
+    // Compressed, far from inverted: every point's J above 1/2, their mean below 1.
+    let jacobians: Vec<f64> = simulator
+        .model()
+        .deformation_map()
+        .deformation_gradients(z)
+        .iter()
+        .map(|f| f.determinant())
+        .collect();
+    assert!(jacobians.iter().all(|&j| j > 0.5), "{jacobians:?}");
+    let mean = jacobians.iter().sum::<f64>() / jacobians.len() as f64;
+    assert!(mean < 1.0, "mean J = {mean}");
 }

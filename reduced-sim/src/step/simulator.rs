@@ -356,7 +356,9 @@ impl<M: HyperelasticMaterial> Simulator<M> {
     /// factorization is carried into this one (chord steps while they contract), for at most
     /// [`SimulationParams::hessian_max_age`] steps and while the floor contacts stay the same;
     /// a step that does not converge that way is solved again with fresh Hessians (its report
-    /// counts both attempts).
+    /// counts both attempts). Where the energy is not finite at `ẑ` (the prediction inverts a
+    /// point of the projected dilatation), Newton starts part of the way from `z_t` towards it,
+    /// where the energy is finite.
     ///
     /// # Errors
     /// [`StepError`] on a non-finite value or a singular system; the state is then unchanged.
@@ -382,6 +384,9 @@ impl<M: HyperelasticMaterial> Simulator<M> {
             }
         }
         self.terms.prescribe(&mut z, potential.time);
+        if !potential.energy(&z).is_finite() {
+            z = self.finite_start(&potential, &z);
+        }
         let mut report = solve_step(&mut potential, &mut z, &self.params.newton, &mut factor)?;
         // Friction lagging (IPC): the floor's contacts and normal forces taken again from the
         // solution, the slip still measured from the start of the step, and solved again from
@@ -401,6 +406,32 @@ impl<M: HyperelasticMaterial> Simulator<M> {
         drop(potential);
         self.finish_step(z, CarriedFactor::after(factor, age, &report));
         Ok(report)
+    }
+
+    /// Where a step's Newton solve starts when `potential` is not finite at `prediction`: the
+    /// inertial prediction can invert a point, where the projected dilatation's energy is +∞,
+    /// while the step's solution does not. The first of `z_t + α (ẑ − z_t)`, α = 1/2, 1/4, …,
+    /// 2⁻¹⁰, 0, with a finite energy (held entries prescribed at the end of the step);
+    /// `prediction` when none is (Newton then stops with its error).
+    fn finite_start(
+        &self,
+        potential: &IncrementalPotential<'_, M>,
+        prediction: &[f64],
+    ) -> Vec<f64> {
+        let last = &self.state.z;
+        let fractions = (1..=10).map(|k| 0.5f64.powi(k)).chain([0.0]);
+        for alpha in fractions {
+            let mut start: Vec<f64> = last
+                .iter()
+                .zip(prediction)
+                .map(|(s, p)| s + alpha * (p - s))
+                .collect();
+            self.terms.prescribe(&mut start, potential.time);
+            if potential.energy(&start).is_finite() {
+                return start;
+            }
+        }
+        prediction.to_vec()
     }
 
     /// The floor's and colliders' friction over the next step lagged at its solution `z`
