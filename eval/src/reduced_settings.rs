@@ -2,7 +2,7 @@
 //! point counts, Newton and pin options, where the simulation integrates, the tangent. Keys are
 //! spelled as in scene files ([`freeform::settings_vocabulary`]).
 
-use freeform::{PinHold, PressureSpaceParams};
+use freeform::{PinHold, PressureSpaceParams, WeightDistance};
 use optimize::{HessianReuse, NewtonParams};
 use reduced_sim::{
     CubatureParams, HessianTangent, PenaltyParams, PinModulus, QuadratureRule, SimulationParams,
@@ -234,9 +234,14 @@ impl ReducedSettings {
             }
             PinHold::Weighted {
                 transition_fraction,
+                distance,
             } => format!(
                 "regions held exactly by a weighted basis (transition {transition_fraction} × \
-                 the object's thickness, the smallest side of its bounding box)"
+                 the object's thickness, the smallest side of its bounding box{})",
+                match distance {
+                    WeightDistance::HeldMaterial => ", distances to the held material",
+                    WeightDistance::RegionShape => ", distances to the regions' shapes",
+                }
             ),
         }
     }

@@ -52,7 +52,7 @@ pub use frames::FrameWriter;
 pub use geometry::{Geometry, GeometryError};
 pub use material_basis::{BasisBuildError, build_basis};
 pub use object_scene::{ObjectSpec, ObjectSummary, ObjectsFile, ObjectsReport, simulate_objects};
-pub use pin_hold::{HeldBasisError, PinHold};
+pub use pin_hold::{HeldBasisError, PinHold, WeightDistance};
 pub use placement::Placement;
 pub use pressure_space::{PressureSpace, PressureSpaceParams};
 pub use progress::{Progress, Silent};

@@ -67,13 +67,41 @@ pub enum PinHold {
         /// of the smallest side of the basis points' bounding box (default 1: the weight reaches
         /// 1 one object thickness from the regions).
         transition_fraction: f64,
+        /// What the weight's distance to a region measures (default: the material it holds).
+        #[serde(default, skip_serializing_if = "WeightDistance::is_default")]
+        distance: WeightDistance,
     },
 }
 
+/// What a weighted basis's weight measures the distance to ([`PinHold::Weighted`]).
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Serialize, Deserialize)]
+#[serde(rename_all = "snake_case")]
+pub enum WeightDistance {
+    /// The part of the body the region holds, sampled by the basis's points
+    /// ([`skin_eigen::HeldMaterial`]) (default): the shape's distance beside held material,
+    /// larger away from it, so a slab that holds a flank and an ear's tip damps the modes near
+    /// those two, not over the whole head beside its plane. Where the region's boundary crosses
+    /// the body everywhere (a beam's clamped end) it is the shape's distance.
+    #[default]
+    HeldMaterial,
+    /// The region's shape: a half-space's plane, a ball's sphere. The weight damps the modes
+    /// near the plane even where the body crosses it nowhere near held material.
+    RegionShape,
+}
+
+impl WeightDistance {
+    /// Whether this is the default, [`WeightDistance::HeldMaterial`].
+    pub fn is_default(&self) -> bool {
+        *self == WeightDistance::default()
+    }
+}
+
 impl PinHold {
-    /// [`PinHold::Weighted`] with its default transition (one object thickness).
+    /// [`PinHold::Weighted`] with its defaults: a transition of one object thickness, distances
+    /// to the held material.
     pub const WEIGHTED: PinHold = PinHold::Weighted {
         transition_fraction: 1.0,
+        distance: WeightDistance::HeldMaterial,
     };
 
     /// The weight of [`PinHold::Weighted`] for `scene`'s constraint regions, in order, on an
@@ -89,6 +117,7 @@ impl PinHold {
     ) -> Result<Option<RegionWeight>, RegionWeightError> {
         let PinHold::Weighted {
             transition_fraction,
+            ..
         } = *self
         else {
             return Ok(None);
@@ -252,12 +281,16 @@ impl PinHold {
         let params = self.basis_params(params);
         let (basis, report, _) = match self {
             PinHold::Penalty => build_basis(basis_points, materials, &params)?,
-            PinHold::Weighted { .. } => {
+            PinHold::Weighted { distance, .. } => {
                 let bounds = basis_points.bounding_box();
-                let weight = self
+                let invalid = |e| SceneSpecError::Invalid(format!("weighted holding: {e}"));
+                let mut weight = self
                     .region_weight(scene, bounds.max - bounds.min)
-                    .map_err(|e| SceneSpecError::Invalid(format!("weighted holding: {e}")))?
+                    .map_err(invalid)?
                     .expect("a weighted hold has a weight");
+                if *distance == WeightDistance::HeldMaterial {
+                    weight = weight.with_held_material(basis_points).map_err(invalid)?;
+                }
                 let (basis, report, _) = build_weighted_basis(
                     basis_points,
                     materials,

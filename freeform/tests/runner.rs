@@ -289,6 +289,36 @@ fn a_weighted_basis_holds_a_fixed_and_a_turning_end_exactly() {
 }
 
 #[test]
+fn on_a_bar_whose_ends_are_held_across_the_held_material_distance_is_the_regions_own() {
+    let bar = weighted_bar();
+    let shape = freeform::PinHold::Weighted {
+        transition_fraction: 1.0,
+        distance: freeform::WeightDistance::RegionShape,
+    };
+    let (basis, _) = shape
+        .build_basis(
+            &bar.scene,
+            &bar.basis_points,
+            &bar.lame,
+            bar.points.positions(),
+            &[],
+            bar.params,
+        )
+        .unwrap();
+    assert_ne!(
+        shape,
+        freeform::PinHold::WEIGHTED,
+        "the default measures to the held material"
+    );
+    let (a, b) = (
+        bar.basis.evaluate(bar.points.positions()).unwrap(),
+        basis.evaluate(bar.points.positions()).unwrap(),
+    );
+    assert_eq!(a.weights, b.weights);
+    assert_eq!(a.gradients, b.gradients);
+}
+
+#[test]
 fn a_projected_volumetric_term_runs_holds_its_regions_and_reports_inf_sup_constants() {
     let bar = weighted_bar();
     let hold = freeform::PinHold::WEIGHTED;

@@ -3,6 +3,7 @@
 pub mod assembly;
 pub mod basis_builder;
 pub mod generalized_eigen;
+pub mod held_material;
 pub mod pool_convergence;
 pub mod region_constraints;
 pub mod region_weight;
@@ -18,6 +19,7 @@ pub use basis_builder::{
     build_basis_with_regions,
 };
 pub use generalized_eigen::{EigenError, EigenParams, EigenSolution, solve_skinning_modes};
+pub use held_material::HeldMaterial;
 pub use pool_convergence::{PoolConvergence, pool_convergence};
 pub use region_constraints::{
     ConstrainedModes, RegionConstraintParams, RegionError, solve_constrained_modes,

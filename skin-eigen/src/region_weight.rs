@@ -13,9 +13,15 @@
 //! the others, and the `g_r` sum to one. Inside a region w, ∇w and ∇g_r are 0 (the fields are
 //! C⁰ across a region's boundary, like a clamped finite element). Höllig, Reif and Wipper's
 //! WEB-splines; Rvachev's R-functions for the product over regions.
+//!
+//! With [`RegionWeight::with_held_material`], `d_r` in `w` (not in the blends) is the distance to
+//! the material region r holds ([`HeldMaterial`]) rather than to its shape.
 
 use nalgebra::Vector3;
+use rkpm_core::IntegrationPoints;
 use serde::{Deserialize, Serialize};
+
+use crate::held_material::HeldMaterial;
 
 /// A held region with an analytic signed distance (m): ≤ 0 inside, the distance to it outside.
 #[derive(Clone, Copy, Debug, PartialEq, Serialize, Deserialize)]
@@ -87,6 +93,10 @@ impl HeldRegionShape {
 pub struct RegionWeight {
     regions: Vec<HeldRegionShape>,
     transition: f64,
+    /// With it, `d_r` outside region r is the distance to its held material
+    /// ([`RegionWeight::with_held_material`]).
+    #[serde(default)]
+    material: Option<HeldMaterial>,
 }
 
 /// A [`RegionWeight`] that cannot be made.
@@ -108,6 +118,15 @@ pub enum RegionWeightError {
     InvalidTransition {
         /// δ (m).
         transition: f64,
+    },
+    /// A region holds none of the points its held material is sampled from (or they have no
+    /// volume).
+    #[error("held region {region} holds none of the {points} points sampling its material")]
+    NoHeldMaterial {
+        /// Its index.
+        region: usize,
+        /// How many points were given.
+        points: usize,
     },
 }
 
@@ -136,7 +155,44 @@ impl RegionWeight {
         Ok(RegionWeight {
             regions,
             transition,
+            material: None,
         })
+    }
+
+    /// The weight with each region's distance `d_r` outside it measured to the part of the body
+    /// it holds, sampled by `points` (the basis's integration points), rather than to its shape:
+    /// `D_r` of [`HeldMaterial`], equal to `d_r` beside the held material and larger away from
+    /// it. A slab that holds a flank and an ear's tip then damps the modes beside those, not
+    /// over everything near its plane.
+    ///
+    /// # Errors
+    /// [`RegionWeightError::NoHeldMaterial`] when a region holds none of `points`.
+    pub fn with_held_material(
+        self,
+        points: &IntegrationPoints,
+    ) -> Result<RegionWeight, RegionWeightError> {
+        let material = HeldMaterial::sample(points, self.regions.len(), |x| self.region_of(x))
+            .ok_or_else(|| RegionWeightError::NoHeldMaterial {
+                region: (0..self.regions.len())
+                    .find(|&r| {
+                        !points
+                            .positions()
+                            .iter()
+                            .any(|x| self.region_of(x) == Some(r))
+                    })
+                    .unwrap_or(0),
+                points: points.len(),
+            })?;
+        Ok(RegionWeight {
+            material: Some(material),
+            ..self
+        })
+    }
+
+    /// The held material the distances are measured to, if any
+    /// ([`RegionWeight::with_held_material`]).
+    pub fn held_material(&self) -> Option<&HeldMaterial> {
+        self.material.as_ref()
     }
 
     /// The regions, in handle order.
@@ -159,11 +215,16 @@ impl RegionWeight {
     /// `(w, ∇w)` at rest point `x` (dimensionless, 1/m): 0 and 0 inside any region.
     pub fn weight(&self, x: &Vector3<f64>) -> (f64, Vector3<f64>) {
         let mut factors = Vec::with_capacity(self.regions.len());
-        for region in &self.regions {
+        for (r, region) in self.regions.iter().enumerate() {
             let (d, grad) = region.signed_distance(x);
             if d <= 0.0 {
                 return (0.0, Vector3::zeros());
             }
+            // D ≥ d_r: past the transition the factor is 1 either way.
+            let (d, grad) = match &self.material {
+                Some(material) if d < self.transition => material.distance(r, x, (d, grad)),
+                _ => (d, grad),
+            };
             let s = d / self.transition;
             if s >= 1.0 {
                 factors.push((1.0, Vector3::zeros()));
@@ -320,6 +381,69 @@ mod tests {
             // Two parallel planes: the blend is linear between them.
             assert!((w.blend(1, &p).0 - (x - 0.5) / 4.0).abs() < 1e-15);
         }
+    }
+
+    /// The region x ≤ 0.1 (grown by nothing) on grid points of `boxes` (min, max corners),
+    /// spacing 0.05 m.
+    fn slab_on(boxes: &[(Vector3<f64>, Vector3<f64>)]) -> (RegionWeight, IntegrationPoints) {
+        let mut positions = Vec::new();
+        for &(min, max) in boxes {
+            let grid = rkpm_core::sample_box_grid(min, max, 0.05).unwrap();
+            positions.extend_from_slice(grid.positions());
+        }
+        let volumes = vec![0.05f64.powi(3); positions.len()];
+        let slab = HeldRegionShape::HalfSpace {
+            normal: Vector3::x(),
+            offset: 0.1,
+        };
+        (
+            RegionWeight::new(vec![slab], 0.5).unwrap(),
+            IntegrationPoints::new(positions, volumes).unwrap(),
+        )
+    }
+
+    #[test]
+    fn a_region_held_across_the_whole_body_weighs_the_same_with_held_material() {
+        let (shape, points) = slab_on(&[(Vector3::zeros(), Vector3::new(1.0, 0.3, 0.2))]);
+        let material = shape.clone().with_held_material(&points).unwrap();
+        for x in points.positions() {
+            assert_eq!(shape.weight(x), material.weight(x), "at {x}");
+        }
+    }
+
+    #[test]
+    fn held_material_lifts_the_weight_beside_the_region_away_from_what_it_holds() {
+        // An L: a bar that crosses the plane x = 0.1 and an arm beside the plane that does not.
+        let (shape, points) = slab_on(&[
+            (Vector3::zeros(), Vector3::new(1.0, 0.3, 0.2)),
+            (Vector3::new(0.15, 0.3, 0.0), Vector3::new(1.0, 1.0, 0.2)),
+        ]);
+        let material = shape.clone().with_held_material(&points).unwrap();
+        let arm = Vector3::new(0.2, 0.9, 0.1);
+        let (lifted, grad) = material.weight(&arm);
+        assert!(shape.weight(&arm).0 < 0.4 && lifted == 1.0, "{lifted}");
+        assert_eq!(grad, Vector3::zeros());
+        for x in [Vector3::new(0.2, 0.45, 0.1), Vector3::new(0.3, 0.6, 0.05)] {
+            let (value, grad) = material.weight(&x);
+            assert!(value > shape.weight(&x).0 && value < 1.0, "{value} at {x}");
+            let fd = central_difference(|y| material.weight(y).0, &x, 1e-6);
+            assert!((grad - fd).norm() < 1e-6, "∇w {grad} vs {fd}");
+        }
+        let empty = RegionWeight::new(
+            vec![HeldRegionShape::HalfSpace {
+                normal: Vector3::x(),
+                offset: -1.0,
+            }],
+            0.5,
+        )
+        .unwrap();
+        assert_eq!(
+            empty.with_held_material(&points),
+            Err(RegionWeightError::NoHeldMaterial {
+                region: 0,
+                points: points.len()
+            })
+        );
     }
 
     #[test]
