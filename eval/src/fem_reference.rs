@@ -99,6 +99,33 @@ pub fn run_fem_beam_with(
     )?)
 }
 
+/// [`run_fem_beam_with`] under [`NewtonParams::default`], checked: `Ok(Err(why))` when a step
+/// did not converge (the reference must not be scored; `why` names the test, ν and the step).
+///
+/// # Errors
+/// As [`run_fem_beam`].
+pub fn converged_fem_beam(
+    test: BeamTest,
+    resolution: FemResolution,
+    material: MaterialSample,
+    steps: usize,
+    cache_dir: &Path,
+    progress: &TerminalProgress,
+) -> Result<Result<FemRun, String>, EvalError> {
+    let newton = NewtonParams::default();
+    let fem = run_fem_beam_with(
+        test, resolution, material, newton, steps, cache_dir, progress,
+    )?;
+    Ok(match fem.check_converged(newton.max_iterations) {
+        Ok(()) => Ok(fem),
+        Err(why) => Err(format!(
+            "ν = {}, {}: {why}",
+            material.poisson_ratio,
+            test.name()
+        )),
+    })
+}
+
 /// The beam's FEM problem for `scene` (a [`BeamTest::scene`]) at `resolution`.
 fn beam_problem(
     scene: &SceneSpec,

@@ -27,7 +27,7 @@ use crate::convergence::result::{CoarseFemRow, ConvergenceRow, ConvergenceStudy}
 use crate::convergence::static_reference::{
     StaticReference, field_errors, projections, static_reference, static_scene, tip_index,
 };
-use crate::fem_reference::run_fem_beam_with;
+use crate::fem_reference::{converged_fem_beam, run_fem_beam_with};
 use crate::reduced_settings::ReducedSettings;
 use freeform::fem_reference::FemRun;
 
@@ -127,22 +127,17 @@ fn references(
         }
         let beam = test.beam_test();
         let steps = config.steps.unwrap_or(beam.steps());
-        let fem = run_fem_beam_with(
+        match converged_fem_beam(
             beam,
             config.fem,
             material,
-            NewtonParams::default(),
             steps,
             &config.cache_dir,
             progress,
-        )?;
-        if let Err(why) = fem.check_converged(NewtonParams::default().max_iterations) {
-            study
-                .refused_references
-                .push(format!("ν = {nu}, {}: {why}", beam.name()));
-            continue;
+        )? {
+            Ok(fem) => per_test.push((test, steps, fem)),
+            Err(why) => study.refused_references.push(why),
         }
-        per_test.push((test, steps, fem));
     }
     Ok((statics, per_test))
 }

@@ -10,7 +10,6 @@ use std::path::PathBuf;
 
 use hyperelastic::MaterialSample;
 use nalgebra::Vector3;
-use optimize::NewtonParams;
 use reduced_sim::{PinModulus, SimulationParams};
 use serde::{Deserialize, Serialize};
 use skin_eigen::SkinningBasis;
@@ -21,7 +20,7 @@ use crate::beam_protocol::reduced::{
     build_beam_basis, build_beam_basis_for, exact_pin_hold, run_reduced_beam_with,
 };
 use crate::beam_scenario::{BeamTest, beam_length_scale, beam_material};
-use crate::fem_reference::{FemResolution, run_fem_beam_with};
+use crate::fem_reference::{FemResolution, converged_fem_beam};
 use crate::reduced_run::ReducedRun;
 use crate::reduced_settings::{EXACT_INSET_KERNEL_RADII, ReducedSettings};
 use freeform::failure_chain;
@@ -205,20 +204,21 @@ pub fn run_pin_sweep(
         };
         for &test in &config.tests {
             let steps = config.steps.unwrap_or(test.steps()).min(test.steps());
-            let fem = run_fem_beam_with(
+            let fem = match converged_fem_beam(
                 test,
                 config.fem,
                 material,
-                NewtonParams::default(),
                 steps,
                 &config.cache_dir,
                 progress,
-            )?;
-            if let Err(why) = fem.check_converged(NewtonParams::default().max_iterations) {
-                progress.status(format!("ν = {nu} {}: {why}", test.name()));
-                refused_references.push(format!("ν = {nu}, {}: {why}", test.name()));
-                continue;
-            }
+            )? {
+                Ok(fem) => fem,
+                Err(why) => {
+                    progress.status(why.clone());
+                    refused_references.push(why);
+                    continue;
+                }
+            };
             let reference = fem.vertex_frames();
             let scored = ScoredRuns {
                 test,
