@@ -319,3 +319,60 @@ fn table1_runs_both_pin_treatments_and_the_exact_rows_hold_their_regions() {
     }
     assert!(t1.markdown.contains("Exact pins"), "{}", t1.markdown);
 }
+
+#[test]
+fn a_run_that_fails_is_named_in_every_beam_table_and_the_other_rows_are_kept() {
+    let dir = std::env::temp_dir().join(format!("freeform-failed-row-{}", std::process::id()));
+    let config = BeamStudyConfig {
+        // m = 80 is not below K = 60: its basis cannot be built.
+        modes: vec![4, 80],
+        tests: BeamTest::ALL.to_vec(),
+        settings: ReducedSettings {
+            kernels: 60,
+            basis_points: 1500,
+            simulation_points: 400,
+            ..ReducedSettings::default()
+        },
+        steps: Some(3),
+        fem: FemResolution {
+            order: ElementOrder::Linear,
+            cells_per_metre: 2,
+        },
+        fem_newton: NewtonParams::default(),
+        simplicits: None,
+        cache_dir: dir.join("cache"),
+        exact_pins: None,
+        mpm: None,
+        sph: None,
+    };
+    let study = run_beam_study(&config, &quiet()).unwrap();
+    assert_eq!(study.rows.len(), 2);
+    assert!(
+        study
+            .rows
+            .iter()
+            .all(|r| r.m == 4 && r.ours_mse.is_finite())
+    );
+    assert_eq!(study.failed_rows.len(), 2);
+    for failed in &study.failed_rows {
+        assert_eq!(failed.m, 80);
+        assert!(
+            failed.error.contains("asked for 80 modes"),
+            "{}",
+            failed.error
+        );
+    }
+    for table in [table1(&study), table5(&study), table6(&study)] {
+        assert!(
+            table.markdown.contains("**bend m = 80 failed** (no row): ")
+                && table
+                    .markdown
+                    .contains("**twist m = 80 failed** (no row): "),
+            "{}",
+            table.markdown
+        );
+    }
+    let failed = table1(&study).json["failed_rows"].as_array().unwrap().len();
+    assert_eq!(failed, 2);
+    let _ = std::fs::remove_dir_all(&dir);
+}

@@ -164,7 +164,7 @@ impl PaperTable for Table3<'_> {
             "## Table 3: how the skinning weights are found (beam, m = {})\n\n",
             self.m
         );
-        md += &settings_lines(&config.base, fem);
+        md += &settings_lines(&config.base, fem, &[]);
         md += &training_line(config);
         md += "\n| method | Drop MSE | Twist MSE | training (s) | final loss | paper Drop | paper Twist | paper s |\n";
         md += "|---|---|---|---|---|---|---|---|\n";
@@ -254,7 +254,7 @@ impl PaperTable for Table4<'_> {
             "## Table 4: grid vs random integration points at simulation time (beam, m = {})\n\n",
             self.m
         );
-        md += &settings_lines(&config.base, fem);
+        md += &settings_lines(&config.base, fem, &[]);
         let _ = writeln!(
             md,
             "Both methods' weights are built as in Table 1; only the simulation's ≈{} points change: \

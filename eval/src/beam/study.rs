@@ -2,7 +2,7 @@
 //! truth (cached) and a reduced run evaluated at the FEM vertices.
 
 use baselines::SimplicitsParams;
-use freeform::PinHold;
+use freeform::{PinHold, failure_chain};
 use reduced_sim::QuadratureReport;
 use serde::{Deserialize, Serialize};
 
@@ -10,7 +10,9 @@ use crate::EvalError;
 use crate::beam_protocol::evaluation::{
     FemReference, FemSummary, evaluate_field, fem_references, region_drift,
 };
-use crate::beam_protocol::reduced::{build_beam_basis, build_beam_basis_for, exact_pin_hold};
+use crate::beam_protocol::reduced::{
+    BeamBasis, build_beam_basis, build_beam_basis_for, exact_pin_hold,
+};
 use crate::beam_protocol::study_config::BeamStudyConfig;
 use crate::beam_scenario::BeamTest;
 use crate::particle_baselines::particle_baseline::ParticleBaselineRow;
@@ -102,6 +104,17 @@ pub struct BaselineRow {
     pub unconverged_steps: usize,
 }
 
+/// A (test, m) run that failed: the study goes on with the others and the tables name it.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+pub struct FailedBeamRow {
+    /// Bend or Twist.
+    pub test: BeamTest,
+    /// Modes.
+    pub m: usize,
+    /// The error and its causes ([`freeform::failure_chain`]).
+    pub error: String,
+}
+
 /// Everything the beam tables print.
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
 pub struct BeamStudy {
@@ -109,6 +122,10 @@ pub struct BeamStudy {
     pub config: BeamStudyConfig,
     /// One row per (test, m), tests outermost.
     pub rows: Vec<BeamRow>,
+    /// The (test, m) runs that failed (a basis that could not be built, a step that stopped),
+    /// in the order run.
+    #[serde(default)]
+    pub failed_rows: Vec<FailedBeamRow>,
     /// One summary per test.
     pub fem: Vec<FemSummary>,
     /// The particle baselines (MPM, SPH) per (method, test, spacing), if run.
@@ -116,95 +133,44 @@ pub struct BeamStudy {
     pub particle_baselines: Vec<ParticleBaselineRow>,
 }
 
-/// Runs the study.
+/// Runs the study. A (test, m) run that fails (its basis, its steps, its Simplicits or exact
+/// run) is recorded in [`BeamStudy::failed_rows`] with its error, and the study goes on with
+/// the others.
 ///
 /// # Errors
-/// [`EvalError`] from any run; nothing is half-reported.
+/// [`EvalError`] from a FEM reference or a particle baseline.
 pub fn run_beam_study(
     config: &BeamStudyConfig,
     progress: &TerminalProgress,
 ) -> Result<BeamStudy, EvalError> {
     let (references, fem) = fem_references(config, progress)?;
     let mut rows = Vec::new();
+    let mut failed_rows = Vec::new();
+    let mut failed = |test: BeamTest, m: usize, error: &EvalError| {
+        let error = failure_chain(error);
+        progress.status(format!("{} m = {m} failed: {error}", test.name()));
+        failed_rows.push(FailedBeamRow { test, m, error });
+    };
     for &m in &config.modes {
         let settings = ReducedSettings {
             modes: m,
             ..config.settings
         };
         progress.status(format!("basis m = {m}, K = {}", settings.kernels));
-        // A penalty basis serves both tests; a basis that holds regions is built for each
-        // test's own (`settings.pins`).
-        let shared = match settings.pins {
-            PinHold::Penalty => Some(build_beam_basis(&settings)?),
-            PinHold::Exact { .. } | PinHold::Weighted { .. } => None,
-        };
-        let exact = match config.exact_pins {
-            Some(radii) => Some(ReducedSettings {
-                pins: exact_pin_hold(&settings, radii)?,
-                ..settings
-            }),
-            None => None,
-        };
-        let simplicits = match &config.simplicits {
-            Some(params) => Some(train_beam_simplicits(
-                &SimplicitsParams {
-                    modes: m,
-                    ..*params
-                },
-                settings.basis_points,
-                &config.cache_dir,
-                progress,
-            )?),
-            None => None,
+        let shared = match shared_runs(config, &settings, progress) {
+            Ok(shared) => shared,
+            Err(e) => {
+                for (test, _) in &references {
+                    failed(*test, m, &e);
+                }
+                continue;
+            }
         };
         for (test, reference) in &references {
-            let steps = config.steps_of(*test);
-            let own;
-            let basis = match &shared {
-                Some(basis) => basis,
-                None => {
-                    own = build_beam_basis_for(*test, &settings)?;
-                    &own
-                }
-            };
-            let ours = evaluate_field(
-                *test,
-                &basis.basis,
-                &settings,
-                reference,
-                steps,
-                &config.cache_dir,
-                progress,
-            )?;
-            let simplicits = match &simplicits {
-                Some(net) => Some(baseline_row(
-                    *test, net, &settings, reference, steps, config, progress,
-                )?),
-                None => None,
-            };
-            rows.push(BeamRow {
-                test: *test,
-                m,
-                ours_mse: ours.errors.normalized_mse,
-                ours_max: ours.errors.normalized_max,
-                ours_per_frame_mse: ours.per_frame_mse,
-                fitting_residual: ours.fitting_residual,
-                ms_per_step: ours.run.report.ms_per_step,
-                iterations_per_step: ours.run.report.iterations_per_step,
-                hessians_per_step: ours.run.report.hessians_per_step,
-                quadrature: Some(ours.run.report.quadrature.clone()),
-                unconverged_steps: ours.run.report.unconverged_steps,
-                max_pin_deviation: ours.run.report.max_pin_deviation,
-                region_drift: region_drift(*test, reference.vertices(), &ours.run.frames),
-                exact: match &exact {
-                    Some(exact) => Some(evaluate_exact(
-                        *test, exact, &settings, reference, steps, config, progress,
-                    )?),
-                    None => None,
-                },
-                basis_seconds: basis.seconds,
-                simplicits,
-            });
+            match beam_row(*test, reference, &settings, &shared, config, progress) {
+                Ok(row) => rows.push(row),
+                Err(e) => failed(*test, m, &e),
+            }
         }
     }
     rows.sort_by_key(|r| (r.test != BeamTest::Bend, r.m));
@@ -212,8 +178,111 @@ pub fn run_beam_study(
     Ok(BeamStudy {
         config: config.clone(),
         rows,
+        failed_rows,
         fem,
         particle_baselines,
+    })
+}
+
+/// What every test at one m shares: the penalty's one basis (a basis that holds regions is
+/// built per test), the exact pins' settings and the Simplicits network, as configured.
+struct SharedRuns {
+    basis: Option<BeamBasis>,
+    exact: Option<ReducedSettings>,
+    simplicits: Option<CachedSimplicits>,
+}
+
+/// [`SharedRuns`] at `settings`' m.
+fn shared_runs(
+    config: &BeamStudyConfig,
+    settings: &ReducedSettings,
+    progress: &TerminalProgress,
+) -> Result<SharedRuns, EvalError> {
+    let basis = match settings.pins {
+        PinHold::Penalty => Some(build_beam_basis(settings)?),
+        PinHold::Exact { .. } | PinHold::Weighted { .. } => None,
+    };
+    let exact = match config.exact_pins {
+        Some(radii) => Some(ReducedSettings {
+            pins: exact_pin_hold(settings, radii)?,
+            ..*settings
+        }),
+        None => None,
+    };
+    let simplicits = match &config.simplicits {
+        Some(params) => Some(train_beam_simplicits(
+            &SimplicitsParams {
+                modes: settings.modes,
+                ..*params
+            },
+            settings.basis_points,
+            &config.cache_dir,
+            progress,
+        )?),
+        None => None,
+    };
+    Ok(SharedRuns {
+        basis,
+        exact,
+        simplicits,
+    })
+}
+
+/// The row of `test` at `settings`' m against `reference`.
+fn beam_row(
+    test: BeamTest,
+    reference: &FemRun,
+    settings: &ReducedSettings,
+    shared: &SharedRuns,
+    config: &BeamStudyConfig,
+    progress: &TerminalProgress,
+) -> Result<BeamRow, EvalError> {
+    let steps = config.steps_of(test);
+    let own;
+    let basis = match &shared.basis {
+        Some(basis) => basis,
+        None => {
+            own = build_beam_basis_for(test, settings)?;
+            &own
+        }
+    };
+    let ours = evaluate_field(
+        test,
+        &basis.basis,
+        settings,
+        reference,
+        steps,
+        &config.cache_dir,
+        progress,
+    )?;
+    let simplicits = match &shared.simplicits {
+        Some(net) => Some(baseline_row(
+            test, net, settings, reference, steps, config, progress,
+        )?),
+        None => None,
+    };
+    Ok(BeamRow {
+        test,
+        m: settings.modes,
+        ours_mse: ours.errors.normalized_mse,
+        ours_max: ours.errors.normalized_max,
+        ours_per_frame_mse: ours.per_frame_mse,
+        fitting_residual: ours.fitting_residual,
+        ms_per_step: ours.run.report.ms_per_step,
+        iterations_per_step: ours.run.report.iterations_per_step,
+        hessians_per_step: ours.run.report.hessians_per_step,
+        quadrature: Some(ours.run.report.quadrature.clone()),
+        unconverged_steps: ours.run.report.unconverged_steps,
+        max_pin_deviation: ours.run.report.max_pin_deviation,
+        region_drift: region_drift(test, reference.vertices(), &ours.run.frames),
+        exact: match &shared.exact {
+            Some(exact) => Some(evaluate_exact(
+                test, exact, settings, reference, steps, config, progress,
+            )?),
+            None => None,
+        },
+        basis_seconds: basis.seconds,
+        simplicits,
     })
 }
 

@@ -3,12 +3,18 @@
 
 use std::fmt::Write as _;
 
+use crate::beam::study::FailedBeamRow;
 use crate::beam_protocol::evaluation::FemSummary;
 use crate::beam_protocol::study_config::BeamStudyConfig;
 use crate::beam_scenario::{BeamTest, beam_length_scale};
 
-/// The settings preamble of a beam table: the reduced settings and each FEM reference.
-pub(crate) fn settings_lines(config: &BeamStudyConfig, fem: &[FemSummary]) -> String {
+/// The settings preamble of a beam table: the reduced settings, each FEM reference and the
+/// runs that failed.
+pub(crate) fn settings_lines(
+    config: &BeamStudyConfig,
+    fem: &[FemSummary],
+    failed: &[FailedBeamRow],
+) -> String {
     let s = &config.settings;
     let mut out = format!(
         "Settings: beam 5×1×1 m, E = 5 MPa, ν = 0.45, ρ = 1000 kg/m³, h = 0.01 s; K = {} kernels, \
@@ -49,6 +55,15 @@ pub(crate) fn settings_lines(config: &BeamStudyConfig, fem: &[FemSummary]) -> St
                 " **{} not scored**: {why}.",
                 f.test.name()
             ))
+        );
+    }
+    for f in failed {
+        let _ = writeln!(
+            out,
+            "**{} m = {} failed** (no row): {}.",
+            f.test.name(),
+            f.m,
+            f.error
         );
     }
     let _ = writeln!(

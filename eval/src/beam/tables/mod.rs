@@ -8,7 +8,7 @@ pub mod twist_plot;
 
 use serde::Serialize;
 
-use crate::beam::study::BeamStudy;
+use crate::beam::study::{BeamStudy, FailedBeamRow};
 use crate::beam_protocol::evaluation::FemSummary;
 use crate::beam_protocol::study_config::BeamStudyConfig;
 use crate::report::table::{PaperTable, RenderedTable};
@@ -24,6 +24,9 @@ pub struct BeamTableSettings<'a> {
     pub config: &'a BeamStudyConfig,
     /// One summary per test's FEM reference.
     pub fem: &'a [FemSummary],
+    /// The runs that failed (each table's preamble names them; Table 1's JSON lists them).
+    #[serde(skip)]
+    pub failed_rows: &'a [FailedBeamRow],
 }
 
 impl<'a> BeamTableSettings<'a> {
@@ -32,6 +35,7 @@ impl<'a> BeamTableSettings<'a> {
         BeamTableSettings {
             config: &study.config,
             fem: &study.fem,
+            failed_rows: &study.failed_rows,
         }
     }
 }

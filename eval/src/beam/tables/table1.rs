@@ -6,7 +6,7 @@ use std::fmt::Write as _;
 use serde::Serialize;
 
 use super::{BeamTableSettings, simplicits_line};
-use crate::beam::study::BeamStudy;
+use crate::beam::study::{BeamStudy, FailedBeamRow};
 use crate::beam_protocol::preamble::settings_lines;
 use crate::particle_baselines::particle_baseline::ParticleMethod;
 use crate::report::paper;
@@ -21,6 +21,8 @@ pub struct Table1<'a> {
     pub rows: Vec<Table1Row>,
     /// One row per (particle method, test, spacing) the study ran.
     pub particle_baselines: Vec<Table1ParticleRow>,
+    /// The (test, m) runs that failed, with their errors.
+    pub failed_rows: &'a [FailedBeamRow],
     /// What the study ran with.
     pub settings: BeamTableSettings<'a>,
 }
@@ -163,6 +165,7 @@ impl<'a> Table1<'a> {
             table: 1,
             rows,
             particle_baselines,
+            failed_rows: &study.failed_rows,
             settings: BeamTableSettings::of(study),
         }
     }
@@ -311,7 +314,7 @@ impl PaperTable for Table1<'_> {
     fn markdown(&self) -> String {
         let config = self.settings.config;
         let mut md = String::from("## Table 1: normalized MSE against FEM (beam)\n\n");
-        md += &settings_lines(config, self.settings.fem);
+        md += &settings_lines(config, self.settings.fem, self.settings.failed_rows);
         md += &self.exact_line();
         md += "\n| test | m | ours MSE | ours max | pin drift held / region (mm) | exact MSE | exact max | exact drift held / region (mm) | paper FreeForm | paper Simplicits | Simplicits (ours) | MPM (ours, m = 9 rows) | MPM (paper) | SPH (ours, m = 9 rows) | SPH (paper) |\n";
         md += "|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|\n";

@@ -161,7 +161,7 @@ impl PaperTable for Table5<'_> {
     fn markdown(&self) -> String {
         let config = self.settings.config;
         let mut md = String::from("## Table 5: ms per 0.01 s step, beam Bend\n\n");
-        md += &settings_lines(config, self.settings.fem);
+        md += &settings_lines(config, self.settings.fem, self.settings.failed_rows);
         md += &format!(
             "This machine: {} CPU threads (rayon). The paper's numbers are on a GPU.\n",
             self.threads

@@ -64,7 +64,7 @@ impl PaperTable for Table6<'_> {
     fn markdown(&self) -> String {
         let config = self.settings.config;
         let mut md = String::from("## Table 6: basis fitting residual (beam)\n\n");
-        md += &settings_lines(config, self.settings.fem);
+        md += &settings_lines(config, self.settings.fem, self.settings.failed_rows);
         md += "The paper's Table 6 values did not survive either text rendering, so none are shown.\n";
         md += &simplicits_line(
             config,
