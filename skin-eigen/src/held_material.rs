@@ -13,8 +13,8 @@
 //! max_k(a, b) = max(a, b) for |a − b| ≥ k, else (a + b)/2 + (a − b)²/(4k) + k/4   (C¹)
 //! ```
 //!
-//! Beside held material the nearest samples lie within `d_R + 1.5 h`, so `D = d_R` exactly
-//! there (the weight and its gradient are the analytic ones across the interface); away from
+//! Beside held material sampled on a grid of spacing h the nearest samples lie within
+//! `d_R + 1.5 h`, so `D = d_R` exactly there (the weight and its gradient are the analytic ones across the interface); away from
 //! it `D` grows with the distance to the held samples. `D ≥ d_R > 0` outside the region.
 
 use std::sync::{Arc, OnceLock};
@@ -152,8 +152,8 @@ impl std::fmt::Debug for HeldMaterial {
 mod tests {
     use super::*;
 
-    /// An L-shaped body's held samples: a 1 × 1 column at x ∈ [0, 0.1] for y ∈ [0, 1] and a
-    /// small cluster at y ∈ [2.9, 3] (the "ear"), on a 0.05 grid in z ∈ [0, 0.2].
+    /// Held samples in two pieces on a 0.05 m grid in x ∈ [0, 0.1], z ∈ [0, 0.2]: a column
+    /// over y ∈ [0, 1] and, across a gap, a small cluster over y ∈ [2.9, 3] (the "ear").
     fn material() -> HeldMaterial {
         let h = 0.05;
         let mut samples = Vec::new();
