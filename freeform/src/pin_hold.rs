@@ -62,6 +62,7 @@ pub enum PinHold {
     /// Exactly ([`Scene::held`]) on the whole of each region, with a weighted basis
     /// ([`skin_eigen::build_weighted_basis`]): the modes are multiplied by a smooth distance to
     /// the regions, so they vanish on them with no penalty, no band and no parameter to tune.
+    /// A scene without constraints gets the plain basis of [`PinHold::Penalty`].
     Weighted {
         /// The transition length δ of the weight ([`skin_eigen::RegionWeight`]) as a fraction
         /// of the smallest side of the basis points' bounding box (default 1: the weight reaches
@@ -281,6 +282,10 @@ impl PinHold {
         let params = self.basis_params(params);
         let (basis, report, _) = match self {
             PinHold::Penalty => build_basis(basis_points, materials, &params)?,
+            // Nothing to hold: the plain basis, as for the penalty.
+            PinHold::Weighted { .. } if scene.constraints.is_empty() => {
+                build_basis(basis_points, materials, &params)?
+            }
             PinHold::Weighted { distance, .. } => {
                 let bounds = basis_points.bounding_box();
                 let invalid = |e| SceneSpecError::Invalid(format!("weighted holding: {e}"));

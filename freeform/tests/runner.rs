@@ -319,6 +319,34 @@ fn on_a_bar_whose_ends_are_held_across_the_held_material_distance_is_the_regions
 }
 
 #[test]
+fn a_weighted_hold_of_a_scene_without_constraints_builds_the_plain_basis() {
+    let (geometry, _) = twisted_bar();
+    let free = falling(&SceneSpec::default());
+    let basis_points = geometry.integration_points(1500).unwrap();
+    let points = geometry.integration_points(300).unwrap();
+    let lame = vec![RUBBER.lame_parameters().unwrap(); basis_points.len()];
+    let params = BasisParams::default().with_modes(4).with_kernels(80);
+    let build = |hold: freeform::PinHold| {
+        hold.build_basis(&free, &basis_points, &lame, points.positions(), &[], params)
+            .unwrap()
+            .0
+    };
+    let (weighted, plain) = (
+        build(freeform::PinHold::WEIGHTED),
+        build(freeform::PinHold::Penalty),
+    );
+    assert!(weighted.region_weight().is_none());
+    let (a, b) = (
+        weighted.evaluate(points.positions()).unwrap(),
+        plain.evaluate(points.positions()).unwrap(),
+    );
+    assert_eq!(a.weights, b.weights);
+    let simulation = rubber(&weighted, &points, &free).with_pin_hold(freeform::PinHold::WEIGHTED);
+    let report = run(&simulation, 3, |_| Ok(())).unwrap();
+    assert!(report.region_points.is_empty());
+}
+
+#[test]
 fn a_projected_volumetric_term_runs_holds_its_regions_and_reports_inf_sup_constants() {
     let bar = weighted_bar();
     let hold = freeform::PinHold::WEIGHTED;
