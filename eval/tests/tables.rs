@@ -214,11 +214,11 @@ fn tables_5_and_6_carry_ratios_and_residuals(study: &BeamStudy) {
     assert!(residual > 0.0 && residual < 0.1, "{residual}");
 }
 
-#[test]
-fn a_reference_with_unconverged_frames_is_refused_by_the_tables_with_the_frames_named() {
-    let dir = std::env::temp_dir().join(format!("freeform-refused-{}", std::process::id()));
-    let config = BeamStudyConfig {
-        modes: vec![4],
+/// Both tests at `modes` on K = 60 kernels, 3 steps against a linear FEM at 2 cells per metre,
+/// no baselines, cached under `dir`: a study of seconds.
+fn coarse_study(modes: Vec<usize>, dir: &std::path::Path) -> BeamStudyConfig {
+    BeamStudyConfig {
+        modes,
         tests: BeamTest::ALL.to_vec(),
         settings: ReducedSettings {
             kernels: 60,
@@ -231,16 +231,25 @@ fn a_reference_with_unconverged_frames_is_refused_by_the_tables_with_the_frames_
             order: ElementOrder::Linear,
             cells_per_metre: 2,
         },
-        // One Newton iteration per step cannot converge a step of the Twist from rest.
-        fem_newton: NewtonParams {
-            max_iterations: 1,
-            ..NewtonParams::default()
-        },
+        fem_newton: NewtonParams::default(),
         simplicits: None,
         cache_dir: dir.join("cache"),
         exact_pins: None,
         mpm: None,
         sph: None,
+    }
+}
+
+#[test]
+fn a_reference_with_unconverged_frames_is_refused_by_the_tables_with_the_frames_named() {
+    let dir = std::env::temp_dir().join(format!("freeform-refused-{}", std::process::id()));
+    let config = BeamStudyConfig {
+        // One Newton iteration per step cannot converge a step of the Twist from rest.
+        fem_newton: NewtonParams {
+            max_iterations: 1,
+            ..NewtonParams::default()
+        },
+        ..coarse_study(vec![4], &dir)
     };
     let study = run_beam_study(&config, &quiet()).unwrap();
     let twist = study
@@ -323,28 +332,8 @@ fn table1_runs_both_pin_treatments_and_the_exact_rows_hold_their_regions() {
 #[test]
 fn a_run_that_fails_is_named_in_every_beam_table_and_the_other_rows_are_kept() {
     let dir = std::env::temp_dir().join(format!("freeform-failed-row-{}", std::process::id()));
-    let config = BeamStudyConfig {
-        // m = 80 is not below K = 60: its basis cannot be built.
-        modes: vec![4, 80],
-        tests: BeamTest::ALL.to_vec(),
-        settings: ReducedSettings {
-            kernels: 60,
-            basis_points: 1500,
-            simulation_points: 400,
-            ..ReducedSettings::default()
-        },
-        steps: Some(3),
-        fem: FemResolution {
-            order: ElementOrder::Linear,
-            cells_per_metre: 2,
-        },
-        fem_newton: NewtonParams::default(),
-        simplicits: None,
-        cache_dir: dir.join("cache"),
-        exact_pins: None,
-        mpm: None,
-        sph: None,
-    };
+    // m = 80 is not below K = 60: its basis cannot be built.
+    let config = coarse_study(vec![4, 80], &dir);
     let study = run_beam_study(&config, &quiet()).unwrap();
     assert_eq!(study.rows.len(), 2);
     assert!(
