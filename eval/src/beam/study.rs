@@ -10,6 +10,7 @@ use crate::EvalError;
 use crate::beam_protocol::evaluation::{
     FemReference, FemSummary, evaluate_field, fem_references, region_drift,
 };
+use crate::beam_protocol::failed_row::FailedBeamRow;
 use crate::beam_protocol::reduced::{
     BeamBasis, build_beam_basis, build_beam_basis_for, exact_pin_hold,
 };
@@ -102,17 +103,6 @@ pub struct BaselineRow {
     pub training_seconds: f64,
     /// Steps that did not converge.
     pub unconverged_steps: usize,
-}
-
-/// A (test, m) run that failed: the study goes on with the others and the tables name it.
-#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
-pub struct FailedBeamRow {
-    /// Bend or Twist.
-    pub test: BeamTest,
-    /// Modes.
-    pub m: usize,
-    /// The error and its causes ([`freeform::failure_chain`]).
-    pub error: String,
 }
 
 /// Everything the beam tables print.

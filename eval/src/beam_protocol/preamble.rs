@@ -3,8 +3,8 @@
 
 use std::fmt::Write as _;
 
-use crate::beam::study::FailedBeamRow;
 use crate::beam_protocol::evaluation::FemSummary;
+use crate::beam_protocol::failed_row::FailedBeamRow;
 use crate::beam_protocol::study_config::BeamStudyConfig;
 use crate::beam_scenario::{BeamTest, beam_length_scale};
 

@@ -8,8 +8,9 @@ pub mod twist_plot;
 
 use serde::Serialize;
 
-use crate::beam::study::{BeamStudy, FailedBeamRow};
+use crate::beam::study::BeamStudy;
 use crate::beam_protocol::evaluation::FemSummary;
+use crate::beam_protocol::failed_row::FailedBeamRow;
 use crate::beam_protocol::study_config::BeamStudyConfig;
 use crate::report::table::{PaperTable, RenderedTable};
 pub use table1::{Table1, Table1ParticleRow, Table1Row};

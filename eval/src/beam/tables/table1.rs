@@ -6,7 +6,8 @@ use std::fmt::Write as _;
 use serde::Serialize;
 
 use super::{BeamTableSettings, simplicits_line};
-use crate::beam::study::{BeamStudy, FailedBeamRow};
+use crate::beam::study::BeamStudy;
+use crate::beam_protocol::failed_row::FailedBeamRow;
 use crate::beam_protocol::preamble::settings_lines;
 use crate::particle_baselines::particle_baseline::ParticleMethod;
 use crate::report::paper;
