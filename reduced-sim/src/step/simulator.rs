@@ -384,10 +384,19 @@ impl<M: HyperelasticMaterial> Simulator<M> {
             }
         }
         self.terms.prescribe(&mut z, potential.time);
-        if !potential.energy(&z).is_finite() {
-            z = self.finite_start(&potential, &z);
-        }
-        let mut report = solve_step(&mut potential, &mut z, &self.params.newton, &mut factor)?;
+        let newton = &self.params.newton;
+        let mut report = match solve_step(&mut potential, &mut z, newton, &mut factor) {
+            // Newton refused its start (z unmoved, the carried factor dropped): start again
+            // where the energy is finite.
+            Err(StepError::Newton(NewtonError::NonFinite {
+                iteration: 0,
+                quantity: "energy",
+            })) => {
+                z = self.finite_start(&potential, &z);
+                solve_step(&mut potential, &mut z, newton, &mut factor)?
+            }
+            solved => solved?,
+        };
         // Friction lagging (IPC): the floor's contacts and normal forces taken again from the
         // solution, the slip still measured from the start of the step, and solved again from
         // there, `friction_lag_iterations` times at most, and only while the lagged forces
