@@ -305,11 +305,13 @@ fn on_a_bar_whose_ends_are_held_across_the_held_material_distance_is_the_regions
             bar.params,
         )
         .unwrap();
-    assert_ne!(
-        shape,
-        freeform::PinHold::WEIGHTED,
+    let measures_to_held_material =
+        |basis: &SkinningBasis| basis.region_weight().unwrap().held_material().is_some();
+    assert!(
+        measures_to_held_material(&bar.basis),
         "the default measures to the held material"
     );
+    assert!(!measures_to_held_material(&basis));
     let (a, b) = (
         bar.basis.evaluate(bar.points.positions()).unwrap(),
         basis.evaluate(bar.points.positions()).unwrap(),

@@ -47,37 +47,31 @@ pub struct HeldMaterial {
 
 impl HeldMaterial {
     /// The held material of the regions whose membership `region_of` gives, sampled by
-    /// `points` (the basis's integration points), with spacing `h = (Σ v / N)^{1/3}`. `None`
-    /// when some region holds none of the points or the points have no volume.
+    /// `points` (the basis's integration points), with spacing `h = (Σ v / N)^{1/3}`.
+    ///
+    /// # Errors
+    /// The index of the first region that holds none of the points.
     pub fn sample(
         points: &IntegrationPoints,
         regions: usize,
         region_of: impl Fn(&Vector3<f64>) -> Option<usize>,
-    ) -> Option<HeldMaterial> {
+    ) -> Result<HeldMaterial, usize> {
         let mut samples = vec![Vec::new(); regions];
         for x in points.positions() {
             if let Some(r) = region_of(x) {
                 samples[r].push(*x);
             }
         }
+        if let Some(empty) = samples.iter().position(Vec::is_empty) {
+            return Err(empty);
+        }
+        // Volumes are positive and finite (`IntegrationPoints::new`), so h is.
         let volume: f64 = points.volumes().iter().sum();
-        let spacing = (volume / points.len() as f64).cbrt();
-        let valid = samples.iter().all(|s| !s.is_empty()) && spacing > 0.0 && spacing.is_finite();
-        valid.then(|| HeldMaterial {
+        Ok(HeldMaterial {
             samples,
-            spacing,
+            spacing: (volume / points.len() as f64).cbrt(),
             indices: OnceLock::new(),
         })
-    }
-
-    /// The number of regions.
-    pub fn regions(&self) -> usize {
-        self.samples.len()
-    }
-
-    /// h (m).
-    pub fn spacing(&self) -> f64 {
-        self.spacing
     }
 
     /// `(D, ∇D)` (m, unit-bounded) at rest point `x` outside region `region`, given the

@@ -119,8 +119,7 @@ pub enum RegionWeightError {
         /// δ (m).
         transition: f64,
     },
-    /// A region holds none of the points its held material is sampled from (or they have no
-    /// volume).
+    /// A region holds none of the points its held material is sampled from.
     #[error("held region {region} holds none of the {points} points sampling its material")]
     NoHeldMaterial {
         /// Its index.
@@ -172,15 +171,8 @@ impl RegionWeight {
         points: &IntegrationPoints,
     ) -> Result<RegionWeight, RegionWeightError> {
         let material = HeldMaterial::sample(points, self.regions.len(), |x| self.region_of(x))
-            .ok_or_else(|| RegionWeightError::NoHeldMaterial {
-                region: (0..self.regions.len())
-                    .find(|&r| {
-                        !points
-                            .positions()
-                            .iter()
-                            .any(|x| self.region_of(x) == Some(r))
-                    })
-                    .unwrap_or(0),
+            .map_err(|region| RegionWeightError::NoHeldMaterial {
+                region,
                 points: points.len(),
             })?;
         Ok(RegionWeight {
