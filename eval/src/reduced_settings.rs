@@ -49,7 +49,7 @@ pub struct ReducedSettings {
     pub hessian_reuse: HessianReuse,
     /// Where the elastic energy is integrated (default [`QuadratureRule::PAPER`], every
     /// simulation point: the paper's setting; the bench's cubature series and
-    /// [`ReducedSettings::library_default`] run [`QuadratureRule::Cubature`]).
+    /// [`ReducedSettings::library_step`] run [`QuadratureRule::Cubature`]).
     #[serde(default = "paper_quadrature")]
     pub quadrature: QuadratureRule,
     /// The modulus the pin penalty scales with (default the library's, [`PinModulus::Young`]:
@@ -57,24 +57,35 @@ pub struct ReducedSettings {
     #[serde(default)]
     pub pin_modulus: PinModulus,
     /// How the pinned and twisted ends are held (default [`PinHold::Penalty`], the paper's
-    /// treatment; [`crate::beam_protocol::reduced::exact_pin_hold`] gives the exact holding the tables run beside it).
-    #[serde(default)]
+    /// treatment, where the library's default is [`PinHold::WEIGHTED`];
+    /// [`crate::beam_protocol::reduced::exact_pin_hold`] gives the exact holding the tables run
+    /// beside it).
+    #[serde(default = "paper_pins")]
     pub pins: PinHold,
     /// The material tangent of Newton's Hessians (default [`HessianTangent::ProjectedPsd`],
-    /// the paper's setting; [`ReducedSettings::library_default`] runs the library's,
+    /// the paper's setting; [`ReducedSettings::library_step`] runs the library's,
     /// [`HessianTangent::ExactWhenDefinite`]).
     #[serde(default = "paper_tangent")]
     pub tangent: HessianTangent,
-    /// A locking-free volumetric term over a pressure space (default none: the material's own
-    /// volumetric term at every point, the paper's setting; `{}` for [`PressureSpaceParams`]'
-    /// defaults), as scene files' `simulation.pressure`. The space is built per test on the
-    /// basis grid ([`crate::beam_protocol::reduced::beam_pressure_space`]).
-    #[serde(default, skip_serializing_if = "Option::is_none")]
+    /// A locking-free volumetric term over a pressure space (default none, also written
+    /// `"pointwise"`: the material's own volumetric term at every point, the paper's setting,
+    /// where the library's default is projected; `{}` for [`PressureSpaceParams`]' defaults), as
+    /// scene files' `simulation.pressure`. The space is built per test on the basis grid
+    /// ([`crate::beam_protocol::reduced::beam_pressure_space`]).
+    #[serde(
+        default,
+        skip_serializing_if = "Option::is_none",
+        deserialize_with = "freeform::settings_vocabulary::pressure_or_pointwise"
+    )]
     pub pressure: Option<PressureSpaceParams>,
 }
 
 fn paper_tangent() -> HessianTangent {
     HessianTangent::ProjectedPsd
+}
+
+fn paper_pins() -> PinHold {
+    PinHold::Penalty
 }
 
 /// The inset of exactly held regions, in kernel radii (the median radius of the basis's
@@ -83,11 +94,6 @@ fn paper_tangent() -> HessianTangent {
 /// Chosen against the converged FEM on the beam Bend (`results/RESULTS.md`, "The exact pins'
 /// inset").
 pub const EXACT_INSET_KERNEL_RADII: f64 = 1.5;
-
-/// The cubature candidates of [`ReducedSettings::converging`]: a quarter of its 40 000
-/// points. The library's 5000 (every point of its default grid) run out on 40 000 points
-/// before the force tolerance is reached (`results/RESULTS.md`, 2026-11-30, seventh part).
-pub const CONVERGING_CUBATURE_CANDIDATES: usize = 10_000;
 
 /// How the simulation's integration points are placed.
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Serialize, Deserialize)]
@@ -246,11 +252,12 @@ impl ReducedSettings {
         }
     }
 
-    /// The defaults with the library's fast step instead of the paper's setting: the elastic
+    /// The defaults (the paper's discretization: penalty pins, the pointwise volumetric term,
+    /// 20 000 / 5000 points) with the library's fast step instead of the paper's: the elastic
     /// energy on an optimized cubature ([`QuadratureRule::default`]), the Hessian carried
     /// across steps ([`reduced_sim::SimulationParams::HESSIAN_REUSE`]) and the exact tangent
     /// wherever the step's system factors ([`HessianTangent::ExactWhenDefinite`]).
-    pub fn library_default() -> Self {
+    pub fn library_step() -> Self {
         ReducedSettings {
             quadrature: QuadratureRule::default(),
             hessian_reuse: SimulationParams::HESSIAN_REUSE,
@@ -259,24 +266,22 @@ impl ReducedSettings {
         }
     }
 
-    /// These settings with the regions held by the weighted basis ([`PinHold::WEIGHTED`]),
-    /// the volumetric term projected onto the default pressure space
-    /// ([`PressureSpaceParams::default`]), 40 000 basis and simulation points (an integration
-    /// pool that `freeform-paper convergence`'s pool check finds converged for K ≤ 2000), the
-    /// elastic energy on an optimized cubature trained on them (its candidates
-    /// [`CONVERGING_CUBATURE_CANDIDATES`] of the 40 000 points), the Hessian carried across
-    /// steps and the exact tangent where the step's system factors: the setting under which
-    /// the beam's error falls monotonically in m, with no pin factor and nothing chosen per ν.
+    /// These settings with the library's defaults for everything but m and K (a scene file's
+    /// [`freeform::SimulationSpec::default`] and [`freeform::BasisSpec::default`]): the regions
+    /// held by the weighted basis ([`PinHold::WEIGHTED`]), the volumetric term projected onto
+    /// the default pressure space ([`PressureSpaceParams::default`]), 40 000 basis and
+    /// simulation points (an integration pool that `freeform-paper convergence`'s pool check
+    /// finds converged for K ≤ 2000), the elastic energy on an optimized cubature trained on
+    /// them ([`CubatureParams::DEFAULT`], 10 000 candidates), the Hessian carried across steps
+    /// and the exact tangent where the step's system factors: the setting under which the
+    /// beam's error falls monotonically in m, with no pin factor and nothing chosen per ν.
     pub fn converging(self) -> Self {
         ReducedSettings {
             pins: PinHold::WEIGHTED,
             pressure: Some(PressureSpaceParams::default()),
-            basis_points: 40_000,
-            simulation_points: 40_000,
-            quadrature: QuadratureRule::Cubature(CubatureParams {
-                candidates: CONVERGING_CUBATURE_CANDIDATES,
-                ..CubatureParams::DEFAULT
-            }),
+            basis_points: freeform::BasisSpec::DEFAULT_POINTS,
+            simulation_points: freeform::SimulationSpec::DEFAULT_POINTS,
+            quadrature: QuadratureRule::Cubature(CubatureParams::DEFAULT),
             hessian_reuse: SimulationParams::HESSIAN_REUSE,
             tangent: HessianTangent::default(),
             ..self

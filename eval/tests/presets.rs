@@ -101,9 +101,9 @@ fn beam_and_ablation_presets() {
     check(
         "beam-library",
         StudyKind::Beam,
-        "Tables 1, 5 and 6 with the library's step instead of the paper's: the optimized\ncubature, the Hessian carried across steps, the exact tangent where the step's system\nfactors (docs/defaults.md); everything else as the `beam` preset.",
+        "Tables 1, 5 and 6 on the paper's discretization (pin penalty, pointwise volumetric term,\n5000 points) with the library's step: the optimized cubature, the Hessian carried across\nsteps, the exact tangent where the step's system factors; everything else as `beam`.",
         BeamStudyConfig {
-            settings: ReducedSettings::library_default(),
+            settings: ReducedSettings::library_step(),
             ..beam_full()
         },
         &["cache_dir"],
@@ -111,7 +111,7 @@ fn beam_and_ablation_presets() {
     check(
         "beam-converging",
         StudyKind::Beam,
-        "Tables 1 and 5 with the setting whose error falls monotonically in m: the regions held by\nthe weighted basis, the projected volumetric term, 40 000 basis and simulation points, the\nlibrary's step (docs/defaults.md); FreeForm against the FEM only, no baselines.",
+        "Tables 1 and 5 with the library's defaults, whose error falls monotonically in m: the regions\nheld by the weighted basis, the projected volumetric term, 40 000 basis and simulation\npoints, the library's step (docs/defaults.md); FreeForm against the FEM only, no baselines.",
         BeamStudyConfig {
             settings: ReducedSettings::default().converging(),
             simplicits: None,
@@ -156,7 +156,7 @@ fn shapes_presets() {
     check(
         "shapes-converging",
         StudyKind::Shapes,
-        "Table 2 on the trusted references (the `shapes` preset) with the setting whose error falls\nmonotonically in m on the beam (the `beam-converging` preset's): FreeForm against the\nFEM only, no Simplicits, to set beside the committed rows.",
+        "Table 2 on the trusted references (the `shapes` preset) with the library's defaults, whose\nerror falls monotonically in m on the beam (the `beam-converging` preset's): FreeForm\nagainst the FEM only, no Simplicits, to set beside the committed rows.",
         ShapeStudyConfig {
             settings: shapes_trusted().settings.converging(),
             simplicits: None,

@@ -46,11 +46,12 @@ pub enum HeldBasisError {
 }
 
 /// How the reduced simulator holds the scene's constrained regions.
-#[derive(Clone, Copy, Debug, Default, PartialEq, Serialize, Deserialize)]
+#[derive(Clone, Copy, Debug, PartialEq, Serialize, Deserialize)]
 #[serde(rename_all = "snake_case", deny_unknown_fields)]
 pub enum PinHold {
-    /// The penalty of [`reduced_sim::PenaltyParams`] on every point of each region (default).
-    #[default]
+    /// The penalty of [`reduced_sim::PenaltyParams`] on every point of each region (the
+    /// paper's setting; the hold of a basis built without regions, as
+    /// [`crate::Simulation::new`] assumes).
     Penalty,
     /// Exactly ([`Scene::held`]) on each region shrunk by `inset` (m), the rest of the region
     /// by the penalty; the basis must be built for the shrunk regions
@@ -62,7 +63,8 @@ pub enum PinHold {
     /// Exactly ([`Scene::held`]) on the whole of each region, with a weighted basis
     /// ([`skin_eigen::build_weighted_basis`]): the modes are multiplied by a smooth distance to
     /// the regions, so they vanish on them with no penalty, no band and no parameter to tune.
-    /// A scene without constraints gets the plain basis of [`PinHold::Penalty`].
+    /// A scene without constraints gets the plain basis of [`PinHold::Penalty`]. The default
+    /// ([`PinHold::WEIGHTED`]).
     Weighted {
         /// The transition length δ of the weight ([`skin_eigen::RegionWeight`]) as a fraction
         /// of the smallest side of the basis points' bounding box (default 1: the weight reaches
@@ -94,6 +96,14 @@ impl WeightDistance {
     /// Whether this is the default, [`WeightDistance::HeldMaterial`].
     pub fn is_default(&self) -> bool {
         *self == WeightDistance::default()
+    }
+}
+
+impl Default for PinHold {
+    /// [`PinHold::WEIGHTED`]: the hold whose error falls monotonically in m with no parameter
+    /// (`docs/defaults.md`).
+    fn default() -> Self {
+        PinHold::WEIGHTED
     }
 }
 

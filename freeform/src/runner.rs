@@ -63,8 +63,9 @@ pub struct Simulation<'a, B: SkinningField + ?Sized, M> {
 impl<'a, B: SkinningField + ?Sized, M> Simulation<'a, B, M> {
     /// A run of `field` on `points` with `material` and `material_model` in `scene`, with the
     /// defaults: [`SimulationParams::default`] (h = 0.01 s), [`QuadratureRule::default`] (an
-    /// optimized cubature), no cache, pins by the penalty ([`PinHold::Penalty`]) and the
-    /// material's own volumetric term at every point (no pressure space).
+    /// optimized cubature), no cache, pins by the penalty ([`PinHold::Penalty`], the hold of a
+    /// basis built without regions: give [`Simulation::with_pin_hold`] the hold `field` was
+    /// built for) and the material's own volumetric term at every point (no pressure space).
     pub fn new(
         field: &'a B,
         points: &'a IntegrationPoints,
@@ -81,7 +82,7 @@ impl<'a, B: SkinningField + ?Sized, M> Simulation<'a, B, M> {
             params: SimulationParams::default(),
             quadrature: QuadratureRule::default(),
             cache_dir: None,
-            pin_hold: PinHold::default(),
+            pin_hold: PinHold::Penalty,
             pressure: None,
             placement: None,
         }

@@ -27,12 +27,12 @@
 //! [basis]           # optional, as every key in it
 //! modes = 16        # m (default 16)
 //! kernels = 1000    # K (default 1000)
-//! basis_points = 20000  # grid points the basis is built on (default 20 000)
+//! basis_points = 40000  # grid points the basis is built on (default 40 000)
 //!
 //! [simulation]      # optional, as every key in it
 //! time_step = 0.01  # s (default 0.01)
 //! steps = 100       # (default 100)
-//! simulation_points = 5000  # grid points the simulation integrates over (default 5000)
+//! simulation_points = 40000  # grid points the simulation integrates over (default 40 000)
 //! output_every = 5  # write every 5th frame (default 1)
 //! quadrature = { kind = "automatic" } # a cubature if it pays for itself in the run, else every
 //!                                     # point (default); { kind = "cubature" }: always one;
@@ -44,8 +44,11 @@
 //! # floor_contact = { barrier = { distance = 0.01 } }   # point ever reaching them
 //! hessian_reuse = true                # carry the Hessian across steps (default; false or
 //!                                     # "never": a fresh Hessian every iteration, the paper's)
-//! pins = "penalty"                    # hold the constraints by a penalty (default); or
+//! pins = { weighted = { transition_fraction = 1.0 } }  # held exactly by a weighted basis
+//!                                     # (default); "penalty": a pin penalty, the paper's; or
 //! # pins = { exact = { inset = 0.05 } }  # exactly, on each region shrunk by 0.05 m
+//! pressure = {}                       # the volumetric term projected onto a pressure space
+//!                                     # (default); "pointwise": at every point, the paper's
 //! stress = true                      # Cauchy, principal and von Mises stress in the VTK
 //!                                     # frames and points_NNNNN.vtk (default false)
 //!
@@ -162,12 +165,13 @@ pub struct BasisSpec {
 }
 
 impl BasisSpec {
-    /// Integration points the basis is built on when a file does not say: 20 000.
-    pub const DEFAULT_POINTS: usize = 20_000;
+    /// Integration points the basis is built on when a file does not say: 40 000 (an
+    /// integration pool converged for the weighted basis at K ≤ 2000, `docs/defaults.md`).
+    pub const DEFAULT_POINTS: usize = 40_000;
 }
 
 impl Default for BasisSpec {
-    /// The library's basis: m = 16, K = 1000 on 20 000 points.
+    /// The library's basis: m = 16, K = 1000 on 40 000 points.
     fn default() -> Self {
         let params = skin_eigen::BasisParams::default();
         BasisSpec {
@@ -205,8 +209,10 @@ pub struct SimulationSpec {
     /// paper's setting). `true` and `false` are read as these two.
     #[serde(deserialize_with = "crate::settings_vocabulary::hessian_reuse_or_bool")]
     pub hessian_reuse: optimize::HessianReuse,
-    /// How the constraints are held (default `"penalty"`; `{ exact = { inset = d } }` builds
-    /// the basis for the regions shrunk by d m, see [`crate::PinHold`]).
+    /// How the constraints are held (default `{ weighted = { transition_fraction = 1.0 } }`,
+    /// [`crate::PinHold::WEIGHTED`]: exactly, by a weighted basis; `"penalty"`: the paper's pin
+    /// penalty; `{ exact = { inset = d } }` builds the basis for the regions shrunk by d m, see
+    /// [`crate::PinHold`]).
     pub pins: crate::PinHold,
     /// Write the stress (Sec. 9.3) into every VTK frame at the surface vertices or cloud
     /// points, and `points_NNNNN.vtk` of the integration points with theirs (default false:
@@ -235,21 +241,45 @@ pub struct SimulationSpec {
     /// distance = d } }`: IPC's log barrier within d m, so no integration point ever reaches
     /// them, see [`reduced_sim::FloorContact`]). A mesh collider's band must exceed d.
     pub floor_contact: reduced_sim::FloorContact,
-    /// A locking-free volumetric term over a pressure space (default none: the material's
-    /// own volumetric term at every point, the paper's setting; `{}` for
-    /// [`crate::PressureSpaceParams`]' defaults).
+    /// The volumetric term (default `Some(PressureSpaceParams::default())`, written `{}`:
+    /// projected onto a pressure space, locking-free, [`crate::PressureSpace`]; `None`, written
+    /// `"pointwise"`: the material's own volumetric term at every point, the paper's setting).
+    #[serde(
+        deserialize_with = "crate::settings_vocabulary::pressure_or_pointwise",
+        serialize_with = "crate::settings_vocabulary::serialize_pressure"
+    )]
     pub pressure: Option<crate::PressureSpaceParams>,
 }
 
 impl SimulationSpec {
-    /// Integration points the simulation uses when a file does not say: 5000.
-    pub const DEFAULT_POINTS: usize = 5000;
+    /// Integration points the simulation uses when a file does not say: 40 000, the basis's
+    /// pool, which the cubature is trained on (the paper's 5000 under-integrate the weighted
+    /// basis, `docs/defaults.md`).
+    pub const DEFAULT_POINTS: usize = 40_000;
+}
+
+impl SimulationSpec {
+    /// The paper's setting of the step with the library's other defaults: 5000 points, every
+    /// one integrated (`{ kind = "full" }`), a fresh Hessian every Newton iteration, the
+    /// PSD-projected tangent, the pin penalty and the pointwise volumetric term.
+    pub fn paper() -> Self {
+        SimulationSpec {
+            simulation_points: 5000,
+            quadrature: QuadratureRule::PAPER,
+            hessian_reuse: optimize::HessianReuse::Never,
+            tangent: reduced_sim::HessianTangent::ProjectedPsd,
+            pins: crate::PinHold::Penalty,
+            pressure: None,
+            ..SimulationSpec::default()
+        }
+    }
 }
 
 impl Default for SimulationSpec {
-    /// The library's defaults: 100 steps of 0.01 s on 5000 points, every frame written, the
-    /// automatic quadrature, Hessian reuse, penalty pins, no stress, and [`reduced_sim::PenaltyParams`]'
-    /// and [`optimize::NewtonParams`]' contact and solver settings.
+    /// The library's defaults: 100 steps of 0.01 s on 40 000 points, every frame written, the
+    /// automatic quadrature, Hessian reuse, the regions held by the weighted basis, the
+    /// projected volumetric term, no stress, and [`reduced_sim::PenaltyParams`]' and
+    /// [`optimize::NewtonParams`]' contact and solver settings.
     fn default() -> Self {
         let penalty = reduced_sim::PenaltyParams::default();
         SimulationSpec {
@@ -266,7 +296,7 @@ impl Default for SimulationSpec {
             floor_stiffness_factor: penalty.floor_factor,
             tangent: reduced_sim::HessianTangent::default(),
             floor_contact: reduced_sim::FloorContact::default(),
-            pressure: None,
+            pressure: Some(crate::PressureSpaceParams::default()),
         }
     }
 }

@@ -13,13 +13,16 @@
 //! | `quadrature` | `{ kind = "full" \| "cubature" \| "automatic" \| "random_subset", … }` | `[simulation]` | `settings` |
 //! | `pins` | `"penalty"`, `{ exact = { inset } }`, `{ weighted = { … } }` | `[simulation]` | `settings` |
 //! | `tangent` | `"projected_psd"`, `"exact_when_definite"`, `"exact"` | `[simulation]` | `settings` |
+//! | `pressure` | `"pointwise"` or `{ mode_fraction, affine, retained_shear_multiple }` | `[simulation]` | `settings` |
 //!
 //! Earlier spellings stay readable: `points` in `[basis]` and `[simulation]`, `tolerance` in
 //! presets, and `true` / `false` for `hessian_reuse` (the library's reuse and `"never"`).
 
 use optimize::HessianReuse;
 use reduced_sim::SimulationParams;
-use serde::{Deserialize, Deserializer};
+use serde::{Deserialize, Deserializer, Serialize, Serializer};
+
+use crate::pressure_space::PressureSpaceParams;
 
 /// Reads `hessian_reuse` as a [`HessianReuse`] or as a boolean: `true` is the library's
 /// [`SimulationParams::HESSIAN_REUSE`], `false` is [`HessianReuse::Never`].
@@ -42,6 +45,47 @@ pub fn hessian_reuse_or_bool<'de, D: Deserializer<'de>>(
     })
 }
 
+/// The spelling of the pointwise volumetric term, the paper's: `pressure = "pointwise"`.
+#[derive(Serialize, Deserialize)]
+#[serde(rename_all = "snake_case")]
+enum Pointwise {
+    Pointwise,
+}
+
+/// Reads `pressure` as `"pointwise"` (`None`: the material's own volumetric term at every
+/// point) or as a table of [`PressureSpaceParams`] (`{}` for its defaults).
+///
+/// # Errors
+/// The deserializer's error for a value that is neither.
+pub fn pressure_or_pointwise<'de, D: Deserializer<'de>>(
+    deserializer: D,
+) -> Result<Option<PressureSpaceParams>, D::Error> {
+    #[derive(Deserialize)]
+    #[serde(untagged)]
+    enum Spelling {
+        Pointwise(Pointwise),
+        Projected(PressureSpaceParams),
+    }
+    Ok(match Spelling::deserialize(deserializer)? {
+        Spelling::Pointwise(Pointwise::Pointwise) => None,
+        Spelling::Projected(params) => Some(params),
+    })
+}
+
+/// Writes `pressure` as [`pressure_or_pointwise`] reads it.
+///
+/// # Errors
+/// The serializer's.
+pub fn serialize_pressure<S: Serializer>(
+    pressure: &Option<PressureSpaceParams>,
+    serializer: S,
+) -> Result<S::Ok, S::Error> {
+    match pressure {
+        None => Pointwise::Pointwise.serialize(serializer),
+        Some(params) => params.serialize(serializer),
+    }
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -62,6 +106,40 @@ mod tests {
             HessianReuse::WhileContracting { contraction: 0.5 }
         );
         assert!(reuse_of("\"sometimes\"").is_err());
+    }
+
+    #[test]
+    fn pressure_reads_pointwise_or_a_space_and_writes_what_it_reads() {
+        let read = |text: &str| toml::from_str::<SimulationSpec>(text).map(|s| s.pressure);
+        assert_eq!(read("").unwrap(), Some(PressureSpaceParams::default()));
+        assert_eq!(read("pressure = \"pointwise\"").unwrap(), None);
+        assert_eq!(
+            read("pressure = {}").unwrap(),
+            Some(PressureSpaceParams::default())
+        );
+        let affine = read("pressure = { affine = true }").unwrap().unwrap();
+        assert!(affine.affine);
+        assert!(read("pressure = \"none\"").is_err());
+        for pressure in [None, Some(affine)] {
+            let spec = SimulationSpec {
+                pressure,
+                ..SimulationSpec::default()
+            };
+            let text = toml::to_string(&spec).unwrap();
+            assert_eq!(toml::from_str::<SimulationSpec>(&text).unwrap(), spec);
+        }
+    }
+
+    #[test]
+    fn the_papers_setting_is_spelled_by_the_keys_the_docs_give() {
+        let paper: SimulationSpec = toml::from_str(
+            "simulation_points = 5000\npins = \"penalty\"\npressure = \"pointwise\"\n\
+             quadrature = { kind = \"full\" }\nhessian_reuse = \"never\"\n\
+             tangent = \"projected_psd\"\n",
+        )
+        .unwrap();
+        assert_eq!(paper, SimulationSpec::paper());
+        assert_ne!(paper, SimulationSpec::default());
     }
 
     #[test]

@@ -146,7 +146,7 @@ fn a_scene_file_with_weighted_pins_and_a_projected_volumetric_term_holds_its_cla
     let clamp = "[[scene.constraints]]\nregion = { below = { axis = 0, value = 0.3 } }\nmotion = \"rest\"\n";
     let mut sags = Vec::new();
     for pressure in [
-        "",
+        "pressure = \"pointwise\"",
         "pressure = { mode_fraction = 1.0, retained_shear_multiple = 2.0 }",
     ] {
         let settings =
@@ -154,12 +154,9 @@ fn a_scene_file_with_weighted_pins_and_a_projected_volumetric_term_holds_its_cla
         let path = dir.join("scene.toml");
         std::fs::write(&path, box_scene(&settings) + clamp).unwrap();
         let file = SceneFile::load(&path).unwrap();
-        assert_eq!(file.simulation.pressure.is_some(), !pressure.is_empty());
-        let out = dir.join(if pressure.is_empty() {
-            "pointwise"
-        } else {
-            "projected"
-        });
+        let pointwise = pressure.contains("pointwise");
+        assert_eq!(file.simulation.pressure.is_none(), pointwise);
+        let out = dir.join(if pointwise { "pointwise" } else { "projected" });
         let report = simulate_scene_file(&file, &out, None, &Silent).unwrap();
         assert_eq!(report.unconverged_steps, 0);
         assert!(

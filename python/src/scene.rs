@@ -28,6 +28,7 @@ use crate::geometry::PyGeometry;
 use crate::material::PyMaterial;
 use crate::outputs::matrices_array;
 use crate::points::PyIntegrationPoints;
+use crate::simulation::settings_for_given_basis;
 use crate::splats::PySplats;
 use crate::threads::{on_pool, thread_pool};
 use std::sync::Arc;
@@ -84,7 +85,7 @@ impl PyScene {
         shared
             .validate()
             .map_err(|e| errors::raise::<SceneError>(&e))?;
-        let spec: SimulationSpec = serde_json::from_str(simulation)
+        let spec = settings_for_given_basis(simulation)
             .map_err(|e| SceneError::new_err(format!("simulation: {e}")))?;
         if let Some((field, problem)) = spec.defect() {
             return Err(SceneError::new_err(format!(

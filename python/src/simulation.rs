@@ -22,6 +22,24 @@ use crate::points::PyIntegrationPoints;
 use crate::splats::PySplats;
 use crate::threads::{on_pool, thread_pool};
 
+/// The `[simulation]` settings of a run on a basis the caller built (JSON text): a basis built
+/// without regions is held by the pin penalty and integrates the pointwise volumetric term, so
+/// `pins` and `pressure` default to `"penalty"` and `"pointwise"` here, not to a scene file's
+/// defaults (which build the basis for its regions and a pressure space).
+///
+/// # Errors
+/// The JSON error of text that is not such settings.
+pub(crate) fn settings_for_given_basis(json: &str) -> serde_json::Result<SimulationSpec> {
+    let mut value: serde_json::Value = serde_json::from_str(json)?;
+    if let Some(table) = value.as_object_mut() {
+        table.entry("pins").or_insert_with(|| "penalty".into());
+        table
+            .entry("pressure")
+            .or_insert_with(|| "pointwise".into());
+    }
+    serde_json::from_value(value)
+}
+
 /// A reduced simulation that Python steps: a basis, its integration points and material,
 /// a scene and the simulation settings, both in the scene-file format (`docs/scene-files.md`,
 /// the `[scene]` and `[simulation]` tables, as JSON text).
@@ -70,7 +88,7 @@ impl PySimulation {
         scene
             .validate()
             .map_err(|e| errors::raise::<errors::SceneError>(&e))?;
-        let spec: SimulationSpec = serde_json::from_str(simulation)
+        let spec = settings_for_given_basis(simulation)
             .map_err(|e| errors::SceneError::new_err(format!("simulation: {e}")))?;
         if let Some((field, problem)) = spec.defect() {
             return Err(errors::SceneError::new_err(format!("{field}: {problem}")));

@@ -185,7 +185,7 @@ fn freeform_sweeps(base: ReducedSettings) -> Vec<(String, BenchMethod)> {
             BenchMethod::FreeFormExact(
                 ReducedSettings {
                     modes: m,
-                    ..ReducedSettings::library_default()
+                    ..ReducedSettings::library_step()
                 },
                 EXACT_INSET_KERNEL_RADII,
             ),

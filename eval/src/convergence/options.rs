@@ -105,6 +105,15 @@ pub enum VolumetricTerm {
 }
 
 impl VolumetricTerm {
+    /// Whether this is the library's default volumetric term (a scene file's
+    /// [`freeform::SimulationSpec::default`]).
+    pub fn is_library_default(self) -> bool {
+        let projected = freeform::SimulationSpec::default().pressure.is_some();
+        (self == VolumetricTerm::Projected) == projected
+    }
+}
+
+impl VolumetricTerm {
     /// "pointwise" or "projected".
     pub fn name(self) -> &'static str {
         match self {

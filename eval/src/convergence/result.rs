@@ -22,7 +22,7 @@ pub struct ConvergenceRow {
     pub volumetric: VolumetricTerm,
     /// Pressure functions P of the projected term (0 for the pointwise one).
     pub pressure_functions: usize,
-    /// Whether this is the library's default treatment.
+    /// Whether this is the library's default treatment and volumetric term.
     pub default: bool,
     /// Normalized MSE against the FEM, `mean |x − x*|² / L²` over the output points (and frames).
     pub mse: f64,

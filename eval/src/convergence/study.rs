@@ -306,7 +306,7 @@ impl RowRun<'_> {
             treatment: self.treatment,
             volumetric: self.volumetric,
             pressure_functions: self.spaces.spaces.first().map_or(0, |(_, s)| s.functions()),
-            default: self.treatment.is_library_default(),
+            default: self.treatment.is_library_default() && self.volumetric.is_library_default(),
             mse: f64::NAN,
             relative_error: f64::NAN,
             tip_error: f64::NAN,

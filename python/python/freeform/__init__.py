@@ -188,8 +188,10 @@ class Simulation:
     at rest by the same penalty as the scene's constraints; ``threads`` pins the threads its
     setup and steps run on (all cores by default; a fixed count gives bit-identical runs).
     ``simulation["steps"]`` is the planned length of the run, which the automatic quadrature
-    weighs; ``points``, ``output_every`` and ``stress`` do not apply here. Held pins and a
-    pressure space need a basis built for them: use ``simulate_scene_file`` for those.
+    weighs; ``points``, ``output_every`` and ``stress`` do not apply here. The basis given is
+    held by the pin penalty with the pointwise volumetric term (``pins`` and ``pressure``
+    default to ``"penalty"`` and ``"pointwise"`` here); a scene file's defaults, the weighted
+    basis and the projected term, need a basis built for them: use ``simulate_scene_file``.
     """
 
     def __init__(

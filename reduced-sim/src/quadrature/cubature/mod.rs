@@ -94,10 +94,10 @@ pub struct CubatureParams {
     /// the force components: component k is scaled by `1/sqrt(H_kk)`, so errors in soft
     /// directions, which move the solution most, count most.
     pub time_step: f64,
-    /// Points the greedy selection chooses from, drawn at random (default 5000; every point
+    /// Points the greedy selection chooses from, drawn at random (default 10 000; every point
     /// when the model has fewer). Too few limit the error reachable with non-negative weights
-    /// (`results/RESULTS.md`, "The cubature's candidate pool"; the report's `stop` is then
-    /// [`CubatureStop::Candidates`]). Memory:
+    /// (`results/RESULTS.md`, "The cubature's candidate pool"; 5000 of 40 000 points stop short
+    /// of the default tolerance; the report's `stop` is then [`CubatureStop::Candidates`]). Memory:
     /// 4 · (12(m+1) + 18 · poses) · candidates bytes (30 MB at m = 32 with 60 poses).
     pub candidates: usize,
     /// Relative force error over the training poses (in the weighted norm of
@@ -135,7 +135,7 @@ impl CubatureParams {
         max_twist: 4.0 * std::f64::consts::PI,
         max_bend: std::f64::consts::PI,
         time_step: 0.01,
-        candidates: 5000,
+        candidates: 10_000,
         tolerance: 0.001,
         max_points: 2000,
         batch: 16,
