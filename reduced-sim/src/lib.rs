@@ -15,7 +15,9 @@ pub use contact::collider::{
 };
 pub use contact::mesh_collider::MeshShape;
 pub use model::deformation_map::{DeformationMap, DeformationMapError};
-pub use model::projected_dilatation::{ProjectedDilatationError, ProjectedDilatationParams};
+pub use model::projected_dilatation::{
+    INVERSION_BARRIER_START, ProjectedDilatationError, ProjectedDilatationParams,
+};
 pub use model::reduced_coordinates::ReducedLayout;
 pub use model::reduced_model::{ReducedModel, ReducedModelError};
 pub use model::skinning_field::SkinningField;

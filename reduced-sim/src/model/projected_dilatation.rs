@@ -20,8 +20,16 @@
 //! containing the constants the subspace no longer has to keep J ≈ γ pointwise, which is what
 //! locks a poor displacement space at ν → 0.5. A point whose pressure values are all 0 (a held
 //! region) carries no volumetric energy. The per-point curvature term can be indefinite; the
-//! projected tangents project the whole per-point 9 × 9 matrix. Any `J_q ≤ 0` makes the energy
-//! +∞ (an inversion guard: pointwise J can invert while ΠJ stays positive).
+//! projected tangents project the whole per-point 9 × 9 matrix.
+//!
+//! An inversion guard: pointwise J can invert while ΠJ stays positive, so each point also
+//! carries the barrier `κ_q β(J_q)`, `β(J) = −(J − Ĵ)² ln(J / Ĵ)` for `0 < J < Ĵ` and 0 above
+//! ([`INVERSION_BARRIER_START`] = Ĵ; C² at Ĵ, IPC's barrier in J), and any `J_q ≤ 0` makes the
+//! energy +∞. The barrier's force grows without bound as a point nears inversion, so Newton
+//! is pushed back before the energy jumps (a bare +∞ left steps of colliding objects with
+//! nothing but line-search cuts); points with `J ≥ Ĵ` never feel it. Its terms enter as the
+//! rest: `κ_q β'(J_q)` in the factor of `cof F` ([`ProjectedDilatation::pressure_shift`]),
+//! `κ_q β''(J_q)` in that of `cof⊗cof`.
 
 use faer::linalg::matmul::matmul;
 use faer::{Accum, Mat, MatRef, Par};
@@ -34,6 +42,41 @@ use rayon::prelude::*;
 use thiserror::Error;
 
 use crate::model::deformation_map::POINTS_PER_PART;
+
+/// Ĵ: the volume ratio J below which a point of the projected dilatation feels the inversion
+/// barrier `κ β(J)` (module docs): a tenth of its rest volume.
+pub const INVERSION_BARRIER_START: f64 = 0.1;
+
+/// `(β(J), β'(J), β''(J))` of the inversion barrier `β(J) = −(J − Ĵ)² ln(J / Ĵ)` for
+/// `0 < J < Ĵ`, zeros for `J ≥ Ĵ` (Ĵ = [`INVERSION_BARRIER_START`]). At `J ≤ 0` the energy is
+/// +∞ and the derivatives are those at `J = 10⁻⁹ Ĵ`: finite, and the force still points
+/// towards larger J (no NaN where a pose inverts a point).
+#[allow(non_snake_case)]
+pub(crate) fn inversion_barrier(J: f64) -> (f64, f64, f64) {
+    let start = INVERSION_BARRIER_START;
+    if J >= start {
+        return (0.0, 0.0, 0.0);
+    }
+    if J <= 0.0 {
+        let (_, slope, curvature) = inversion_barrier(1e-9 * start);
+        return (f64::INFINITY, slope, curvature);
+    }
+    let (d, log) = (J - start, (J / start).ln());
+    (
+        -d * d * log,
+        -2.0 * d * log - d * d / J,
+        -2.0 * log - 4.0 * d / J + d * d / (J * J),
+    )
+}
+
+/// Whether a force of the projected dilatation includes its inversion barrier.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub(crate) enum InversionBarrier {
+    /// The simulated model's force (its energy's gradient).
+    Included,
+    /// The force a cubature is trained and validated on (module docs).
+    LeftOut,
+}
 
 /// Options of the projected volumetric term.
 #[derive(Clone, Copy, Debug, PartialEq, serde::Serialize, serde::Deserialize)]
@@ -114,7 +157,8 @@ pub(crate) struct ProjectedDilatation {
 /// point's factor of `cof F`.
 #[derive(Debug)]
 pub(crate) struct DilatationState {
-    /// `½ rᵀ G⁻¹ r − Σ_q w_q ½ κ_q (J_q − γ_q)²` (J); +∞ when some `J_q ≤ 0`.
+    /// `½ rᵀ G⁻¹ r − Σ_q w_q ½ κ_q (J_q − γ_q)² + Σ_q w_q κ_q β(J_q)` (J); +∞ when some
+    /// `J_q ≤ 0`.
     pub energy: f64,
     /// `J_q − γ_q` per elastic point.
     dilatations: Vec<f64>,
@@ -251,7 +295,7 @@ impl ProjectedDilatation {
                 J - v.rest_ratio
             })
             .collect();
-        // Per part: r = Σ w κ d q(X) and Σ w κ d².
+        // Per part: r = Σ w κ d q(X) and Σ w κ (d² − 2 β(J)).
         let parts: Vec<(Vec<f64>, f64)> = dilatations
             .par_chunks(POINTS_PER_PART)
             .enumerate()
@@ -262,7 +306,11 @@ impl ProjectedDilatation {
                 for (k, &d) in chunk.iter().enumerate() {
                     let q = first + k;
                     let wd = self.weighted_modulus[q] * d;
+                    let (barrier, _, _) = inversion_barrier(d + self.volumetric[q].rest_ratio);
                     pointwise += wd * d;
+                    if barrier > 0.0 {
+                        pointwise -= 2.0 * self.weighted_modulus[q] * barrier;
+                    }
                     for (r, v) in r.iter_mut().zip(self.pressure_row(q)) {
                         *r += wd * v;
                     }
@@ -291,14 +339,31 @@ impl ProjectedDilatation {
         }
     }
 
-    /// `κ_q (p_q − (J_q − γ_q))` (Pa) of elastic point q in `state`, with `p_q = p̂ · q(X_q)`:
-    /// the factor of `cof F` in its stress and of `∂²J/∂F²` in its tangent.
-    pub(crate) fn pressure_shift(&self, state: &DilatationState, q: usize) -> f64 {
-        self.pressure_shift_at(&state.coefficients, q, state.dilatations[q])
+    /// `κ_q (p_q − (J_q − γ_q) + β'(J_q))` (Pa) of elastic point q in `state`, with `p_q = p̂ ·
+    /// q(X_q)` and β the inversion barrier (0 when `barrier` leaves it out): the factor of
+    /// `cof F` in its stress and of `∂²J/∂F²` in its tangent.
+    pub(crate) fn pressure_shift(
+        &self,
+        state: &DilatationState,
+        q: usize,
+        barrier: InversionBarrier,
+    ) -> f64 {
+        let dilatation = state.dilatations[q];
+        let shift = self.pressure_shift_at(&state.coefficients, q, dilatation);
+        match barrier {
+            InversionBarrier::LeftOut => shift,
+            InversionBarrier::Included => {
+                let (_, slope, _) = inversion_barrier(dilatation + self.rest_ratio(q));
+                shift + self.volumetric[q].modulus * slope
+            }
+        }
     }
 
-    /// [`Self::pressure_shift`] for given pressure coefficients p̂ (P, e.g. a state of another
-    /// quadrature of the same points) and dilatation `J_q − γ_q` of elastic point q.
+    /// `κ_q (p_q − (J_q − γ_q))`, [`Self::pressure_shift`] without the inversion barrier, for
+    /// given pressure coefficients p̂ (P, e.g. a state of another quadrature of the same
+    /// points) and dilatation `J_q − γ_q` of elastic point q: the forces a cubature is trained
+    /// on, which leave out the barrier (a guard that acts only near inversion, finite there
+    /// only where J > 0).
     pub(crate) fn pressure_shift_at(&self, coefficients: &[f64], q: usize, dilatation: f64) -> f64 {
         let p: f64 = self
             .pressure_row(q)
@@ -353,7 +418,8 @@ impl ProjectedDilatation {
         stress + cofactor(f) * shift
     }
 
-    /// The stress `P(F) + κ_q (p̂ · q(X_q) − (J − γ_q)) cof F` of elastic point q at
+    /// The stress `P(F) + κ_q (p̂ · q(X_q) − (J − γ_q)) cof F` (no inversion barrier, as
+    /// [`Self::pressure_shift_at`]) of elastic point q at
     /// deformation `f` for the pressure coefficients p̂ (P, e.g. a pose's of
     /// [`ReducedModel::elastic_gradients`]), its material stress being `stress`.
     ///
@@ -393,8 +459,45 @@ impl ProjectedDilatation {
         }
     }
 
-    /// κ_q of elastic point q.
-    pub(crate) fn modulus(&self, q: usize) -> f64 {
-        self.volumetric[q].modulus
+    /// `κ_q (1 − β''(J))` of elastic point q at volume ratio `J`: minus the factor of
+    /// `cof⊗cof` in its tangent (the pointwise volumetric curvature taken out, the inversion
+    /// barrier's put in).
+    #[allow(non_snake_case)]
+    pub(crate) fn cofactor_modulus(&self, q: usize, J: f64) -> f64 {
+        let (_, _, curvature) = inversion_barrier(J);
+        self.volumetric[q].modulus * (1.0 - curvature)
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn the_inversion_barriers_derivatives_match_central_differences_and_vanish_at_its_start() {
+        let h = 1e-7;
+        for j in [0.003, 0.02, 0.05, 0.08, 0.099] {
+            let (b, slope, curvature) = inversion_barrier(j);
+            assert!(b > 0.0 && slope < 0.0 && curvature > 0.0, "J = {j}");
+            let fd_slope = (inversion_barrier(j + h).0 - inversion_barrier(j - h).0) / (2.0 * h);
+            let fd_curvature =
+                (inversion_barrier(j + h).1 - inversion_barrier(j - h).1) / (2.0 * h);
+            assert!((slope - fd_slope).abs() <= 1e-6 * slope.abs(), "β' at {j}");
+            assert!(
+                (curvature - fd_curvature).abs() <= 1e-6 * curvature.abs(),
+                "β'' at {j}"
+            );
+        }
+        // C² at Ĵ: all three tend to 0 from below, and are 0 above.
+        let below = inversion_barrier(INVERSION_BARRIER_START * (1.0 - 1e-6));
+        assert!(below.0.abs() < 1e-16 && below.1.abs() < 1e-10 && below.2.abs() < 1e-4);
+        assert_eq!(inversion_barrier(INVERSION_BARRIER_START), (0.0, 0.0, 0.0));
+        assert_eq!(inversion_barrier(1.0), (0.0, 0.0, 0.0));
+        // Unbounded towards inversion, infinite past it.
+        assert!(inversion_barrier(1e-12).1 < -1e9);
+        let (energy, slope, curvature) = inversion_barrier(-0.5);
+        assert_eq!(inversion_barrier(0.0).0, f64::INFINITY);
+        assert_eq!(energy, f64::INFINITY);
+        assert!(slope.is_finite() && slope < 0.0 && curvature.is_finite());
     }
 }

@@ -38,7 +38,10 @@ impl<M: HyperelasticMaterial> ReducedModel<M> {
     /// [`ReducedModel::elastic_gradient`] at each of `poses` (each of length 12(m + 1)): one
     /// `∂E_el/∂z` per pose (J per unit z, 12(m + 1), z's layout), formed as matrix products
     /// over blocks of points (module docs), over the elastic quadrature as the one-pose
-    /// gradient is. Equal to the one-pose gradients up to the order of the sums (round-off).
+    /// gradient is. Equal to the one-pose gradients up to the order of the sums (round-off),
+    /// but for a projected dilatation's inversion barrier, which these leave out (it acts only
+    /// where some point's J < [`crate::INVERSION_BARRIER_START`]; they are the forces a
+    /// cubature is trained on).
     ///
     /// # Panics
     /// If a pose's length is not 12(m + 1).

@@ -9,7 +9,7 @@ use rayon::prelude::*;
 
 use crate::model::deformation_map::{DeformationMap, deformation_gradient_of_block};
 use crate::model::elastic_deformation::ElasticDeformation;
-use crate::model::projected_dilatation::{DilatationState, ProjectedDilatation};
+use crate::model::projected_dilatation::{DilatationState, InversionBarrier, ProjectedDilatation};
 use crate::model::reduced_model::ReducedModel;
 
 /// The three diagonal and three upper row-block pairs (r, q) of the reduced Hessian.
@@ -107,6 +107,7 @@ impl<M: HyperelasticMaterial> ReducedModel<M> {
             self.elastic_lame(),
             self.elastic_weights(),
             self.dilatation().zip(deformation.dilatation.as_ref()),
+            InversionBarrier::Included,
             &deformation.gradients,
         )
     }
@@ -238,7 +239,11 @@ impl<M: HyperelasticMaterial> ReducedModel<M> {
             .dilatation
             .as_ref()
             .zip(self.dilatation())
-            .map(|(state, d)| (0..n).map(|q| d.pressure_shift(state, q)).collect())
+            .map(|(state, d)| {
+                (0..n)
+                    .map(|q| d.pressure_shift(state, q, InversionBarrier::Included))
+                    .collect()
+            })
     }
 
     /// The weighted tangents `w_i ∂P/∂F(F_i)` of the elastic points `range` into `out` (one
@@ -262,7 +267,7 @@ impl<M: HyperelasticMaterial> ReducedModel<M> {
                     *t = ProjectedDilatation::shifted_tangent(
                         t,
                         &f[i],
-                        d.modulus(i),
+                        d.cofactor_modulus(i, f[i].determinant()),
                         shift[i],
                         tangent,
                     );
@@ -362,8 +367,9 @@ pub(crate) fn weighted_elastic_gradient<M: HyperelasticMaterial>(
 }
 
 /// [`weighted_elastic_gradient`] with the projected volumetric term `dilatation` in its
-/// `state` at `f`, when given: each point's stress is `P(F_i) + κ_i (p_i − (J_i − γ_i)) cof F_i`
-/// ([`ProjectedDilatation::shifted_stress`]). The elastic gradient of
+/// `state` at `f`, when given: each point's stress is `P(F_i) + κ_i (p_i − (J_i − γ_i) +
+/// β'(J_i)) cof F_i` ([`ProjectedDilatation::shifted_stress`]), the inversion barrier's β'
+/// as `barrier` says. With the barrier, the elastic gradient of
 /// [`ReducedModel::elastic_gradient`] on a model with a projected dilatation.
 pub(crate) fn projected_elastic_gradient<M: HyperelasticMaterial>(
     material: &M,
@@ -371,6 +377,7 @@ pub(crate) fn projected_elastic_gradient<M: HyperelasticMaterial>(
     lame: &[LameParameters],
     weights: &[f64],
     dilatation: Option<(&ProjectedDilatation, &DilatationState)>,
+    barrier: InversionBarrier,
     f: &[Matrix3<f64>],
 ) -> Vec<f64> {
     let Some((d, state)) = dilatation else {
@@ -380,7 +387,7 @@ pub(crate) fn projected_elastic_gradient<M: HyperelasticMaterial>(
         ProjectedDilatation::shifted_stress(
             material.first_piola_kirchhoff(&lame[i], f),
             f,
-            d.pressure_shift(state, i),
+            d.pressure_shift(state, i, barrier),
         ) * weights[i]
     })
 }

@@ -5,6 +5,7 @@ use hyperelastic::HyperelasticMaterial;
 
 use crate::model::elastic_energy::projected_elastic_gradient;
 use crate::model::elastic_quadrature::{ElasticQuadrature, QuadratureError};
+use crate::model::projected_dilatation::InversionBarrier;
 use crate::model::reduced_model::ReducedModel;
 
 use super::norm;
@@ -31,7 +32,8 @@ pub fn force_weights<M: HyperelasticMaterial>(model: &ReducedModel<M>, time_step
 /// to unit force: `sqrt(Σ_p ‖ω∘(f̃_p − f_p)‖² / ‖ω∘f_p‖² / #poses)` with f the full-quadrature
 /// force and f̃ the force of the model integrated by `quadrature`
 /// ([`ReducedModel::with_elastic_quadrature`]; with a projected dilatation, its pressure
-/// projection is formed on the quadrature's points too). Poses with zero force are skipped.
+/// projection is formed on the quadrature's points too, and both forces leave out its
+/// inversion barrier, as the training does). Poses with zero force are skipped.
 ///
 /// # Errors
 /// [`QuadratureError::OutOfRange`] for a quadrature point that is not a point of the model;
@@ -67,6 +69,7 @@ pub fn force_error<M: HyperelasticMaterial>(
             &subset.lame,
             subset.quadrature.weights(),
             dilatation.as_ref().zip(state.as_ref()),
+            InversionBarrier::LeftOut,
             &f,
         );
         let diff: Vec<f64> = approx
