@@ -90,16 +90,15 @@ impl DemoSize {
         fem_cells_per_metre: 2,
     };
 
-    fn fem_label(&self) -> String {
-        format!("P2 res {}", self.fem_cells_per_metre)
-    }
-}
-
-impl DemoSize {
+    /// The basis builder's options: m and K, the rest default.
     fn basis_params(&self) -> BasisParams {
         BasisParams::default()
             .with_modes(self.modes)
             .with_kernels(self.kernels)
+    }
+
+    fn fem_label(&self) -> String {
+        format!("P2 res {}", self.fem_cells_per_metre)
     }
 }
 

@@ -67,8 +67,17 @@ impl ObjectSetup {
     ) -> Result<(Self, Option<SplatTable>), SimulateError> {
         let (spec, label) = (object.basis, &object.label);
         let start = Instant::now();
+        let regions = if object.scene.constraints.is_empty() {
+            String::new()
+        } else {
+            format!("; regions {}", object.simulation.pins.summary())
+        };
+        let volumetric = match object.simulation.pressure {
+            Some(_) => "projected onto a pressure space",
+            None => "pointwise",
+        };
         progress.status(&format!(
-            "{label}basis: m = {}, K = {}, ≈{} grid points",
+            "{label}basis: m = {}, K = {}, ≈{} grid points{regions}; volumetric term {volumetric}",
             spec.modes, spec.kernels, spec.basis_points
         ));
         let (geometry, splats) = read_shape(object.geometry)?;

@@ -108,6 +108,16 @@ impl Default for PinHold {
 }
 
 impl PinHold {
+    /// How it holds a region, in a few words for status lines: "held by a pin penalty",
+    /// "held exactly inside an inset of 0.05 m", "held exactly by a weighted basis".
+    pub fn summary(&self) -> String {
+        match self {
+            PinHold::Penalty => "held by a pin penalty".to_string(),
+            PinHold::Exact { inset } => format!("held exactly inside an inset of {inset} m"),
+            PinHold::Weighted { .. } => "held exactly by a weighted basis".to_string(),
+        }
+    }
+
     /// [`PinHold::Weighted`] with its defaults: a transition of one object thickness, distances
     /// to the held material.
     pub const WEIGHTED: PinHold = PinHold::Weighted {

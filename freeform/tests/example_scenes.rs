@@ -2,8 +2,19 @@
 //! README's commands do not fail on a typo; the robot arm's links form one chain.
 
 use std::path::Path;
+use std::sync::Mutex;
 
-use freeform::{ObjectsFile, SceneFile};
+use freeform::{ObjectsFile, Progress, SceneFile};
+
+/// Keeps the status lines a run reports.
+#[derive(Default)]
+struct StatusLines(Mutex<Vec<String>>);
+
+impl Progress for StatusLines {
+    fn status(&self, line: &str) {
+        self.0.lock().unwrap().push(line.to_string());
+    }
+}
 
 #[test]
 fn every_example_scene_loads_and_validates() {
@@ -68,7 +79,21 @@ fn the_minimal_scene_takes_the_library_defaults_and_runs() {
     file.simulation.steps = 10;
     file.simulation.simulation_points = 1000;
     let out = test_support::fixtures::scratch_dir("freeform-minimal-scene");
-    let report = freeform::simulate_scene_file(&file, &out, None, &freeform::Silent).unwrap();
+    let lines = StatusLines::default();
+    let report = freeform::simulate_scene_file(&file, &out, None, &lines).unwrap();
+    // The run says how it holds the region and integrates the volume.
+    let basis_line = lines
+        .0
+        .into_inner()
+        .unwrap()
+        .into_iter()
+        .find(|l| l.starts_with("basis:"))
+        .expect("a basis status line");
+    assert!(
+        basis_line.contains("regions held exactly by a weighted basis")
+            && basis_line.contains("volumetric term projected onto a pressure space"),
+        "{basis_line}"
+    );
     assert_eq!(report.unconverged_steps, 0);
     let sag = report.final_max_displacement;
     assert!(sag > 1e-3, "the free end sags: {sag} m");

@@ -111,9 +111,7 @@ impl VolumetricTerm {
         let projected = freeform::SimulationSpec::default().pressure.is_some();
         (self == VolumetricTerm::Projected) == projected
     }
-}
 
-impl VolumetricTerm {
     /// "pointwise" or "projected".
     pub fn name(self) -> &'static str {
         match self {
