@@ -349,7 +349,15 @@ def test_the_quick_beam_bend_stepped_in_python_equals_the_scene_file_run(tmp_pat
         "gravity": [0, -9.8, 0],
         "constraints": [{"region": {"below": {"axis": 0, "value": 0.05}}, "motion": "rest"}],
     }
-    simulation = {"steps": steps, "simulation_points": 1000, "quadrature": {"kind": "full"}}
+    # A basis built in Python holds by the penalty with the pointwise term; the file says so
+    # too (its defaults would build a weighted basis and a pressure space).
+    simulation = {
+        "steps": steps,
+        "simulation_points": 1000,
+        "quadrature": {"kind": "full"},
+        "pins": "penalty",
+        "pressure": "pointwise",
+    }
     scene_file = tmp_path / "bend.json"
     scene_file.write_text(
         json.dumps(
@@ -396,7 +404,14 @@ def test_a_scene_of_two_objects_stepped_in_python_equals_the_objects_file_run(tm
     # A small box dropped onto a larger one resting on the floor, the larger one's left end
     # held; the same scene as a file with [[objects]] and through freeform.Scene.
     steps = 15
-    simulation = {"steps": steps, "simulation_points": 400, "time_step": 0.01, "quadrature": {"kind": "full"}}
+    simulation = {
+        "steps": steps,
+        "simulation_points": 400,
+        "time_step": 0.01,
+        "quadrature": {"kind": "full"},
+        "pins": "penalty",
+        "pressure": "pointwise",
+    }
     floor = {"normal": [0, 1, 0], "offset": 0.0, "friction": 0.3}
     contact = {"radius": 0.03, "friction": 0.2}
     held = [{"region": {"below": {"axis": 0, "value": 0.05}}, "motion": "rest"}]
