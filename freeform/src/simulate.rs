@@ -10,7 +10,7 @@ use serde::{Deserialize, Serialize};
 use crate::object_setup::{ObjectDescription, ObjectSetup};
 use crate::progress::Progress;
 use crate::runner::run;
-use crate::scene_file::SceneFile;
+use crate::scene_file::{SceneFile, SimulationSpec};
 use crate::simulate_error::SimulateError;
 use crate::stress_summary::StressSummary;
 
@@ -64,6 +64,15 @@ pub struct SimulateReport {
     /// The stress over the written frames, when `simulation.stress` asked for it.
     #[serde(default)]
     pub stress: Option<StressSummary>,
+    /// The basis settings the run used, every default filled in (`None` in summaries written
+    /// before they were recorded).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub basis: Option<crate::BasisSpec>,
+    /// The simulation settings the run used, every default filled in (how the regions were
+    /// held, the volumetric term, the quadrature asked for; `None` in summaries written before
+    /// they were recorded).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub simulation: Option<SimulationSpec>,
     /// The output vertices (or cloud points) at the last step (m), for a preview; not in
     /// `summary.json`.
     #[serde(skip)]
@@ -176,6 +185,8 @@ pub fn simulate_scene_file(
         inverted_splats: output.inverted_splats,
         quadrature: Some(report.quadrature.clone()),
         stress: output.summary.clone(),
+        basis: Some(file.basis),
+        simulation: Some(file.simulation),
         final_positions: output.map.positions(&last_z),
         final_von_mises: output.last_von_mises(),
     };
