@@ -307,6 +307,10 @@ pub struct ObjectsReport {
     pub frames_written: usize,
     /// Setup: geometry, bases, cubatures, samples (s).
     pub setup_seconds: f64,
+    /// The `[simulation]` settings the run used, every default filled in (each object's own
+    /// basis is in its file; `None` in summaries written before they were recorded).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub simulation: Option<SimulationSpec>,
     /// Every object's output points at the last step (m), for a preview; not in
     /// `summary.json`.
     #[serde(skip)]
@@ -399,6 +403,7 @@ pub fn simulate_objects(
         max_energy_rise: s.max_energy_rise,
         frames_written,
         setup_seconds,
+        simulation: Some(file.simulation),
         final_positions: sim
             .bodies()
             .iter()

@@ -106,12 +106,11 @@ fn the_minimal_scene_takes_the_library_defaults_and_runs() {
     // summary.json records the settings the run took, defaults filled in.
     let summary: serde_json::Value =
         serde_json::from_str(&std::fs::read_to_string(out.join("summary.json")).unwrap()).unwrap();
-    let simulation = &summary["simulation"];
-    assert_eq!(
-        simulation["pins"]["weighted"]["transition_fraction"], 1.0,
-        "{simulation}"
-    );
-    assert!(simulation["pressure"].is_object(), "{simulation}");
-    assert_eq!(summary["basis"]["basis_points"], 3000);
+    let simulation: freeform::SimulationSpec =
+        serde_json::from_value(summary["simulation"].clone()).unwrap();
+    assert_eq!(simulation, file.simulation);
+    assert_eq!(simulation.pins, freeform::PinHold::WEIGHTED);
+    let basis: freeform::BasisSpec = serde_json::from_value(summary["basis"].clone()).unwrap();
+    assert_eq!(basis, file.basis);
     let _ = std::fs::remove_dir_all(&out);
 }

@@ -167,6 +167,10 @@ fn two_boxes_dropped_on_each_other_write_frames_and_rest_a_contact_distance_apar
         serde_json::from_str(&std::fs::read_to_string(out.join("summary.json")).unwrap()).unwrap();
     assert!(summary["ms_per_step"].as_f64().unwrap() > 0.0);
     assert!(summary["max_penetration"].as_f64().is_some());
+    // The settings the run took, defaults filled in, read back as they were.
+    let recorded: freeform::SimulationSpec =
+        serde_json::from_value(summary["simulation"].clone()).unwrap();
+    assert_eq!(recorded, file.simulation);
     // The upper box fell 0.05 m onto the lower and rests on it: the closest samples of the two
     // came near the contact distance (0.02 m), and no pair got deeper than 2% of it into the
     // other's contact shell (or into the floor).
