@@ -22,7 +22,6 @@ use freeform::{
 use hyperelastic::{HessianTangent, MaterialField, MaterialSample, StableNeoHookean};
 use nalgebra::Vector3;
 use optimize::NewtonParams;
-use reduced_sim::QuadratureRule;
 use rkpm_core::{IntegrationPoints, sample_box_grid};
 use skin_eigen::{BasisParams, SkinningBasis, build_basis};
 
@@ -252,7 +251,7 @@ pub(crate) fn run(
         &scene,
     )
     .with_params(paper_spec.simulation_params())
-    .with_quadrature(QuadratureRule::PAPER);
+    .with_quadrature(paper_spec.quadrature);
     let vertices = reference.vertices().to_vec();
     let label = |what: &str| format!("FreeForm Bend m={} {what}", size.modes);
     let ours = run_recorded(&library, &vertices, steps, &label("defaults"), &bars)?;

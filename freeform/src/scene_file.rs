@@ -263,11 +263,12 @@ impl SimulationSpec {
     /// one integrated (`{ kind = "full" }`), a fresh Hessian every Newton iteration, the
     /// PSD-projected tangent, the pin penalty and the pointwise volumetric term.
     pub fn paper() -> Self {
+        let step = SimulationParams::paper_setting();
         SimulationSpec {
             simulation_points: 5000,
             quadrature: QuadratureRule::PAPER,
-            hessian_reuse: optimize::HessianReuse::Never,
-            tangent: reduced_sim::HessianTangent::ProjectedPsd,
+            hessian_reuse: step.newton.hessian_reuse,
+            tangent: step.tangent,
             pins: crate::PinHold::Penalty,
             pressure: None,
             ..SimulationSpec::default()
