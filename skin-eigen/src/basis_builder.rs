@@ -384,6 +384,7 @@ fn build(
     if let Some((region_coefficients, _)) = held {
         basis = basis.with_held_regions(region_coefficients);
     }
+    basis.keep_weights_at_build_points(points.positions(), points.positions(), &shape)?;
     Ok((basis, report, matrices))
 }
 
@@ -417,7 +418,9 @@ fn shape_functions_covering(
 ) -> Result<(Kernels, CoverageReport, ShapeFunctions), BasisError> {
     let shape_params = &params.shape_functions;
     match evaluate_shape_functions(&placed, points.positions(), shape_params) {
-        Ok(shape) if reaches_every_point(&placed, evaluated_at, shape_params) => {
+        Ok(shape)
+            if reaches_every_point(&placed, evaluated_at, points.positions(), shape_params) =>
+        {
             return Ok((placed, CoverageReport::default(), shape));
         }
         Ok(_) => {}
@@ -435,12 +438,16 @@ fn shape_functions_covering(
 }
 
 /// Whether the shape functions of `kernels` exist at every point of `sets` (any failure, a
-/// non-finite point included, is left to [`cover_queries`] to report).
+/// non-finite point included, is left to [`cover_queries`] to report); a set equal to
+/// `already_covered` (points where they were just evaluated) is not evaluated again.
 fn reaches_every_point(
     kernels: &Kernels,
     sets: &[&[Vector3<f64>]],
+    already_covered: &[Vector3<f64>],
     params: &ShapeFunctionParams,
 ) -> bool {
-    sets.iter()
-        .all(|set| singular_queries(kernels, set, params).is_ok_and(|singular| singular.is_empty()))
+    sets.iter().all(|set| {
+        *set == already_covered
+            || singular_queries(kernels, set, params).is_ok_and(|singular| singular.is_empty())
+    })
 }

@@ -2,6 +2,7 @@
 
 pub mod assembly;
 pub mod basis_builder;
+mod build_point_weights;
 pub mod generalized_eigen;
 pub mod held_material;
 pub mod pool_convergence;

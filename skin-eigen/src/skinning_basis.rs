@@ -1,14 +1,24 @@
 //! The skinning basis: RKPM kernels plus eigenvector coefficients, evaluable anywhere and
 //! saved to disk with a versioned header.
 
+use std::borrow::Cow;
 use std::path::Path;
 
 use artifact::{ArtifactError, FrameError, decode_framed, encode_framed};
 use nalgebra::{DMatrix, Vector3};
-use rkpm_core::{Kernels, ShapeFunctionError, ShapeFunctionParams, evaluate_shape_functions};
+use rayon::prelude::*;
+use rkpm_core::{
+    Kernels, ShapeFunctionError, ShapeFunctionParams, ShapeFunctions, evaluate_shape_functions,
+};
 use serde::{Deserialize, Serialize};
 
+use crate::build_point_weights::BuildPointWeights;
 use crate::region_weight::RegionWeight;
+
+/// Where [`SkinningBasis`]'s evaluation gets the shape functions of its kernels at a set of
+/// points: evaluated afresh, or ones already at hand.
+type ShapeSource<'a> =
+    dyn Fn(&[Vector3<f64>]) -> Result<Cow<'a, ShapeFunctions>, ShapeFunctionError> + 'a;
 
 /// File magic of a saved basis.
 const MAGIC: [u8; 8] = *b"FFBASIS\0";
@@ -98,6 +108,9 @@ pub struct SkinningBasis {
     /// The weight of a weighted basis (`None` otherwise).
     region_weight: Option<RegionWeight>,
     metadata: BasisMetadata,
+    /// The weights at the build points ([`SkinningBasis::keep_weights_at_build_points`]).
+    #[serde(skip)]
+    at_build_points: BuildPointWeights,
 }
 
 /// Weights and weight gradients at a set of points, with the constant handle first:
@@ -143,6 +156,7 @@ impl SkinningBasis {
             region_coefficients,
             region_weight: None,
             metadata,
+            at_build_points: BuildPointWeights::default(),
         }
     }
 
@@ -160,6 +174,7 @@ impl SkinningBasis {
         );
         self.held_regions = region_coefficients.ncols() + 1;
         self.region_coefficients = region_coefficients;
+        self.at_build_points = BuildPointWeights::default();
         self
     }
 
@@ -176,6 +191,7 @@ impl SkinningBasis {
         );
         self.held_regions = weight.regions().len();
         self.region_weight = Some(weight);
+        self.at_build_points = BuildPointWeights::default();
         self
     }
 
@@ -227,48 +243,75 @@ impl SkinningBasis {
         &self.metadata
     }
 
-    /// W and ∇W at arbitrary points, constant handle first.
+    /// W and ∇W at arbitrary points, constant handle first. At the points the basis was built
+    /// on, the weights kept from the build ([`SkinningBasis::keep_weights_at_build_points`]):
+    /// the same values, computed once.
     ///
     /// # Errors
     /// [`ShapeFunctionError`] when a point is not reached by enough kernels (far outside the
     /// object) or is not finite.
     pub fn evaluate(&self, points: &[Vector3<f64>]) -> Result<SkinningWeights, ShapeFunctionError> {
-        if let Some(weight) = &self.region_weight {
-            return self.evaluate_weighted(weight, points);
+        if let Some(kept) = self.at_build_points.at(points) {
+            return Ok(kept.clone());
         }
-        let shape = evaluate_shape_functions(&self.kernels, points, &self.shape_params)?;
-        let (n, handles) = (points.len(), self.handles());
-        let first_mode = 1 + self.region_coefficients.ncols();
-        let mut weights = DMatrix::zeros(n, handles);
-        let mut gradients = [
-            DMatrix::zeros(n, handles),
-            DMatrix::zeros(n, handles),
-            DMatrix::zeros(n, handles),
-        ];
-        for i in 0..n {
-            weights[(i, 0)] = 1.0;
-            for ((&k, &phi), grad) in shape
-                .kernels(i)
-                .iter()
-                .zip(shape.values(i))
-                .zip(shape.gradients(i))
-            {
-                let k = k as usize;
-                let regions = self.region_coefficients.row(k);
-                let modes = self.coefficients.row(k);
-                for j in 1..handles {
-                    let c = if j < first_mode {
-                        regions[j - 1]
-                    } else {
-                        modes[j - first_mode]
-                    };
-                    weights[(i, j)] += phi * c;
-                    for (d, g) in gradients.iter_mut().enumerate() {
-                        g[(i, j)] += grad[d] * c;
-                    }
-                }
+        self.evaluate_from(points, &|query| self.fresh_shape_functions(query))
+    }
+
+    /// Keeps the weights at `points`, the points the basis was built on, for later evaluations
+    /// there; `shape` are the shape functions of the basis's kernels at `shape_points` (every
+    /// build point, or for a weighted basis those outside the regions), as the build computed
+    /// them. The kept weights are those [`SkinningBasis::evaluate`] computes at `points`, to
+    /// the bit: the shape functions at a point depend on that point alone.
+    ///
+    /// # Errors
+    /// [`ShapeFunctionError`] as [`SkinningBasis::evaluate`]; nothing is kept then.
+    pub(crate) fn keep_weights_at_build_points(
+        &mut self,
+        points: &[Vector3<f64>],
+        shape_points: &[Vector3<f64>],
+        shape: &ShapeFunctions,
+    ) -> Result<(), ShapeFunctionError> {
+        let weights = self.evaluate_from(points, &|query| {
+            if query == shape_points {
+                Ok(Cow::Borrowed(shape))
+            } else {
+                self.fresh_shape_functions(query)
             }
+        })?;
+        self.at_build_points = BuildPointWeights::new(points.to_vec(), weights);
+        Ok(())
+    }
+
+    /// The shape functions of the basis's kernels at `points`, evaluated.
+    fn fresh_shape_functions(
+        &self,
+        points: &[Vector3<f64>],
+    ) -> Result<Cow<'static, ShapeFunctions>, ShapeFunctionError> {
+        evaluate_shape_functions(&self.kernels, points, &self.shape_params).map(Cow::Owned)
+    }
+
+    /// [`SkinningBasis::evaluate`] with the shape functions from `shape_at`.
+    fn evaluate_from(
+        &self,
+        points: &[Vector3<f64>],
+        shape_at: &ShapeSource<'_>,
+    ) -> Result<SkinningWeights, ShapeFunctionError> {
+        if let Some(weight) = &self.region_weight {
+            return self.evaluate_weighted(weight, points, shape_at);
         }
+        let shape = shape_at(points)?;
+        let (n, handles) = (points.len(), self.handles());
+        let sums = self.kernel_sums(&shape);
+        let weights = DMatrix::from_fn(n, handles, |i, j| match j {
+            0 => 1.0,
+            _ => sums[i * (handles - 1) + j - 1].0,
+        });
+        let gradients = std::array::from_fn(|d| {
+            DMatrix::from_fn(n, handles, |i, j| match j {
+                0 => 0.0,
+                _ => sums[i * (handles - 1) + j - 1].1[d],
+            })
+        });
         Ok(SkinningWeights { weights, gradients })
     }
 
@@ -278,6 +321,7 @@ impl SkinningBasis {
         &self,
         weight: &RegionWeight,
         points: &[Vector3<f64>],
+        shape_at: &ShapeSource<'_>,
     ) -> Result<SkinningWeights, ShapeFunctionError> {
         if let Some(point) = points.iter().position(|x| !x.iter().all(|v| v.is_finite())) {
             return Err(ShapeFunctionError::NonFiniteQuery { point });
@@ -287,8 +331,7 @@ impl SkinningBasis {
         let factors: Vec<(f64, Vector3<f64>)> = points.iter().map(|x| weight.weight(x)).collect();
         let free: Vec<usize> = (0..n).filter(|&i| factors[i].0 > 0.0).collect();
         let free_points: Vec<Vector3<f64>> = free.iter().map(|&i| points[i]).collect();
-        let shape = evaluate_shape_functions(&self.kernels, &free_points, &self.shape_params)
-            .map_err(|e| e.renumbered(|p| free[p]))?;
+        let shape = shape_at(&free_points).map_err(|e| e.renumbered(|p| free[p]))?;
         let mut weights = DMatrix::zeros(n, handles);
         let mut gradients = [
             DMatrix::zeros(n, handles),
@@ -305,23 +348,11 @@ impl SkinningBasis {
                 }
             }
         }
+        let sums = self.kernel_sums(&shape);
         for (q, &i) in free.iter().enumerate() {
             let (w, grad_w) = factors[i];
             for j in 1..handles {
-                let column = if j < first_mode {
-                    self.region_coefficients.column(j - 1)
-                } else {
-                    self.coefficients.column(j - first_mode)
-                };
-                let (sum, grad_sum) = shape
-                    .kernels(q)
-                    .iter()
-                    .zip(shape.values(q))
-                    .zip(shape.gradients(q))
-                    .fold((0.0, Vector3::zeros()), |(s, g), ((&k, &phi), grad)| {
-                        let c = column[k as usize];
-                        (s + phi * c, g + grad * c)
-                    });
+                let (sum, grad_sum) = sums[q * (handles - 1) + j - 1];
                 weights[(i, j)] += w * sum;
                 let grad = grad_sum * w + grad_w * sum;
                 for (d, grads) in gradients.iter_mut().enumerate() {
@@ -330,6 +361,41 @@ impl SkinningBasis {
             }
         }
         Ok(SkinningWeights { weights, gradients })
+    }
+
+    /// Per point q of `shape`, for every handle j ≥ 1, the kernel sum `Σ_k ϕ_k(X_q) a_kj` and
+    /// its gradient `Σ_k ∇ϕ_k(X_q) a_kj` (a: the region coefficients, then the modes'), summed
+    /// in kernel order; entry `q · (handles − 1) + j − 1`. Parallel over points.
+    fn kernel_sums(&self, shape: &ShapeFunctions) -> Vec<(f64, Vector3<f64>)> {
+        let columns = self.handles() - 1;
+        let regions = self.region_coefficients.ncols();
+        // Row-major K × (handles − 1): a kernel's coefficients side by side.
+        let table: Vec<f64> = (0..self.kernels.len())
+            .flat_map(|k| {
+                (0..columns).map(move |j| match j.checked_sub(regions) {
+                    None => self.region_coefficients[(k, j)],
+                    Some(mode) => self.coefficients[(k, mode)],
+                })
+            })
+            .collect();
+        let mut sums = vec![(0.0, Vector3::zeros()); shape.point_count() * columns];
+        sums.par_chunks_mut(columns.max(1))
+            .enumerate()
+            .for_each(|(q, row)| {
+                for ((&k, &phi), grad) in shape
+                    .kernels(q)
+                    .iter()
+                    .zip(shape.values(q))
+                    .zip(shape.gradients(q))
+                {
+                    let c = &table[k as usize * columns..(k as usize + 1) * columns];
+                    for ((sum, grad_sum), &c) in row.iter_mut().zip(c) {
+                        *sum += phi * c;
+                        *grad_sum += grad * c;
+                    }
+                }
+            });
+        sums
     }
 
     /// Writes the basis (magic, format version, bincode payload) atomically

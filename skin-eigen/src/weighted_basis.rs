@@ -172,7 +172,7 @@ pub fn build_weighted_basis(
         discarded_mass_directions: solution.discarded_mass_directions,
         constant_eigenvalue: 0.0,
     };
-    let basis = SkinningBasis::new(
+    let mut basis = SkinningBasis::new(
         kernels,
         params.shape_functions,
         DMatrix::from_fn(c.nrows(), c.ncols(), |i, j| c[(i, j)]),
@@ -185,6 +185,7 @@ pub fn build_weighted_basis(
         |i, j| region_coefficients[(i, j)],
     ))
     .with_region_weight(weight.clone());
+    basis.keep_weights_at_build_points(points.positions(), free_points.positions(), &shape)?;
 
     let held_points: Vec<Vector3<f64>> = points
         .positions()

@@ -152,3 +152,30 @@ fn a_non_finite_query_point_is_an_error_not_a_held_point() {
         rkpm_core::ShapeFunctionError::NonFiniteQuery { point: 1 }
     ));
 }
+
+#[test]
+fn weights_at_the_build_points_equal_a_fresh_evaluation_to_the_bit() {
+    let basis = build(vec![clamp(), far_end()], 4);
+    let (points, _) = bar();
+    // A saved and reloaded basis keeps no weights from its build: it evaluates afresh.
+    let path = test_support::fixtures::scratch_dir("weighted_basis_build_points").join("bar.basis");
+    basis.save(&path).unwrap();
+    let fresh = SkinningBasis::load(&path).unwrap();
+    assert_eq!(fresh, basis);
+    let kept = basis.evaluate(points.positions()).unwrap();
+    assert_eq!(kept, fresh.evaluate(points.positions()).unwrap());
+    // Other points (here all but the first) are evaluated, and agree row by row.
+    let others = basis.evaluate(&points.positions()[1..]).unwrap();
+    for i in 1..points.len() {
+        for j in 0..basis.handles() {
+            assert_eq!(
+                others.weights[(i - 1, j)],
+                kept.weights[(i, j)],
+                "({i}, {j})"
+            );
+            for d in 0..3 {
+                assert_eq!(others.gradients[d][(i - 1, j)], kept.gradients[d][(i, j)]);
+            }
+        }
+    }
+}

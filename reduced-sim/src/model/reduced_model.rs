@@ -401,18 +401,30 @@ impl<M: HyperelasticMaterial> ReducedModel<M> {
     /// # Panics
     /// If `field` does not have one vector per integration point.
     pub fn project_field(&self, field: &[Vector3<f64>]) -> Vec<f64> {
-        assert_eq!(
-            field.len(),
-            self.map.len(),
+        self.project_fields(std::slice::from_ref(&field))
+            .pop()
+            .expect("one field in, one fit out")
+    }
+
+    /// [`Self::project_field`] of several fields at once: one pass over the points' `b_i` for
+    /// all of them (`4(m+1) × N` times `N × 3F`), one solve with `M_z` for `3F` right-hand
+    /// sides. Returns one z (length 12(m+1)) per field, in order.
+    ///
+    /// # Panics
+    /// If a field does not have one vector per integration point.
+    pub fn project_fields<F: AsRef<[Vector3<f64>]>>(&self, fields: &[F]) -> Vec<Vec<f64>> {
+        let n = self.map.len();
+        assert!(
+            fields.iter().all(|f| f.as_ref().len() == n),
             "one vector per integration point"
         );
         let n4 = self.map.layout().block_len();
         // Σ_i ρ_i v_i B_iᵀ u_i as one product: the points' b_i side by side times the weighted
-        // field (N × 3).
-        let weighted = Mat::<f64>::from_fn(field.len(), 3, |i, r| {
-            self.densities[i] * self.volumes[i] * field[i][r]
+        // fields (N × 3F, field f's coordinate r in column 3f + r).
+        let weighted = Mat::<f64>::from_fn(n, 3 * fields.len(), |i, j| {
+            self.densities[i] * self.volumes[i] * fields[j / 3].as_ref()[i][j % 3]
         });
-        let mut rhs = Mat::<f64>::zeros(n4, 3);
+        let mut rhs = Mat::<f64>::zeros(n4, 3 * fields.len());
         faer::linalg::matmul::matmul(
             rhs.as_mut(),
             faer::Accum::Replace,
@@ -423,9 +435,13 @@ impl<M: HyperelasticMaterial> ReducedModel<M> {
         );
         use faer::linalg::solvers::Solve;
         self.mass_factor.solve_in_place(rhs.as_mut());
-        (0..3)
-            .flat_map(|r| (0..n4).map(move |k| (k, r)))
-            .map(|(k, r)| rhs[(k, r)])
+        (0..fields.len())
+            .map(|f| {
+                (0..3)
+                    .flat_map(|r| (0..n4).map(move |k| (k, r)))
+                    .map(|(k, r)| rhs[(k, 3 * f + r)])
+                    .collect()
+            })
             .collect()
     }
 }
@@ -465,6 +481,48 @@ pub(crate) fn symmetrize(a: &mut Mat<f64>) {
             let v = 0.5 * (a[(i, j)] + a[(j, i)]);
             a[(i, j)] = v;
             a[(j, i)] = v;
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use crate::model::analytic_field::analytic_model;
+
+    /// A pose of every coordinate nonzero, of size about `scale`.
+    fn pose(len: usize, scale: f64) -> Vec<f64> {
+        (0..len)
+            .map(|k| scale * (1.0 + ((7 * k) % 11) as f64) / 11.0)
+            .collect()
+    }
+
+    #[test]
+    fn projecting_a_field_of_the_subspace_returns_its_coordinates() {
+        let (model, _) = analytic_model();
+        let len = model.deformation_map().layout().len();
+        let z = pose(len, 0.05);
+        let field = model.deformation_map().displacements(&z);
+        let fitted = model.project_field(&field);
+        for (k, (got, want)) in fitted.iter().zip(&z).enumerate() {
+            assert!((got - want).abs() <= 1e-9, "{k}: {got} vs {want}");
+        }
+    }
+
+    #[test]
+    fn projecting_fields_together_equals_projecting_each() {
+        let (model, _) = analytic_model();
+        let len = model.deformation_map().layout().len();
+        let fields: Vec<_> = [0.01, -0.03, 0.2]
+            .iter()
+            .map(|&s| model.deformation_map().displacements(&pose(len, s)))
+            .collect();
+        let together = model.project_fields(&fields);
+        assert_eq!(together.len(), fields.len());
+        for (field, fit) in fields.iter().zip(&together) {
+            let alone = model.project_field(field);
+            for (a, b) in alone.iter().zip(fit) {
+                assert!((a - b).abs() <= 1e-12 * (1.0 + a.abs()), "{a} vs {b}");
+            }
         }
     }
 }

@@ -65,6 +65,7 @@ pub fn training_poses<M: HyperelasticMaterial>(
         }
     }
     let center = model.bounds().center();
+    let mut fields = Vec::with_capacity(params.field_poses);
     for k in 0..params.field_poses {
         let axis = random_unit(&mut rng);
         let twist = k % 2 == 0;
@@ -89,8 +90,9 @@ pub fn training_poses<M: HyperelasticMaterial>(
                 Rotation3::from_axis_angle(&turn_axis, angle) * r - r
             })
             .collect();
-        poses.push(model.project_field(&displacement));
+        fields.push(displacement);
     }
+    poses.extend(model.project_fields(&fields));
     debug_assert!(poses.iter().all(|p: &Vec<f64>| p.len() == 3 * n4));
     Ok(poses)
 }
