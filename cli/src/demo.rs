@@ -114,7 +114,7 @@ impl DefaultModel {
         let spec = SimulationSpec::default();
         let points = beam_grid(size.default_points)?;
         let lame = vec![beam_material().lame_parameters()?; points.len()];
-        let (basis, _) = spec.pins.build_basis(
+        let (basis, _, shared) = spec.pins.build_basis_sharing(
             scene,
             &points,
             &lame,
@@ -131,8 +131,8 @@ impl DefaultModel {
                     &points,
                     &lame,
                     size.basis_params(),
-                    size.modes,
                     &params,
+                    shared.as_ref(),
                 )
             })
             .transpose()?;

@@ -99,8 +99,8 @@ impl ObjectSetup {
                 .with_kernels(spec.kernels)
         };
         let basis_lame = lame_at(&material, basis_points.positions())?;
-        let (basis, _) = hold
-            .build_basis(
+        let (basis, _, shared) = hold
+            .build_basis_sharing(
                 object.scene,
                 &basis_points,
                 &basis_lame,
@@ -121,8 +121,8 @@ impl ObjectSetup {
                     &basis_points,
                     &basis_lame,
                     basis_params(),
-                    spec.modes,
                     params,
+                    shared.as_ref(),
                 )
                 .map_err(SimulateError::Basis)?,
             ),

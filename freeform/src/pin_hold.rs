@@ -27,8 +27,9 @@ use reduced_sim::{PinnedRegion, Scene};
 use rkpm_core::{IntegrationPoints, KernelWindow, ShapeFunctionParams};
 use serde::{Deserialize, Serialize};
 use skin_eigen::{
-    BasisError, BasisParams, BasisReport, HeldRegionShape, RegionConstraintParams, RegionWeight,
-    RegionWeightError, SkinningBasis, build_basis, build_basis_with_regions, build_weighted_basis,
+    BasisError, BasisParams, BasisReport, HeldRegionShape, KernelShapeFunctions,
+    RegionConstraintParams, RegionWeight, RegionWeightError, SkinningBasis,
+    build_basis_keeping_shape_functions, build_basis_with_regions, build_weighted_basis_sharing,
 };
 
 use crate::scene::{REGION_TOLERANCE, Region, SceneSpec, SceneSpecError};
@@ -299,14 +300,38 @@ impl PinHold {
         output_points: &[Vector3<f64>],
         params: BasisParams,
     ) -> Result<(SkinningBasis, BasisReport), HeldBasisError> {
+        self.build_basis_sharing(
+            scene,
+            basis_points,
+            materials,
+            simulation_points,
+            output_points,
+            params,
+        )
+        .map(|(basis, report, _)| (basis, report))
+    }
+
+    /// [`PinHold::build_basis`], also returning the kernels it placed and their plain shape
+    /// functions: at the basis points for the plain basis (the penalty, or a weighted hold with
+    /// no constraint; [`skin_eigen::build_basis_keeping_shape_functions`]), on the points outside
+    /// the regions for a weighted basis ([`skin_eigen::build_weighted_basis_sharing`]), `None`
+    /// for exact holding. The pressure space's Neumann modes on the same points are built on
+    /// them ([`crate::PressureSpace::build`]).
+    ///
+    /// # Errors
+    /// As [`PinHold::build_basis`].
+    pub fn build_basis_sharing(
+        &self,
+        scene: &SceneSpec,
+        basis_points: &IntegrationPoints,
+        materials: &[LameParameters],
+        simulation_points: &[Vector3<f64>],
+        output_points: &[Vector3<f64>],
+        params: BasisParams,
+    ) -> Result<(SkinningBasis, BasisReport, Option<KernelShapeFunctions>), HeldBasisError> {
         let params = self.basis_params(params);
-        let (basis, report, _) = match self {
-            PinHold::Penalty => build_basis(basis_points, materials, &params)?,
-            // Nothing to hold: the plain basis, as for the penalty.
-            PinHold::Weighted { .. } if scene.constraints.is_empty() => {
-                build_basis(basis_points, materials, &params)?
-            }
-            PinHold::Weighted { distance, .. } => {
+        match self {
+            PinHold::Weighted { distance, .. } if !scene.constraints.is_empty() => {
                 let bounds = basis_points.bounding_box();
                 let invalid = |e| SceneSpecError::Invalid(format!("weighted holding: {e}"));
                 let mut weight = self
@@ -316,29 +341,35 @@ impl PinHold {
                 if *distance == WeightDistance::HeldMaterial {
                     weight = weight.with_held_material(basis_points).map_err(invalid)?;
                 }
-                let (basis, report, _) = build_weighted_basis(
+                let (basis, report, _, shared) = build_weighted_basis_sharing(
                     basis_points,
                     materials,
                     &params,
                     &weight,
                     &[simulation_points, output_points],
                 )?;
-                return Ok((basis, report));
+                Ok((basis, report, Some(shared)))
             }
             PinHold::Exact { .. } => {
                 let regions =
                     self.basis_regions(scene, &[basis_points.positions(), simulation_points])?;
-                build_basis_with_regions(
+                let (basis, report, _) = build_basis_with_regions(
                     basis_points,
                     materials,
                     &params,
                     &regions,
                     &RegionConstraintParams::default(),
                     &[simulation_points, output_points],
-                )?
+                )?;
+                Ok((basis, report, None))
             }
-        };
-        Ok((basis, report))
+            // The penalty, or nothing to hold for a weighted basis: the plain basis.
+            PinHold::Penalty | PinHold::Weighted { .. } => {
+                let (basis, report, _, shared) =
+                    build_basis_keeping_shape_functions(basis_points, materials, &params)?;
+                Ok((basis, report, Some(shared)))
+            }
+        }
     }
 
     /// `error` with a hint when it is an exact hold's inset that emptied a region.

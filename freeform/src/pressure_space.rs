@@ -14,7 +14,9 @@ use hyperelastic::LameParameters;
 use nalgebra::{DMatrix, Vector3};
 use rkpm_core::{IntegrationPoints, ShapeFunctionError};
 use serde::{Deserialize, Serialize};
-use skin_eigen::{BasisError, BasisParams, SkinningBasis, build_basis};
+use skin_eigen::{
+    BasisError, BasisParams, KernelShapeFunctions, SkinningBasis, build_basis_sharing,
+};
 
 use crate::pin_hold::PinHold;
 use crate::scene::{Region, SceneSpec};
@@ -74,9 +76,14 @@ pub struct PressureSpace {
 }
 
 impl PressureSpace {
-    /// The pressure space for a model of `modes` modes held by `hold` in `scene`, its Neumann
-    /// modes built on `basis_points` (those outside the held regions, unless the hold is the
-    /// penalty) with `materials` and the kernel options of `basis` (its mode count replaced).
+    /// The pressure space for a model of `basis.eigen.modes` modes held by `hold` in `scene`,
+    /// its Neumann modes built on `basis_points` (those outside the held regions, unless the
+    /// hold is the penalty) with `materials` and the kernel options of `basis` (its mode count
+    /// replaced by [`PressureSpaceParams::neumann_modes`]). `shared`: the kernels and shape
+    /// functions a weighted basis of the same points evaluated on their free part
+    /// ([`PinHold::build_basis_sharing`]); the Neumann modes are built on them when they are
+    /// those a build would place and evaluate ([`skin_eigen::build_basis_sharing`]: the same
+    /// modes, set up once).
     ///
     /// # Errors
     /// [`BasisError`] when the Neumann basis cannot be built (too few free points for its
@@ -87,9 +94,10 @@ impl PressureSpace {
         basis_points: &IntegrationPoints,
         materials: &[LameParameters],
         basis: BasisParams,
-        modes: usize,
         params: &PressureSpaceParams,
+        shared: Option<&KernelShapeFunctions>,
     ) -> Result<PressureSpace, BasisError> {
+        let modes = basis.eigen.modes;
         let held: Vec<Region> = match hold {
             PinHold::Penalty => Vec::new(),
             PinHold::Exact { .. } | PinHold::Weighted { .. } => {
@@ -116,7 +124,7 @@ impl PressureSpace {
             let lame: Vec<LameParameters> = free.iter().map(|&i| materials[i]).collect();
             let kernels = basis.kernels.count.min(points.len());
             let params = basis.with_modes(count).with_kernels(kernels);
-            Some(build_basis(&points, &lame, &params)?.0)
+            Some(build_basis_sharing(&points, &lame, &params, shared)?.0)
         };
         Ok(PressureSpace {
             neumann,

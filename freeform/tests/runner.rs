@@ -358,13 +358,13 @@ fn a_projected_volumetric_term_runs_holds_its_regions_and_reports_inf_sup_consta
         &bar.basis_points,
         &bar.lame,
         bar.params,
-        6,
         // RUBBER has ν = 0.3 (λ = 1.5 μ): keep nothing pointwise, so that something is projected.
         &freeform::PressureSpaceParams {
             mode_fraction: 3.0,
             affine: true,
             retained_shear_multiple: 0.0,
         },
+        None,
     )
     .unwrap();
     // The constant, the three affine functions and ⌈3 · (6 + 1)⌉ = 21 Neumann modes.

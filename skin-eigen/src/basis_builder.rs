@@ -283,9 +283,47 @@ fn build(
     on_stage: &dyn Fn(BasisStage),
 ) -> Result<(SkinningBasis, BasisReport, AssembledMatrices), BasisError> {
     on_stage(BasisStage::ShapeFunctions);
-    let (mut timings, kernels, coverage, shape) =
+    let (timings, kernels, coverage, shape) =
         placed_kernels_and_shape_functions(points, evaluated_at, params)?;
+    build_on_placed(
+        points,
+        materials,
+        params,
+        regions,
+        on_stage,
+        Placed {
+            timings,
+            kernels,
+            coverage,
+            shape: &shape,
+        },
+    )
+}
 
+/// Kernels placed for a build, what widening did, their shape functions at the build's points
+/// and what placing and evaluating them took.
+pub(crate) struct Placed<'a> {
+    pub(crate) timings: PhaseTimings,
+    pub(crate) kernels: Kernels,
+    pub(crate) coverage: CoverageReport,
+    pub(crate) shape: &'a ShapeFunctions,
+}
+
+/// The build after its shape functions: assembly, eigen solve and the basis.
+pub(crate) fn build_on_placed(
+    points: &IntegrationPoints,
+    materials: &[LameParameters],
+    params: &BasisParams,
+    regions: Option<(&[Vec<Vector3<f64>>], &RegionConstraintParams)>,
+    on_stage: &dyn Fn(BasisStage),
+    placed: Placed<'_>,
+) -> Result<(SkinningBasis, BasisReport, AssembledMatrices), BasisError> {
+    let Placed {
+        mut timings,
+        kernels,
+        coverage,
+        shape,
+    } = placed;
     let iterative = match params.solver {
         EigenSolverChoice::Auto if kernels.len() > DENSE_SOLVER_MAX_KERNELS => {
             Some(SubspaceParams::default())
@@ -303,7 +341,7 @@ fn build(
     let mut held = None;
     let (matrices, solution) = match iterative {
         None => {
-            let matrices = assemble_weight_space_matrices(&shape, points.volumes(), materials)?;
+            let matrices = assemble_weight_space_matrices(shape, points.volumes(), materials)?;
             timings.assembly = t.elapsed().as_secs_f64();
             on_stage(BasisStage::EigenSolve);
             let t = Instant::now();
@@ -338,7 +376,7 @@ fn build(
         }
         Some(subspace) => {
             let matrices = assemble_sparse_weight_space_matrices(
-                &shape,
+                shape,
                 &kernels,
                 params.shape_functions.cutoff,
                 points.volumes(),
@@ -384,7 +422,7 @@ fn build(
     if let Some((region_coefficients, _)) = held {
         basis = basis.with_held_regions(region_coefficients);
     }
-    basis.keep_weights_at_build_points(points.positions(), points.positions(), &shape)?;
+    basis.keep_weights_at_build_points(points.positions(), points.positions(), shape)?;
     Ok((basis, report, matrices))
 }
 

@@ -8,6 +8,7 @@ pub mod held_material;
 pub mod pool_convergence;
 pub mod region_constraints;
 pub mod region_weight;
+pub mod shared_shape_functions;
 pub mod skinning_basis;
 pub mod sparse_assembly;
 pub mod subspace_iteration;
@@ -26,9 +27,12 @@ pub use region_constraints::{
     ConstrainedModes, RegionConstraintParams, RegionError, solve_constrained_modes,
 };
 pub use region_weight::{HeldRegionShape, RegionWeight, RegionWeightError};
+pub use shared_shape_functions::{
+    KernelShapeFunctions, build_basis_keeping_shape_functions, build_basis_sharing,
+};
 pub use skinning_basis::{
     BASIS_FORMAT_VERSION, BasisFileError, BasisMetadata, SkinningBasis, SkinningWeights,
 };
 pub use sparse_assembly::{SparseWeightSpaceMatrices, assemble_sparse_weight_space_matrices};
 pub use subspace_iteration::{SubspaceParams, solve_skinning_modes_iteratively};
-pub use weighted_basis::build_weighted_basis;
+pub use weighted_basis::{build_weighted_basis, build_weighted_basis_sharing};

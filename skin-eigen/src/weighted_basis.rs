@@ -34,6 +34,7 @@ use crate::basis_builder::{
 use crate::generalized_eigen::{EigenError, EigenSolution, smallest_generalized_eigenpairs};
 use crate::region_constraints::RegionError;
 use crate::region_weight::RegionWeight;
+use crate::shared_shape_functions::KernelShapeFunctions;
 use crate::skinning_basis::{BasisMetadata, SkinningBasis};
 
 /// Builds a weighted basis (module docs) on `points` with Lamé parameters `materials`: m modes
@@ -58,6 +59,32 @@ pub fn build_weighted_basis(
     weight: &RegionWeight,
     evaluated_at: &[&[Vector3<f64>]],
 ) -> Result<(SkinningBasis, BasisReport, WeightSpaceMatrices), BasisError> {
+    build_weighted_basis_sharing(points, materials, params, weight, evaluated_at)
+        .map(|(basis, report, matrices, _)| (basis, report, matrices))
+}
+
+/// [`build_weighted_basis`], also returning the plain (unweighted) shape functions of its
+/// kernels at the points outside every region: a plain basis of that free part with the same
+/// kernel options (the Neumann modes of a pressure space) can be built on them
+/// ([`crate::build_basis_sharing`]) instead of placing and evaluating them again.
+///
+/// # Errors
+/// As [`build_weighted_basis`].
+pub fn build_weighted_basis_sharing(
+    points: &IntegrationPoints,
+    materials: &[LameParameters],
+    params: &BasisParams,
+    weight: &RegionWeight,
+    evaluated_at: &[&[Vector3<f64>]],
+) -> Result<
+    (
+        SkinningBasis,
+        BasisReport,
+        WeightSpaceMatrices,
+        KernelShapeFunctions,
+    ),
+    BasisError,
+> {
     if matches!(params.solver, EigenSolverChoice::Iterative(_))
         || params.kernels.count > DENSE_SOLVER_MAX_KERNELS
     {
@@ -223,5 +250,13 @@ pub fn build_weighted_basis(
             null_space_dimension: basis.kernels().len(),
         }),
     };
-    Ok((basis, report, matrices))
+    let shared = KernelShapeFunctions::new(
+        free_points.positions().to_vec(),
+        basis.kernels().clone(),
+        coverage,
+        shape,
+        params.kernels,
+        params.shape_functions,
+    );
+    Ok((basis, report, matrices, shared))
 }

@@ -7,7 +7,7 @@ use nalgebra::Vector3;
 use rkpm_core::{IntegrationPoints, sample_box_grid};
 use skin_eigen::{
     BasisError, BasisParams, HeldRegionShape, RegionError, RegionWeight, SkinningBasis,
-    build_weighted_basis,
+    build_basis, build_basis_sharing, build_weighted_basis, build_weighted_basis_sharing,
 };
 
 /// A 2 × 0.5 × 0.5 m bar on a 0.05 m grid.
@@ -178,4 +178,41 @@ fn weights_at_the_build_points_equal_a_fresh_evaluation_to_the_bit() {
             }
         }
     }
+}
+
+#[test]
+fn a_plain_basis_of_the_free_part_on_shared_shape_functions_equals_one_built_afresh() {
+    let (points, materials) = bar();
+    let weight = RegionWeight::new(vec![clamp()], 0.5).unwrap();
+    let params = BasisParams::default().with_kernels(250).with_modes(4);
+    let (_, _, _, shared) =
+        build_weighted_basis_sharing(&points, &materials, &params, &weight, &[]).unwrap();
+    let free: Vec<usize> = (0..points.len())
+        .filter(|&i| weight.region_of(&points.positions()[i]).is_none())
+        .collect();
+    let free_points = IntegrationPoints::new(
+        free.iter().map(|&i| points.positions()[i]).collect(),
+        free.iter().map(|&i| points.volumes()[i]).collect(),
+    )
+    .unwrap();
+    let free_materials: Vec<_> = free.iter().map(|&i| materials[i]).collect();
+    let neumann = params.with_modes(6);
+    assert!(shared.fit(free_points.positions(), &neumann));
+    let (fresh, fresh_report, _) = build_basis(&free_points, &free_materials, &neumann).unwrap();
+    let (reused, reused_report, _) =
+        build_basis_sharing(&free_points, &free_materials, &neumann, Some(&shared)).unwrap();
+    // Nothing placed or evaluated: the shared kernels and shape functions were used.
+    assert_eq!(reused_report.timings.kernel_placement, 0.0);
+    assert_eq!(reused_report.timings.shape_functions, 0.0);
+    assert_eq!(reused, fresh);
+    assert_eq!(reused.eigenvalues(), fresh.eigenvalues());
+    assert_eq!(reused.coefficients(), fresh.coefficients());
+    assert!(fresh_report.timings.kernel_placement > 0.0);
+    // Other points or other kernel options do not fit: built afresh, and still a basis.
+    let fewer_kernels = neumann.with_kernels(200);
+    assert!(!shared.fit(free_points.positions(), &fewer_kernels));
+    let (other, _, _) =
+        build_basis_sharing(&free_points, &free_materials, &fewer_kernels, Some(&shared)).unwrap();
+    assert_eq!(other.kernels().len(), 200);
+    assert!(!shared.fit(&free_points.positions()[1..], &neumann));
 }

@@ -220,8 +220,8 @@ pub fn beam_pressure_space(
         &grid,
         &lame,
         settings.basis_params(),
-        settings.modes,
         params,
+        None,
     )
     .map_err(EvalError::Basis)
 }

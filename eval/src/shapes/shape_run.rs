@@ -375,8 +375,8 @@ fn score_row(
                 reduced.basis_points,
                 reduced.lames,
                 settings.basis_params(),
-                settings.modes,
                 params,
+                None,
             )
         })
         .transpose()
