@@ -244,8 +244,9 @@ impl SkinningBasis {
     }
 
     /// W and ∇W at arbitrary points, constant handle first. At the points the basis was built
-    /// on, the weights kept from the build ([`SkinningBasis::keep_weights_at_build_points`]):
-    /// the same values, computed once.
+    /// on, the weights kept from the build when it kept them ([`SkinningBasis::keeps_weights_at`]:
+    /// a plain basis or one with held regions always does, a weighted basis when its build was
+    /// told it would be evaluated there): the same values, computed once.
     ///
     /// # Errors
     /// [`ShapeFunctionError`] when a point is not reached by enough kernels (far outside the
@@ -255,6 +256,12 @@ impl SkinningBasis {
             return Ok(kept.clone());
         }
         self.evaluate_from(points, &|query| self.fresh_shape_functions(query))
+    }
+
+    /// Whether the basis keeps its weights at exactly `points` (its build points, when the
+    /// build kept them), so that [`SkinningBasis::evaluate`] there evaluates nothing.
+    pub fn keeps_weights_at(&self, points: &[Vector3<f64>]) -> bool {
+        self.at_build_points.at(points).is_some()
     }
 
     /// Keeps the weights at `points`, the points the basis was built on, for later evaluations

@@ -42,7 +42,8 @@ use crate::skinning_basis::{BasisMetadata, SkinningBasis};
 /// `[1, a_1 … a_{R-1}, W^1 … W^m]` as for [`crate::build_basis_with_regions`]. The K kernels
 /// are placed among the points outside every region and widened
 /// ([`BasisParams::coverage`]) where they leave a free point of `points` or of `evaluated_at`
-/// without shape functions. Solved densely.
+/// without shape functions. Solved densely. When `evaluated_at` holds `points` itself, the basis
+/// keeps its weights there ([`SkinningBasis::evaluate`] returns them without evaluating).
 ///
 /// Postconditions: `cᵀ𝓜ʷc = I`; every mode is exactly 0 and every region handle exactly 1 or
 /// 0 on the regions ([`BasisReport::held_regions`] measures both on the region points).
@@ -212,7 +213,11 @@ pub fn build_weighted_basis_sharing(
         |i, j| region_coefficients[(i, j)],
     ))
     .with_region_weight(weight.clone());
-    basis.keep_weights_at_build_points(points.positions(), free_points.positions(), &shape)?;
+    // Kept only when the basis will be evaluated at its own points: the weight's distances at
+    // every point are not free.
+    if evaluated_at.contains(&points.positions()) {
+        basis.keep_weights_at_build_points(points.positions(), free_points.positions(), &shape)?;
+    }
 
     let held_points: Vec<Vector3<f64>> = points
         .positions()

@@ -199,6 +199,9 @@ fn saved_basis_reloads_with_identical_weights_and_rejects_other_versions() {
     basis.save(&path).unwrap();
     let loaded = SkinningBasis::load(&path).unwrap();
     assert_eq!(loaded, basis);
+    // The built basis returns the weights it kept at its points; the loaded one evaluates.
+    assert!(basis.keeps_weights_at(points.positions()));
+    assert!(!loaded.keeps_weights_at(points.positions()));
     assert_eq!(
         loaded.evaluate(points.positions()).unwrap(),
         basis.evaluate(points.positions()).unwrap()

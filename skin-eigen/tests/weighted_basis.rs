@@ -155,12 +155,20 @@ fn a_non_finite_query_point_is_an_error_not_a_held_point() {
 
 #[test]
 fn weights_at_the_build_points_equal_a_fresh_evaluation_to_the_bit() {
-    let basis = build(vec![clamp(), far_end()], 4);
-    let (points, _) = bar();
+    let (points, materials) = bar();
+    let weight = RegionWeight::new(vec![clamp(), far_end()], 0.5).unwrap();
+    let params = BasisParams::default().with_kernels(250).with_modes(4);
+    // Evaluated at its own points later: the basis keeps its weights there.
+    let (basis, _, _) =
+        build_weighted_basis(&points, &materials, &params, &weight, &[points.positions()]).unwrap();
+    assert!(basis.keeps_weights_at(points.positions()));
+    assert!(!basis.keeps_weights_at(&points.positions()[1..]));
+    assert!(!build(vec![clamp(), far_end()], 4).keeps_weights_at(points.positions()));
     // A saved and reloaded basis keeps no weights from its build: it evaluates afresh.
     let path = test_support::fixtures::scratch_dir("weighted_basis_build_points").join("bar.basis");
     basis.save(&path).unwrap();
     let fresh = SkinningBasis::load(&path).unwrap();
+    assert!(!fresh.keeps_weights_at(points.positions()));
     assert_eq!(fresh, basis);
     let kept = basis.evaluate(points.positions()).unwrap();
     assert_eq!(kept, fresh.evaluate(points.positions()).unwrap());
