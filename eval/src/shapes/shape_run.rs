@@ -351,19 +351,21 @@ fn score_row(
     let Some(reduced) = &shape.reduced else {
         return Ok(());
     };
-    let held_basis = match settings.pins {
-        PinHold::Penalty => None,
-        hold => Some(
-            hold.build_basis(
+    // A basis built here for the held regions shares its shape functions with the pressure
+    // space's Neumann modes on the same points.
+    let (held_basis, shared) = match settings.pins {
+        PinHold::Penalty => (None, None),
+        hold => {
+            let (basis, _, shared) = hold.build_basis_sharing(
                 scene,
                 reduced.basis_points,
                 reduced.lames,
                 reduced.points.positions(),
                 fem.vertices(),
                 settings.basis_params(),
-            )?
-            .0,
-        ),
+            )?;
+            (Some(basis), shared)
+        }
     };
     let pressure = settings
         .pressure
@@ -376,11 +378,12 @@ fn score_row(
                 reduced.lames,
                 settings.basis_params(),
                 params,
-                None,
+                shared.as_ref(),
             )
         })
         .transpose()
         .map_err(EvalError::Basis)?;
+    drop(shared);
     let run = BoundaryRun {
         points: reduced.points,
         material: shape.material,
