@@ -422,7 +422,7 @@ pub(crate) fn build_on_placed(
     if let Some((region_coefficients, _)) = held {
         basis = basis.with_held_regions(region_coefficients);
     }
-    basis.keep_weights_at_build_points(points.positions(), points.positions(), shape)?;
+    basis.keep_weights_at_build_points(points.positions(), points.positions(), shape, None)?;
     Ok((basis, report, matrices))
 }
 

@@ -255,7 +255,7 @@ impl SkinningBasis {
         if let Some(kept) = self.at_build_points.at(points) {
             return Ok(kept.clone());
         }
-        self.evaluate_from(points, &|query| self.fresh_shape_functions(query))
+        self.evaluate_from(points, &|query| self.fresh_shape_functions(query), None)
     }
 
     /// Whether the basis keeps its weights at exactly `points` (its build points, when the
@@ -267,8 +267,10 @@ impl SkinningBasis {
     /// Keeps the weights at `points`, the points the basis was built on, for later evaluations
     /// there; `shape` are the shape functions of the basis's kernels at `shape_points` (every
     /// build point, or for a weighted basis those outside the regions), as the build computed
-    /// them. The kept weights are those [`SkinningBasis::evaluate`] computes at `points`, to
-    /// the bit: the shape functions at a point depend on that point alone.
+    /// them; `factors`, for a weighted basis, its weight `(w, ∇w)` at every point of `points`
+    /// if the build has it (else it is evaluated). The kept weights are those
+    /// [`SkinningBasis::evaluate`] computes at `points`, to the bit: the shape functions at a
+    /// point depend on that point alone.
     ///
     /// # Errors
     /// [`ShapeFunctionError`] as [`SkinningBasis::evaluate`]; nothing is kept then.
@@ -277,14 +279,19 @@ impl SkinningBasis {
         points: &[Vector3<f64>],
         shape_points: &[Vector3<f64>],
         shape: &ShapeFunctions,
+        factors: Option<&[(f64, Vector3<f64>)]>,
     ) -> Result<(), ShapeFunctionError> {
-        let weights = self.evaluate_from(points, &|query| {
-            if query == shape_points {
-                Ok(Cow::Borrowed(shape))
-            } else {
-                self.fresh_shape_functions(query)
-            }
-        })?;
+        let weights = self.evaluate_from(
+            points,
+            &|query| {
+                if query == shape_points {
+                    Ok(Cow::Borrowed(shape))
+                } else {
+                    self.fresh_shape_functions(query)
+                }
+            },
+            factors,
+        )?;
         self.at_build_points = BuildPointWeights::new(points.to_vec(), weights);
         Ok(())
     }
@@ -297,14 +304,16 @@ impl SkinningBasis {
         evaluate_shape_functions(&self.kernels, points, &self.shape_params).map(Cow::Owned)
     }
 
-    /// [`SkinningBasis::evaluate`] with the shape functions from `shape_at`.
+    /// [`SkinningBasis::evaluate`] with the shape functions from `shape_at` and, for a
+    /// weighted basis, its weight at `points` from `factors` when given.
     fn evaluate_from(
         &self,
         points: &[Vector3<f64>],
         shape_at: &ShapeSource<'_>,
+        factors: Option<&[(f64, Vector3<f64>)]>,
     ) -> Result<SkinningWeights, ShapeFunctionError> {
         if let Some(weight) = &self.region_weight {
-            return self.evaluate_weighted(weight, points, shape_at);
+            return self.evaluate_weighted(weight, points, shape_at, factors);
         }
         let shape = shape_at(points)?;
         let (n, handles) = (points.len(), self.handles());
@@ -329,13 +338,21 @@ impl SkinningBasis {
         weight: &RegionWeight,
         points: &[Vector3<f64>],
         shape_at: &ShapeSource<'_>,
+        factors: Option<&[(f64, Vector3<f64>)]>,
     ) -> Result<SkinningWeights, ShapeFunctionError> {
         if let Some(point) = points.iter().position(|x| !x.iter().all(|v| v.is_finite())) {
             return Err(ShapeFunctionError::NonFiniteQuery { point });
         }
         let (n, handles) = (points.len(), self.handles());
         let first_mode = 1 + self.region_coefficients.ncols();
-        let factors: Vec<(f64, Vector3<f64>)> = points.iter().map(|x| weight.weight(x)).collect();
+        let evaluated: Vec<(f64, Vector3<f64>)>;
+        let factors = match factors {
+            Some(factors) => factors,
+            None => {
+                evaluated = points.iter().map(|x| weight.weight(x)).collect();
+                &evaluated
+            }
+        };
         let free: Vec<usize> = (0..n).filter(|&i| factors[i].0 > 0.0).collect();
         let free_points: Vec<Vector3<f64>> = free.iter().map(|&i| points[i]).collect();
         let shape = shape_at(&free_points).map_err(|e| e.renumbered(|p| free[p]))?;

@@ -136,11 +136,25 @@ pub fn build_weighted_basis_sharing(
     let (mut timings, kernels, coverage, shape) =
         placed_kernels_and_shape_functions(&free_points, &free_evaluated, params)?;
     let t = Instant::now();
-    let factors: Vec<(f64, Vector3<f64>)> = free_points
-        .positions()
-        .iter()
-        .map(|x| weight.weight(x))
-        .collect();
+    // Kept only when the basis will be evaluated at its own points: the weight's distances at
+    // every point are not free. Keeping needs the weight at every point, the build only at the
+    // free ones: computed once either way.
+    let keep = evaluated_at.contains(&points.positions());
+    let every_factor: Option<Vec<(f64, Vector3<f64>)>> = keep.then(|| {
+        points
+            .positions()
+            .iter()
+            .map(|x| weight.weight(x))
+            .collect()
+    });
+    let factors: Vec<(f64, Vector3<f64>)> = match &every_factor {
+        Some(every) => free.iter().map(|&i| every[i]).collect(),
+        None => free_points
+            .positions()
+            .iter()
+            .map(|x| weight.weight(x))
+            .collect(),
+    };
     let weighted = shape.multiplied(&factors);
     timings.shape_functions += t.elapsed().as_secs_f64();
 
@@ -213,10 +227,13 @@ pub fn build_weighted_basis_sharing(
         |i, j| region_coefficients[(i, j)],
     ))
     .with_region_weight(weight.clone());
-    // Kept only when the basis will be evaluated at its own points: the weight's distances at
-    // every point are not free.
-    if evaluated_at.contains(&points.positions()) {
-        basis.keep_weights_at_build_points(points.positions(), free_points.positions(), &shape)?;
+    if let Some(every_factor) = &every_factor {
+        basis.keep_weights_at_build_points(
+            points.positions(),
+            free_points.positions(),
+            &shape,
+            Some(every_factor),
+        )?;
     }
 
     let held_points: Vec<Vector3<f64>> = points
