@@ -24,8 +24,12 @@ use crate::subset_cholesky::SubsetCholesky;
 /// Options of [`nnls`] and [`nnls_normal`].
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct NnlsParams {
-    /// Optimality tolerance on the negative gradient, relative to `max |Aᵀb|` (default 1e-10):
-    /// the solve stops when `w_j ≤ tolerance · max|Aᵀb|` on every variable held at 0.
+    /// Optimality tolerance on the negative gradient (default 1e-10), relative to the larger
+    /// of `max |Aᵀb|` and the size of the terms that cancel in `w_j`, bounded by
+    /// `‖a_j‖ Σ_k ‖a_k‖ x_k` (Cauchy–Schwarz on `AᵀA`): the solve stops when
+    /// `w_j ≤ tolerance · max(max|Aᵀb|, ‖a_j‖ Σ_k ‖a_k‖ x_k)` on every variable held at 0. The
+    /// second term keeps round-off in `w` (large when a nearly dependent support needs
+    /// large x) from freeing a variable whose column the support already spans.
     pub tolerance: f64,
     /// Cap on outer iterations (default: 3 × the number of variables).
     pub max_iterations: Option<usize>,
@@ -198,7 +202,8 @@ pub fn nnls_normal_carried(
             iterations: 0,
         });
     }
-    let tolerance = params.tolerance * scale;
+    // ‖a_j‖ = √(AᵀA)_jj, for the round-off scale of w_j.
+    let column_norms: Vec<f64> = (0..n).map(|j| gram[(j, j)].max(0.0).sqrt()).collect();
     let max_iterations = params.max_iterations.unwrap_or(3 * n.max(1));
 
     let mut x: Vec<f64> = warm.map_or_else(
@@ -234,8 +239,11 @@ pub fn nnls_normal_carried(
     }
     loop {
         let w = negative_gradient(gram, atb, &x);
+        let spread: f64 = column_norms.iter().zip(&x).map(|(a, x)| a * x).sum();
         let mut joining: Vec<usize> = (0..n)
-            .filter(|&j| !passive[j] && w[j] > tolerance)
+            .filter(|&j| {
+                !passive[j] && w[j] > params.tolerance * scale.max(column_norms[j] * spread)
+            })
             .collect();
         if joining.is_empty() {
             return Ok(NnlsSolution { x, iterations });
