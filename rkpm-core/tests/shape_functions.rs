@@ -48,7 +48,7 @@ fn random_kernels(centers: Vec<[f64; 3]>, radius: f64) -> Kernels {
 }
 
 proptest! {
-    #![proptest_config(ProptestConfig { cases: 64, ..ProptestConfig::default() })]
+    #![proptest_config(ProptestConfig { cases: 64, rng_seed: RngSeed::Fixed(5), ..ProptestConfig::default() })]
 
     /// Random kernel layouts in a box of side 2 around an offset origin (so the unshifted form
     /// would be poorly conditioned) and random query points inside them.
