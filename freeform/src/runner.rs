@@ -9,7 +9,7 @@ use std::time::Instant;
 use hyperelastic::{HyperelasticMaterial, MaterialField};
 use optimize::NewtonReport;
 use reduced_sim::quadrature::automatic_quadrature::cubature_if_it_pays;
-use reduced_sim::quadrature::cubature::load_cached_cubature;
+use reduced_sim::quadrature::cubature::CubatureCacheFile;
 use reduced_sim::{
     CubatureError, CubatureParams, PinnedRegion, PlannedRun, QuadratureChoice, QuadratureReport,
     QuadratureRule, ReducedModel, ReducedModelError, SceneError, SimulationParams, Simulator,
@@ -265,9 +265,15 @@ struct Prepared<M: HyperelasticMaterial> {
     quadrature: QuadratureReport,
     /// The points each constrained region selected (penalized regions, then held ones).
     region_points: Vec<usize>,
-    /// The cubature options of a [`QuadratureRule::Automatic`] choice left to be made after
-    /// the warm-up steps.
-    pending: Option<CubatureParams>,
+    /// A [`QuadratureRule::Automatic`] choice left to be made after the warm-up steps.
+    pending: Option<PendingCubature>,
+}
+
+/// The automatic quadrature's choice, left for after the warm-up steps: its options and the
+/// cache file it looked in (to save a trained cubature or note a training over budget there).
+struct PendingCubature {
+    params: CubatureParams,
+    cache: Option<CubatureCacheFile>,
 }
 
 /// The reduced simulator of `simulation` at its start for the run `planned`; an automatic
@@ -290,7 +296,8 @@ where
         QuadratureRule::Automatic(params)
             if online && planned_steps > warmup_steps(planned_steps) =>
         {
-            match cache_dir.and_then(|dir| load_cached_cubature(&model, &params, dir)) {
+            let cache = cache_dir.map(|dir| CubatureCacheFile::new(&model, &params, dir));
+            match cache.as_ref().and_then(CubatureCacheFile::load) {
                 Some((cubature, report)) => {
                     let report = QuadratureReport {
                         kind: "cubature".to_string(),
@@ -310,7 +317,7 @@ where
                         cubature: None,
                         choice: None,
                     };
-                    (model, report, Some(params))
+                    (model, report, Some(PendingCubature { params, cache }))
                 }
             }
         }
@@ -526,7 +533,7 @@ where
                 first_step_elastic = statistics.elastic_seconds();
             }
             if step == warmup
-                && let Some(params) = pending.take()
+                && let Some(PendingCubature { params, cache }) = pending.take()
             {
                 // The automatic quadrature: the rest of the run on every point, predicted from
                 // the elastic part (assembly and line search) of the warm-up steps after the
@@ -536,14 +543,9 @@ where
                 let per_step =
                     (statistics.elastic_seconds() - first_step_elastic) / (warmup - 1) as f64;
                 let predicted = per_step * rest as f64;
-                let outcome = cubature_if_it_pays(
-                    sim.model(),
-                    &params,
-                    simulation.cache_dir,
-                    rest,
-                    predicted,
-                )
-                .map_err(RunError::Quadrature)?;
+                let outcome =
+                    cubature_if_it_pays(sim.model(), &params, cache.as_ref(), rest, predicted)
+                        .map_err(RunError::Quadrature)?;
                 if let Some((cubature, report)) = outcome.cubature {
                     quadrature.kind = "cubature".to_string();
                     quadrature.points = cubature.len();

@@ -5,7 +5,9 @@
 mod support;
 
 use reduced_sim::quadrature::automatic_quadrature::{SAVING_SHARE, cubature_if_it_pays};
-use reduced_sim::quadrature::cubature::{optimize_cubature_cached, optimize_cubature_within};
+use reduced_sim::quadrature::cubature::{
+    CubatureCacheFile, cubature_cache_path, optimize_cubature_cached, optimize_cubature_within,
+};
 use reduced_sim::{
     CubatureBudget, CubatureError, CubatureParams, ElasticCost, PlannedRun, QuadratureRule,
     SimulationParams, Simulator, optimize_cubature,
@@ -63,15 +65,18 @@ fn a_cubature_with_no_time_stops_over_budget_and_with_ample_time_is_the_unbudget
 fn a_run_too_short_to_pay_keeps_every_point_and_notes_it_so_a_like_run_does_not_try_again() {
     let dir = fresh_dir("automatic-short-run");
     let model = bar_model();
-    let short = cubature_if_it_pays(&model, &params(), Some(&dir), 10, 0.0).unwrap();
+    let cache = CubatureCacheFile::new(&model, &params(), &dir);
+    let short = cubature_if_it_pays(&model, &params(), Some(&cache), 10, 0.0).unwrap();
     assert!(short.cubature.is_none());
     assert!(!short.choice.chose_cubature && !short.choice.noted_over_budget);
     assert_eq!(short.choice.planned_steps, 10);
+    assert_eq!(cache.path(), cubature_cache_path(&model, &params(), &dir));
+    assert!(cache.path().with_extension("over-budget").is_file());
     // The note spares a run predicted at most twice as long ...
-    let noted = cubature_if_it_pays(&model, &params(), Some(&dir), 10, 0.0).unwrap();
+    let noted = cubature_if_it_pays(&model, &params(), Some(&cache), 10, 0.0).unwrap();
     assert!(noted.cubature.is_none() && noted.choice.noted_over_budget);
     // ... but not a long one, which trains, keeps and caches the cubature.
-    let long = cubature_if_it_pays(&model, &params(), Some(&dir), 1000, 1e9).unwrap();
+    let long = cubature_if_it_pays(&model, &params(), Some(&cache), 1000, 1e9).unwrap();
     let (quadrature, report) = long.cubature.expect("a long run pays for a cubature");
     assert!(long.choice.chose_cubature && !report.cached);
     assert!(

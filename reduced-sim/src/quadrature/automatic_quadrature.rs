@@ -11,7 +11,7 @@
 //! note beside the cubature's cache file records a training that ran out of its budget, so a
 //! later run of about the same length does not try again.
 
-use std::path::{Path, PathBuf};
+use std::path::PathBuf;
 use std::time::Instant;
 
 use hyperelastic::HyperelasticMaterial;
@@ -20,8 +20,8 @@ use serde::{Deserialize, Serialize};
 use crate::model::elastic_quadrature::ElasticQuadrature;
 use crate::model::reduced_model::ReducedModel;
 use crate::quadrature::cubature::{
-    CubatureBudget, CubatureError, CubatureParams, CubatureReport, cubature_cache_path,
-    optimize_cubature_within, save_cached_cubature,
+    CubatureBudget, CubatureCacheFile, CubatureError, CubatureParams, CubatureReport,
+    optimize_cubature_within,
 };
 
 /// What [`crate::QuadratureRule::Automatic`] predicted and chose.
@@ -74,16 +74,16 @@ pub struct AutomaticCubature {
 
 /// Trains the cubature of `params` on `model` (which must integrate over every point) for the
 /// rest of a run of `steps` steps whose elastic time on every point is predicted at
-/// `predicted_seconds`, within the budget of the module docs; a trained cubature is saved
-/// under `cache_dir` when one is given (the caller looks for a cached one first,
-/// [`crate::quadrature::cubature::load_cached_cubature`]).
+/// `predicted_seconds`, within the budget of the module docs; a trained cubature is saved to
+/// `cache` when one is given (the caller looks for a cached one there first,
+/// [`CubatureCacheFile::load`]), and a training that ran out of its budget is noted beside it.
 ///
 /// # Errors
 /// [`CubatureError`] other than [`CubatureError::OverBudget`] (which means every point).
 pub fn cubature_if_it_pays<M: HyperelasticMaterial>(
     model: &ReducedModel<M>,
     params: &CubatureParams,
-    cache_dir: Option<&Path>,
+    cache: Option<&CubatureCacheFile>,
     steps: usize,
     predicted_seconds: f64,
 ) -> Result<AutomaticCubature, CubatureError> {
@@ -102,7 +102,7 @@ pub fn cubature_if_it_pays<M: HyperelasticMaterial>(
     };
     // A note that training already ran out of its budget on a run predicted at least half as
     // long (predictions are timed, so they vary a little from run to run).
-    let note = cache_dir.map(|dir| over_budget_note_path(model, params, dir));
+    let note = cache.map(over_budget_note_path);
     let noted = note
         .as_ref()
         .and_then(|path| std::fs::read_to_string(path).ok())
@@ -119,8 +119,8 @@ pub fn cubature_if_it_pays<M: HyperelasticMaterial>(
     match optimize_cubature_within(model, params, &budget) {
         Ok((quadrature, report)) => {
             choice.budget_seconds = budget.seconds(quadrature.len());
-            let cubature = match cache_dir {
-                Some(dir) => save_cached_cubature(model, params, dir, quadrature, report),
+            let cubature = match cache {
+                Some(file) => file.save(quadrature, report),
                 None => (quadrature, report),
             };
             choice.spent_seconds = start.elapsed().as_secs_f64();
@@ -151,10 +151,6 @@ pub fn cubature_if_it_pays<M: HyperelasticMaterial>(
 
 /// Where a training that ran out of its budget is noted (the run's predicted time in s, as
 /// text): beside the cubature's cache file.
-fn over_budget_note_path<M: HyperelasticMaterial>(
-    model: &ReducedModel<M>,
-    params: &CubatureParams,
-    cache_dir: &Path,
-) -> PathBuf {
-    cubature_cache_path(model, params, cache_dir).with_extension("over-budget")
+fn over_budget_note_path(cache: &CubatureCacheFile) -> PathBuf {
+    cache.path().with_extension("over-budget")
 }

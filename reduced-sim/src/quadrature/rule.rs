@@ -22,7 +22,7 @@ use std::time::Instant;
 use crate::model::reduced_model::ReducedModel;
 use crate::quadrature::automatic_quadrature::{QuadratureChoice, cubature_if_it_pays};
 use crate::quadrature::cubature::{
-    CubatureError, CubatureParams, CubatureReport, load_cached_cubature, optimize_cubature,
+    CubatureCacheFile, CubatureError, CubatureParams, CubatureReport, optimize_cubature,
     optimize_cubature_cached,
 };
 use crate::quadrature::elastic_cost::{ElasticCost, PlannedRun};
@@ -162,16 +162,15 @@ impl QuadratureRule {
                     return finish(model, "cubature", quadrature, Some(report), None);
                 };
                 let start = Instant::now();
-                if let Some((quadrature, report)) =
-                    cache_dir.and_then(|dir| load_cached_cubature(&model, params, dir))
-                {
+                let cache = cache_dir.map(|dir| CubatureCacheFile::new(&model, params, dir));
+                if let Some((quadrature, report)) = cache.as_ref().and_then(|file| file.load()) {
                     let choice =
                         QuadratureChoice::cached(planned.steps, start.elapsed().as_secs_f64());
                     return finish(model, "cubature", quadrature, Some(report), Some(choice));
                 }
                 let predicted = ElasticCost::measure(&model).run(planned);
                 let outcome =
-                    cubature_if_it_pays(&model, params, cache_dir, planned.steps, predicted)?;
+                    cubature_if_it_pays(&model, params, cache.as_ref(), planned.steps, predicted)?;
                 let mut choice = outcome.choice;
                 choice.spent_seconds = start.elapsed().as_secs_f64();
                 match outcome.cubature {

@@ -61,6 +61,78 @@ pub fn cubature_cache_path<M: HyperelasticMaterial>(
         .join(format!("cubature-{}.bin", key.finish().hex()))
 }
 
+/// The cache file of one model's cubature under one set of options: its path
+/// ([`cubature_cache_path`]) hashed once, so that looking for a cached cubature, saving a new
+/// one and the automatic rule's over-budget note beside it do not hash the model again (the
+/// hash reads the deformation map's G at every point: about 0.1 s at 40 000 points).
+#[derive(Clone, Debug, PartialEq, Eq)]
+pub struct CubatureCacheFile {
+    path: PathBuf,
+    point_count: usize,
+}
+
+impl CubatureCacheFile {
+    /// The file of `model`'s cubature under `params` in `cache_dir`.
+    pub fn new<M: HyperelasticMaterial>(
+        model: &ReducedModel<M>,
+        params: &CubatureParams,
+        cache_dir: &Path,
+    ) -> Self {
+        CubatureCacheFile {
+            path: cubature_cache_path(model, params, cache_dir),
+            point_count: model.volumes().len(),
+        }
+    }
+
+    /// The file's path.
+    pub fn path(&self) -> &Path {
+        &self.path
+    }
+
+    /// The cached cubature, if the file holds a readable one that fits the model (its report
+    /// says `cached`).
+    pub fn load(&self) -> Option<(ElasticQuadrature, CubatureReport)> {
+        let cached =
+            load_framed::<CachedCubature>(&self.path, CUBATURE_MAGIC, CUBATURE_FORMAT_VERSION)
+                .ok()
+                .flatten()
+                .filter(|cached| cached.points.iter().all(|&p| p < self.point_count))?;
+        let quadrature = ElasticQuadrature::new(cached.points, cached.weights).ok()?;
+        let report = CubatureReport {
+            cached: true,
+            ..cached.report
+        };
+        Some((quadrature, report))
+    }
+
+    /// Saves a freshly optimized cubature and returns it; when it cannot be saved, the reason
+    /// goes into the report's `cache_warning`.
+    pub fn save(
+        &self,
+        quadrature: ElasticQuadrature,
+        mut report: CubatureReport,
+    ) -> (ElasticQuadrature, CubatureReport) {
+        let entry = CachedCubature {
+            points: quadrature.points().to_vec(),
+            weights: quadrature.weights().to_vec(),
+            report: report.clone(),
+        };
+        let saved = self
+            .path
+            .parent()
+            .map_or(Ok(()), std::fs::create_dir_all)
+            .map_err(|e| e.to_string())
+            .and_then(|()| {
+                save_framed(&self.path, CUBATURE_MAGIC, CUBATURE_FORMAT_VERSION, &entry)
+                    .map_err(|e| e.to_string())
+            });
+        if let Err(why) = saved {
+            report.cache_warning = Some(format!("{}: {why}", self.path.display()));
+        }
+        (quadrature, report)
+    }
+}
+
 /// [`optimize_cubature`], cached under `cache_dir` by content ([`cubature_cache_path`]): a
 /// cached cubature is loaded (its report says `cached`), a missing or unreadable one is
 /// optimized and saved. A cubature that cannot be saved is still returned, with the reason in
@@ -73,61 +145,32 @@ pub fn optimize_cubature_cached<M: HyperelasticMaterial>(
     params: &CubatureParams,
     cache_dir: &Path,
 ) -> Result<(ElasticQuadrature, CubatureReport), CubatureError> {
-    if let Some(cached) = load_cached_cubature(model, params, cache_dir) {
+    let file = CubatureCacheFile::new(model, params, cache_dir);
+    if let Some(cached) = file.load() {
         return Ok(cached);
     }
     let (quadrature, report) = optimize_cubature(model, params)?;
-    Ok(save_cached_cubature(
-        model, params, cache_dir, quadrature, report,
-    ))
+    Ok(file.save(quadrature, report))
 }
 
 /// The cubature of `model` and `params` cached under `cache_dir`, if there is a readable one
-/// that fits the model (its report says `cached`).
+/// that fits the model (its report says `cached`); [`CubatureCacheFile::load`].
 pub fn load_cached_cubature<M: HyperelasticMaterial>(
     model: &ReducedModel<M>,
     params: &CubatureParams,
     cache_dir: &Path,
 ) -> Option<(ElasticQuadrature, CubatureReport)> {
-    let path = cubature_cache_path(model, params, cache_dir);
-    let n = model.volumes().len();
-    let cached = load_framed::<CachedCubature>(&path, CUBATURE_MAGIC, CUBATURE_FORMAT_VERSION)
-        .ok()
-        .flatten()
-        .filter(|cached| cached.points.iter().all(|&p| p < n))?;
-    let quadrature = ElasticQuadrature::new(cached.points, cached.weights).ok()?;
-    let report = CubatureReport {
-        cached: true,
-        ..cached.report
-    };
-    Some((quadrature, report))
+    CubatureCacheFile::new(model, params, cache_dir).load()
 }
 
 /// Saves a freshly optimized cubature of `model` and `params` under `cache_dir` and returns
-/// it; when it cannot be saved, the reason goes into the report's `cache_warning`.
+/// it; [`CubatureCacheFile::save`].
 pub fn save_cached_cubature<M: HyperelasticMaterial>(
     model: &ReducedModel<M>,
     params: &CubatureParams,
     cache_dir: &Path,
     quadrature: ElasticQuadrature,
-    mut report: CubatureReport,
+    report: CubatureReport,
 ) -> (ElasticQuadrature, CubatureReport) {
-    let path = cubature_cache_path(model, params, cache_dir);
-    let entry = CachedCubature {
-        points: quadrature.points().to_vec(),
-        weights: quadrature.weights().to_vec(),
-        report: report.clone(),
-    };
-    let saved = path
-        .parent()
-        .map_or(Ok(()), std::fs::create_dir_all)
-        .map_err(|e| e.to_string())
-        .and_then(|()| {
-            save_framed(&path, CUBATURE_MAGIC, CUBATURE_FORMAT_VERSION, &entry)
-                .map_err(|e| e.to_string())
-        });
-    if let Err(why) = saved {
-        report.cache_warning = Some(format!("{}: {why}", path.display()));
-    }
-    (quadrature, report)
+    CubatureCacheFile::new(model, params, cache_dir).save(quadrature, report)
 }

@@ -57,7 +57,8 @@ mod ranking;
 mod training;
 
 pub use cache::{
-    cubature_cache_path, load_cached_cubature, optimize_cubature_cached, save_cached_cubature,
+    CubatureCacheFile, cubature_cache_path, load_cached_cubature, optimize_cubature_cached,
+    save_cached_cubature,
 };
 pub use force_accuracy::{force_error, force_weights};
 pub use training::training_poses;
