@@ -114,6 +114,35 @@ fn a_warm_start_reaches_the_same_solution_as_a_cold_one() {
 }
 
 #[test]
+fn a_nearly_dependent_support_spanning_the_rows_is_not_grown_past_them() {
+    // b lies in the cone of four nearly dependent columns of this 4 × 6 problem (x ~ 10²–10³,
+    // smallest singular value of the four 1.4e-4): the round-off left in w after that solve
+    // must not free a fifth column, whose normal matrix would be singular.
+    let mut rng = ChaCha8Rng::seed_from_u64(968_300);
+    let a = random_matrix(4, 6, &mut rng);
+    let b: Vec<f64> = (0..4).map(|_| rng.random_range(-1.0..1.0)).collect();
+    for block in [1, 3] {
+        let params = NnlsParams {
+            block,
+            ..NnlsParams::default()
+        };
+        let solution = nnls(a.as_ref(), &b, &params).unwrap();
+        let support = solution.x.iter().filter(|&&v| v > 0.0).count();
+        assert!(
+            support <= 4,
+            "block {block}: support of {support} in 4 rows, x = {:?}",
+            solution.x
+        );
+        let (_, best) = brute_force(&a, &b);
+        let got = residual_squared(&a, &solution.x, &b);
+        assert!(
+            got <= best + 1e-12,
+            "block {block}: residual² {got:e}, best {best:e}"
+        );
+    }
+}
+
+#[test]
 fn bad_input_is_refused_with_the_problem_named() {
     let a = Mat::<f64>::identity(3, 3);
     assert!(matches!(
