@@ -44,6 +44,12 @@ pub struct ConvergenceConfig {
     /// [`crate::convergence::POOL_TOLERANCE`] (default true).
     #[serde(default)]
     pub pool_check: bool,
+    /// A finer FEM at which the static reference is solved again, to measure the reference's
+    /// own error (its MSE against the finer solution at its nodes and its tip's change): a
+    /// static row whose MSE is below it is within the reference's error. `None` (default):
+    /// not checked.
+    #[serde(default)]
+    pub static_reference_check: Option<FemResolution>,
     /// Cache folder (FEM trajectories, cubatures).
     pub cache_dir: PathBuf,
 }
@@ -51,7 +57,7 @@ pub struct ConvergenceConfig {
 impl ConvergenceConfig {
     /// The whole study: the three tests at ν = 0.3 / 0.45 / 0.49, m = 8 … 64, K = 1000 and
     /// 2000, every treatment, every simulation point with Hessian reuse, the P2 res 6 reference
-    /// and P1 / P2 res 2–4 beside it.
+    /// (its static solution checked against P2 res 8) and P1 / P2 res 2–4 beside it.
     pub fn full(cache_dir: PathBuf) -> Self {
         let coarse = |order, cells_per_metre| FemResolution {
             order,
@@ -90,12 +96,16 @@ impl ConvergenceConfig {
                 coarse(ElementOrder::Quadratic, 4),
             ],
             pool_check: true,
+            static_reference_check: Some(FemResolution {
+                order: ElementOrder::Quadratic,
+                cells_per_metre: 8,
+            }),
             cache_dir,
         }
     }
 
     /// A minutes-long version: the static Bend at ν = 0.45, m = 8 / 16 / 32, K = 1000, every
-    /// treatment and volumetric term, against P2 res 4.
+    /// treatment and volumetric term, against P2 res 4 (checked against P2 res 6).
     pub fn quick(cache_dir: PathBuf) -> Self {
         ConvergenceConfig {
             tests: vec![ConvergenceTest::StaticBend],
@@ -108,6 +118,10 @@ impl ConvergenceConfig {
                 cells_per_metre: 4,
             },
             coarse_fem: Vec::new(),
+            static_reference_check: Some(FemResolution {
+                order: ElementOrder::Quadratic,
+                cells_per_metre: 6,
+            }),
             ..ConvergenceConfig::full(cache_dir)
         }
     }

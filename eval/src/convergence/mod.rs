@@ -20,7 +20,7 @@
 //!
 //! Files: `options.rs` (what varies besides m, K and ν), `config.rs` (what the study runs),
 //! `result.rs` (what it measures), `pool_check.rs` (whether the basis's integration pool is
-//! converged), `static_reference.rs` (the static reference and the
+//! converged), `static_reference.rs` (the static reference, its own error against a finer FEM, and the
 //! projections), `study.rs` (the run), `table.rs` (the Markdown).
 
 mod config;
@@ -36,6 +36,6 @@ mod tests;
 pub use config::ConvergenceConfig;
 pub use options::{BoundaryTreatment, ConvergenceTest, VolumetricTerm};
 pub use pool_check::{POOL_TOLERANCE, PoolCheckRow};
-pub use result::{CoarseFemRow, ConvergenceRow, ConvergenceStudy};
+pub use result::{CoarseFemRow, ConvergenceRow, ConvergenceStudy, StaticReferenceCheck};
 pub use study::run_convergence;
 pub use table::convergence_table;

@@ -74,4 +74,24 @@ pub struct ConvergenceStudy {
     /// ([`crate::convergence::ConvergenceConfig::pool_check`]).
     #[serde(default)]
     pub pool_checks: Vec<crate::convergence::PoolCheckRow>,
+    /// Per ν: the static reference's own error against a finer FEM
+    /// ([`crate::convergence::ConvergenceConfig::static_reference_check`]).
+    #[serde(default)]
+    pub static_reference_checks: Vec<StaticReferenceCheck>,
+}
+
+/// The static reference's own error at one ν, measured against a finer FEM.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+pub struct StaticReferenceCheck {
+    /// Poisson ratio.
+    pub nu: f64,
+    /// The reference, "P2 res 6".
+    pub resolution: String,
+    /// The finer FEM, "P2 res 8".
+    pub finer: String,
+    /// Normalized MSE of the reference against the finer solution at the reference's nodes:
+    /// static rows below it are within the reference's own error.
+    pub mse: f64,
+    /// `u_tip,y / u'_tip,y − 1` (− the reference is stiffer than the finer FEM).
+    pub tip_change: f64,
 }

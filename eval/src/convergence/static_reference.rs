@@ -1,10 +1,10 @@
 //! The static Bend's FEM reference and the two best approximations of its field in a basis's
 //! subspace (L2 and energy projections), with the field errors the study reports.
 
-use fem_ref::TetMesh;
+use fem_ref::{FemSimulator, PointInterpolation, TetMesh};
 use freeform::fem_reference::FemProblem;
 use freeform::scene::SceneSpec;
-use hyperelastic::{HessianTangent, MaterialSample, Tangent};
+use hyperelastic::{HessianTangent, MaterialSample, StableNeoHookean, Tangent};
 use nalgebra::{DMatrix, DVector, Vector3};
 use optimize::NewtonParams;
 use reduced_sim::DeformationMap;
@@ -48,12 +48,12 @@ pub(crate) fn static_scene(scale: f64) -> SceneSpec {
     scene
 }
 
-/// Solves the static FEM reference at `resolution` for `material`.
-pub(crate) fn static_reference(
+/// The static FEM solution of `scene` at `resolution` for `material`, converged.
+fn solved(
     scene: &SceneSpec,
     resolution: FemResolution,
     material: MaterialSample,
-) -> Result<StaticReference, EvalError> {
+) -> Result<FemSimulator<StableNeoHookean>, EvalError> {
     let r = resolution.cells_per_metre;
     let tets = TetMesh::cuboid(BEAM_MIN, BEAM_MAX, [5 * r, r, r]).map_err(EvalError::FemBox)?;
     let problem = FemProblem {
@@ -77,6 +77,55 @@ pub(crate) fn static_reference(
             iterations: report.iterations,
         });
     }
+    Ok(sim)
+}
+
+/// The static reference's own discretization error, measured against a finer FEM.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub(crate) struct ReferenceError {
+    /// Normalized MSE of the reference against the finer solution interpolated at its nodes
+    /// ([`field_errors`]).
+    pub(crate) mse: f64,
+    /// `u_tip,y / u'_tip,y − 1` at the reference's tip node (− the reference is stiffer).
+    pub(crate) tip_change: f64,
+}
+
+/// Solves the static problem of `reference` again at `finer` and measures how far the
+/// reference is from it at the reference's nodes.
+///
+/// # Errors
+/// [`EvalError`] when the finer FEM cannot be built or does not converge, or a node of the
+/// reference lies outside its mesh.
+pub(crate) fn reference_error(
+    reference: &StaticReference,
+    scene: &SceneSpec,
+    finer: FemResolution,
+    material: MaterialSample,
+) -> Result<ReferenceError, EvalError> {
+    let sim = solved(scene, finer, material)?;
+    let mesh = sim.model().mesh();
+    let interpolation = PointInterpolation::new(mesh, &reference.nodes)?;
+    let finer_positions = interpolation.interpolate(&sim.positions());
+    let finer_displacements: Vec<Vector3<f64>> = finer_positions
+        .iter()
+        .zip(&reference.nodes)
+        .map(|(x, rest)| x - rest)
+        .collect();
+    let (mse, _) = field_errors(&reference.displacements, &finer_displacements);
+    let tip = reference.tip;
+    Ok(ReferenceError {
+        mse,
+        tip_change: reference.displacements[tip].y / finer_displacements[tip].y - 1.0,
+    })
+}
+
+/// Solves the static FEM reference at `resolution` for `material`.
+pub(crate) fn static_reference(
+    scene: &SceneSpec,
+    resolution: FemResolution,
+    material: MaterialSample,
+) -> Result<StaticReference, EvalError> {
+    let sim = solved(scene, resolution, material)?;
     let model = sim.model();
     let nodes = model.mesh().nodes().to_vec();
     let displacements: Vec<Vector3<f64>> = sim

@@ -23,9 +23,12 @@ use crate::beam_protocol::reduced::{
 use crate::beam_scenario::{BEAM_TIME_STEP, BeamTest, beam_length_scale, beam_material};
 use crate::convergence::config::ConvergenceConfig;
 use crate::convergence::options::{BoundaryTreatment, ConvergenceTest, VolumetricTerm};
-use crate::convergence::result::{CoarseFemRow, ConvergenceRow, ConvergenceStudy};
+use crate::convergence::result::{
+    CoarseFemRow, ConvergenceRow, ConvergenceStudy, StaticReferenceCheck,
+};
 use crate::convergence::static_reference::{
-    StaticReference, field_errors, projections, static_reference, static_scene, tip_index,
+    StaticReference, field_errors, projections, reference_error, static_reference, static_scene,
+    tip_index,
 };
 use crate::fem_reference::{converged_fem_beam, run_fem_beam_with};
 use crate::reduced_settings::ReducedSettings;
@@ -116,7 +119,29 @@ fn references(
     let nu = material.poisson_ratio;
     let statics = if config.tests.contains(&ConvergenceTest::StaticBend) {
         progress.status(format!("static FEM ν = {nu} ({})", config.fem.label()));
-        Some(static_reference(static_scene, config.fem, material)?)
+        let reference = static_reference(static_scene, config.fem, material)?;
+        if let Some(finer) = config.static_reference_check {
+            progress.status(format!(
+                "static FEM ν = {nu}: the reference against {}",
+                finer.label()
+            ));
+            let error = reference_error(&reference, static_scene, finer, material)?;
+            progress.status(format!(
+                "static FEM ν = {nu}: {} against {}: MSE {:.3e}, tip {:+.2}%",
+                config.fem.label(),
+                finer.label(),
+                error.mse,
+                100.0 * error.tip_change
+            ));
+            study.static_reference_checks.push(StaticReferenceCheck {
+                nu,
+                resolution: config.fem.label(),
+                finer: finer.label(),
+                mse: error.mse,
+                tip_change: error.tip_change,
+            });
+        }
+        Some(reference)
     } else {
         None
     };

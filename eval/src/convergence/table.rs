@@ -75,6 +75,24 @@ pub fn convergence_table(config: &ConvergenceConfig, study: &ConvergenceStudy) -
             }
         }
     }
+    if !study.static_reference_checks.is_empty() {
+        md += "### The static reference's own error\n\nThe static reference against a finer FEM \
+               interpolated at its nodes: a static row whose MSE is below the reference's is \
+               within the reference's own error.\n\n| ν | reference | finer | MSE | tip change \
+               |\n|---|---|---|---|---|\n";
+        for c in &study.static_reference_checks {
+            let _ = writeln!(
+                md,
+                "| {} | {} | {} | {:.3e} | {:+.2}% |",
+                c.nu,
+                c.resolution,
+                c.finer,
+                c.mse,
+                100.0 * c.tip_change
+            );
+        }
+        md += "\n";
+    }
     if !study.pool_checks.is_empty() {
         let _ = write!(
             md,

@@ -5,7 +5,7 @@ use reduced_sim::DeformationMap;
 use skin_eigen::SkinningBasis;
 
 use super::static_reference::{
-    StaticReference, field_errors, projections, static_reference, static_scene,
+    StaticReference, field_errors, projections, reference_error, static_reference, static_scene,
 };
 use crate::beam_protocol::reduced::build_beam_basis;
 use crate::beam_scenario::beam_material;
@@ -28,6 +28,40 @@ fn coarse_reference() -> StaticReference {
         cells_per_metre: 2,
     };
     static_reference(&static_scene(1e-3), resolution, beam_material()).unwrap()
+}
+
+#[test]
+fn a_static_reference_checked_against_its_own_resolution_has_no_error() {
+    let reference = coarse_reference();
+    let same = FemResolution {
+        order: ElementOrder::Linear,
+        cells_per_metre: 2,
+    };
+    let error = reference_error(&reference, &static_scene(1e-3), same, beam_material()).unwrap();
+    assert!(error.mse < 1e-24, "MSE {:e}", error.mse);
+    assert!(error.tip_change.abs() < 1e-12, "tip {:e}", error.tip_change);
+}
+
+#[test]
+fn a_coarse_linear_reference_is_stiffer_than_a_finer_one() {
+    // P1 tetrahedra lock in bending and stiffen as the mesh coarsens: the res 2 reference's
+    // tip moves less than the res 3 one's, and its field differs.
+    let reference = coarse_reference();
+    let finer = FemResolution {
+        order: ElementOrder::Linear,
+        cells_per_metre: 3,
+    };
+    let error = reference_error(&reference, &static_scene(1e-3), finer, beam_material()).unwrap();
+    assert!(
+        error.mse > 0.0 && error.mse.is_finite(),
+        "MSE {:e}",
+        error.mse
+    );
+    assert!(
+        error.tip_change < -0.01,
+        "tip change {:+e}",
+        error.tip_change
+    );
 }
 
 #[test]
