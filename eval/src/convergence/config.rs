@@ -44,6 +44,10 @@ pub struct ConvergenceConfig {
     /// [`crate::convergence::POOL_TOLERANCE`] (default true).
     #[serde(default)]
     pub pool_check: bool,
+    /// The static Bend's FEM reference, when not `fem` (a static solve costs seconds where a
+    /// dynamic reference costs hours, so it can be much finer). `None` (default): `fem`.
+    #[serde(default)]
+    pub static_fem: Option<FemResolution>,
     /// A finer FEM at which the static reference is solved again, to measure the reference's
     /// own error (its MSE against the finer solution at its nodes and its tip's change): a
     /// static row whose MSE is below it is within the reference's error. `None` (default):
@@ -55,9 +59,15 @@ pub struct ConvergenceConfig {
 }
 
 impl ConvergenceConfig {
+    /// The static Bend's reference: `static_fem`, else `fem`.
+    pub fn static_reference_resolution(&self) -> FemResolution {
+        self.static_fem.unwrap_or(self.fem)
+    }
+
     /// The whole study: the three tests at ν = 0.3 / 0.45 / 0.49, m = 8 … 64, K = 1000 and
     /// 2000, every treatment, every simulation point with Hessian reuse, the P2 res 6 reference
-    /// (its static solution checked against P2 res 8) and P1 / P2 res 2–4 beside it.
+    /// of the dynamic tests and P1 / P2 res 2–4 beside it, the static Bend against P2 res 10
+    /// (checked against P2 res 12).
     pub fn full(cache_dir: PathBuf) -> Self {
         let coarse = |order, cells_per_metre| FemResolution {
             order,
@@ -96,16 +106,20 @@ impl ConvergenceConfig {
                 coarse(ElementOrder::Quadratic, 4),
             ],
             pool_check: true,
+            static_fem: Some(FemResolution {
+                order: ElementOrder::Quadratic,
+                cells_per_metre: 10,
+            }),
             static_reference_check: Some(FemResolution {
                 order: ElementOrder::Quadratic,
-                cells_per_metre: 8,
+                cells_per_metre: 12,
             }),
             cache_dir,
         }
     }
 
     /// A minutes-long version: the static Bend at ν = 0.45, m = 8 / 16 / 32, K = 1000, every
-    /// treatment and volumetric term, against P2 res 4 (checked against P2 res 6).
+    /// treatment and volumetric term, against P2 res 8 (checked against P2 res 10).
     pub fn quick(cache_dir: PathBuf) -> Self {
         ConvergenceConfig {
             tests: vec![ConvergenceTest::StaticBend],
@@ -118,9 +132,13 @@ impl ConvergenceConfig {
                 cells_per_metre: 4,
             },
             coarse_fem: Vec::new(),
+            static_fem: Some(FemResolution {
+                order: ElementOrder::Quadratic,
+                cells_per_metre: 8,
+            }),
             static_reference_check: Some(FemResolution {
                 order: ElementOrder::Quadratic,
-                cells_per_metre: 6,
+                cells_per_metre: 10,
             }),
             ..ConvergenceConfig::full(cache_dir)
         }

@@ -118,8 +118,9 @@ fn references(
 ) -> Result<(Option<StaticReference>, DynamicReferences), EvalError> {
     let nu = material.poisson_ratio;
     let statics = if config.tests.contains(&ConvergenceTest::StaticBend) {
-        progress.status(format!("static FEM ν = {nu} ({})", config.fem.label()));
-        let reference = static_reference(static_scene, config.fem, material)?;
+        let resolution = config.static_reference_resolution();
+        progress.status(format!("static FEM ν = {nu} ({})", resolution.label()));
+        let reference = static_reference(static_scene, resolution, material)?;
         if let Some(finer) = config.static_reference_check {
             progress.status(format!(
                 "static FEM ν = {nu}: the reference against {}",
@@ -128,14 +129,14 @@ fn references(
             let error = reference_error(&reference, static_scene, finer, material)?;
             progress.status(format!(
                 "static FEM ν = {nu}: {} against {}: MSE {:.3e}, tip {:+.2}%",
-                config.fem.label(),
+                resolution.label(),
                 finer.label(),
                 error.mse,
                 100.0 * error.tip_change
             ));
             study.static_reference_checks.push(StaticReferenceCheck {
                 nu,
-                resolution: config.fem.label(),
+                resolution: resolution.label(),
                 finer: finer.label(),
                 mse: error.mse,
                 tip_change: error.tip_change,

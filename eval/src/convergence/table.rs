@@ -11,11 +11,12 @@ use crate::convergence::result::ConvergenceStudy;
 /// projections), then the coarse FEM points.
 pub fn convergence_table(config: &ConvergenceConfig, study: &ConvergenceStudy) -> String {
     let mut md = format!(
-        "## Convergence in m: beam against the FEM ({})\n\n\
+        "## Convergence in m: beam against the FEM ({}; static Bend against {})\n\n\
          E = 5 MPa, ρ = 1000 kg/m³, {} simulation points, {}; static Bend at {} g. Cells: \
          normalized MSE (static: tip error in %, + too soft; and the MSE of the energy \
          projection of the FEM field onto the same subspace).\n\n",
         config.fem.label(),
+        config.static_reference_resolution().label(),
         config.settings.simulation_points,
         config.settings.quadrature_label(),
         config.static_gravity_scale
