@@ -77,6 +77,8 @@ pub struct AutomaticCubature {
 /// `predicted_seconds`, within the budget of the module docs; a trained cubature is saved to
 /// `cache` when one is given (the caller looks for a cached one there first,
 /// [`CubatureCacheFile::load`]), and a training that ran out of its budget is noted beside it.
+/// `cache` is the file of this `model` and `params` ([`CubatureCacheFile::new`]); another's
+/// would store this cubature under that model's key.
 ///
 /// # Errors
 /// [`CubatureError`] other than [`CubatureError::OverBudget`] (which means every point).
