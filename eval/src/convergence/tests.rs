@@ -22,22 +22,23 @@ fn small_basis() -> SkinningBasis {
     build_beam_basis(&settings).unwrap().basis
 }
 
-fn coarse_reference() -> StaticReference {
-    let resolution = FemResolution {
+/// P1 tetrahedra at `cells_per_metre`.
+fn linear(cells_per_metre: usize) -> FemResolution {
+    FemResolution {
         order: ElementOrder::Linear,
-        cells_per_metre: 2,
-    };
-    static_reference(&static_scene(1e-3), resolution, beam_material()).unwrap()
+        cells_per_metre,
+    }
+}
+
+fn coarse_reference() -> StaticReference {
+    static_reference(&static_scene(1e-3), linear(2), beam_material()).unwrap()
 }
 
 #[test]
 fn a_static_reference_checked_against_its_own_resolution_has_no_error() {
     let reference = coarse_reference();
-    let same = FemResolution {
-        order: ElementOrder::Linear,
-        cells_per_metre: 2,
-    };
-    let error = reference_error(&reference, &static_scene(1e-3), same, beam_material()).unwrap();
+    let error =
+        reference_error(&reference, &static_scene(1e-3), linear(2), beam_material()).unwrap();
     assert!(error.mse < 1e-24, "MSE {:e}", error.mse);
     assert!(error.tip_change.abs() < 1e-12, "tip {:e}", error.tip_change);
 }
@@ -47,11 +48,8 @@ fn a_coarse_linear_reference_is_stiffer_than_a_finer_one() {
     // P1 tetrahedra lock in bending and stiffen as the mesh coarsens: the res 2 reference's
     // tip moves less than the res 3 one's, and its field differs.
     let reference = coarse_reference();
-    let finer = FemResolution {
-        order: ElementOrder::Linear,
-        cells_per_metre: 3,
-    };
-    let error = reference_error(&reference, &static_scene(1e-3), finer, beam_material()).unwrap();
+    let error =
+        reference_error(&reference, &static_scene(1e-3), linear(3), beam_material()).unwrap();
     assert!(
         error.mse > 0.0 && error.mse.is_finite(),
         "MSE {:e}",
