@@ -241,12 +241,18 @@ impl ReducedSettings {
             PinHold::Weighted {
                 transition_fraction,
                 distance,
+                split_cut_cells,
             } => format!(
                 "regions held exactly by a weighted basis (transition {transition_fraction} × \
-                 the object's thickness, the smallest side of its bounding box{})",
+                 the object's thickness, the smallest side of its bounding box{}{})",
                 match distance {
                     WeightDistance::HeldMaterial => ", distances to the held material",
                     WeightDistance::RegionShape => ", distances to the regions' shapes",
+                },
+                if split_cut_cells {
+                    ", cells the regions cut split"
+                } else {
+                    ""
                 }
             ),
         }

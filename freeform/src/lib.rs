@@ -30,6 +30,7 @@ pub mod prelude;
 pub mod pressure_space;
 pub mod progress;
 pub mod recorded_run;
+pub mod region_cells;
 pub mod runner;
 pub mod scene;
 pub mod scene_file;
@@ -57,6 +58,7 @@ pub use placement::Placement;
 pub use pressure_space::{PressureSpace, PressureSpaceParams};
 pub use progress::{Progress, Silent};
 pub use recorded_run::{RecordError, RecordedRun, run_recorded};
+pub use region_cells::{CellSplitReport, split_cells_at_regions};
 pub use runner::{
     Frame, ObserverResult, RunError, RunReport, Simulation, StaticEquilibrium, prepare_simulator,
     prepare_simulator_for, pressure_inf_sup, run, static_equilibrium,

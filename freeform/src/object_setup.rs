@@ -90,9 +90,19 @@ impl ObjectSetup {
         let material = object.material.field();
         let fill = object.geometry.fill_interior;
         let basis_points = geometry.integration_points_filling(spec.basis_points, fill)?;
-        let points =
-            geometry.integration_points_filling(object.simulation.simulation_points, fill)?;
         let hold = object.simulation.pins;
+        let (points, split) = hold.simulation_points(
+            object.scene,
+            geometry.integration_points_filling(object.simulation.simulation_points, fill)?,
+        );
+        if split.cut_cells > 0 {
+            progress.status(&format!(
+                "{label}simulation points: {} cells cut by a held region's boundary split into \
+                 their held and free parts ({} points)",
+                split.cut_cells,
+                points.len()
+            ));
+        }
         let basis_params = || {
             BasisParams::default()
                 .with_modes(spec.modes)

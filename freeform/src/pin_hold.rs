@@ -32,6 +32,7 @@ use skin_eigen::{
     build_basis_keeping_shape_functions, build_basis_with_regions, build_weighted_basis_sharing,
 };
 
+use crate::region_cells::{CellSplitReport, split_cells_at_regions};
 use crate::scene::{REGION_TOLERANCE, Region, SceneSpec, SceneSpecError};
 
 /// [`PinHold::build_basis`] failed.
@@ -74,7 +75,18 @@ pub enum PinHold {
         /// What the weight's distance to a region measures (default: the material it holds).
         #[serde(default, skip_serializing_if = "WeightDistance::is_default")]
         distance: WeightDistance,
+        /// Whether each simulation point whose cell a region's boundary cuts is split into its
+        /// held and free parts ([`PinHold::simulation_points`]; default false: the point counts
+        /// wholly as held or as free by where it lies, so the result depends a little on how
+        /// the grid falls on the boundary).
+        #[serde(default, skip_serializing_if = "is_false")]
+        split_cut_cells: bool,
     },
+}
+
+/// Whether `value` is false (serde's `skip_serializing_if` for an option off by default).
+fn is_false(value: &bool) -> bool {
+    !*value
 }
 
 /// What a weighted basis's weight measures the distance to ([`PinHold::Weighted`]).
@@ -124,6 +136,7 @@ impl PinHold {
     pub const WEIGHTED: PinHold = PinHold::Weighted {
         transition_fraction: 1.0,
         distance: WeightDistance::HeldMaterial,
+        split_cut_cells: false,
     };
 
     /// The weight of [`PinHold::Weighted`] for `scene`'s constraint regions, in order, on an
@@ -150,6 +163,30 @@ impl PinHold {
             .map(|c| c.region.held_region_shape())
             .collect();
         RegionWeight::new(regions, transition_fraction * bounding_box_sides.min()).map(Some)
+    }
+
+    /// The simulation's integration points for this hold: for [`PinHold::Weighted`] with
+    /// `split_cut_cells`, `points` with each cell a constraint region's boundary cuts split
+    /// into its held and free parts ([`split_cells_at_regions`]: the strain jumps at a weighted
+    /// region's boundary, and an unsplit cut cell counts wholly as held or free); `points`
+    /// unchanged otherwise (the penalty's pins are the points inside the regions, the paper's
+    /// setting) and for a scene without constraints.
+    pub fn simulation_points(
+        &self,
+        scene: &SceneSpec,
+        points: IntegrationPoints,
+    ) -> (IntegrationPoints, CellSplitReport) {
+        match self {
+            PinHold::Weighted {
+                split_cut_cells: true,
+                ..
+            } if !scene.constraints.is_empty() => {
+                let regions: Vec<Region> =
+                    scene.constraints.iter().map(|c| c.region.clone()).collect();
+                split_cells_at_regions(&points, &regions)
+            }
+            _ => (points, CellSplitReport::default()),
+        }
     }
 
     /// The basis options for this hold: `params` as given for the penalty; for exact holding,

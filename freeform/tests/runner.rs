@@ -294,6 +294,7 @@ fn on_a_bar_whose_ends_are_held_across_the_held_material_distance_is_the_regions
     let shape = freeform::PinHold::Weighted {
         transition_fraction: 1.0,
         distance: freeform::WeightDistance::RegionShape,
+        split_cut_cells: false,
     };
     let (basis, _) = shape
         .build_basis(

@@ -8,7 +8,7 @@ use freeform::{PinHold, PressureSpace, PressureSpaceParams, Simulation};
 use hyperelastic::{MaterialField, MaterialSample, StableNeoHookean};
 use nalgebra::Vector3;
 use reduced_sim::SkinningField;
-use rkpm_core::{Kernels, place_kernels};
+use rkpm_core::{IntegrationPoints, Kernels, place_kernels};
 use skin_eigen::{BasisError, BasisReport, SkinningBasis, build_basis};
 
 use crate::EvalError;
@@ -75,9 +75,7 @@ pub fn build_beam_basis_for(
     }
     let start = Instant::now();
     let (grid, lame) = beam_basis_grid(settings.basis_points)?;
-    let points = settings
-        .simulation_sampling
-        .beam_points(settings.simulation_points)?;
+    let points = beam_simulation_points(test, settings)?;
     let (basis, report) = settings.pins.build_basis(
         &test.scene(),
         &grid,
@@ -91,6 +89,22 @@ pub fn build_beam_basis_for(
         report,
         seconds: start.elapsed().as_secs_f64(),
     })
+}
+
+/// The simulation's points of `test` under `settings`: the sampling's grid or random points,
+/// with the cells a weighted hold's regions cut split into their parts
+/// ([`PinHold::simulation_points`]).
+///
+/// # Errors
+/// [`EvalError::Sampling`] when the points cannot be sampled.
+pub fn beam_simulation_points(
+    test: BeamTest,
+    settings: &ReducedSettings,
+) -> Result<IntegrationPoints, EvalError> {
+    let points = settings
+        .simulation_sampling
+        .beam_points(settings.simulation_points)?;
+    Ok(settings.pins.simulation_points(&test.scene(), points).0)
 }
 
 /// The median radius (m) of `kernels`: the length exact holding's inset is measured in.
@@ -177,9 +191,7 @@ pub fn run_reduced_beam_with_pressure<B: SkinningField + ?Sized>(
     steps: usize,
     progress: &TerminalProgress,
 ) -> Result<ReducedRun, EvalError> {
-    let points = settings
-        .simulation_sampling
-        .beam_points(settings.simulation_points)?;
+    let points = beam_simulation_points(test, settings)?;
     run_reduced(
         &ReducedProblem {
             simulation: Simulation::new(

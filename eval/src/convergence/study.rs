@@ -500,9 +500,12 @@ fn static_row(
     reference: &StaticReference,
     config: &ConvergenceConfig,
 ) -> Result<(), EvalError> {
-    let points = settings
-        .simulation_sampling
-        .beam_points(settings.simulation_points)?;
+    let (points, _) = settings.pins.simulation_points(
+        scene,
+        settings
+            .simulation_sampling
+            .beam_points(settings.simulation_points)?,
+    );
     let material = MaterialField::Uniform(material);
     let simulation = Simulation::new(basis, &points, &material, StableNeoHookean, scene)
         .with_params(settings.simulation_params(BEAM_TIME_STEP))

@@ -351,6 +351,11 @@ fn score_row(
     let Some(reduced) = &shape.reduced else {
         return Ok(());
     };
+    // Ours integrates over the points with the cells its held regions cut split
+    // (`PinHold::simulation_points`); the exact holding and the baseline keep the sampled ones.
+    let (our_points, _) = settings
+        .pins
+        .simulation_points(scene, reduced.points.clone());
     // A basis built here for the held regions shares its shape functions with the pressure
     // space's Neumann modes on the same points.
     let (held_basis, shared) = match settings.pins {
@@ -360,7 +365,7 @@ fn score_row(
                 scene,
                 reduced.basis_points,
                 reduced.lames,
-                reduced.points.positions(),
+                our_points.positions(),
                 fem.vertices(),
                 settings.basis_params(),
             )?;
@@ -399,7 +404,11 @@ fn score_row(
         progress: shape.progress,
     };
     let ours = held_basis.as_ref().unwrap_or(reduced.ours);
-    let (scores, region_points) = run.score(ours, "FreeForm", settings.pins)?;
+    let our_run = BoundaryRun {
+        points: &our_points,
+        ..run
+    };
+    let (scores, region_points) = our_run.score(ours, "FreeForm", settings.pins)?;
     row.ours = Some(scores);
     row.region_points = region_points;
     if let Some(radii) = config.exact_pins {
