@@ -351,8 +351,9 @@ fn score_row(
     let Some(reduced) = &shape.reduced else {
         return Ok(());
     };
-    // Ours integrates over the points with the cells its held regions cut split
-    // (`PinHold::simulation_points`); the exact holding and the baseline keep the sampled ones.
+    // Ours integrates over the sampled points, with the cells its held regions cut split when
+    // its hold asks (`PinHold::simulation_points`); the exact holding and the baseline keep the
+    // sampled ones.
     let (our_points, _) = settings
         .pins
         .simulation_points(scene, reduced.points.clone());
