@@ -4,6 +4,7 @@
 use std::path::Path;
 use std::time::Instant;
 
+use freeform::scene::SceneSpec;
 use freeform::{PinHold, PressureSpace, PressureSpaceParams, Simulation};
 use hyperelastic::{MaterialField, MaterialSample, StableNeoHookean};
 use nalgebra::Vector3;
@@ -75,7 +76,7 @@ pub fn build_beam_basis_for(
     }
     let start = Instant::now();
     let (grid, lame) = beam_basis_grid(settings.basis_points)?;
-    let points = beam_simulation_points(test, settings)?;
+    let points = beam_simulation_points(&test.scene(), settings)?;
     let (basis, report) = settings.pins.build_basis(
         &test.scene(),
         &grid,
@@ -91,20 +92,20 @@ pub fn build_beam_basis_for(
     })
 }
 
-/// The simulation's points of `test` under `settings`: the sampling's grid or random points,
-/// with the cells a weighted hold's regions cut split into their parts
-/// ([`PinHold::simulation_points`]).
+/// The beam's simulation points in `scene` under `settings`: the sampling's grid or random
+/// points, with the cells a weighted hold's regions cut split into their parts when the hold
+/// asks ([`PinHold::simulation_points`]).
 ///
 /// # Errors
 /// [`EvalError::Sampling`] when the points cannot be sampled.
 pub fn beam_simulation_points(
-    test: BeamTest,
+    scene: &SceneSpec,
     settings: &ReducedSettings,
 ) -> Result<IntegrationPoints, EvalError> {
     let points = settings
         .simulation_sampling
         .beam_points(settings.simulation_points)?;
-    Ok(settings.pins.simulation_points(&test.scene(), points).0)
+    Ok(settings.pins.simulation_points(scene, points).0)
 }
 
 /// The median radius (m) of `kernels`: the length exact holding's inset is measured in.
@@ -191,7 +192,7 @@ pub fn run_reduced_beam_with_pressure<B: SkinningField + ?Sized>(
     steps: usize,
     progress: &TerminalProgress,
 ) -> Result<ReducedRun, EvalError> {
-    let points = beam_simulation_points(test, settings)?;
+    let points = beam_simulation_points(&test.scene(), settings)?;
     run_reduced(
         &ReducedProblem {
             simulation: Simulation::new(

@@ -18,7 +18,8 @@ use skin_eigen::SkinningBasis;
 use crate::EvalError;
 use crate::beam_protocol::evaluation::region_drift;
 use crate::beam_protocol::reduced::{
-    beam_pressure_space, build_beam_basis_for, run_reduced_beam_with_pressure,
+    beam_pressure_space, beam_simulation_points, build_beam_basis_for,
+    run_reduced_beam_with_pressure,
 };
 use crate::beam_scenario::{BEAM_TIME_STEP, BeamTest, beam_length_scale, beam_material};
 use crate::convergence::config::ConvergenceConfig;
@@ -500,12 +501,7 @@ fn static_row(
     reference: &StaticReference,
     config: &ConvergenceConfig,
 ) -> Result<(), EvalError> {
-    let (points, _) = settings.pins.simulation_points(
-        scene,
-        settings
-            .simulation_sampling
-            .beam_points(settings.simulation_points)?,
-    );
+    let points = beam_simulation_points(scene, settings)?;
     let material = MaterialField::Uniform(material);
     let simulation = Simulation::new(basis, &points, &material, StableNeoHookean, scene)
         .with_params(settings.simulation_params(BEAM_TIME_STEP))
