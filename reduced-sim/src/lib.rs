@@ -38,5 +38,6 @@ pub use step::hessian_tangent::HessianTangent;
 pub use step::incremental_potential::IncrementalPotential;
 pub use step::simulator::{ReducedState, SimulationParams, Simulator, StateError, StepError};
 pub use terms::{
-    StepTerm, TermCheckError, TermCheckParams, TermCheckReport, TermPoint, check_term,
+    NitscheError, NitscheInterface, NitscheParams, NitscheReport, StepTerm, TermCheckError,
+    TermCheckParams, TermCheckReport, TermPoint, check_term,
 };

@@ -1,6 +1,7 @@
 //! The whole basis construction ("training"): kernels → shape functions → 𝓜, H_w → eigen
 //! solve, timed per phase.
 
+use crate::generalized_eigen::solve_modes_keeping_first;
 use std::time::Instant;
 
 use hyperelastic::LameParameters;
@@ -178,6 +179,10 @@ pub enum BasisError {
         /// K.
         kernels: usize,
     },
+    /// An interface of [`crate::build_basis_with_interface`] is invalid, or its terms cannot
+    /// be formed.
+    #[error("weight interface: {0}")]
+    Interface(String),
 }
 
 /// Builds the skinning basis of an object given by integration points and per-point Lamé
@@ -309,12 +314,49 @@ pub(crate) struct Placed<'a> {
     pub(crate) shape: &'a ShapeFunctions,
 }
 
+/// Terms added to the dense weight matrices before the eigen solve, which then keeps its
+/// smallest pair (no constant mode is left to drop): [`crate::build_basis_with_interface`].
+pub(crate) struct InterfaceTerms<'a> {
+    pub(crate) add: &'a dyn Fn(&mut WeightSpaceMatrices) -> Result<(), BasisError>,
+}
+
 /// The build after its shape functions: assembly, eigen solve and the basis.
 pub(crate) fn build_on_placed(
     points: &IntegrationPoints,
     materials: &[LameParameters],
     params: &BasisParams,
     regions: Option<(&[Vec<Vector3<f64>>], &RegionConstraintParams)>,
+    on_stage: &dyn Fn(BasisStage),
+    placed: Placed<'_>,
+) -> Result<(SkinningBasis, BasisReport, AssembledMatrices), BasisError> {
+    build_on_placed_inner(points, materials, params, regions, None, on_stage, placed)
+}
+
+/// [`build_on_placed`] with `terms` added to the weight matrices (dense solver only).
+pub(crate) fn build_on_placed_with(
+    points: &IntegrationPoints,
+    materials: &[LameParameters],
+    params: &BasisParams,
+    terms: &InterfaceTerms<'_>,
+    placed: Placed<'_>,
+) -> Result<(SkinningBasis, BasisReport, AssembledMatrices), BasisError> {
+    build_on_placed_inner(
+        points,
+        materials,
+        params,
+        None,
+        Some(terms),
+        &|_| {},
+        placed,
+    )
+}
+
+fn build_on_placed_inner(
+    points: &IntegrationPoints,
+    materials: &[LameParameters],
+    params: &BasisParams,
+    regions: Option<(&[Vec<Vector3<f64>>], &RegionConstraintParams)>,
+    terms: Option<&InterfaceTerms<'_>>,
     on_stage: &dyn Fn(BasisStage),
     placed: Placed<'_>,
 ) -> Result<(SkinningBasis, BasisReport, AssembledMatrices), BasisError> {
@@ -331,7 +373,7 @@ pub(crate) fn build_on_placed(
         EigenSolverChoice::Auto | EigenSolverChoice::Dense => None,
         EigenSolverChoice::Iterative(subspace) => Some(subspace),
     };
-    if let (Some(_), Some(_)) = (regions, iterative) {
+    if (regions.is_some() || terms.is_some()) && iterative.is_some() {
         return Err(BasisError::RegionsNeedDenseSolver {
             kernels: kernels.len(),
         });
@@ -341,11 +383,15 @@ pub(crate) fn build_on_placed(
     let mut held = None;
     let (matrices, solution) = match iterative {
         None => {
-            let matrices = assemble_weight_space_matrices(shape, points.volumes(), materials)?;
+            let mut matrices = assemble_weight_space_matrices(shape, points.volumes(), materials)?;
+            if let Some(terms) = terms {
+                (terms.add)(&mut matrices)?;
+            }
             timings.assembly = t.elapsed().as_secs_f64();
             on_stage(BasisStage::EigenSolve);
             let t = Instant::now();
             let solution = match regions {
+                None if terms.is_some() => solve_modes_keeping_first(&matrices, &params.eigen)?,
                 None => solve_skinning_modes(&matrices, &params.eigen)?,
                 Some((regions, region_params)) => {
                     let constrained = solve_constrained_modes(

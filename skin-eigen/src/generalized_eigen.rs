@@ -97,6 +97,27 @@ pub fn solve_skinning_modes(
     matrices: &WeightSpaceMatrices,
     params: &EigenParams,
 ) -> Result<EigenSolution, EigenError> {
+    solve_modes_dropping(matrices, params, 1)
+}
+
+/// [`solve_skinning_modes`] keeping the smallest pair: the m smallest pairs of a problem with
+/// no constant mode (weights held on an interface, [`crate::build_basis_with_interface`]).
+///
+/// # Errors
+/// As [`solve_skinning_modes`].
+pub(crate) fn solve_modes_keeping_first(
+    matrices: &WeightSpaceMatrices,
+    params: &EigenParams,
+) -> Result<EigenSolution, EigenError> {
+    solve_modes_dropping(matrices, params, 0)
+}
+
+/// The `m + dropped` smallest pairs, the first `dropped` left out.
+fn solve_modes_dropping(
+    matrices: &WeightSpaceMatrices,
+    params: &EigenParams,
+    dropped: usize,
+) -> Result<EigenSolution, EigenError> {
     let (mass, hessian) = (&matrices.mass, &matrices.hessian);
     let k = mass.nrows();
     if mass.ncols() != k || hessian.nrows() != k || hessian.ncols() != k {
@@ -108,22 +129,47 @@ pub fn solve_skinning_modes(
     if params.modes == 0 {
         return Err(EigenError::NoModes);
     }
+    let count = params.modes + dropped;
     let pencil = smallest_generalized_eigenpairs(
         mass.as_ref(),
         hessian.as_ref(),
-        params.modes + 1,
-        params.modes + 1,
+        count,
+        count,
         params.mass_rank_tolerance,
     )?;
     let hc = hessian * &pencil.vectors;
     let mc = mass * &pencil.vectors;
     Ok(EigenSolution::from_pencil(
         pencil,
-        1,
+        dropped,
         &hc,
         &mc,
         hessian.norm_l2(),
     ))
+}
+
+/// The largest λ of `A x = λ B x` on the range of `B` (both symmetric, B positive
+/// semi-definite; directions of B below `1e-10 · λ_max(B)` are left out): a trace or inverse
+/// inequality's constant, such as Nitsche's `∫_Γ |∂_N u|² ≤ C a(u, u)`. `None` when B has no
+/// positive eigenvalue or a solve fails.
+pub fn largest_eigenvalue_on_range(a: MatRef<'_, f64>, b: MatRef<'_, f64>) -> Option<f64> {
+    let (values, vectors) = scaled_self_adjoint_eigen(b)?;
+    let largest = values.iter().copied().fold(0.0, f64::max);
+    if largest <= 0.0 {
+        return None;
+    }
+    let kept: Vec<usize> = (0..values.len())
+        .filter(|&i| values[i] > 1e-10 * largest)
+        .collect();
+    let scaled = Mat::<f64>::from_fn(values.len(), kept.len(), |r, c| {
+        vectors[(r, kept[c])] / values[kept[c]].sqrt()
+    });
+    let reduced = scaled.transpose() * a * &scaled;
+    let reduced = Mat::<f64>::from_fn(kept.len(), kept.len(), |i, j| {
+        0.5 * (reduced[(i, j)] + reduced[(j, i)])
+    });
+    let (values, _) = scaled_self_adjoint_eigen(reduced.as_ref())?;
+    Some(values.into_iter().fold(0.0, f64::max))
 }
 
 /// The `count` smallest pairs of `H y = λ M y` (M symmetric positive semi-definite, H
@@ -246,7 +292,7 @@ impl EigenSolution {
 /// on a reduced beam problem (200×200, ‖A‖ ≈ 9e9): residual max|AU - UΛ| = 3.4e5 (4e-5 relative
 /// to λ_max) unscaled, 5e-15 relative after scaling by any factor from 1e-10 to 1e-3 (nalgebra:
 /// 3e-15). Returns `None` when the solver does not converge or the matrix is not finite.
-fn scaled_self_adjoint_eigen(a: MatRef<'_, f64>) -> Option<(Vec<f64>, Mat<f64>)> {
+pub(crate) fn scaled_self_adjoint_eigen(a: MatRef<'_, f64>) -> Option<(Vec<f64>, Mat<f64>)> {
     let n = a.nrows();
     let scale = (0..n)
         .flat_map(|j| (0..n).map(move |i| (i, j)))

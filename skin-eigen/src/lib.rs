@@ -5,6 +5,7 @@ pub mod basis_builder;
 mod build_point_weights;
 pub mod generalized_eigen;
 pub mod held_material;
+pub mod interface_weights;
 pub mod pool_convergence;
 pub mod region_constraints;
 pub mod region_weight;
@@ -20,8 +21,11 @@ pub use basis_builder::{
     EigenSolverChoice, HeldRegionsReport, PhaseTimings, build_basis, build_basis_observed,
     build_basis_with_regions,
 };
-pub use generalized_eigen::{EigenError, EigenParams, EigenSolution, solve_skinning_modes};
+pub use generalized_eigen::{
+    EigenError, EigenParams, EigenSolution, largest_eigenvalue_on_range, solve_skinning_modes,
+};
 pub use held_material::HeldMaterial;
+pub use interface_weights::{WeightInterface, build_basis_with_interface};
 pub use pool_convergence::{PoolConvergence, pool_convergence};
 pub use region_constraints::{
     ConstrainedModes, RegionConstraintParams, RegionError, solve_constrained_modes,

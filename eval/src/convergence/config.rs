@@ -54,8 +54,16 @@ pub struct ConvergenceConfig {
     /// not checked.
     #[serde(default)]
     pub static_reference_check: Option<FemResolution>,
+    /// s of [`BoundaryTreatment::Nitsche`]'s `β = 2 s C` (default 2; ≥ 1 keeps the held body
+    /// definite).
+    #[serde(default = "default_nitsche_factor")]
+    pub nitsche_stabilization_factor: f64,
     /// Cache folder (FEM trajectories, cubatures).
     pub cache_dir: PathBuf,
+}
+
+fn default_nitsche_factor() -> f64 {
+    reduced_sim::NitscheParams::default().stabilization_factor
 }
 
 impl ConvergenceConfig {
@@ -86,6 +94,7 @@ impl ConvergenceConfig {
                 BoundaryTreatment::Penalty,
                 BoundaryTreatment::ExactInset,
                 BoundaryTreatment::Weighted,
+                BoundaryTreatment::Nitsche,
             ],
             volumetric: vec![VolumetricTerm::Pointwise, VolumetricTerm::Projected],
             pressure: PressureSpaceParams::default(),
@@ -114,6 +123,7 @@ impl ConvergenceConfig {
                 order: ElementOrder::Quadratic,
                 cells_per_metre: 12,
             }),
+            nitsche_stabilization_factor: default_nitsche_factor(),
             cache_dir,
         }
     }

@@ -19,11 +19,13 @@
 
 //!
 //! Files: `options.rs` (what varies besides m, K and ν), `config.rs` (what the study runs),
-//! `result.rs` (what it measures), `pool_check.rs` (whether the basis's integration pool is
+//! `result.rs` (what it measures), `nitsche_row.rs` (the static Bend held by symmetric
+//! Nitsche on the free part), `pool_check.rs` (whether the basis's integration pool is
 //! converged), `static_reference.rs` (the static reference, its own error against a finer FEM, and the
 //! projections), `study.rs` (the run), `table.rs` (the Markdown).
 
 mod config;
+mod nitsche_row;
 mod options;
 mod pool_check;
 mod result;

@@ -54,25 +54,32 @@ pub enum BoundaryTreatment {
     /// The weighted basis: exact on the whole regions, no parameter; the settings' transition
     /// when their hold is weighted, else [`PinHold::WEIGHTED`]'s.
     Weighted,
+    /// Symmetric Nitsche ([`reduced_sim::NitscheInterface`]): the held region left out of the
+    /// body, the basis built on the free part alone, the interface held weakly with β from the
+    /// reduced trace bound ([`crate::convergence::ConvergenceConfig::nitsche_stabilization_factor`]).
+    /// Built for the static Bend (its half-space clamp at rest); the dynamic tests skip it.
+    Nitsche,
 }
 
 impl BoundaryTreatment {
-    /// "penalty", "exact_inset" or "weighted".
+    /// "penalty", "exact_inset", "weighted" or "nitsche".
     pub fn name(self) -> &'static str {
         match self {
             BoundaryTreatment::Penalty => "penalty",
             BoundaryTreatment::ExactInset => "exact_inset",
             BoundaryTreatment::Weighted => "weighted",
+            BoundaryTreatment::Nitsche => "nitsche",
         }
     }
 
-    /// `base` with this treatment's hold.
+    /// `base` with this treatment's hold (Nitsche's body has no held region: the penalty's,
+    /// with nothing to penalize).
     ///
     /// # Errors
     /// [`EvalError`] when the exact inset's kernels cannot be placed.
     pub fn settings(self, base: &ReducedSettings) -> Result<ReducedSettings, EvalError> {
         let pins = match self {
-            BoundaryTreatment::Penalty => PinHold::Penalty,
+            BoundaryTreatment::Penalty | BoundaryTreatment::Nitsche => PinHold::Penalty,
             BoundaryTreatment::ExactInset => exact_pin_hold(base, EXACT_INSET_KERNEL_RADII)?,
             BoundaryTreatment::Weighted => match base.pins {
                 weighted @ PinHold::Weighted { .. } => weighted,

@@ -34,7 +34,9 @@ pub struct ConvergenceRow {
     pub tip_error: f64,
     /// Static Bend: `u_tip,y / u*_tip,y − 1` (+ too soft, − too stiff); NaN for dynamic tests.
     pub tip_ratio: f64,
-    /// Largest distance of an FEM node in a constrained region from its target (m).
+    /// Largest distance of an FEM node in a constrained region from its target (m); for
+    /// [`BoundaryTreatment::Nitsche`], whose held part is prescribed, the interface samples'
+    /// largest distance from their targets.
     pub held_drift: f64,
     /// Milliseconds per step (the static solve's for the static test).
     pub ms_per_step: f64,

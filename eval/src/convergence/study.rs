@@ -23,6 +23,9 @@ use crate::beam_protocol::reduced::{
 };
 use crate::beam_scenario::{BEAM_TIME_STEP, BeamTest, beam_length_scale, beam_material};
 use crate::convergence::config::ConvergenceConfig;
+use crate::convergence::nitsche_row::{
+    free_part_basis, free_part_pressure_space, nitsche_static_row,
+};
 use crate::convergence::options::{BoundaryTreatment, ConvergenceTest, VolumetricTerm};
 use crate::convergence::result::{
     CoarseFemRow, ConvergenceRow, ConvergenceStudy, StaticReferenceCheck,
@@ -82,7 +85,8 @@ pub fn run_convergence(
                 let settings = treatment.settings(&base)?;
                 let bases = TreatmentBases::build(config, &settings, treatment, progress)?;
                 for &volumetric in &config.volumetric {
-                    let spaces = PressureSpaces::build(config, m, &settings, &bases, volumetric)?;
+                    let spaces =
+                        PressureSpaces::build(config, m, &settings, &bases, treatment, volumetric)?;
                     let run = RowRun {
                         config,
                         settings: &settings,
@@ -195,6 +199,9 @@ impl TreatmentBases {
             {
                 continue;
             }
+            if treatment == BoundaryTreatment::Nitsche && test != ConvergenceTest::StaticBend {
+                continue;
+            }
             progress.status(format!(
                 "basis K = {}, m = {}, {} ({})",
                 settings.kernels,
@@ -202,7 +209,12 @@ impl TreatmentBases {
                 treatment.name(),
                 beam.name()
             ));
-            bases.push((beam, build_beam_basis_for(beam, settings)?.basis));
+            let basis = if treatment == BoundaryTreatment::Nitsche {
+                free_part_basis(settings, config.nitsche_stabilization_factor)?
+            } else {
+                build_beam_basis_for(beam, settings)?.basis
+            };
+            bases.push((beam, basis));
         }
         Ok(TreatmentBases(bases))
     }
@@ -233,6 +245,7 @@ impl PressureSpaces {
         m: usize,
         settings: &ReducedSettings,
         bases: &TreatmentBases,
+        treatment: BoundaryTreatment,
         volumetric: VolumetricTerm,
     ) -> Result<Self, EvalError> {
         let mut spaces: Vec<(BeamTest, PressureSpace)> = Vec::new();
@@ -258,7 +271,11 @@ impl PressureSpaces {
             ..config.pressure
         };
         let mut full_spaces: Vec<(BeamTest, PressureSpace)> = Vec::new();
-        if volumetric == VolumetricTerm::Projected {
+        if volumetric == VolumetricTerm::Projected && treatment == BoundaryTreatment::Nitsche {
+            // The free part's own space; no inf-sup report (its candidates are the held body's).
+            let space = free_part_pressure_space(settings, &config.pressure)?;
+            spaces.push((BeamTest::Bend, space));
+        } else if volumetric == VolumetricTerm::Projected {
             for (beam, _) in &bases.0 {
                 let full = beam_pressure_space(*beam, settings, &largest)?;
                 spaces.push((*beam, full.truncated(chosen)));
@@ -316,6 +333,9 @@ impl RowRun<'_> {
                     .rows
                     .push(self.static_bend(material, references.static_scene, reference));
             }
+            if self.treatment == BoundaryTreatment::Nitsche {
+                continue;
+            }
             for (test, steps, fem) in &references.dynamics[v] {
                 study.rows.push(self.dynamic(*test, *steps, fem, material)?);
             }
@@ -356,17 +376,32 @@ impl RowRun<'_> {
     ) -> ConvergenceRow {
         let nu = material.poisson_ratio;
         let mut r = self.row(ConvergenceTest::StaticBend, nu);
-        if let Err(e) = static_row(
-            &mut r,
-            self.bases.basis_for(BeamTest::Bend),
-            self.spaces.space_for(BeamTest::Bend),
-            self.spaces.inf_sup_for_bend(),
-            self.settings,
-            material,
-            scene,
-            reference,
-            self.config,
-        ) {
+        let outcome = if self.treatment == BoundaryTreatment::Nitsche {
+            nitsche_static_row(
+                &mut r,
+                self.bases.basis_for(BeamTest::Bend),
+                self.spaces.space_for(BeamTest::Bend),
+                self.settings,
+                material,
+                scene,
+                reference,
+                self.config.nitsche_stabilization_factor,
+                &self.config.cache_dir,
+            )
+        } else {
+            static_row(
+                &mut r,
+                self.bases.basis_for(BeamTest::Bend),
+                self.spaces.space_for(BeamTest::Bend),
+                self.spaces.inf_sup_for_bend(),
+                self.settings,
+                material,
+                scene,
+                reference,
+                self.config,
+            )
+        };
+        if let Err(e) = outcome {
             r.failure = Some(failure_chain(&e));
         }
         self.progress.status(format!(
@@ -490,7 +525,7 @@ fn coarse_fem_rows(
 
 /// Fills `row` with the static Bend of `basis` under `settings`.
 #[allow(clippy::too_many_arguments)]
-fn static_row(
+pub(super) fn static_row(
     row: &mut ConvergenceRow,
     basis: &SkinningBasis,
     pressure: Option<&PressureSpace>,

@@ -136,3 +136,92 @@ fn the_pool_check_compares_2m_eigenvalues_per_kernel_count_on_twice_the_points()
         );
     }
 }
+
+/// A static row before it is measured.
+fn blank_row(treatment: super::BoundaryTreatment) -> super::ConvergenceRow {
+    super::ConvergenceRow {
+        test: super::ConvergenceTest::StaticBend,
+        nu: beam_material().poisson_ratio,
+        m: 6,
+        kernels: 120,
+        treatment,
+        volumetric: super::VolumetricTerm::Pointwise,
+        pressure_functions: 0,
+        default: false,
+        mse: f64::NAN,
+        relative_error: f64::NAN,
+        tip_error: f64::NAN,
+        tip_ratio: f64::NAN,
+        held_drift: f64::NAN,
+        ms_per_step: f64::NAN,
+        best_l2: None,
+        best_energy: None,
+        inf_sup: Vec::new(),
+        failure: None,
+    }
+}
+
+#[test]
+fn a_nitsche_held_static_bend_bends_like_the_weighted_basis_and_meets_its_clamp() {
+    use super::BoundaryTreatment;
+    let settings = ReducedSettings {
+        modes: 6,
+        kernels: 120,
+        basis_points: 3000,
+        simulation_points: 3000,
+        pins: freeform::PinHold::WEIGHTED,
+        ..ReducedSettings::default()
+    };
+    let config = super::ConvergenceConfig::quick(std::path::PathBuf::from("unused"));
+    let scene = static_scene(1e-3);
+    let reference = coarse_reference();
+    let mut weighted = blank_row(BoundaryTreatment::Weighted);
+    let basis = crate::beam_protocol::reduced::build_beam_basis_for(
+        crate::beam_scenario::BeamTest::Bend,
+        &settings,
+    )
+    .unwrap()
+    .basis;
+    super::study::static_row(
+        &mut weighted,
+        &basis,
+        None,
+        None,
+        &settings,
+        beam_material(),
+        &scene,
+        &reference,
+        &config,
+    )
+    .unwrap();
+    let nitsche_settings = BoundaryTreatment::Nitsche.settings(&settings).unwrap();
+    let free_basis = super::nitsche_row::free_part_basis(&nitsche_settings, 2.0).unwrap();
+    let mut nitsche = blank_row(BoundaryTreatment::Nitsche);
+    super::nitsche_row::nitsche_static_row(
+        &mut nitsche,
+        &free_basis,
+        None,
+        &nitsche_settings,
+        beam_material(),
+        &scene,
+        &reference,
+        2.0,
+        std::path::Path::new("unused"),
+    )
+    .unwrap();
+    // Both tips within a tenth of each other's deflection (the P1 res 2 reference is stiff,
+    // so both ratios are positive), and the interface within 1% of the tip's deflection.
+    let tip = |row: &super::ConvergenceRow| 1.0 + row.tip_ratio;
+    assert!(
+        (tip(&nitsche) / tip(&weighted) - 1.0).abs() < 0.1,
+        "Nitsche tip {:+.3}, weighted {:+.3}",
+        nitsche.tip_ratio,
+        weighted.tip_ratio
+    );
+    let deflection = reference.displacements[reference.tip].norm() * tip(&nitsche);
+    assert!(
+        nitsche.held_drift < 0.01 * deflection,
+        "interface gap {:e} m against a tip deflection of {deflection:e} m",
+        nitsche.held_drift
+    );
+}

@@ -10,11 +10,13 @@ pub(crate) mod floor_term;
 pub(crate) mod friction_term;
 pub(crate) mod gravity_term;
 pub(crate) mod held_regions;
+pub mod nitsche_term;
 pub(crate) mod pin_penalty;
 pub(crate) mod pinned_points;
 pub(crate) mod scene_terms;
 pub mod step_term;
 pub mod term_check;
 
+pub use nitsche_term::{NitscheError, NitscheInterface, NitscheParams, NitscheReport};
 pub use step_term::{StepTerm, TermPoint};
 pub use term_check::{TermCheckError, TermCheckParams, TermCheckReport, check_term};

@@ -1,0 +1,410 @@
+//! Symmetric Nitsche coupling of an interface of the body to prescribed positions: the held
+//! part of an object left out of the body, and its boundary with the free part held weakly but
+//! consistently, with a stabilization chosen from the reduced space instead of a user's factor.
+//!
+//! ```text
+//! E_N(z, t) = Σ_s a_s [ −(x_s(z) − g_s(t)) · P(F_s(z)) N_s  +  β/2 |x_s(z) − g_s(t)|² ]
+//! ```
+//!
+//! over interface samples s (rest positions X_s, areas a_s in m², unit normals N_s pointing out
+//! of the simulated body), with targets g_s(t) ([`PinTarget`]), P the material's first
+//! Piola-Kirchhoff stress (Pa) and β the stabilization (Pa/m). Added to the body's elastic
+//! energy, the first term cancels the traction the body's own weak form leaves on the interface
+//! (the method is consistent: a solution that meets its targets meets its equations, unlike a
+//! penalty, which pulls with `β(x − g)` and no traction); the second makes the sum coercive when
+//! `β ≥ 2C`, with C the largest ratio of the squared rest traction on the interface to the rest
+//! elastic energy over the reduced space:
+//!
+//! ```text
+//! C = λ_max( Σ_s a_s T_sᵀ T_s ,  K₀ )  on range(K₀),   β = 2 s C   (s: NitscheParams)
+//! ```
+//!
+//! (T_s the 3 × 12(m+1) rest traction operator at sample s, K₀ the body's rest elastic Hessian).
+//! Nitsche, 1971; as an energy for hyperelasticity and with β from a generalized eigenvalue
+//! bound as in Griebel and Schweitzer's particle-partition of unity method; design notes in
+//! `docs/design.md` ("Held regions").
+
+use faer::{Mat, MatRef};
+use hyperelastic::{HyperelasticMaterial, LameParameters, Matrix9, Tangent};
+use nalgebra::{Matrix3, Vector3};
+use rayon::prelude::*;
+use skin_eigen::largest_eigenvalue_on_range;
+use thiserror::Error;
+
+use crate::model::deformation_map::{DeformationMap, DeformationMapError};
+use crate::model::skinning_field::SkinningField;
+use crate::scene::PinTarget;
+use crate::terms::step_term::{StepTerm, TermPoint};
+
+/// Options of a [`NitscheInterface`].
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct NitscheParams {
+    /// s in `β = 2 s C` (dimensionless, default 2; the sum is coercive for s ≥ 1, and the
+    /// solution is insensitive to s over a wide range when the basis resolves the interface).
+    pub stabilization_factor: f64,
+}
+
+impl Default for NitscheParams {
+    fn default() -> Self {
+        NitscheParams {
+            stabilization_factor: 2.0,
+        }
+    }
+}
+
+/// What [`NitscheInterface::new`] chose.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct NitscheReport {
+    /// Interface samples.
+    pub samples: usize,
+    /// Total interface area Σ a_s (m²).
+    pub area: f64,
+    /// C, the reduced trace bound (Pa/m).
+    pub bound: f64,
+    /// β = 2 s C (Pa/m).
+    pub stabilization: f64,
+}
+
+/// The interface could not be set up.
+#[derive(Debug, Error)]
+pub enum NitscheError {
+    /// No interface sample was given.
+    #[error("a Nitsche interface needs at least one sample")]
+    NoSamples,
+    /// Samples, areas and normals differ in number.
+    #[error("{samples} interface samples, {areas} areas and {normals} normals: one each")]
+    LengthMismatch {
+        /// Samples given.
+        samples: usize,
+        /// Areas given.
+        areas: usize,
+        /// Normals given.
+        normals: usize,
+    },
+    /// A sample's area is not finite and positive, or its normal not a finite unit vector.
+    #[error("interface sample {index}: area {area} m² and normal {normal:?} (need a > 0, |N| = 1)")]
+    BadSample {
+        /// The sample's index.
+        index: usize,
+        /// Its area (m²).
+        area: f64,
+        /// Its normal.
+        normal: [f64; 3],
+    },
+    /// The stabilization factor is not finite and positive.
+    #[error("the Nitsche stabilization factor must be finite and positive, got {0}")]
+    Params(f64),
+    /// The rest stiffness is not square of the reduced coordinates' size.
+    #[error("the rest stiffness is {rows} × {cols}, expected {expected} square")]
+    StiffnessShape {
+        /// Its rows.
+        rows: usize,
+        /// Its columns.
+        cols: usize,
+        /// 12(m + 1).
+        expected: usize,
+    },
+    /// The rest stiffness has no positive eigenvalue (no deformable handle).
+    #[error("the rest stiffness has no positive eigenvalue: nothing to bound the traction by")]
+    NoStiffness,
+    /// The basis cannot be evaluated at the samples.
+    #[error("the basis at the interface samples: {0}")]
+    Map(#[from] DeformationMapError),
+}
+
+/// The term [`E_N`](self) of one interface: its samples' map, areas, normals, material and
+/// targets, and β.
+pub struct NitscheInterface<M> {
+    map: DeformationMap,
+    areas: Vec<f64>,
+    normals: Vec<Vector3<f64>>,
+    lame: LameParameters,
+    material: M,
+    target: PinTarget,
+    stabilization: f64,
+}
+
+/// A sample's state at z: the gap `d = x − g` (m), F and the material's stress and tangent.
+struct SampleState {
+    gap: Vector3<f64>,
+    f: Matrix3<f64>,
+    stress: Matrix3<f64>,
+}
+
+impl<M: HyperelasticMaterial> NitscheInterface<M> {
+    /// The interface at rest positions `samples` (m) with areas `areas` (m²) and outward unit
+    /// normals `normals` of the simulated body, on `basis`, of a body of `material` with
+    /// `lame`, held at `target`; β from `rest_stiffness`, the body's rest elastic Hessian K₀
+    /// (12(m+1) square, J; e.g. [`crate::ReducedModel::elastic_hessian`] at z = 0).
+    ///
+    /// # Errors
+    /// [`NitscheError`] for empty or mismatched samples, a bad area or normal, a bad factor, a
+    /// stiffness of the wrong size or with no positive eigenvalue, or a basis that cannot be
+    /// evaluated at the samples.
+    #[allow(clippy::too_many_arguments)]
+    pub fn new<B: SkinningField + ?Sized>(
+        basis: &B,
+        samples: &[Vector3<f64>],
+        areas: &[f64],
+        normals: &[Vector3<f64>],
+        material: M,
+        lame: LameParameters,
+        target: PinTarget,
+        rest_stiffness: MatRef<'_, f64>,
+        params: &NitscheParams,
+    ) -> Result<(Self, NitscheReport), NitscheError> {
+        if samples.is_empty() {
+            return Err(NitscheError::NoSamples);
+        }
+        if areas.len() != samples.len() || normals.len() != samples.len() {
+            return Err(NitscheError::LengthMismatch {
+                samples: samples.len(),
+                areas: areas.len(),
+                normals: normals.len(),
+            });
+        }
+        let bad = areas.iter().zip(normals).position(|(a, n)| {
+            !(a.is_finite() && *a > 0.0 && n.iter().all(|v| v.is_finite()))
+                || (n.norm() - 1.0).abs() > 1e-9
+        });
+        if let Some(index) = bad {
+            return Err(NitscheError::BadSample {
+                index,
+                area: areas[index],
+                normal: normals[index].into(),
+            });
+        }
+        let s = params.stabilization_factor;
+        if !(s.is_finite() && s > 0.0) {
+            return Err(NitscheError::Params(s));
+        }
+        let map = DeformationMap::new(basis, samples)?;
+        let len = map.layout().len();
+        if rest_stiffness.nrows() != len || rest_stiffness.ncols() != len {
+            return Err(NitscheError::StiffnessShape {
+                rows: rest_stiffness.nrows(),
+                cols: rest_stiffness.ncols(),
+                expected: len,
+            });
+        }
+        let mut interface = NitscheInterface {
+            map,
+            areas: areas.to_vec(),
+            normals: normals.to_vec(),
+            lame,
+            material,
+            target,
+            stabilization: 0.0,
+        };
+        let bound = interface.trace_bound(rest_stiffness)?;
+        interface.stabilization = 2.0 * s * bound;
+        let report = NitscheReport {
+            samples: samples.len(),
+            area: areas.iter().sum(),
+            bound,
+            stabilization: interface.stabilization,
+        };
+        Ok((interface, report))
+    }
+
+    /// β (Pa/m).
+    pub fn stabilization(&self) -> f64 {
+        self.stabilization
+    }
+
+    /// The largest distance (m) of an interface sample from its target at `z` and `time`.
+    pub fn max_gap(&self, z: &[f64], time: f64) -> f64 {
+        let rest = self.map.rest_positions();
+        self.map
+            .positions(z)
+            .iter()
+            .zip(rest)
+            .map(|(x, x0)| (x - self.target.at(x0, time)).norm())
+            .fold(0.0, f64::max)
+    }
+
+    /// C of the module docs: the rest traction operators' Gram over K₀ on K₀'s range.
+    fn trace_bound(&self, rest_stiffness: MatRef<'_, f64>) -> Result<f64, NitscheError> {
+        let len = self.map.layout().len();
+        let tangent = self
+            .material
+            .stress_derivative(&self.lame, &Matrix3::identity());
+        let mut traction_gram = Mat::<f64>::zeros(len, len);
+        for s in 0..self.areas.len() {
+            let t = self.traction_operator(s, &tangent);
+            faer::linalg::matmul::matmul(
+                traction_gram.as_mut(),
+                faer::Accum::Add,
+                t.transpose(),
+                t.as_ref(),
+                self.areas[s],
+                faer::Par::Seq,
+            );
+        }
+        largest_eigenvalue_on_range(traction_gram.as_ref(), rest_stiffness)
+            .ok_or(NitscheError::NoStiffness)
+    }
+
+    /// `T_s = ∂(P N_s)/∂z` at `tangent` = ∂P/∂F (3 × 12(m+1)).
+    fn traction_operator(&self, s: usize, tangent: &Matrix9) -> Mat<f64> {
+        let n4 = self.map.layout().block_len();
+        let g = self.map.gradient_block(s);
+        let w = self.traction_tangent(s, tangent);
+        Mat::from_fn(3, 3 * n4, |i, col| {
+            let (r, k) = (col / n4, col % n4);
+            (0..3).map(|c| w[(i, r + 3 * c)] * g[c * n4 + k]).sum()
+        })
+    }
+
+    /// `∂(P N_s)_i / ∂vec(F)_q = Σ_j N_j A[i + 3j, q]` (3 × 9).
+    fn traction_tangent(&self, s: usize, tangent: &Matrix9) -> nalgebra::SMatrix<f64, 3, 9> {
+        let n = self.normals[s];
+        nalgebra::SMatrix::<f64, 3, 9>::from_fn(|i, q| {
+            (0..3).map(|j| n[j] * tangent[(i + 3 * j, q)]).sum()
+        })
+    }
+
+    /// Every sample's gap, F and stress at `at`.
+    fn states(&self, at: &TermPoint<'_>) -> Vec<SampleState> {
+        let positions = self.map.positions(at.z);
+        let gradients = self.map.deformation_gradients(at.z);
+        let rest = self.map.rest_positions();
+        let time = at.time;
+        positions
+            .par_iter()
+            .zip(&gradients)
+            .zip(rest)
+            .map(|((x, f), x0)| SampleState {
+                gap: x - self.target.at(x0, time),
+                f: *f,
+                stress: self.material.first_piola_kirchhoff(&self.lame, f),
+            })
+            .collect()
+    }
+}
+
+impl<M: HyperelasticMaterial> StepTerm for NitscheInterface<M> {
+    fn name(&self) -> &str {
+        "Nitsche interface"
+    }
+
+    fn add_energy(&self, at: &TermPoint<'_>, energy: &mut f64) {
+        let beta = self.stabilization;
+        *energy += self
+            .states(at)
+            .iter()
+            .zip(&self.areas)
+            .zip(&self.normals)
+            .map(|((state, a), n)| {
+                a * (-state.gap.dot(&(state.stress * n)) + 0.5 * beta * state.gap.norm_squared())
+            })
+            .sum::<f64>();
+    }
+
+    /// The Hessian's term `−a J_Fᵀ (∂A/∂F[d Nᵀ]) J_F`, proportional to the gap d (it vanishes
+    /// where the targets are met), is added with [`Tangent::Exact`] only, by a central
+    /// difference of the tangent along `d Nᵀ`; the other tangents leave it out.
+    fn add_derivatives(
+        &self,
+        at: &TermPoint<'_>,
+        tangent: Tangent,
+        gradient: &mut [f64],
+        hessian: Option<&mut Mat<f64>>,
+    ) {
+        let n4 = self.map.layout().block_len();
+        let beta = self.stabilization;
+        let states = self.states(at);
+        let mut hessian = hessian;
+        // Per sample, U_s = [b_s, G_s] (n4 × 4) and, per axis pair (r, r'), the 4 × 4 weights
+        // W with H_{rr'} = Σ_s U_s W U_sᵀ.
+        for (s, state) in states.iter().enumerate() {
+            let a = self.areas[s];
+            let n = self.normals[s];
+            let b = self.map.position_row(s);
+            let g = self.map.gradient_block(s);
+            let traction = state.stress * n;
+            let a_tensor = self.material.stress_derivative(&self.lame, &state.f);
+            // ∂/∂vec(F) of −d·(P N) is −A vec(d Nᵀ) (A symmetric).
+            let dn = state.gap * n.transpose();
+            let dn_vec = nalgebra::SVector::<f64, 9>::from_column_slice(dn.as_slice());
+            let stress_like = -(a_tensor * dn_vec);
+            let position_force = -traction + beta * state.gap;
+            for r in 0..3 {
+                let block = &mut gradient[r * n4..(r + 1) * n4];
+                for k in 0..n4 {
+                    let mut value = position_force[r] * b[k];
+                    for c in 0..3 {
+                        value += stress_like[r + 3 * c] * g[c * n4 + k];
+                    }
+                    block[k] += a * value;
+                }
+            }
+            let Some(h) = hessian.as_deref_mut() else {
+                continue;
+            };
+            let cross = self.traction_tangent(s, &a_tensor);
+            let third = (tangent == Tangent::Exact && dn.norm() > 0.0)
+                .then(|| self.tangent_derivative(&state.f, &dn));
+            for r in 0..3 {
+                for rr in 0..3 {
+                    let mut w = [[0.0; 4]; 4];
+                    if r == rr {
+                        w[0][0] = a * beta;
+                    }
+                    for c in 0..3 {
+                        w[0][1 + c] -= a * cross[(r, rr + 3 * c)];
+                        w[1 + c][0] -= a * cross[(rr, r + 3 * c)];
+                        if let Some(third) = &third {
+                            for cc in 0..3 {
+                                w[1 + c][1 + cc] -= a * third[(r + 3 * c, rr + 3 * cc)];
+                            }
+                        }
+                    }
+                    add_sample_block(h, r * n4, rr * n4, b, g, n4, &w);
+                }
+            }
+        }
+    }
+}
+
+impl<M: HyperelasticMaterial> NitscheInterface<M> {
+    /// `∂A/∂F[E]`, the tangent's derivative along E, by a central difference with `|ΔF| = 1e-5`.
+    fn tangent_derivative(&self, f: &Matrix3<f64>, direction: &Matrix3<f64>) -> Matrix9 {
+        let step = 1e-5 / direction.norm();
+        let plus = self
+            .material
+            .stress_derivative(&self.lame, &(f + direction * step));
+        let minus = self
+            .material
+            .stress_derivative(&self.lame, &(f - direction * step));
+        (plus - minus) / (2.0 * step)
+    }
+}
+
+/// Adds `U W Uᵀ` to the `n4` square block of `h` at (`row`, `col`), `U = [b, G]` (`n4 × 4`,
+/// G column-major `n4 × 3`).
+fn add_sample_block(
+    h: &mut Mat<f64>,
+    row: usize,
+    col: usize,
+    b: &[f64],
+    g: &[f64],
+    n4: usize,
+    w: &[[f64; 4]; 4],
+) {
+    let u = |k: usize, p: usize| if p == 0 { b[k] } else { g[(p - 1) * n4 + k] };
+    for j in 0..n4 {
+        // (W Uᵀ)[:, j]
+        let wu: [f64; 4] = std::array::from_fn(|p| (0..4).map(|q| w[p][q] * u(j, q)).sum());
+        if wu.iter().all(|x| *x == 0.0) {
+            continue;
+        }
+        for i in 0..n4 {
+            h[(row + i, col + j)] += (0..4).map(|p| u(i, p) * wu[p]).sum::<f64>();
+        }
+    }
+}
+
+#[cfg(test)]
+#[path = "nitsche_term_tests.rs"]
+mod tests;

@@ -1,0 +1,154 @@
+//! Skinning weights that vanish weakly on an interface: the weight eigenproblem (Eq. 15) with a
+//! symmetric Nitsche-Dirichlet condition, for a body whose held part is left out and held
+//! through that interface by a Nitsche term in the simulation
+//! (`reduced_sim::NitscheInterface`). Modes free on the interface (the Neumann modes of
+//! [`crate::build_basis`]) must represent the clamp's zero displacement through the constant
+//! handle alone; these modes do not.
+//!
+//! ```text
+//! (H_N)_kl = (H_w)_kl − Σ_s a_s κ [ ∂_N ϕ_k(X_s) ϕ_l(X_s) + ϕ_k(X_s) ∂_N ϕ_l(X_s) ]
+//!            + β_w Σ_s a_s ϕ_k(X_s) ϕ_l(X_s),
+//! β_w = 2 s C_w,   C_w = λ_max( Σ_s a_s κ² ∂_N ϕ ∂_N ϕᵀ , H_w )  on range(H_w)
+//! ```
+//!
+//! with κ = λ + 4μ (H_w's coefficient, Prop. 1), samples X_s with areas a_s (m²) and outward
+//! unit normals N_s of the body; then `H_N c = λ 𝓜 c` for the m smallest pairs, none dropped
+//! (no constant mode is left to drop). The basis's handle 0 is still the constant, so the
+//! simulation keeps the free part's affine motion.
+
+use faer::Mat;
+use hyperelastic::LameParameters;
+use nalgebra::Vector3;
+use rkpm_core::{IntegrationPoints, ShapeFunctions, evaluate_shape_functions};
+
+use crate::assembly::WeightSpaceMatrices;
+use crate::basis_builder::{
+    AssembledMatrices, BasisError, BasisParams, BasisReport, InterfaceTerms, Placed,
+    build_on_placed_with, placed_kernels_and_shape_functions,
+};
+use crate::generalized_eigen::largest_eigenvalue_on_range;
+use crate::skinning_basis::SkinningBasis;
+
+/// An interface where the weights vanish weakly.
+#[derive(Clone, Debug, PartialEq)]
+pub struct WeightInterface {
+    /// Sample positions X_s (m), on the body's boundary.
+    pub samples: Vec<Vector3<f64>>,
+    /// Their areas a_s (m²), positive.
+    pub areas: Vec<f64>,
+    /// The body's outward unit normals N_s there.
+    pub normals: Vec<Vector3<f64>>,
+    /// The material there (κ = λ + 4μ).
+    pub material: LameParameters,
+    /// s in `β_w = 2 s C_w` (dimensionless; default of the simulation's interface, 2).
+    pub stabilization_factor: f64,
+}
+
+/// Builds the basis of [`crate::build_basis`] on `points` with weights that vanish weakly on
+/// `interface` (module docs): kernels placed to reach the samples too.
+///
+/// # Errors
+/// [`BasisError`] as [`crate::build_basis`], and [`BasisError::Interface`] for mismatched or
+/// invalid samples, a factor that is not positive, more kernels than the dense solver takes,
+/// or a weight Hessian with no positive eigenvalue.
+pub fn build_basis_with_interface(
+    points: &IntegrationPoints,
+    materials: &[LameParameters],
+    params: &BasisParams,
+    interface: &WeightInterface,
+) -> Result<(SkinningBasis, BasisReport, AssembledMatrices), BasisError> {
+    check(interface)?;
+    let (timings, kernels, coverage, shape) =
+        placed_kernels_and_shape_functions(points, &[&interface.samples], params)?;
+    let at_samples =
+        evaluate_shape_functions(&kernels, &interface.samples, &params.shape_functions)
+            .map_err(BasisError::from)?;
+    let terms = InterfaceTerms {
+        add: &|matrices: &mut WeightSpaceMatrices| {
+            add_interface_terms(matrices, &at_samples, interface)
+        },
+    };
+    build_on_placed_with(
+        points,
+        materials,
+        params,
+        &terms,
+        Placed {
+            timings,
+            kernels,
+            coverage,
+            shape: &shape,
+        },
+    )
+}
+
+fn check(interface: &WeightInterface) -> Result<(), BasisError> {
+    let n = interface.samples.len();
+    let problem = if n == 0 {
+        Some("no interface sample".to_string())
+    } else if interface.areas.len() != n || interface.normals.len() != n {
+        Some(format!(
+            "{n} samples, {} areas and {} normals",
+            interface.areas.len(),
+            interface.normals.len()
+        ))
+    } else if let Some(s) = (0..n).find(|&s| {
+        let (a, normal) = (interface.areas[s], interface.normals[s]);
+        let valid = a.is_finite()
+            && a > 0.0
+            && interface.samples[s].iter().all(|v| v.is_finite())
+            && (normal.norm() - 1.0).abs() <= 1e-9;
+        !valid
+    }) {
+        Some(format!(
+            "sample {s}: a positive area and a unit normal are needed"
+        ))
+    } else if !(interface.stabilization_factor.is_finite() && interface.stabilization_factor > 0.0)
+    {
+        Some(format!(
+            "the stabilization factor must be positive, got {}",
+            interface.stabilization_factor
+        ))
+    } else {
+        None
+    };
+    problem.map_or(Ok(()), |p| Err(BasisError::Interface(p)))
+}
+
+/// Adds the Nitsche-Dirichlet terms of the module docs to `matrices.hessian`.
+fn add_interface_terms(
+    matrices: &mut WeightSpaceMatrices,
+    at_samples: &ShapeFunctions,
+    interface: &WeightInterface,
+) -> Result<(), BasisError> {
+    let k = matrices.hessian.nrows();
+    let kappa = interface.material.lambda() + 4.0 * interface.material.mu();
+    let mut consistency = Mat::<f64>::zeros(k, k);
+    let mut mass = Mat::<f64>::zeros(k, k);
+    let mut flux = Mat::<f64>::zeros(k, k);
+    for s in 0..interface.samples.len() {
+        let a = interface.areas[s];
+        let n = interface.normals[s];
+        let kernels = at_samples.kernels(s);
+        let values = at_samples.values(s);
+        let normal_derivatives: Vec<f64> =
+            at_samples.gradients(s).iter().map(|g| g.dot(&n)).collect();
+        for (p, &kp) in kernels.iter().enumerate() {
+            for (q, &kq) in kernels.iter().enumerate() {
+                let (kp, kq) = (kp as usize, kq as usize);
+                consistency[(kp, kq)] -= a
+                    * kappa
+                    * (normal_derivatives[p] * values[q] + values[p] * normal_derivatives[q]);
+                mass[(kp, kq)] += a * values[p] * values[q];
+                flux[(kp, kq)] += a * kappa * kappa * normal_derivatives[p] * normal_derivatives[q];
+            }
+        }
+    }
+    let bound =
+        largest_eigenvalue_on_range(flux.as_ref(), matrices.hessian.as_ref()).ok_or_else(|| {
+            BasisError::Interface("the weight Hessian has no positive eigenvalue".into())
+        })?;
+    let beta = 2.0 * interface.stabilization_factor * bound;
+    matrices.hessian = &matrices.hessian + &consistency + &mass * beta;
+    Ok(())
+}
