@@ -12,13 +12,18 @@
 //! ```
 //!
 //! with κ = λ + 4μ (H_w's coefficient, Prop. 1), samples X_s with areas a_s (m²) and outward
-//! unit normals N_s of the body; then `H_N c = λ 𝓜 c` for the m smallest pairs, none dropped
-//! (no constant mode is left to drop). The basis's handle 0 is still the constant, so the
-//! simulation keeps the free part's affine motion.
+//! unit normals N_s of the body, over the samples of every interface; then `H_N c = λ 𝓜 c`
+//! for the m smallest pairs, none dropped (no constant mode is left to drop). The basis's
+//! handle 0 is still the constant. With R interfaces, R − 1 region handles follow it, as in
+//! [`crate::build_basis_with_regions`]: `a_r = Σ ϕ_k c_kr` with `H_N c_r = b_r`, the weights
+//! that are 1 on interface r and 0 on the others in the same weak sense,
+//! `b_r = Σ_{s ∈ Γ_r} a_s (−κ ∂_N ϕ(X_s) + β_w ϕ(X_s))`; so interfaces that move relative to
+//! each other (a twisted end against a clamp) are each followed by a handle of their own.
 
 use faer::Mat;
+use faer::linalg::solvers::Solve;
 use hyperelastic::LameParameters;
-use nalgebra::Vector3;
+use nalgebra::{DMatrix, Vector3};
 use rkpm_core::{IntegrationPoints, ShapeFunctions, evaluate_shape_functions};
 
 use crate::assembly::WeightSpaceMatrices;
@@ -29,7 +34,7 @@ use crate::basis_builder::{
 use crate::generalized_eigen::largest_eigenvalue_on_range;
 use crate::skinning_basis::SkinningBasis;
 
-/// An interface where the weights vanish weakly.
+/// One interface where the weights vanish weakly (one held region's boundary with the body).
 #[derive(Clone, Debug, PartialEq)]
 pub struct WeightInterface {
     /// Sample positions X_s (m), on the body's boundary.
@@ -45,30 +50,53 @@ pub struct WeightInterface {
 }
 
 /// Builds the basis of [`crate::build_basis`] on `points` with weights that vanish weakly on
-/// `interface` (module docs): kernels placed to reach the samples too.
+/// every one of `interfaces` and, for R interfaces, R − 1 region handles (module docs):
+/// kernels placed to reach the samples too. The stabilization factor and material of the
+/// bound are the first interface's.
 ///
 /// # Errors
-/// [`BasisError`] as [`crate::build_basis`], and [`BasisError::Interface`] for mismatched or
-/// invalid samples, a factor that is not positive, more kernels than the dense solver takes,
-/// or a weight Hessian with no positive eigenvalue.
-pub fn build_basis_with_interface(
+/// [`BasisError`] as [`crate::build_basis`], and [`BasisError::Interface`] for no interface,
+/// mismatched or invalid samples, a factor that is not positive, a weight Hessian with no
+/// positive eigenvalue, or an interface system that is not positive definite;
+/// [`BasisError::RegionsNeedDenseSolver`] for more kernels than the dense solver takes.
+pub fn build_basis_with_interfaces(
     points: &IntegrationPoints,
     materials: &[LameParameters],
     params: &BasisParams,
-    interface: &WeightInterface,
+    interfaces: &[WeightInterface],
 ) -> Result<(SkinningBasis, BasisReport, AssembledMatrices), BasisError> {
-    check(interface)?;
+    let Some(first) = interfaces.first() else {
+        return Err(BasisError::Interface("no interface".into()));
+    };
+    interfaces.iter().try_for_each(check)?;
+    let samples: Vec<Vector3<f64>> = interfaces
+        .iter()
+        .flat_map(|i| i.samples.iter().copied())
+        .collect();
     let (timings, kernels, coverage, shape) =
-        placed_kernels_and_shape_functions(points, &[&interface.samples], params)?;
-    let at_samples =
-        evaluate_shape_functions(&kernels, &interface.samples, &params.shape_functions)
-            .map_err(BasisError::from)?;
+        placed_kernels_and_shape_functions(points, &[&samples], params)?;
+    let at_samples = evaluate_shape_functions(&kernels, &samples, &params.shape_functions)
+        .map_err(BasisError::from)?;
+    let union = WeightInterface {
+        samples,
+        areas: interfaces
+            .iter()
+            .flat_map(|i| i.areas.iter().copied())
+            .collect(),
+        normals: interfaces
+            .iter()
+            .flat_map(|i| i.normals.iter().copied())
+            .collect(),
+        ..first.clone()
+    };
+    let beta = std::cell::Cell::new(0.0);
     let terms = InterfaceTerms {
         add: &|matrices: &mut WeightSpaceMatrices| {
-            add_interface_terms(matrices, &at_samples, interface)
+            beta.set(add_interface_terms(matrices, &at_samples, &union)?);
+            Ok(())
         },
     };
-    build_on_placed_with(
+    let (basis, report, matrices) = build_on_placed_with(
         points,
         materials,
         params,
@@ -79,7 +107,70 @@ pub fn build_basis_with_interface(
             coverage,
             shape: &shape,
         },
-    )
+    )?;
+    if interfaces.len() == 1 {
+        return Ok((basis, report, matrices));
+    }
+    let AssembledMatrices::Dense(dense) = &matrices else {
+        return Err(BasisError::RegionsNeedDenseSolver {
+            kernels: basis.kernels().len(),
+        });
+    };
+    let regions = region_coefficients(&dense.hessian, &at_samples, interfaces, beta.get())?;
+    let mut basis = basis.with_held_regions(regions);
+    basis.keep_weights_at_build_points(points.positions(), points.positions(), &shape, None)?;
+    Ok((basis, report, matrices))
+}
+
+/// [`build_basis_with_interfaces`] with one interface (no region handle).
+///
+/// # Errors
+/// As [`build_basis_with_interfaces`].
+pub fn build_basis_with_interface(
+    points: &IntegrationPoints,
+    materials: &[LameParameters],
+    params: &BasisParams,
+    interface: &WeightInterface,
+) -> Result<(SkinningBasis, BasisReport, AssembledMatrices), BasisError> {
+    build_basis_with_interfaces(points, materials, params, std::slice::from_ref(interface))
+}
+
+/// The coefficients of the region handles a_1 … a_{R−1} (K × (R − 1)): `H_N c_r = b_r`
+/// (module docs) for every interface but the first; `at_samples` are the shape functions at
+/// every interface's samples in order, `beta` is β_w.
+fn region_coefficients(
+    hessian: &Mat<f64>,
+    at_samples: &ShapeFunctions,
+    interfaces: &[WeightInterface],
+    beta: f64,
+) -> Result<DMatrix<f64>, BasisError> {
+    let k = hessian.nrows();
+    let cholesky = hessian.llt(faer::Side::Lower).map_err(|_| {
+        BasisError::Interface(
+            "the weight Hessian with its interfaces is not positive definite".into(),
+        )
+    })?;
+    let mut loads = Mat::<f64>::zeros(k, interfaces.len() - 1);
+    let mut first_sample = interfaces[0].samples.len();
+    for (r, interface) in interfaces.iter().enumerate().skip(1) {
+        let kappa = interface.material.lambda() + 4.0 * interface.material.mu();
+        for (j, (a, n)) in interface.areas.iter().zip(&interface.normals).enumerate() {
+            let s = first_sample + j;
+            for ((&kernel, value), gradient) in at_samples
+                .kernels(s)
+                .iter()
+                .zip(at_samples.values(s))
+                .zip(at_samples.gradients(s))
+            {
+                loads[(kernel as usize, r - 1)] += a * (beta * value - kappa * gradient.dot(n));
+            }
+        }
+        first_sample += interface.samples.len();
+    }
+    let solved = cholesky.solve(&loads);
+    Ok(DMatrix::from_fn(k, interfaces.len() - 1, |i, j| {
+        solved[(i, j)]
+    }))
 }
 
 fn check(interface: &WeightInterface) -> Result<(), BasisError> {
@@ -115,12 +206,12 @@ fn check(interface: &WeightInterface) -> Result<(), BasisError> {
     problem.map_or(Ok(()), |p| Err(BasisError::Interface(p)))
 }
 
-/// Adds the Nitsche-Dirichlet terms of the module docs to `matrices.hessian`.
+/// Adds the Nitsche-Dirichlet terms of the module docs to `matrices.hessian`; returns β_w.
 fn add_interface_terms(
     matrices: &mut WeightSpaceMatrices,
     at_samples: &ShapeFunctions,
     interface: &WeightInterface,
-) -> Result<(), BasisError> {
+) -> Result<f64, BasisError> {
     let k = matrices.hessian.nrows();
     let kappa = interface.material.lambda() + 4.0 * interface.material.mu();
     let mut consistency = Mat::<f64>::zeros(k, k);
@@ -150,5 +241,5 @@ fn add_interface_terms(
         })?;
     let beta = 2.0 * interface.stabilization_factor * bound;
     matrices.hessian = &matrices.hessian + &consistency + &mass * beta;
-    Ok(())
+    Ok(beta)
 }

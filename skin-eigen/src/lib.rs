@@ -25,7 +25,9 @@ pub use generalized_eigen::{
     EigenError, EigenParams, EigenSolution, largest_eigenvalue_on_range, solve_skinning_modes,
 };
 pub use held_material::HeldMaterial;
-pub use interface_weights::{WeightInterface, build_basis_with_interface};
+pub use interface_weights::{
+    WeightInterface, build_basis_with_interface, build_basis_with_interfaces,
+};
 pub use pool_convergence::{PoolConvergence, pool_convergence};
 pub use region_constraints::{
     ConstrainedModes, RegionConstraintParams, RegionError, solve_constrained_modes,

@@ -1,6 +1,7 @@
 //! Weights held weakly on an interface (`build_basis_with_interface`): the beam's spectrum with
 //! one end Dirichlet against the analytic one, weights that vanish there, insensitivity to the
-//! stabilization, and bad interfaces refused by name.
+//! stabilization, a second interface's region handle against the linear harmonic weight, and
+//! bad interfaces refused by name.
 
 use std::f64::consts::PI;
 
@@ -9,6 +10,7 @@ use nalgebra::Vector3;
 use rkpm_core::sample_box_grid;
 use skin_eigen::{
     BasisError, BasisParams, SkinningBasis, WeightInterface, build_basis_with_interface,
+    build_basis_with_interfaces,
 };
 
 fn lame() -> LameParameters {
@@ -144,4 +146,44 @@ fn bad_interfaces_are_refused_by_name() {
         areas: vec![f64::NAN; 4],
         ..face
     }));
+}
+
+#[test]
+fn a_second_interface_gets_a_region_handle_that_is_linear_between_the_two_ends() {
+    // The harmonic weight that is 0 at x = 0 and 1 at x = 5 with free sides is x/5.
+    let far_end = WeightInterface {
+        samples: end_face(10)
+            .samples
+            .iter()
+            .map(|x| Vector3::new(5.0, x.y, x.z))
+            .collect(),
+        normals: vec![Vector3::x(); 100],
+        ..end_face(10)
+    };
+    let points = sample_box_grid(Vector3::zeros(), Vector3::new(5.0, 1.0, 1.0), 0.1).unwrap();
+    let materials = vec![lame(); points.len()];
+    let params = BasisParams::default().with_modes(4).with_kernels(250);
+    let (basis, _, _) =
+        build_basis_with_interfaces(&points, &materials, &params, &[end_face(10), far_end])
+            .unwrap();
+    assert_eq!(
+        basis.handles(),
+        1 + 1 + 4,
+        "constant, one region handle, four modes"
+    );
+    let probe: Vec<Vector3<f64>> = (0..=50)
+        .map(|i| Vector3::new(0.1 * i as f64, 0.45, 0.55))
+        .collect();
+    let w = basis.evaluate(&probe).unwrap().weights;
+    let error = probe
+        .iter()
+        .enumerate()
+        .map(|(i, x)| (w[(i, 1)] - x.x / 5.0).abs())
+        .fold(0.0, f64::max);
+    assert!(error < 0.02, "largest distance from x/5: {error}");
+    // The modes vanish at both ends.
+    let largest = (0..probe.len())
+        .map(|i| w[(i, 2)].abs())
+        .fold(0.0, f64::max);
+    assert!(w[(0, 2)].abs() < 0.03 * largest && w[(50, 2)].abs() < 0.03 * largest);
 }

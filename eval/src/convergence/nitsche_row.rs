@@ -1,14 +1,16 @@
-//! The static Bend held by symmetric Nitsche ([`reduced_sim::NitscheInterface`]): the held
-//! region left out of the body, the basis and pressure space built on the free part alone (its
-//! Neumann modes), and the clamp's plane held weakly with β from the reduced trace bound.
+//! The beam held by symmetric Nitsche ([`reduced_sim::NitscheInterface`]): the held regions
+//! left out of the body, the basis (weights held weakly on the regions' planes) and the
+//! pressure space (Neumann modes) built on the free part alone, and each plane held weakly at
+//! its region's target with β from the reduced trace bound; the static Bend and the dynamic
+//! tests.
 
-use freeform::scene::{Motion, Region, SceneSpec};
+use freeform::scene::{Constraint, Region, SceneSpec};
 use freeform::{PinHold, PressureSpace, PressureSpaceParams, RunError, Simulation};
 use hyperelastic::{MaterialField, MaterialSample, StableNeoHookean, Tangent};
 use nalgebra::Vector3;
-use reduced_sim::{DeformationMap, NitscheInterface, NitscheParams, PinTarget};
+use reduced_sim::{DeformationMap, NitscheInterface, NitscheParams, PinTarget, Simulator};
 use rkpm_core::IntegrationPoints;
-use skin_eigen::{SkinningBasis, WeightInterface, build_basis_with_interface};
+use skin_eigen::{SkinningBasis, WeightInterface, build_basis_with_interfaces};
 
 use crate::EvalError;
 use crate::beam_protocol::reduced::beam_simulation_points;
@@ -17,6 +19,7 @@ use crate::beam_scenario::{
 };
 use crate::convergence::result::ConvergenceRow;
 use crate::convergence::static_reference::{StaticReference, field_errors};
+use crate::convergence::study::score_frames;
 use crate::reduced_settings::ReducedSettings;
 
 /// `scene` without its constraints: the free part's own scene (gravity and the rest kept).
@@ -45,52 +48,57 @@ fn free_part(
     })
 }
 
-/// The Bend's free-part basis under `settings` (its kernels and modes): the basis grid's
-/// points outside the clamp, with weights that vanish weakly on the clamp's plane
-/// ([`build_basis_with_interface`], stabilization factor `factor`).
+/// `test`'s free-part basis under `settings` (its kernels and modes): the basis grid's points
+/// outside its constraints, with weights that vanish weakly on their planes and a region
+/// handle for every plane but the first ([`build_basis_with_interfaces`], stabilization factor
+/// `factor`).
 ///
 /// # Errors
 /// [`EvalError::Sampling`] / [`EvalError::Basis`] when the grid or the basis cannot be made.
 pub(crate) fn free_part_basis(
+    test: BeamTest,
     settings: &ReducedSettings,
     factor: f64,
 ) -> Result<SkinningBasis, EvalError> {
     let (grid, lame) = beam_basis_grid(settings.basis_points)?;
-    let scene = BeamTest::Bend.scene();
+    let scene = test.scene();
     let free = free_part(&grid, &scene)?;
     let material = lame[0];
     let lame = vec![material; free.len()];
     let spacing = beam_grid_spacing(settings.basis_points);
-    let mut interface = WeightInterface {
-        samples: Vec::new(),
-        areas: Vec::new(),
-        normals: Vec::new(),
-        material,
-        stabilization_factor: factor,
-    };
-    for constraint in &scene.constraints {
-        let plane = interface_samples(&constraint.region, spacing)
-            .ok_or_else(|| EvalError::NitscheRegion(format!("{constraint:?}")))?;
-        interface.samples.extend(plane.samples);
-        interface.areas.extend(plane.areas);
-        interface.normals.extend(plane.normals);
-    }
+    let interfaces = scene
+        .constraints
+        .iter()
+        .map(|constraint| {
+            let plane = interface_samples(&constraint.region, spacing)
+                .ok_or_else(|| EvalError::NitscheRegion(format!("{constraint:?}")))?;
+            Ok(WeightInterface {
+                samples: plane.samples,
+                areas: plane.areas,
+                normals: plane.normals,
+                material,
+                stabilization_factor: factor,
+            })
+        })
+        .collect::<Result<Vec<_>, EvalError>>()?;
     let (basis, _, _) =
-        build_basis_with_interface(&free, &lame, &settings.basis_params(), &interface)
+        build_basis_with_interfaces(&free, &lame, &settings.basis_params(), &interfaces)
             .map_err(EvalError::Basis)?;
     Ok(basis)
 }
 
-/// The pressure space of the free part (its Neumann modes and the affine functions).
+/// The pressure space of `test`'s free part (its Neumann modes, and the affine functions when
+/// `params` asks).
 ///
 /// # Errors
 /// As [`free_part_basis`].
 pub(crate) fn free_part_pressure_space(
+    test: BeamTest,
     settings: &ReducedSettings,
     params: &PressureSpaceParams,
 ) -> Result<PressureSpace, EvalError> {
     let (grid, lame) = beam_basis_grid(settings.basis_points)?;
-    let scene = BeamTest::Bend.scene();
+    let scene = test.scene();
     let free = free_part(&grid, &scene)?;
     let lame = vec![lame[0]; free.len()];
     PressureSpace::build(
@@ -147,81 +155,165 @@ fn interface_samples(region: &Region, spacing: f64) -> Option<InterfaceSamples> 
     })
 }
 
-/// Fills `row` with the static Bend of `scene` (the clamp a half-space) held by Nitsche with
-/// stabilization factor `factor` on the free-part `basis` (and `pressure`, if projected).
-/// `held_drift` is the interface's largest gap from its target (the held part itself is
-/// prescribed); the best approximations are not computed (the free-part basis does not reach
-/// the held part's nodes).
+/// What a Nitsche-held beam runs with: the free-part basis and pressure space, the settings
+/// (points, quadrature, Newton), the material and s of `β = 2sC`.
+pub(crate) struct NitscheBeam<'a> {
+    pub(crate) basis: &'a SkinningBasis,
+    pub(crate) pressure: Option<&'a PressureSpace>,
+    pub(crate) settings: &'a ReducedSettings,
+    pub(crate) material: MaterialSample,
+    pub(crate) factor: f64,
+    pub(crate) cache_dir: &'a std::path::Path,
+}
+
+/// One constraint's interface: its region and motion, and the basis at its samples.
+struct HeldInterface {
+    constraint: Constraint,
+    samples: Vec<Vector3<f64>>,
+    map: DeformationMap,
+}
+
+impl HeldInterface {
+    /// The samples' largest distance from their targets at `z` and time `t` (m).
+    fn gap(&self, z: &[f64], t: f64) -> f64 {
+        self.map
+            .positions(z)
+            .iter()
+            .zip(&self.samples)
+            .map(|(x, x0)| (x - self.constraint.motion.at(x0, t)).norm())
+            .fold(0.0, f64::max)
+    }
+}
+
+impl NitscheBeam<'_> {
+    /// The simulator of `scene`'s free part for a run of `steps` steps, with one Nitsche
+    /// interface per constraint (half-spaces only).
+    fn simulator(
+        &self,
+        scene: &SceneSpec,
+        steps: usize,
+    ) -> Result<(Simulator<StableNeoHookean>, Vec<HeldInterface>), EvalError> {
+        let settings = self.settings;
+        let points = free_part(&beam_simulation_points(scene, settings)?, scene)?;
+        let free = free_scene(scene);
+        let field = MaterialField::Uniform(self.material);
+        let simulation = Simulation::new(self.basis, &points, &field, StableNeoHookean, &free)
+            .with_params(settings.simulation_params(BEAM_TIME_STEP))
+            .with_quadrature(settings.quadrature)
+            .with_cache_dir(Some(self.cache_dir))
+            .with_pin_hold(PinHold::Penalty)
+            .with_pressure(self.pressure);
+        let (mut simulator, _) = freeform::prepare_simulator(&simulation, steps, &[])?;
+        let len = simulator.model().deformation_map().layout().len();
+        let rest_stiffness = simulator
+            .model()
+            .elastic_hessian(&vec![0.0; len], Tangent::Exact);
+        let spacing = beam_grid_spacing(settings.simulation_points);
+        let lame = self
+            .material
+            .lame_parameters()
+            .map_err(EvalError::Material)?;
+        let mut interfaces = Vec::new();
+        for constraint in &scene.constraints {
+            let plane = interface_samples(&constraint.region, spacing)
+                .ok_or_else(|| EvalError::NitscheRegion(format!("{constraint:?}")))?;
+            let target = constraint
+                .motion
+                .target_function()
+                .map_or(PinTarget::Rest, PinTarget::Moving);
+            let (interface, _) = NitscheInterface::new(
+                self.basis,
+                &plane.samples,
+                &plane.areas,
+                &plane.normals,
+                StableNeoHookean,
+                lame,
+                target,
+                rest_stiffness.as_ref(),
+                &NitscheParams {
+                    stabilization_factor: self.factor,
+                },
+            )?;
+            simulator.add_term(Box::new(interface));
+            interfaces.push(HeldInterface {
+                constraint: constraint.clone(),
+                map: DeformationMap::new(self.basis, &plane.samples)
+                    .map_err(EvalError::OutputMap)?,
+                samples: plane.samples,
+            });
+        }
+        Ok((simulator, interfaces))
+    }
+}
+
+/// The positions at time `t` of `points` (rest, m): a held point at its constraint's target,
+/// a free one where `map` (the free points' basis) puts it at `z`.
+struct PointPositions {
+    /// Per point, the constraint holding it (index into `scene.constraints`), if any.
+    held: Vec<Option<usize>>,
+    /// The basis at the free points, in order.
+    map: DeformationMap,
+}
+
+impl PointPositions {
+    fn new(
+        basis: &SkinningBasis,
+        scene: &SceneSpec,
+        points: &[Vector3<f64>],
+    ) -> Result<Self, EvalError> {
+        let held: Vec<Option<usize>> = points
+            .iter()
+            .map(|x| scene.constraints.iter().position(|c| c.region.contains(x)))
+            .collect();
+        let free: Vec<Vector3<f64>> = points
+            .iter()
+            .zip(&held)
+            .filter(|(_, h)| h.is_none())
+            .map(|(x, _)| *x)
+            .collect();
+        let map = DeformationMap::new(basis, &free).map_err(EvalError::OutputMap)?;
+        Ok(PointPositions { held, map })
+    }
+
+    fn at(&self, scene: &SceneSpec, rest: &[Vector3<f64>], z: &[f64], t: f64) -> Vec<Vector3<f64>> {
+        let mut free = self.map.positions(z).into_iter();
+        rest.iter()
+            .zip(&self.held)
+            .map(|(x, held)| match held {
+                Some(c) => scene.constraints[*c].motion.at(x, t),
+                None => free.next().unwrap_or(*x),
+            })
+            .collect()
+    }
+}
+
+/// Fills `row` with the static Bend of `scene` (its clamp a half-space at rest) held by
+/// Nitsche. `held_drift` is the interface's largest gap from its target (the held part itself
+/// is prescribed); the best approximations are not computed (the free-part basis does not
+/// reach the held part's nodes).
 ///
 /// # Errors
 /// [`EvalError`] for points, a model, an interface or a static solve that fails.
-#[allow(clippy::too_many_arguments)]
 pub(crate) fn nitsche_static_row(
     row: &mut ConvergenceRow,
-    basis: &SkinningBasis,
-    pressure: Option<&PressureSpace>,
-    settings: &ReducedSettings,
-    material: MaterialSample,
+    beam: &NitscheBeam<'_>,
     scene: &SceneSpec,
     reference: &StaticReference,
-    factor: f64,
-    cache_dir: &std::path::Path,
 ) -> Result<(), EvalError> {
-    let points = free_part(&beam_simulation_points(scene, settings)?, scene)?;
-    let free = free_scene(scene);
-    let field = MaterialField::Uniform(material);
-    let simulation = Simulation::new(basis, &points, &field, StableNeoHookean, &free)
-        .with_params(settings.simulation_params(BEAM_TIME_STEP))
-        .with_quadrature(settings.quadrature)
-        .with_cache_dir(Some(cache_dir))
-        .with_pin_hold(PinHold::Penalty)
-        .with_pressure(pressure);
-    let (mut simulator, _) = freeform::prepare_simulator(&simulation, 1, &[])?;
-    let len = simulator.model().deformation_map().layout().len();
-    let rest_stiffness = simulator
-        .model()
-        .elastic_hessian(&vec![0.0; len], Tangent::Exact);
-    let spacing = beam_grid_spacing(settings.simulation_points);
-    let lame = material.lame_parameters().map_err(EvalError::Material)?;
-    let mut gaps = Vec::new();
-    for constraint in &scene.constraints {
-        let unsupported = || EvalError::NitscheRegion(format!("{constraint:?}"));
-        if constraint.motion != Motion::Rest {
-            return Err(unsupported());
-        }
-        let plane = interface_samples(&constraint.region, spacing).ok_or_else(unsupported)?;
-        let (interface, _) = NitscheInterface::new(
-            basis,
-            &plane.samples,
-            &plane.areas,
-            &plane.normals,
-            StableNeoHookean,
-            lame,
-            PinTarget::Rest,
-            rest_stiffness.as_ref(),
-            &NitscheParams {
-                stabilization_factor: factor,
-            },
-        )?;
-        simulator.add_term(Box::new(interface));
-        gaps.push(DeformationMap::new(basis, &plane.samples).map_err(EvalError::OutputMap)?);
-    }
+    let (mut simulator, interfaces) = beam.simulator(scene, 1)?;
     let start = std::time::Instant::now();
     simulator
         .solve_static(0.0)
         .map_err(|e| EvalError::Run(RunError::Static(e)))?;
     let seconds = start.elapsed().as_secs_f64();
     let z = &simulator.state().z;
-    let held = |x: &Vector3<f64>| scene.constraints.iter().any(|c| c.region.contains(x));
-    let free_nodes: Vec<usize> = (0..reference.nodes.len())
-        .filter(|&i| !held(&reference.nodes[i]))
+    let positions = PointPositions::new(beam.basis, scene, &reference.nodes)?;
+    let ours: Vec<Vector3<f64>> = positions
+        .at(scene, &reference.nodes, z, 0.0)
+        .iter()
+        .zip(&reference.nodes)
+        .map(|(x, x0)| x - x0)
         .collect();
-    let at: Vec<Vector3<f64>> = free_nodes.iter().map(|&i| reference.nodes[i]).collect();
-    let map = DeformationMap::new(basis, &at).map_err(EvalError::OutputMap)?;
-    let mut ours = vec![Vector3::zeros(); reference.nodes.len()];
-    for (&i, u) in free_nodes.iter().zip(map.displacements(z)) {
-        ours[i] = u;
-    }
     let (mse, relative) = field_errors(&ours, &reference.displacements);
     row.mse = mse;
     row.relative_error = relative;
@@ -229,11 +321,45 @@ pub(crate) fn nitsche_static_row(
     let exact_tip = reference.displacements[tip];
     row.tip_error = (ours[tip] - exact_tip).norm() / exact_tip.norm();
     row.tip_ratio = ours[tip].y / exact_tip.y - 1.0;
-    row.held_drift = gaps
-        .iter()
-        .flat_map(|map| map.displacements(z))
-        .map(|u| u.norm())
-        .fold(0.0, f64::max);
+    row.held_drift = interfaces.iter().map(|i| i.gap(z, 0.0)).fold(0.0, f64::max);
     row.ms_per_step = 1e3 * seconds;
+    Ok(())
+}
+
+/// Fills `row` with `test` (its constraints half-spaces) held by Nitsche, `steps` steps scored
+/// against the FEM's `reference` frames at its `vertices` (frame 0 the rest state).
+/// `held_drift` is the interfaces' largest gap from their targets over the run.
+///
+/// # Errors
+/// [`EvalError`] for points, a model, an interface or a step that fails.
+pub(crate) fn nitsche_dynamic_row(
+    row: &mut ConvergenceRow,
+    beam: &NitscheBeam<'_>,
+    test: BeamTest,
+    vertices: &[Vector3<f64>],
+    reference: &[Vec<Vector3<f64>>],
+    steps: usize,
+) -> Result<(), EvalError> {
+    let scene = test.scene();
+    let (mut simulator, interfaces) = beam.simulator(&scene, steps)?;
+    let positions = PointPositions::new(beam.basis, &scene, vertices)?;
+    let mut frames = vec![vertices.to_vec()];
+    let mut gap: f64 = 0.0;
+    let mut stepping = 0.0;
+    for step in 1..=steps {
+        let start = std::time::Instant::now();
+        simulator
+            .step()
+            .map_err(|source| EvalError::Run(RunError::Step { step, source }))?;
+        stepping += start.elapsed().as_secs_f64();
+        let state = simulator.state();
+        frames.push(positions.at(&scene, vertices, &state.z, state.time));
+        for interface in &interfaces {
+            gap = gap.max(interface.gap(&state.z, state.time));
+        }
+    }
+    score_frames(row, &frames, reference, vertices)?;
+    row.held_drift = gap;
+    row.ms_per_step = 1e3 * stepping / steps.max(1) as f64;
     Ok(())
 }

@@ -57,7 +57,7 @@ pub enum BoundaryTreatment {
     /// Symmetric Nitsche ([`reduced_sim::NitscheInterface`]): the held region left out of the
     /// body, the basis built on the free part alone, the interface held weakly with β from the
     /// reduced trace bound ([`crate::convergence::ConvergenceConfig::nitsche_stabilization_factor`]).
-    /// Built for the static Bend (its half-space clamp at rest); the dynamic tests skip it.
+    /// Built for the beam's half-space regions (the clamp and the Twist's turning end).
     Nitsche,
 }
 

@@ -24,7 +24,7 @@ use crate::beam_protocol::reduced::{
 use crate::beam_scenario::{BEAM_TIME_STEP, BeamTest, beam_length_scale, beam_material};
 use crate::convergence::config::ConvergenceConfig;
 use crate::convergence::nitsche_row::{
-    free_part_basis, free_part_pressure_space, nitsche_static_row,
+    NitscheBeam, free_part_basis, free_part_pressure_space, nitsche_dynamic_row, nitsche_static_row,
 };
 use crate::convergence::options::{BoundaryTreatment, ConvergenceTest, VolumetricTerm};
 use crate::convergence::result::{
@@ -199,9 +199,6 @@ impl TreatmentBases {
             {
                 continue;
             }
-            if treatment == BoundaryTreatment::Nitsche && test != ConvergenceTest::StaticBend {
-                continue;
-            }
             progress.status(format!(
                 "basis K = {}, m = {}, {} ({})",
                 settings.kernels,
@@ -210,7 +207,7 @@ impl TreatmentBases {
                 beam.name()
             ));
             let basis = if treatment == BoundaryTreatment::Nitsche {
-                free_part_basis(settings, config.nitsche_stabilization_factor)?
+                free_part_basis(beam, settings, config.nitsche_stabilization_factor)?
             } else {
                 build_beam_basis_for(beam, settings)?.basis
             };
@@ -272,9 +269,13 @@ impl PressureSpaces {
         };
         let mut full_spaces: Vec<(BeamTest, PressureSpace)> = Vec::new();
         if volumetric == VolumetricTerm::Projected && treatment == BoundaryTreatment::Nitsche {
-            // The free part's own space; no inf-sup report (its candidates are the held body's).
-            let space = free_part_pressure_space(settings, &config.pressure)?;
-            spaces.push((BeamTest::Bend, space));
+            // The free part's own spaces; no inf-sup report (its candidates are the held body's).
+            for (beam, _) in &bases.0 {
+                spaces.push((
+                    *beam,
+                    free_part_pressure_space(*beam, settings, &config.pressure)?,
+                ));
+            }
         } else if volumetric == VolumetricTerm::Projected {
             for (beam, _) in &bases.0 {
                 let full = beam_pressure_space(*beam, settings, &largest)?;
@@ -333,14 +334,23 @@ impl RowRun<'_> {
                     .rows
                     .push(self.static_bend(material, references.static_scene, reference));
             }
-            if self.treatment == BoundaryTreatment::Nitsche {
-                continue;
-            }
             for (test, steps, fem) in &references.dynamics[v] {
                 study.rows.push(self.dynamic(*test, *steps, fem, material)?);
             }
         }
         Ok(())
+    }
+
+    /// What a Nitsche row of `beam` at `material` runs with.
+    fn nitsche(&self, beam: BeamTest, material: MaterialSample) -> NitscheBeam<'_> {
+        NitscheBeam {
+            basis: self.bases.basis_for(beam),
+            pressure: self.spaces.space_for(beam),
+            settings: self.settings,
+            material,
+            factor: self.config.nitsche_stabilization_factor,
+            cache_dir: &self.config.cache_dir,
+        }
     }
 
     /// A row of `test` at `nu` before it is measured (NaN scores, no failure).
@@ -379,14 +389,9 @@ impl RowRun<'_> {
         let outcome = if self.treatment == BoundaryTreatment::Nitsche {
             nitsche_static_row(
                 &mut r,
-                self.bases.basis_for(BeamTest::Bend),
-                self.spaces.space_for(BeamTest::Bend),
-                self.settings,
-                material,
+                &self.nitsche(BeamTest::Bend, material),
                 scene,
                 reference,
-                self.config.nitsche_stabilization_factor,
-                &self.config.cache_dir,
             )
         } else {
             static_row(
@@ -433,38 +438,30 @@ impl RowRun<'_> {
         let mut r = self.row(test, nu);
         let vertices = fem.vertices();
         let reference = fem.vertex_frames();
-        match run_reduced_beam_with_pressure(
-            beam,
-            self.bases.basis_for(beam),
-            self.settings,
-            material,
-            self.spaces.space_for(beam),
-            Some(&self.config.cache_dir),
-            vertices,
-            steps,
-            self.progress,
-        ) {
-            Ok(run) => {
-                let errors =
-                    trajectory_errors(&run.frames[1..], &reference[1..], beam_length_scale())?;
-                r.mse = errors.normalized_mse;
-                let (mut error, mut size) = (0.0, 0.0);
-                let tip = tip_index(vertices);
-                let (mut tip_error, mut tip_size): (f64, f64) = (0.0, 0.0);
-                for (ours, theirs) in run.frames.iter().zip(&reference) {
-                    for ((a, b), rest) in ours.iter().zip(theirs).zip(vertices) {
-                        error += (a - b).norm_squared();
-                        size += (b - rest).norm_squared();
-                    }
-                    tip_error = tip_error.max((ours[tip] - theirs[tip]).norm());
-                    tip_size = tip_size.max((theirs[tip] - vertices[tip]).norm());
-                }
-                r.relative_error = (error / size).sqrt();
-                r.tip_error = tip_error / tip_size;
+        let outcome = if self.treatment == BoundaryTreatment::Nitsche {
+            let held = self.nitsche(beam, material);
+            nitsche_dynamic_row(&mut r, &held, beam, vertices, &reference, steps)
+        } else {
+            run_reduced_beam_with_pressure(
+                beam,
+                self.bases.basis_for(beam),
+                self.settings,
+                material,
+                self.spaces.space_for(beam),
+                Some(&self.config.cache_dir),
+                vertices,
+                steps,
+                self.progress,
+            )
+            .and_then(|run| {
+                score_frames(&mut r, &run.frames, &reference, vertices)?;
                 r.held_drift = region_drift(beam, vertices, &run.frames);
                 r.ms_per_step = run.report.ms_per_step;
-            }
-            Err(e) => r.failure = Some(failure_chain(&e)),
+                Ok(())
+            })
+        };
+        if let Err(e) = outcome {
+            r.failure = Some(failure_chain(&e));
         }
         self.progress.status(format!(
             "{} ν = {nu} K = {} m = {} {} {}: MSE {:.3e}, drift {:.1e} m",
@@ -478,6 +475,35 @@ impl RowRun<'_> {
         ));
         Ok(r)
     }
+}
+
+/// Scores `frames` (frame 0 the rest state) against the FEM's `reference` at its `vertices`:
+/// the row's MSE, relative error and tip error.
+///
+/// # Errors
+/// [`EvalError::Metrics`] for frames that do not match the reference.
+pub(super) fn score_frames(
+    r: &mut ConvergenceRow,
+    frames: &[Vec<Vector3<f64>>],
+    reference: &[Vec<Vector3<f64>>],
+    vertices: &[Vector3<f64>],
+) -> Result<(), EvalError> {
+    let errors = trajectory_errors(&frames[1..], &reference[1..], beam_length_scale())?;
+    r.mse = errors.normalized_mse;
+    let (mut error, mut size) = (0.0, 0.0);
+    let tip = tip_index(vertices);
+    let (mut tip_error, mut tip_size): (f64, f64) = (0.0, 0.0);
+    for (ours, theirs) in frames.iter().zip(reference) {
+        for ((a, b), rest) in ours.iter().zip(theirs).zip(vertices) {
+            error += (a - b).norm_squared();
+            size += (b - rest).norm_squared();
+        }
+        tip_error = tip_error.max((ours[tip] - theirs[tip]).norm());
+        tip_size = tip_size.max((theirs[tip] - vertices[tip]).norm());
+    }
+    r.relative_error = (error / size).sqrt();
+    r.tip_error = tip_error / tip_size;
+    Ok(())
 }
 
 /// The coarse FEM points: each of `config.coarse_fem` on the dynamic Bend at the beam's ν,

@@ -195,20 +195,22 @@ fn a_nitsche_held_static_bend_bends_like_the_weighted_basis_and_meets_its_clamp(
     )
     .unwrap();
     let nitsche_settings = BoundaryTreatment::Nitsche.settings(&settings).unwrap();
-    let free_basis = super::nitsche_row::free_part_basis(&nitsche_settings, 2.0).unwrap();
-    let mut nitsche = blank_row(BoundaryTreatment::Nitsche);
-    super::nitsche_row::nitsche_static_row(
-        &mut nitsche,
-        &free_basis,
-        None,
+    let free_basis = super::nitsche_row::free_part_basis(
+        crate::beam_scenario::BeamTest::Bend,
         &nitsche_settings,
-        beam_material(),
-        &scene,
-        &reference,
         2.0,
-        std::path::Path::new("unused"),
     )
     .unwrap();
+    let mut nitsche = blank_row(BoundaryTreatment::Nitsche);
+    let held = super::nitsche_row::NitscheBeam {
+        basis: &free_basis,
+        pressure: None,
+        settings: &nitsche_settings,
+        material: beam_material(),
+        factor: 2.0,
+        cache_dir: std::path::Path::new("unused"),
+    };
+    super::nitsche_row::nitsche_static_row(&mut nitsche, &held, &scene, &reference).unwrap();
     // Both tips within a tenth of each other's deflection (the P1 res 2 reference is stiff,
     // so both ratios are positive), and the interface within 1% of the tip's deflection.
     let tip = |row: &super::ConvergenceRow| 1.0 + row.tip_ratio;
