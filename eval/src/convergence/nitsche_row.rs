@@ -1,12 +1,12 @@
 //! The beam held by symmetric Nitsche ([`reduced_sim::NitscheInterface`]): the held regions
 //! left out of the body, the basis (weights held weakly on the regions' planes) and the
 //! pressure space (Neumann modes) built on the free part alone, and each plane held weakly at
-//! its region's target with β from the reduced trace bound; the static Bend and the dynamic
-//! tests.
+//! its region's target with β from the reduced trace bound, its traction the body's projected
+//! stress when the term is projected; the static Bend and the dynamic tests.
 
 use freeform::scene::{Constraint, Region, SceneSpec};
 use freeform::{PinHold, PressureSpace, PressureSpaceParams, RunError, Simulation};
-use hyperelastic::{MaterialField, MaterialSample, StableNeoHookean, Tangent};
+use hyperelastic::{MaterialField, MaterialSample, StableNeoHookean};
 use nalgebra::Vector3;
 use reduced_sim::{DeformationMap, NitscheInterface, NitscheParams, PinTarget, Simulator};
 use rkpm_core::IntegrationPoints;
@@ -19,7 +19,6 @@ use crate::beam_scenario::{
 };
 use crate::convergence::result::ConvergenceRow;
 use crate::convergence::static_reference::{StaticReference, field_errors};
-use crate::convergence::study::score_frames;
 use crate::reduced_settings::ReducedSettings;
 
 /// `scene` without its constraints: the free part's own scene (gravity and the rest kept).
@@ -204,10 +203,6 @@ impl NitscheBeam<'_> {
             .with_pin_hold(PinHold::Penalty)
             .with_pressure(self.pressure);
         let (mut simulator, _) = freeform::prepare_simulator(&simulation, steps, &[])?;
-        let len = simulator.model().deformation_map().layout().len();
-        let rest_stiffness = simulator
-            .model()
-            .elastic_hessian(&vec![0.0; len], Tangent::Exact);
         let spacing = beam_grid_spacing(settings.simulation_points);
         let lame = self
             .material
@@ -221,15 +216,20 @@ impl NitscheBeam<'_> {
                 .motion
                 .target_function()
                 .map_or(PinTarget::Rest, PinTarget::Moving);
-            let (interface, _) = NitscheInterface::new(
+            let pressure_values = self
+                .pressure
+                .map(|space| space.values(&plane.samples))
+                .transpose()
+                .map_err(|e| EvalError::Basis(e.into()))?;
+            let (interface, _) = NitscheInterface::on_model(
                 self.basis,
+                simulator.model(),
                 &plane.samples,
                 &plane.areas,
                 &plane.normals,
-                StableNeoHookean,
                 lame,
                 target,
-                rest_stiffness.as_ref(),
+                pressure_values.as_ref(),
                 &NitscheParams {
                     stabilization_factor: self.factor,
                 },
@@ -358,7 +358,7 @@ pub(crate) fn nitsche_dynamic_row(
             gap = gap.max(interface.gap(&state.z, state.time));
         }
     }
-    score_frames(row, &frames, reference, vertices)?;
+    row.score_frames(&frames, reference, vertices)?;
     row.held_drift = gap;
     row.ms_per_step = 1e3 * stepping / steps.max(1) as f64;
     Ok(())

@@ -1,7 +1,13 @@
 //! What the convergence study measures: one [`ConvergenceRow`] per (test, ν, K, m, treatment,
 //! volumetric term), the coarse FEM points, the references it refused.
 
+use freeform::metrics::trajectory_errors;
+use nalgebra::Vector3;
 use serde::{Deserialize, Serialize};
+
+use crate::EvalError;
+use crate::beam_scenario::beam_length_scale;
+use crate::convergence::static_reference::tip_index;
 
 use crate::convergence::options::{BoundaryTreatment, ConvergenceTest, VolumetricTerm};
 
@@ -50,6 +56,37 @@ pub struct ConvergenceRow {
     pub inf_sup: Vec<(usize, f64)>,
     /// Why the run stopped, when it did (then the errors are NaN).
     pub failure: Option<String>,
+}
+
+impl ConvergenceRow {
+    /// Scores `frames` (frame 0 the rest state) against the FEM's `reference` frames at its
+    /// `vertices`: the MSE, the relative error and the tip error.
+    ///
+    /// # Errors
+    /// [`EvalError::Metrics`] for frames that do not match the reference.
+    pub(crate) fn score_frames(
+        &mut self,
+        frames: &[Vec<Vector3<f64>>],
+        reference: &[Vec<Vector3<f64>>],
+        vertices: &[Vector3<f64>],
+    ) -> Result<(), EvalError> {
+        let errors = trajectory_errors(&frames[1..], &reference[1..], beam_length_scale())?;
+        self.mse = errors.normalized_mse;
+        let (mut error, mut size) = (0.0, 0.0);
+        let tip = tip_index(vertices);
+        let (mut tip_error, mut tip_size): (f64, f64) = (0.0, 0.0);
+        for (ours, theirs) in frames.iter().zip(reference) {
+            for ((a, b), rest) in ours.iter().zip(theirs).zip(vertices) {
+                error += (a - b).norm_squared();
+                size += (b - rest).norm_squared();
+            }
+            tip_error = tip_error.max((ours[tip] - theirs[tip]).norm());
+            tip_size = tip_size.max((theirs[tip] - vertices[tip]).norm());
+        }
+        self.relative_error = (error / size).sqrt();
+        self.tip_error = tip_error / tip_size;
+        Ok(())
+    }
 }
 
 /// A coarse FEM's dynamic Bend at ν = 0.45.

@@ -32,7 +32,6 @@ use crate::convergence::result::{
 };
 use crate::convergence::static_reference::{
     StaticReference, field_errors, projections, reference_error, static_reference, static_scene,
-    tip_index,
 };
 use crate::fem_reference::{converged_fem_beam, run_fem_beam_with};
 use crate::reduced_settings::ReducedSettings;
@@ -454,7 +453,7 @@ impl RowRun<'_> {
                 self.progress,
             )
             .and_then(|run| {
-                score_frames(&mut r, &run.frames, &reference, vertices)?;
+                r.score_frames(&run.frames, &reference, vertices)?;
                 r.held_drift = region_drift(beam, vertices, &run.frames);
                 r.ms_per_step = run.report.ms_per_step;
                 Ok(())
@@ -475,35 +474,6 @@ impl RowRun<'_> {
         ));
         Ok(r)
     }
-}
-
-/// Scores `frames` (frame 0 the rest state) against the FEM's `reference` at its `vertices`:
-/// the row's MSE, relative error and tip error.
-///
-/// # Errors
-/// [`EvalError::Metrics`] for frames that do not match the reference.
-pub(super) fn score_frames(
-    r: &mut ConvergenceRow,
-    frames: &[Vec<Vector3<f64>>],
-    reference: &[Vec<Vector3<f64>>],
-    vertices: &[Vector3<f64>],
-) -> Result<(), EvalError> {
-    let errors = trajectory_errors(&frames[1..], &reference[1..], beam_length_scale())?;
-    r.mse = errors.normalized_mse;
-    let (mut error, mut size) = (0.0, 0.0);
-    let tip = tip_index(vertices);
-    let (mut tip_error, mut tip_size): (f64, f64) = (0.0, 0.0);
-    for (ours, theirs) in frames.iter().zip(reference) {
-        for ((a, b), rest) in ours.iter().zip(theirs).zip(vertices) {
-            error += (a - b).norm_squared();
-            size += (b - rest).norm_squared();
-        }
-        tip_error = tip_error.max((ours[tip] - theirs[tip]).norm());
-        tip_size = tip_size.max((theirs[tip] - vertices[tip]).norm());
-    }
-    r.relative_error = (error / size).sqrt();
-    r.tip_error = tip_error / tip_size;
-    Ok(())
 }
 
 /// The coarse FEM points: each of `config.coarse_fem` on the dynamic Bend at the beam's ν,

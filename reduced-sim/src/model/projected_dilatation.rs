@@ -168,7 +168,6 @@ pub(crate) struct DilatationState {
 
 impl DilatationState {
     /// `p̂ = G⁻¹ r` (P): the pressure coefficients.
-    #[cfg(test)]
     pub(crate) fn coefficients(&self) -> &[f64] {
         &self.coefficients
     }

@@ -10,6 +10,8 @@ pub(crate) mod floor_term;
 pub(crate) mod friction_term;
 pub(crate) mod gravity_term;
 pub(crate) mod held_regions;
+pub(crate) mod nitsche_params;
+pub(crate) mod nitsche_pressure;
 pub mod nitsche_term;
 pub(crate) mod pin_penalty;
 pub(crate) mod pinned_points;
@@ -17,6 +19,7 @@ pub(crate) mod scene_terms;
 pub mod step_term;
 pub mod term_check;
 
-pub use nitsche_term::{NitscheError, NitscheInterface, NitscheParams, NitscheReport};
+pub use nitsche_params::{NitscheError, NitscheParams, NitscheReport};
+pub use nitsche_term::NitscheInterface;
 pub use step_term::{StepTerm, TermPoint};
 pub use term_check::{TermCheckError, TermCheckParams, TermCheckReport, check_term};

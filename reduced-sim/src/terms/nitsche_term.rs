@@ -20,97 +20,27 @@
 //! ```
 //!
 //! (T_s the 3 × 12(m+1) rest traction operator at sample s, K₀ the body's rest elastic Hessian).
+//! On a body with a projected dilatation ([`NitscheInterface::on_model`]) P is the body's
+//! projected stress at the samples (`nitsche_pressure.rs`), whose pressure depends on z through
+//! the whole body.
 //! Nitsche, 1971; as an energy for hyperelasticity and with β from a generalized eigenvalue
 //! bound as in Griebel and Schweitzer's particle-partition of unity method; design notes in
 //! `docs/design.md` ("Held regions").
 
 use faer::{Mat, MatRef};
 use hyperelastic::{HyperelasticMaterial, LameParameters, Matrix9, Tangent};
+use nalgebra::DMatrix;
 use nalgebra::{Matrix3, Vector3};
 use rayon::prelude::*;
 use skin_eigen::largest_eigenvalue_on_range;
-use thiserror::Error;
 
-use crate::model::deformation_map::{DeformationMap, DeformationMapError};
+use crate::model::deformation_map::DeformationMap;
+use crate::model::reduced_model::ReducedModel;
 use crate::model::skinning_field::SkinningField;
 use crate::scene::PinTarget;
+use crate::terms::nitsche_params::{NitscheError, NitscheParams, NitscheReport};
+use crate::terms::nitsche_pressure::{InterfacePressure, PressureState};
 use crate::terms::step_term::{StepTerm, TermPoint};
-
-/// Options of a [`NitscheInterface`].
-#[derive(Clone, Copy, Debug, PartialEq)]
-pub struct NitscheParams {
-    /// s in `β = 2 s C` (dimensionless, default 2; the sum is coercive for s ≥ 1, and the
-    /// solution is insensitive to s over a wide range when the basis resolves the interface).
-    pub stabilization_factor: f64,
-}
-
-impl Default for NitscheParams {
-    fn default() -> Self {
-        NitscheParams {
-            stabilization_factor: 2.0,
-        }
-    }
-}
-
-/// What [`NitscheInterface::new`] chose.
-#[derive(Clone, Copy, Debug, PartialEq)]
-pub struct NitscheReport {
-    /// Interface samples.
-    pub samples: usize,
-    /// Total interface area Σ a_s (m²).
-    pub area: f64,
-    /// C, the reduced trace bound (Pa/m).
-    pub bound: f64,
-    /// β = 2 s C (Pa/m).
-    pub stabilization: f64,
-}
-
-/// The interface could not be set up.
-#[derive(Debug, Error)]
-pub enum NitscheError {
-    /// No interface sample was given.
-    #[error("a Nitsche interface needs at least one sample")]
-    NoSamples,
-    /// Samples, areas and normals differ in number.
-    #[error("{samples} interface samples, {areas} areas and {normals} normals: one each")]
-    LengthMismatch {
-        /// Samples given.
-        samples: usize,
-        /// Areas given.
-        areas: usize,
-        /// Normals given.
-        normals: usize,
-    },
-    /// A sample's area is not finite and positive, or its normal not a finite unit vector.
-    #[error("interface sample {index}: area {area} m² and normal {normal:?} (need a > 0, |N| = 1)")]
-    BadSample {
-        /// The sample's index.
-        index: usize,
-        /// Its area (m²).
-        area: f64,
-        /// Its normal.
-        normal: [f64; 3],
-    },
-    /// The stabilization factor is not finite and positive.
-    #[error("the Nitsche stabilization factor must be finite and positive, got {0}")]
-    Params(f64),
-    /// The rest stiffness is not square of the reduced coordinates' size.
-    #[error("the rest stiffness is {rows} × {cols}, expected {expected} square")]
-    StiffnessShape {
-        /// Its rows.
-        rows: usize,
-        /// Its columns.
-        cols: usize,
-        /// 12(m + 1).
-        expected: usize,
-    },
-    /// The rest stiffness has no positive eigenvalue (no deformable handle).
-    #[error("the rest stiffness has no positive eigenvalue: nothing to bound the traction by")]
-    NoStiffness,
-    /// The basis cannot be evaluated at the samples.
-    #[error("the basis at the interface samples: {0}")]
-    Map(#[from] DeformationMapError),
-}
 
 /// The term [`E_N`](self) of one interface: its samples' map, areas, normals, material and
 /// targets, and β.
@@ -122,13 +52,17 @@ pub struct NitscheInterface<M> {
     material: M,
     target: PinTarget,
     stabilization: f64,
+    /// The body's projected pressure, when it has one.
+    pressure: Option<InterfacePressure>,
 }
 
-/// A sample's state at z: the gap `d = x − g` (m), F and the material's stress and tangent.
+/// A sample's state at z: the gap `d = x − g` (m), F, the stress (the body's) and with a
+/// projected pressure its shift `κ (p − (J − γ))` (Pa).
 struct SampleState {
     gap: Vector3<f64>,
     f: Matrix3<f64>,
     stress: Matrix3<f64>,
+    shift: f64,
 }
 
 impl<M: HyperelasticMaterial> NitscheInterface<M> {
@@ -179,6 +113,108 @@ impl<M: HyperelasticMaterial> NitscheInterface<M> {
             return Err(NitscheError::Params(s));
         }
         let map = DeformationMap::new(basis, samples)?;
+        NitscheInterface::build(
+            map,
+            areas,
+            normals,
+            material,
+            lame,
+            target,
+            None,
+            rest_stiffness,
+            s,
+        )
+    }
+
+    /// The interface of [`NitscheInterface::new`] on a body `model` (its material, and K₀ its
+    /// rest elastic Hessian), with the traction of the body's projected stress when the model
+    /// has a projected dilatation: `pressure_values` are then the pressure functions at the
+    /// samples (S × P, the same space the model was given, e.g. `PressureSpace::values`).
+    ///
+    /// # Errors
+    /// As [`NitscheInterface::new`], and [`NitscheError::PressureValues`] for values missing on
+    /// a model with a projected dilatation, given to one without, or of the wrong shape.
+    #[allow(clippy::too_many_arguments)]
+    pub fn on_model<B: SkinningField + ?Sized>(
+        basis: &B,
+        model: &ReducedModel<M>,
+        samples: &[Vector3<f64>],
+        areas: &[f64],
+        normals: &[Vector3<f64>],
+        lame: LameParameters,
+        target: PinTarget,
+        pressure_values: Option<&DMatrix<f64>>,
+        params: &NitscheParams,
+    ) -> Result<(Self, NitscheReport), NitscheError>
+    where
+        M: Clone,
+    {
+        let pressure = match (model.dilatation(), pressure_values) {
+            (None, None) => None,
+            (Some(_), Some(values)) if values.nrows() == samples.len() => {
+                Some(InterfacePressure::new(model, values, &lame)?)
+            }
+            (dilatation, values) => {
+                return Err(NitscheError::PressureValues {
+                    rows: values.map_or(0, |v| v.nrows()),
+                    functions: values.map_or(0, |v| v.ncols()),
+                    expected: dilatation.map_or(0, |d| d.functions()),
+                });
+            }
+        };
+        let rest = model.elastic_hessian(
+            &vec![0.0; model.deformation_map().layout().len()],
+            Tangent::Exact,
+        );
+        let (interface, report) = NitscheInterface::new(
+            basis,
+            samples,
+            areas,
+            normals,
+            model.material().clone(),
+            lame,
+            target,
+            rest.as_ref(),
+            params,
+        )?;
+        if pressure.is_none() {
+            return Ok((interface, report));
+        }
+        let NitscheInterface {
+            map,
+            areas,
+            normals,
+            lame,
+            material,
+            target,
+            ..
+        } = interface;
+        NitscheInterface::build(
+            map,
+            &areas,
+            &normals,
+            material,
+            lame,
+            target,
+            pressure,
+            rest.as_ref(),
+            params.stabilization_factor,
+        )
+    }
+
+    /// The interface with β from K₀ = `rest_stiffness` (validated inputs).
+    #[allow(clippy::too_many_arguments)]
+    fn build(
+        map: DeformationMap,
+        areas: &[f64],
+        normals: &[Vector3<f64>],
+        material: M,
+        lame: LameParameters,
+        target: PinTarget,
+        pressure: Option<InterfacePressure>,
+        rest_stiffness: MatRef<'_, f64>,
+        s: f64,
+    ) -> Result<(Self, NitscheReport), NitscheError> {
         let len = map.layout().len();
         if rest_stiffness.nrows() != len || rest_stiffness.ncols() != len {
             return Err(NitscheError::StiffnessShape {
@@ -195,11 +231,12 @@ impl<M: HyperelasticMaterial> NitscheInterface<M> {
             material,
             target,
             stabilization: 0.0,
+            pressure,
         };
         let bound = interface.trace_bound(rest_stiffness)?;
         interface.stabilization = 2.0 * s * bound;
         let report = NitscheReport {
-            samples: samples.len(),
+            samples: areas.len(),
             area: areas.iter().sum(),
             bound,
             stabilization: interface.stabilization,
@@ -226,12 +263,31 @@ impl<M: HyperelasticMaterial> NitscheInterface<M> {
     /// C of the module docs: the rest traction operators' Gram over K₀ on K₀'s range.
     fn trace_bound(&self, rest_stiffness: MatRef<'_, f64>) -> Result<f64, NitscheError> {
         let len = self.map.layout().len();
-        let tangent = self
-            .material
-            .stress_derivative(&self.lame, &Matrix3::identity());
+        let rest = vec![0.0; len];
+        let pressure = self.pressure.as_ref().map(|p| {
+            let state = p.state(&rest);
+            (p, p.coefficient_jacobian(&state))
+        });
+        let identity = Matrix3::identity();
+        let tangent = self.stress_tangent(&identity, 0.0, Tangent::Exact);
         let mut traction_gram = Mat::<f64>::zeros(len, len);
         for s in 0..self.areas.len() {
-            let t = self.traction_operator(s, &tangent);
+            let mut t = self.traction_operator(s, &tangent);
+            if let Some((p, jacobian)) = &pressure {
+                // + κ N q_sᵀ ∂p̂/∂z (cof I = I).
+                let q = p.sample_row(s);
+                let n = self.normals[s];
+                for i in 0..3 {
+                    for col in 0..len {
+                        let dp: f64 = q
+                            .iter()
+                            .enumerate()
+                            .map(|(a, v)| v * jacobian[(a, col)])
+                            .sum();
+                        t[(i, col)] += p.modulus() * n[i] * dp;
+                    }
+                }
+            }
             faer::linalg::matmul::matmul(
                 traction_gram.as_mut(),
                 faer::Accum::Add,
@@ -264,22 +320,49 @@ impl<M: HyperelasticMaterial> NitscheInterface<M> {
         })
     }
 
-    /// Every sample's gap, F and stress at `at`.
-    fn states(&self, at: &TermPoint<'_>) -> Vec<SampleState> {
+    /// `∂P̃/∂F` at F with the projected stress's `shift` (the material's tangent without a
+    /// projected pressure), as `tangent` asks (only [`Tangent::Exact`] is used here).
+    fn stress_tangent(&self, f: &Matrix3<f64>, shift: f64, tangent: Tangent) -> Matrix9 {
+        let exact = self.material.stress_derivative(&self.lame, f);
+        match &self.pressure {
+            None => exact,
+            Some(p) => crate::model::projected_dilatation::ProjectedDilatation::shifted_tangent(
+                &exact,
+                f,
+                p.modulus(),
+                shift,
+                tangent,
+            ),
+        }
+    }
+
+    /// Every sample's gap, F and stress at `at`, and the body's projection there if any.
+    fn states(&self, at: &TermPoint<'_>) -> (Vec<SampleState>, Option<PressureState>) {
         let positions = self.map.positions(at.z);
         let gradients = self.map.deformation_gradients(at.z);
         let rest = self.map.rest_positions();
         let time = at.time;
-        positions
+        let pressure = self.pressure.as_ref().map(|p| p.state(at.z));
+        let states = positions
             .par_iter()
             .zip(&gradients)
             .zip(rest)
-            .map(|((x, f), x0)| SampleState {
-                gap: x - self.target.at(x0, time),
-                f: *f,
-                stress: self.material.first_piola_kirchhoff(&self.lame, f),
+            .enumerate()
+            .map(|(s, ((x, f), x0))| {
+                let material = self.material.first_piola_kirchhoff(&self.lame, f);
+                let shift = match (&self.pressure, &pressure) {
+                    (Some(p), Some(state)) => p.shift(state, s, f),
+                    _ => 0.0,
+                };
+                SampleState {
+                    gap: x - self.target.at(x0, time),
+                    f: *f,
+                    stress: material + hyperelastic::cofactor(f) * shift,
+                    shift,
+                }
             })
-            .collect()
+            .collect();
+        (states, pressure)
     }
 }
 
@@ -292,6 +375,7 @@ impl<M: HyperelasticMaterial> StepTerm for NitscheInterface<M> {
         let beta = self.stabilization;
         *energy += self
             .states(at)
+            .0
             .iter()
             .zip(&self.areas)
             .zip(&self.normals)
@@ -301,9 +385,11 @@ impl<M: HyperelasticMaterial> StepTerm for NitscheInterface<M> {
             .sum::<f64>();
     }
 
-    /// The Hessian's term `−a J_Fᵀ (∂A/∂F[d Nᵀ]) J_F`, proportional to the gap d (it vanishes
-    /// where the targets are met), is added with [`Tangent::Exact`] only, by a central
-    /// difference of the tangent along `d Nᵀ`; the other tangents leave it out.
+    /// The Hessian's terms proportional to the gap d (they vanish where the targets are met)
+    /// are added with [`Tangent::Exact`] only: without a projected pressure the term
+    /// `−a J_Fᵀ (∂A/∂F[d Nᵀ]) J_F`, by a central difference of the tangent along `d Nᵀ`; with
+    /// one, the whole Hessian is then central differences of the gradient (step 1e-6 in z). The
+    /// other tangents leave them out.
     fn add_derivatives(
         &self,
         at: &TermPoint<'_>,
@@ -311,10 +397,35 @@ impl<M: HyperelasticMaterial> StepTerm for NitscheInterface<M> {
         gradient: &mut [f64],
         hessian: Option<&mut Mat<f64>>,
     ) {
+        match hessian {
+            Some(h) if tangent == Tangent::Exact && self.pressure.is_some() => {
+                self.add_differenced_hessian(at, h);
+                self.add_gradient_and_tangent(at, gradient, None, false);
+            }
+            hessian => {
+                self.add_gradient_and_tangent(at, gradient, hessian, tangent == Tangent::Exact)
+            }
+        }
+    }
+}
+
+impl<M: HyperelasticMaterial> NitscheInterface<M> {
+    /// Adds the gradient and, when asked, the Hessian without the gap's terms (with the
+    /// tangent's derivative along the gap when `third`; no projected pressure then).
+    fn add_gradient_and_tangent(
+        &self,
+        at: &TermPoint<'_>,
+        gradient: &mut [f64],
+        mut hessian: Option<&mut Mat<f64>>,
+        third: bool,
+    ) {
         let n4 = self.map.layout().block_len();
         let beta = self.stabilization;
-        let states = self.states(at);
-        let mut hessian = hessian;
+        let (states, projection) = self.states(at);
+        let functions = projection.as_ref().map_or(0, |p| p.coefficients.len());
+        // c = Σ_s a κ (cof F N · d) q_s, and U = Σ_s a κ J_xᵀ (cof F N) q_sᵀ (dof × P).
+        let mut c = vec![0.0; functions];
+        let mut u = Mat::<f64>::zeros(if hessian.is_some() { 3 * n4 } else { 0 }, functions);
         // Per sample, U_s = [b_s, G_s] (n4 × 4) and, per axis pair (r, r'), the 4 × 4 weights
         // W with H_{rr'} = Σ_s U_s W U_sᵀ.
         for (s, state) in states.iter().enumerate() {
@@ -323,8 +434,8 @@ impl<M: HyperelasticMaterial> StepTerm for NitscheInterface<M> {
             let b = self.map.position_row(s);
             let g = self.map.gradient_block(s);
             let traction = state.stress * n;
-            let a_tensor = self.material.stress_derivative(&self.lame, &state.f);
-            // ∂/∂vec(F) of −d·(P N) is −A vec(d Nᵀ) (A symmetric).
+            let a_tensor = self.stress_tangent(&state.f, state.shift, Tangent::Exact);
+            // ∂/∂vec(F) of −d·(P̃ N) at fixed pressure is −Ã vec(d Nᵀ) (Ã symmetric).
             let dn = state.gap * n.transpose();
             let dn_vec = nalgebra::SVector::<f64, 9>::from_column_slice(dn.as_slice());
             let stress_like = -(a_tensor * dn_vec);
@@ -339,12 +450,28 @@ impl<M: HyperelasticMaterial> StepTerm for NitscheInterface<M> {
                     block[k] += a * value;
                 }
             }
+            let pressure = self.pressure.as_ref().map(|p| {
+                let cn = hyperelastic::cofactor(&state.f) * n;
+                (p.sample_row(s), a * p.modulus() * cn)
+            });
+            if let Some((q, scaled)) = &pressure {
+                let along = scaled.dot(&state.gap);
+                c.iter_mut().zip(*q).for_each(|(c, q)| *c += along * q);
+            }
             let Some(h) = hessian.as_deref_mut() else {
                 continue;
             };
+            if let Some((q, scaled)) = &pressure {
+                for r in 0..3 {
+                    for k in 0..n4 {
+                        for (col, q) in q.iter().enumerate() {
+                            u[(r * n4 + k, col)] += scaled[r] * b[k] * q;
+                        }
+                    }
+                }
+            }
             let cross = self.traction_tangent(s, &a_tensor);
-            let third = (tangent == Tangent::Exact && dn.norm() > 0.0)
-                .then(|| self.tangent_derivative(&state.f, &dn));
+            let third = (third && dn.norm() > 0.0).then(|| self.tangent_derivative(&state.f, &dn));
             for r in 0..3 {
                 for rr in 0..3 {
                     let mut w = [[0.0; 4]; 4];
@@ -362,6 +489,48 @@ impl<M: HyperelasticMaterial> StepTerm for NitscheInterface<M> {
                     }
                     add_sample_block(h, r * n4, rr * n4, b, g, n4, &w);
                 }
+            }
+        }
+        let (Some(p), Some(projection)) = (&self.pressure, &projection) else {
+            return;
+        };
+        // −(∂p̂/∂z)ᵀ c, and −(U ∂p̂/∂z + its transpose).
+        let minus_c: Vec<f64> = c.iter().map(|c| -c).collect();
+        p.add_pullback(projection, &minus_c, gradient);
+        if let Some(h) = hessian {
+            let coupling = &u * p.coefficient_jacobian(projection);
+            let len = coupling.nrows();
+            for j in 0..len {
+                for i in 0..len {
+                    h[(i, j)] -= coupling[(i, j)] + coupling[(j, i)];
+                }
+            }
+        }
+    }
+
+    /// Adds central differences of the gradient (step 1e-6 in every z), symmetrized.
+    fn add_differenced_hessian(&self, at: &TermPoint<'_>, h: &mut Mat<f64>) {
+        let len = at.z.len();
+        let step = 1e-6;
+        let columns: Vec<Vec<f64>> = (0..len)
+            .map(|k| {
+                let gradient_at = |delta: f64| {
+                    let mut z = at.z.to_vec();
+                    z[k] += delta;
+                    let mut g = vec![0.0; len];
+                    self.add_gradient_and_tangent(&at.at(&z), &mut g, None, false);
+                    g
+                };
+                let (plus, minus) = (gradient_at(step), gradient_at(-step));
+                plus.iter()
+                    .zip(&minus)
+                    .map(|(p, m)| (p - m) / (2.0 * step))
+                    .collect()
+            })
+            .collect();
+        for j in 0..len {
+            for i in 0..len {
+                h[(i, j)] += 0.5 * (columns[j][i] + columns[i][j]);
             }
         }
     }

@@ -1,10 +1,11 @@
 use std::sync::Arc;
 
 use hyperelastic::{MaterialSample, StableNeoHookean};
-use nalgebra::Rotation3;
+use nalgebra::{DMatrix, Rotation3};
 
 use super::*;
 use crate::model::analytic_field::{AnalyticField, analytic_model, probe_z};
+use crate::model::reduced_model::ReducedModel;
 use crate::terms::scene_terms::term_point;
 use crate::terms::term_check::{TermCheckParams, check_term};
 
@@ -259,4 +260,167 @@ fn nitsche_interfaces_reject_bad_samples_by_name() {
         build(&nan, &[1.0], &n, 2.0),
         Err(NitscheError::Map(_))
     ));
+}
+
+/// The pressure functions `[1, x, y, z, x²]` at `x` (N × 5).
+fn pressure_functions(x: &[Vector3<f64>]) -> DMatrix<f64> {
+    DMatrix::from_fn(x.len(), 5, |i, b| match b {
+        0 => 1.0,
+        4 => x[i].x * x[i].x,
+        _ => x[i][b - 1],
+    })
+}
+
+/// The analytic model with a projected dilatation over [`pressure_functions`].
+fn projected_model() -> ReducedModel<StableNeoHookean> {
+    let (model, points) = analytic_model();
+    model
+        .with_projected_dilatation(
+            pressure_functions(points.positions()),
+            crate::ProjectedDilatationParams::default(),
+        )
+        .unwrap()
+}
+
+fn projected_interface(
+    model: &ReducedModel<StableNeoHookean>,
+    x_face: f64,
+    target: PinTarget,
+) -> NitscheInterface<StableNeoHookean> {
+    let (samples, areas, normals) = face(x_face, 8);
+    NitscheInterface::on_model(
+        &AnalyticField,
+        model,
+        &samples,
+        &areas,
+        &normals,
+        lame(),
+        target,
+        Some(&pressure_functions(&samples)),
+        &NitscheParams::default(),
+    )
+    .unwrap()
+    .0
+}
+
+#[test]
+fn with_a_projected_pressure_the_gradient_matches_central_differences_of_the_energy() {
+    let model = projected_model();
+    let turn = PinTarget::Moving(Arc::new(|x: &Vector3<f64>, t: f64| {
+        Rotation3::from_axis_angle(&Vector3::x_axis(), 0.3 * t) * x
+    }));
+    let term = projected_interface(&model, 0.0, turn);
+    let z = probe_z(model.deformation_map().layout().len(), 0.02);
+    let check = check_term(
+        &term,
+        &term_point(&model, &z, 0.5),
+        &TermCheckParams::default(),
+    )
+    .unwrap();
+    assert!(check.gradient_error < 1e-6, "{check:?}");
+}
+
+#[test]
+fn with_a_projected_pressure_the_tangent_where_the_targets_are_met_is_the_exact_hessian() {
+    // Targets where z puts the samples: the gap and the terms the tangent leaves out vanish,
+    // so it must equal the Hessian by central differences of the gradient.
+    let model = projected_model();
+    let len = model.deformation_map().layout().len();
+    let z = probe_z(len, 0.02);
+    let (samples, _, _) = face(0.0, 8);
+    let placed: Vec<(Vector3<f64>, Vector3<f64>)> = samples
+        .iter()
+        .copied()
+        .zip(
+            DeformationMap::new(&AnalyticField, &samples)
+                .unwrap()
+                .positions(&z),
+        )
+        .collect();
+    let met = PinTarget::Moving(Arc::new(move |x: &Vector3<f64>, _| {
+        placed
+            .iter()
+            .find(|(rest, _)| rest == x)
+            .map_or(*x, |(_, at)| *at)
+    }));
+    let term = projected_interface(&model, 0.0, met);
+    let at = term_point(&model, &z, 0.0);
+    assert!(term.max_gap(&z, 0.0) < 1e-12);
+    let hessian_with = |tangent| {
+        let mut gradient = vec![0.0; len];
+        let mut h = Mat::zeros(len, len);
+        term.add_derivatives(&at, tangent, &mut gradient, Some(&mut h));
+        h
+    };
+    let exact = hessian_with(Tangent::Exact);
+    let tangent = hessian_with(Tangent::ProjectedPsd);
+    let error = (&exact - &tangent).norm_max() / exact.norm_max();
+    assert!(error < 1e-6, "relative difference {error:e}");
+}
+
+#[test]
+fn with_a_projected_pressure_an_exact_stretch_held_at_both_ends_leaves_no_residual() {
+    let model = projected_model();
+    let f = uniaxial(1.05);
+    let stretched = PinTarget::Moving(Arc::new(move |x: &Vector3<f64>, _| f * x));
+    let left = projected_interface(&model, 0.0, stretched.clone());
+    let right = projected_interface(&model, 2.0, stretched);
+    let n4 = model.deformation_map().layout().block_len();
+    let mut z = vec![0.0; model.deformation_map().layout().len()];
+    for r in 0..3 {
+        for c in 0..3 {
+            z[r * n4 + c] = f[(r, c)] - if r == c { 1.0 } else { 0.0 };
+        }
+    }
+    let elastic = model.elastic_gradient(&z);
+    let mut total = elastic.clone();
+    let at = term_point(&model, &z, 0.0);
+    left.add_derivatives(&at, Tangent::ProjectedPsd, &mut total, None);
+    right.add_derivatives(&at, Tangent::ProjectedPsd, &mut total, None);
+    let constant_handle: Vec<usize> = (0..3)
+        .flat_map(|r| (0..4).map(move |c| r * n4 + c))
+        .collect();
+    let largest = |g: &[f64]| {
+        constant_handle
+            .iter()
+            .map(|&i| g[i].abs())
+            .fold(0.0, f64::max)
+    };
+    assert!(largest(&elastic) > 1e3);
+    assert!(
+        largest(&total) < 1e-9 * largest(&elastic),
+        "{} of {}",
+        largest(&total),
+        largest(&elastic)
+    );
+}
+
+#[test]
+fn pressure_values_must_match_the_models_projection() {
+    let model = projected_model();
+    let (samples, areas, normals) = face(0.0, 2);
+    let build = |values: Option<&DMatrix<f64>>| {
+        NitscheInterface::on_model(
+            &AnalyticField,
+            &model,
+            &samples,
+            &areas,
+            &normals,
+            lame(),
+            PinTarget::Rest,
+            values,
+            &NitscheParams::default(),
+        )
+        .map(|_| ())
+    };
+    assert!(matches!(
+        build(None),
+        Err(NitscheError::PressureValues { expected: 5, .. })
+    ));
+    let too_few = DMatrix::zeros(4, 3);
+    assert!(matches!(
+        build(Some(&too_few)),
+        Err(NitscheError::PressureValues { functions: 3, .. })
+    ));
+    assert!(build(Some(&pressure_functions(&samples))).is_ok());
 }
