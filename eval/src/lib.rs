@@ -143,8 +143,8 @@ pub enum EvalError {
     /// A Nitsche interface of the convergence study could not be set up.
     #[error("the Nitsche interface")]
     Nitsche(#[from] reduced_sim::NitscheError),
-    /// The convergence study's Nitsche rows hold half-space regions at rest only.
-    #[error("Nitsche is built for half-space regions held at rest, not {0}")]
+    /// The convergence study's Nitsche rows hold half-space regions only.
+    #[error("the convergence study holds half-space regions by Nitsche, not {0}")]
     NitscheRegion(String),
     /// A best-approximation projection of the convergence study could not be solved.
     #[error("projection onto the subspace: {0}")]
