@@ -55,12 +55,14 @@ pub fn convergence_table(config: &ConvergenceConfig, study: &ConvergenceStudy) -
                         match row {
                             Some(r) if r.failure.is_none() => {
                                 if test == ConvergenceTest::StaticBend {
+                                    let best = r
+                                        .best_energy
+                                        .map_or("not computed".to_string(), |e| format!("{e:.2e}"));
                                     let _ = write!(
                                         md,
-                                        " {:.3e} ({:+.2}%; best E {:.2e}) |",
+                                        " {:.3e} ({:+.2}%; best E {best}) |",
                                         r.mse,
                                         100.0 * r.tip_ratio,
-                                        r.best_energy.unwrap_or(f64::NAN)
                                     );
                                 } else {
                                     let _ = write!(md, " {:.3e} |", r.mse);
