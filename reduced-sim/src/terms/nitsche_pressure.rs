@@ -155,21 +155,18 @@ impl InterfacePressure {
         let n4 = self.elastic_map.layout().block_len();
         let points = state.gradients.len();
         let p = self.dilatation.functions();
-        // V (N_e × dof), row q = v_q; Q_w (N_e × P), row q = w κ q(X_q).
-        let mut v = Mat::<f64>::zeros(points, 3 * n4);
-        for q in 0..points {
-            let mut row = vec![0.0; 3 * n4];
+        // V (N_e × dof, row-major), row q = v_q; Q_w (N_e × P), row q = w κ q(X_q).
+        let mut v = vec![0.0; points * 3 * n4];
+        v.par_chunks_mut(3 * n4).enumerate().for_each(|(q, row)| {
             add_cofactor_row(
-                &mut row,
+                row,
                 &state.gradients[q],
                 self.elastic_map.gradient_block(q),
                 n4,
                 1.0,
-            );
-            for (j, x) in row.into_iter().enumerate() {
-                v[(q, j)] = x;
-            }
-        }
+            )
+        });
+        let v = MatRef::from_row_major_slice(&v, points, 3 * n4);
         let weighted = Mat::<f64>::from_fn(points, p, |q, a| {
             self.dilatation.weighted_modulus(q) * self.dilatation.pressure_row(q)[a]
         });
@@ -178,7 +175,7 @@ impl InterfacePressure {
             r.as_mut(),
             Accum::Replace,
             weighted.transpose(),
-            v.as_ref(),
+            v,
             1.0,
             Par::rayon(0),
         );

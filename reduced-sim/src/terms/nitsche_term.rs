@@ -25,7 +25,7 @@
 //! the whole body.
 //! Nitsche, 1971; as an energy for hyperelasticity and with β from a generalized eigenvalue
 //! bound as in Griebel and Schweitzer's particle-partition of unity method; design notes in
-//! `docs/design.md` ("Held regions").
+//! `docs/design.md` §6.2.
 
 use faer::{Mat, MatRef};
 use hyperelastic::{HyperelasticMaterial, LameParameters, Matrix9, Tangent};
@@ -428,6 +428,7 @@ impl<M: HyperelasticMaterial> NitscheInterface<M> {
         let mut u = Mat::<f64>::zeros(if hessian.is_some() { 3 * n4 } else { 0 }, functions);
         // Per sample, U_s = [b_s, G_s] (n4 × 4) and, per axis pair (r, r'), the 4 × 4 weights
         // W with H_{rr'} = Σ_s U_s W U_sᵀ.
+        let mut weights: Vec<[[[f64; 4]; 4]; 9]> = Vec::new();
         for (s, state) in states.iter().enumerate() {
             let a = self.areas[s];
             let n = self.normals[s];
@@ -458,9 +459,9 @@ impl<M: HyperelasticMaterial> NitscheInterface<M> {
                 let along = scaled.dot(&state.gap);
                 c.iter_mut().zip(*q).for_each(|(c, q)| *c += along * q);
             }
-            let Some(h) = hessian.as_deref_mut() else {
+            if hessian.is_none() {
                 continue;
-            };
+            }
             if let Some((q, scaled)) = &pressure {
                 for r in 0..3 {
                     for k in 0..n4 {
@@ -472,9 +473,10 @@ impl<M: HyperelasticMaterial> NitscheInterface<M> {
             }
             let cross = self.traction_tangent(s, &a_tensor);
             let third = (third && dn.norm() > 0.0).then(|| self.tangent_derivative(&state.f, &dn));
+            let mut sample_weights = [[[0.0; 4]; 4]; 9];
             for r in 0..3 {
                 for rr in 0..3 {
-                    let mut w = [[0.0; 4]; 4];
+                    let w = &mut sample_weights[3 * r + rr];
                     if r == rr {
                         w[0][0] = a * beta;
                     }
@@ -487,9 +489,12 @@ impl<M: HyperelasticMaterial> NitscheInterface<M> {
                             }
                         }
                     }
-                    add_sample_block(h, r * n4, rr * n4, b, g, n4, &w);
                 }
             }
+            weights.push(sample_weights);
+        }
+        if let Some(h) = hessian.as_deref_mut() {
+            add_sample_blocks(h, &self.map, &weights);
         }
         let (Some(p), Some(projection)) = (&self.pressure, &projection) else {
             return;
@@ -550,26 +555,35 @@ impl<M: HyperelasticMaterial> NitscheInterface<M> {
     }
 }
 
-/// Adds `U W Uᵀ` to the `n4` square block of `h` at (`row`, `col`), `U = [b, G]` (`n4 × 4`,
-/// G column-major `n4 × 3`).
-fn add_sample_block(
-    h: &mut Mat<f64>,
-    row: usize,
-    col: usize,
-    b: &[f64],
-    g: &[f64],
-    n4: usize,
-    w: &[[f64; 4]; 4],
-) {
-    let u = |k: usize, p: usize| if p == 0 { b[k] } else { g[(p - 1) * n4 + k] };
-    for j in 0..n4 {
-        // (W Uᵀ)[:, j]
-        let wu: [f64; 4] = std::array::from_fn(|p| (0..4).map(|q| w[p][q] * u(j, q)).sum());
-        if wu.iter().all(|x| *x == 0.0) {
-            continue;
+/// Adds `Σ_s U_s W_s^{rr'} U_sᵀ` to every `n4` square block (r, r') of `h`, `U_s = [b_s, G_s]`
+/// (`n4 × 4`) at the samples of `map` and `weights[s][3r + r']` the 4 × 4 W: per block one
+/// product `Y Xᵀ`, X = [U_1 … U_S], Y = [U_1 W_1 … U_S W_S].
+fn add_sample_blocks(h: &mut Mat<f64>, map: &DeformationMap, weights: &[[[[f64; 4]; 4]; 9]]) {
+    let n4 = map.layout().block_len();
+    let samples = weights.len();
+    let u = |s: usize, k: usize, p: usize| {
+        if p == 0 {
+            map.position_row(s)[k]
+        } else {
+            map.gradient_block(s)[(p - 1) * n4 + k]
         }
-        for i in 0..n4 {
-            h[(row + i, col + j)] += (0..4).map(|p| u(i, p) * wu[p]).sum::<f64>();
+    };
+    let x = Mat::<f64>::from_fn(n4, 4 * samples, |k, col| u(col / 4, k, col % 4));
+    for r in 0..3 {
+        for rr in 0..3 {
+            let y = Mat::<f64>::from_fn(n4, 4 * samples, |k, col| {
+                let (s, q) = (col / 4, col % 4);
+                let w = &weights[s][3 * r + rr];
+                (0..4).map(|p| x[(k, 4 * s + p)] * w[p][q]).sum()
+            });
+            faer::linalg::matmul::matmul(
+                h.submatrix_mut(r * n4, rr * n4, n4, n4),
+                faer::Accum::Add,
+                y.as_ref(),
+                x.transpose(),
+                1.0,
+                faer::Par::rayon(0),
+            );
         }
     }
 }
