@@ -5,7 +5,7 @@ use std::fmt::Write as _;
 use crate::convergence::POOL_TOLERANCE;
 use crate::convergence::config::ConvergenceConfig;
 use crate::convergence::options::{BoundaryTreatment, ConvergenceTest, VolumetricTerm};
-use crate::convergence::result::ConvergenceStudy;
+use crate::convergence::result::{ConvergenceRow, ConvergenceStudy};
 
 /// The study as Markdown: per (test, ν, K), MSE against m for every treatment (and the static
 /// projections), then the coarse FEM points.
@@ -52,25 +52,7 @@ pub fn convergence_table(config: &ConvergenceConfig, study: &ConvergenceStudy) -
                                 && r.treatment == t
                                 && r.volumetric == v
                         });
-                        match row {
-                            Some(r) if r.failure.is_none() => {
-                                if test == ConvergenceTest::StaticBend {
-                                    let best = r
-                                        .best_energy
-                                        .map_or("not computed".to_string(), |e| format!("{e:.2e}"));
-                                    let _ = write!(
-                                        md,
-                                        " {:.3e} ({:+.2}%; best E {best}) |",
-                                        r.mse,
-                                        100.0 * r.tip_ratio,
-                                    );
-                                } else {
-                                    let _ = write!(md, " {:.3e} |", r.mse);
-                                }
-                            }
-                            Some(_) => md += " failed |",
-                            None => md += " — |",
-                        }
+                        md += &cell(row);
                     }
                     md += "\n";
                 }
@@ -129,4 +111,27 @@ pub fn convergence_table(config: &ConvergenceConfig, study: &ConvergenceStudy) -
         }
     }
     md
+}
+
+/// A row's cell: its MSE, and for the static test its tip error and the energy projection's
+/// MSE; "failed" or "—" (not run).
+fn cell(row: Option<&ConvergenceRow>) -> String {
+    match row {
+        Some(r) if r.failure.is_none() => {
+            if r.test == ConvergenceTest::StaticBend {
+                let best = r
+                    .best_energy
+                    .map_or("not computed".to_string(), |e| format!("{e:.2e}"));
+                format!(
+                    " {:.3e} ({:+.2}%; best E {best}) |",
+                    r.mse,
+                    100.0 * r.tip_ratio
+                )
+            } else {
+                format!(" {:.3e} |", r.mse)
+            }
+        }
+        Some(_) => " failed |".to_string(),
+        None => " — |".to_string(),
+    }
 }
