@@ -18,7 +18,7 @@ use crate::beam_scenario::{
     BEAM_MAX, BEAM_MIN, BEAM_TIME_STEP, BeamTest, beam_basis_grid, beam_grid_spacing,
 };
 use crate::convergence::result::ConvergenceRow;
-use crate::convergence::static_reference::{StaticReference, field_errors};
+use crate::convergence::static_reference::StaticReference;
 use crate::reduced_settings::ReducedSettings;
 
 /// `scene` without its constraints: the free part's own scene (gravity and the rest kept).
@@ -314,13 +314,7 @@ pub(crate) fn nitsche_static_row(
         .zip(&reference.nodes)
         .map(|(x, x0)| x - x0)
         .collect();
-    let (mse, relative) = field_errors(&ours, &reference.displacements);
-    row.mse = mse;
-    row.relative_error = relative;
-    let tip = reference.tip;
-    let exact_tip = reference.displacements[tip];
-    row.tip_error = (ours[tip] - exact_tip).norm() / exact_tip.norm();
-    row.tip_ratio = ours[tip].y / exact_tip.y - 1.0;
+    row.score_static(&ours, reference);
     row.held_drift = interfaces.iter().map(|i| i.gap(z, 0.0)).fold(0.0, f64::max);
     row.ms_per_step = 1e3 * seconds;
     Ok(())

@@ -7,7 +7,7 @@ use serde::{Deserialize, Serialize};
 
 use crate::EvalError;
 use crate::beam_scenario::beam_length_scale;
-use crate::convergence::static_reference::tip_index;
+use crate::convergence::static_reference::{StaticReference, field_errors, tip_index};
 
 use crate::convergence::options::{BoundaryTreatment, ConvergenceTest, VolumetricTerm};
 
@@ -59,6 +59,48 @@ pub struct ConvergenceRow {
 }
 
 impl ConvergenceRow {
+    /// A row of `test` at `nu` with `treatment` and `volumetric` before it is measured: NaN
+    /// scores, no failure, m, K and the pressure functions 0, not the default.
+    pub(crate) fn unmeasured(
+        test: ConvergenceTest,
+        nu: f64,
+        treatment: BoundaryTreatment,
+        volumetric: VolumetricTerm,
+    ) -> Self {
+        ConvergenceRow {
+            test,
+            nu,
+            m: 0,
+            kernels: 0,
+            treatment,
+            volumetric,
+            pressure_functions: 0,
+            default: false,
+            mse: f64::NAN,
+            relative_error: f64::NAN,
+            tip_error: f64::NAN,
+            tip_ratio: f64::NAN,
+            held_drift: f64::NAN,
+            ms_per_step: f64::NAN,
+            best_l2: None,
+            best_energy: None,
+            inf_sup: Vec::new(),
+            failure: None,
+        }
+    }
+
+    /// Scores the static displacements `ours` (m) at the reference's nodes: the MSE, the
+    /// relative error, the tip error and the tip's ratio.
+    pub(crate) fn score_static(&mut self, ours: &[Vector3<f64>], reference: &StaticReference) {
+        let (mse, relative) = field_errors(ours, &reference.displacements);
+        self.mse = mse;
+        self.relative_error = relative;
+        let tip = reference.tip;
+        let exact_tip = reference.displacements[tip];
+        self.tip_error = (ours[tip] - exact_tip).norm() / exact_tip.norm();
+        self.tip_ratio = ours[tip].y / exact_tip.y - 1.0;
+    }
+
     /// Scores `frames` (frame 0 the rest state) against the FEM's `reference` frames at its
     /// `vertices`: the MSE, the relative error and the tip error.
     ///

@@ -355,24 +355,11 @@ impl RowRun<'_> {
     /// A row of `test` at `nu` before it is measured (NaN scores, no failure).
     fn row(&self, test: ConvergenceTest, nu: f64) -> ConvergenceRow {
         ConvergenceRow {
-            test,
-            nu,
             m: self.m,
             kernels: self.kernels,
-            treatment: self.treatment,
-            volumetric: self.volumetric,
             pressure_functions: self.spaces.spaces.first().map_or(0, |(_, s)| s.functions()),
             default: self.treatment.is_library_default() && self.volumetric.is_library_default(),
-            mse: f64::NAN,
-            relative_error: f64::NAN,
-            tip_error: f64::NAN,
-            tip_ratio: f64::NAN,
-            held_drift: f64::NAN,
-            ms_per_step: f64::NAN,
-            best_l2: None,
-            best_energy: None,
-            inf_sup: Vec::new(),
-            failure: None,
+            ..ConvergenceRow::unmeasured(test, nu, self.treatment, self.volumetric)
         }
     }
 
@@ -543,13 +530,7 @@ pub(super) fn static_row(
     let equilibrium = static_equilibrium(&simulation, 0.0)?;
     let map = DeformationMap::new(basis, &reference.nodes).map_err(EvalError::OutputMap)?;
     let ours = map.displacements(&equilibrium.z);
-    let (mse, relative) = field_errors(&ours, &reference.displacements);
-    row.mse = mse;
-    row.relative_error = relative;
-    let tip = reference.tip;
-    let exact_tip = reference.displacements[tip];
-    row.tip_error = (ours[tip] - exact_tip).norm() / exact_tip.norm();
-    row.tip_ratio = ours[tip].y / exact_tip.y - 1.0;
+    row.score_static(&ours, reference);
     row.held_drift = scene
         .constraints
         .iter()

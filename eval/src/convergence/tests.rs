@@ -140,24 +140,14 @@ fn the_pool_check_compares_2m_eigenvalues_per_kernel_count_on_twice_the_points()
 /// A static row before it is measured.
 fn blank_row(treatment: super::BoundaryTreatment) -> super::ConvergenceRow {
     super::ConvergenceRow {
-        test: super::ConvergenceTest::StaticBend,
-        nu: beam_material().poisson_ratio,
         m: 6,
         kernels: 120,
-        treatment,
-        volumetric: super::VolumetricTerm::Pointwise,
-        pressure_functions: 0,
-        default: false,
-        mse: f64::NAN,
-        relative_error: f64::NAN,
-        tip_error: f64::NAN,
-        tip_ratio: f64::NAN,
-        held_drift: f64::NAN,
-        ms_per_step: f64::NAN,
-        best_l2: None,
-        best_energy: None,
-        inf_sup: Vec::new(),
-        failure: None,
+        ..super::ConvergenceRow::unmeasured(
+            super::ConvergenceTest::StaticBend,
+            beam_material().poisson_ratio,
+            treatment,
+            super::VolumetricTerm::Pointwise,
+        )
     }
 }
 
