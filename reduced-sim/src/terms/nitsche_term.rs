@@ -87,32 +87,7 @@ impl<M: HyperelasticMaterial> NitscheInterface<M> {
         rest_stiffness: MatRef<'_, f64>,
         params: &NitscheParams,
     ) -> Result<(Self, NitscheReport), NitscheError> {
-        if samples.is_empty() {
-            return Err(NitscheError::NoSamples);
-        }
-        if areas.len() != samples.len() || normals.len() != samples.len() {
-            return Err(NitscheError::LengthMismatch {
-                samples: samples.len(),
-                areas: areas.len(),
-                normals: normals.len(),
-            });
-        }
-        let bad = areas.iter().zip(normals).position(|(a, n)| {
-            !(a.is_finite() && *a > 0.0 && n.iter().all(|v| v.is_finite()))
-                || (n.norm() - 1.0).abs() > 1e-9
-        });
-        if let Some(index) = bad {
-            return Err(NitscheError::BadSample {
-                index,
-                area: areas[index],
-                normal: normals[index].into(),
-            });
-        }
-        let s = params.stabilization_factor;
-        if !(s.is_finite() && s > 0.0) {
-            return Err(NitscheError::Params(s));
-        }
-        let map = DeformationMap::new(basis, samples)?;
+        let map = checked_map(basis, samples, areas, normals, params)?;
         NitscheInterface::build(
             map,
             areas,
@@ -122,7 +97,7 @@ impl<M: HyperelasticMaterial> NitscheInterface<M> {
             target,
             None,
             rest_stiffness,
-            s,
+            params.stabilization_factor,
         )
     }
 
@@ -166,34 +141,12 @@ impl<M: HyperelasticMaterial> NitscheInterface<M> {
             &vec![0.0; model.deformation_map().layout().len()],
             Tangent::Exact,
         );
-        let (interface, report) = NitscheInterface::new(
-            basis,
-            samples,
+        let map = checked_map(basis, samples, areas, normals, params)?;
+        NitscheInterface::build(
+            map,
             areas,
             normals,
             model.material().clone(),
-            lame,
-            target,
-            rest.as_ref(),
-            params,
-        )?;
-        if pressure.is_none() {
-            return Ok((interface, report));
-        }
-        let NitscheInterface {
-            map,
-            areas,
-            normals,
-            lame,
-            material,
-            target,
-            ..
-        } = interface;
-        NitscheInterface::build(
-            map,
-            &areas,
-            &normals,
-            material,
             lame,
             target,
             pressure,
@@ -586,6 +539,42 @@ fn add_sample_blocks(h: &mut Mat<f64>, map: &DeformationMap, weights: &[[[[f64; 
             );
         }
     }
+}
+
+/// The basis at `samples` once the samples, areas, normals and factor are checked.
+fn checked_map<B: SkinningField + ?Sized>(
+    basis: &B,
+    samples: &[Vector3<f64>],
+    areas: &[f64],
+    normals: &[Vector3<f64>],
+    params: &NitscheParams,
+) -> Result<DeformationMap, NitscheError> {
+    if samples.is_empty() {
+        return Err(NitscheError::NoSamples);
+    }
+    if areas.len() != samples.len() || normals.len() != samples.len() {
+        return Err(NitscheError::LengthMismatch {
+            samples: samples.len(),
+            areas: areas.len(),
+            normals: normals.len(),
+        });
+    }
+    let bad = areas.iter().zip(normals).position(|(a, n)| {
+        !(a.is_finite() && *a > 0.0 && n.iter().all(|v| v.is_finite()))
+            || (n.norm() - 1.0).abs() > 1e-9
+    });
+    if let Some(index) = bad {
+        return Err(NitscheError::BadSample {
+            index,
+            area: areas[index],
+            normal: normals[index].into(),
+        });
+    }
+    let s = params.stabilization_factor;
+    if !(s.is_finite() && s > 0.0) {
+        return Err(NitscheError::Params(s));
+    }
+    Ok(DeformationMap::new(basis, samples)?)
 }
 
 #[cfg(test)]
