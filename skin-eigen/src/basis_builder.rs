@@ -1,7 +1,6 @@
 //! The whole basis construction ("training"): kernels → shape functions → 𝓜, H_w → eigen
 //! solve, timed per phase.
 
-use crate::generalized_eigen::solve_modes_keeping_first;
 use std::time::Instant;
 
 use hyperelastic::LameParameters;
@@ -14,7 +13,9 @@ use rkpm_core::{
 use serde::{Deserialize, Serialize};
 
 use crate::assembly::{AssemblyError, WeightSpaceMatrices, assemble_weight_space_matrices};
-use crate::generalized_eigen::{EigenError, EigenParams, EigenSolution, solve_skinning_modes};
+use crate::generalized_eigen::{
+    EigenError, EigenParams, EigenSolution, solve_modes_keeping_first, solve_skinning_modes,
+};
 use crate::region_constraints::{RegionConstraintParams, RegionError, solve_constrained_modes};
 use crate::skinning_basis::{BasisMetadata, SkinningBasis};
 use crate::sparse_assembly::{SparseWeightSpaceMatrices, assemble_sparse_weight_space_matrices};

@@ -230,13 +230,13 @@ impl<M: HyperelasticMaterial> NitscheInterface<M> {
                 // + κ N q_sᵀ ∂p̂/∂z (cof I = I).
                 let q = p.sample_row(s);
                 let n = self.normals[s];
-                for i in 0..3 {
-                    for col in 0..len {
-                        let dp: f64 = q
-                            .iter()
-                            .enumerate()
-                            .map(|(a, v)| v * jacobian[(a, col)])
-                            .sum();
+                for col in 0..len {
+                    let dp: f64 = q
+                        .iter()
+                        .enumerate()
+                        .map(|(a, v)| v * jacobian[(a, col)])
+                        .sum();
+                    for i in 0..3 {
                         t[(i, col)] += p.modulus() * n[i] * dp;
                     }
                 }
