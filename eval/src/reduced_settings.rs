@@ -8,7 +8,8 @@ use reduced_sim::{
     CubatureParams, HessianTangent, PenaltyParams, PinModulus, QuadratureRule, SimulationParams,
 };
 use rkpm_core::{
-    IntegrationPoints, RandomSamplingParams, TriangleMesh, sample_box_grid, sample_random,
+    IntegrationPoints, RandomSamplingParams, Reproduction, TriangleMesh, sample_box_grid,
+    sample_random,
 };
 use serde::{Deserialize, Serialize};
 use skin_eigen::BasisParams;
@@ -78,6 +79,10 @@ pub struct ReducedSettings {
         deserialize_with = "freeform::settings_vocabulary::pressure_or_pointwise"
     )]
     pub pressure: Option<PressureSpaceParams>,
+    /// The polynomials the basis's shape functions reproduce (default
+    /// [`Reproduction::Linear`], the paper's Eq. 7; written only when quadratic).
+    #[serde(default, skip_serializing_if = "Reproduction::is_linear")]
+    pub reproduction: Reproduction,
 }
 
 fn paper_tangent() -> HessianTangent {
@@ -294,11 +299,14 @@ impl ReducedSettings {
         }
     }
 
-    /// The basis builder's options for these settings: `modes` and `kernels`, the rest default.
+    /// The basis builder's options for these settings: `modes`, `kernels` and the shape
+    /// functions' `reproduction`, the rest default.
     pub fn basis_params(&self) -> BasisParams {
-        BasisParams::default()
+        let mut params = BasisParams::default()
             .with_modes(self.modes)
-            .with_kernels(self.kernels)
+            .with_kernels(self.kernels);
+        params.shape_functions.reproduction = self.reproduction;
+        params
     }
 
     /// The simulator's options for these settings at time step `time_step` (s): Newton
@@ -338,6 +346,7 @@ impl Default for ReducedSettings {
             pins: PinHold::Penalty,
             tangent: paper_tangent(),
             pressure: None,
+            reproduction: Reproduction::Linear,
         }
     }
 }
@@ -361,5 +370,25 @@ mod tests {
                 .pressure_label()
                 .contains("first ⌈1 (m + 1)⌉ Neumann modes, min(λ, 0.5 μ) kept pointwise")
         );
+    }
+
+    #[test]
+    fn the_reproduction_key_is_written_only_when_quadratic_and_reaches_the_basis() {
+        let paper = ReducedSettings::default();
+        let value = serde_json::to_value(paper).unwrap();
+        assert!(value.get("reproduction").is_none(), "{value}");
+        assert_eq!(
+            paper.basis_params().shape_functions.reproduction,
+            Reproduction::Linear
+        );
+        let mut table = toml::Table::try_from(paper).unwrap();
+        table.insert("reproduction".into(), "quadratic".into());
+        let quadratic: ReducedSettings = table.try_into().unwrap();
+        assert_eq!(
+            quadratic.basis_params().shape_functions.reproduction,
+            Reproduction::Quadratic
+        );
+        let value = serde_json::to_value(quadratic).unwrap();
+        assert_eq!(value["reproduction"], "quadratic");
     }
 }

@@ -8,6 +8,7 @@ pub mod integration_points;
 pub mod kernel_coverage;
 pub mod kernels;
 pub mod point_cloud;
+pub mod reproduction;
 pub mod shape_functions;
 pub mod spatial_index;
 pub mod surface_distance;
@@ -30,6 +31,7 @@ pub use kernels::{
     KernelError, KernelParams, KernelWindow, Kernels, farthest_point_sampling, place_kernels,
 };
 pub use point_cloud::{GaussianSplatAttributes, PointCloud};
+pub use reproduction::Reproduction;
 pub use shape_functions::{
     ReproducingErrors, ShapeFunctionError, ShapeFunctionParams, ShapeFunctions,
     evaluate_shape_functions, shape_function_values_unshifted, singular_queries,

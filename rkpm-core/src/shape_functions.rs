@@ -12,7 +12,9 @@
 //! with `s` a local length (the largest radius among the kernels reaching X). Because
 //! `b_k = A(X) P(p_k)` for an invertible affine `A(X)` when the basis is linear, both forms give
 //! the same functions, but M̃ is O(1)-scaled and far better conditioned (tested against
-//! [`shape_function_values_unshifted`]).
+//! [`shape_function_values_unshifted`]). [`ShapeFunctionParams::reproduction`] may extend P to
+//! the quadratic monomials ([`crate::reproduction`]; 10 terms): the same formulas hold with
+//! `u_d` replaced by `∂_d b_k`, which then depends on k.
 //!
 //! Gradients (with `u_d = e_{d+1}/s` the derivative of b_k along axis d):
 //!
@@ -51,11 +53,14 @@
 //! and a point where the largest exceeds `ShapeFunctionParams::max_reproducing_error` is
 //! reported ([`ShapeFunctionError::InaccurateReproduction`]) rather than returned.
 
-use nalgebra::{Matrix3, Matrix4, Vector3, Vector4};
+use nalgebra::{Matrix3, Matrix4, SMatrix, SVector, Vector3, Vector4};
 use rayon::prelude::*;
 use serde::{Deserialize, Serialize};
 
 use crate::kernels::{KernelWindow, Kernels};
+use crate::reproduction::{
+    LINEAR_TERMS, LinearBasis, PolynomialBasis, QUADRATIC_TERMS, QuadraticBasis, Reproduction,
+};
 use crate::spatial_index::SpatialIndex;
 
 /// Options for [`evaluate_shape_functions`].
@@ -76,6 +81,10 @@ pub struct ShapeFunctionParams {
     /// farther than its support, whatever the cutoff.
     #[serde(default)]
     pub window: KernelWindow,
+    /// The polynomials reproduced exactly (default [`Reproduction::Linear`], the paper's
+    /// Eq. 7; [`Reproduction::Quadratic`] needs at least 10 kernels in reach of every point).
+    #[serde(default, skip_serializing_if = "Reproduction::is_linear")]
+    pub reproduction: Reproduction,
 }
 
 impl Default for ShapeFunctionParams {
@@ -85,6 +94,7 @@ impl Default for ShapeFunctionParams {
             min_reciprocal_condition: 1e-12,
             max_reproducing_error: 1e-6,
             window: KernelWindow::Gaussian,
+            reproduction: Reproduction::Linear,
         }
     }
 }
@@ -96,9 +106,10 @@ pub enum ShapeFunctionError {
     /// non-coplanar kernels reach it (a thin part, a sparse cloud, or a point outside the object).
     #[error(
         "singular RKPM moment matrix at query point {point} {position:?}: {kernels_in_reach} \
-         kernels reach it, reciprocal condition estimate {reciprocal_condition:e} (linear RKPM \
-         needs kernels around a point in all three directions: is a part thinner than the \
-         point spacing, the cloud too sparse, or the point outside the object?)"
+         kernels reach it, reciprocal condition estimate {reciprocal_condition:e} (RKPM needs \
+         at least 4 kernels, 10 for quadratic reproduction, around a point in all three \
+         directions: is a part thinner than the point spacing, the cloud too sparse, or the point \
+         outside the object?)"
     )]
     SingularMomentMatrix {
         /// Index of the query point.
@@ -519,13 +530,22 @@ fn evaluate_each(
             reach.sort_unstable();
             let position = [x.x, x.y, x.z];
             let kernels_in_reach = reach.len();
-            let functions = evaluate_at(
-                x,
-                kernels,
-                params.window,
-                reach,
-                params.min_reciprocal_condition,
-            )
+            let functions = match params.reproduction {
+                Reproduction::Linear => evaluate_at::<LINEAR_TERMS, LinearBasis>(
+                    x,
+                    kernels,
+                    params.window,
+                    reach,
+                    params.min_reciprocal_condition,
+                ),
+                Reproduction::Quadratic => evaluate_at::<QUADRATIC_TERMS, QuadraticBasis>(
+                    x,
+                    kernels,
+                    params.window,
+                    reach,
+                    params.min_reciprocal_condition,
+                ),
+            }
             .map_err(|reciprocal_condition| {
                 ShapeFunctionError::SingularMomentMatrix {
                     point: i,
@@ -548,10 +568,11 @@ fn evaluate_each(
         .collect())
 }
 
-/// The shifted-and-scaled evaluation at one point; `Err(rcond)` when the moment matrix is
-/// singular (0 when it has fewer than 4 kernels or does not factor).
+/// The shifted-and-scaled evaluation at one point with the basis `B` of `N` terms
+/// ([`crate::reproduction`]); `Err(rcond)` when the moment matrix is singular (0 when fewer
+/// than N kernels reach the point or it does not factor).
 #[allow(non_snake_case)]
-fn evaluate_at(
+fn evaluate_at<const N: usize, B: PolynomialBasis<N>>(
     x: &Vector3<f64>,
     kernels: &Kernels,
     window: KernelWindow,
@@ -559,7 +580,7 @@ fn evaluate_at(
     min_rcond: f64,
 ) -> Result<PointShapeFunctions, f64> {
     let n = reach.len();
-    if n < 4 {
+    if n < N {
         return Err(0.0);
     }
     let s = reach
@@ -569,16 +590,18 @@ fn evaluate_at(
     let mut phi = Vec::with_capacity(n);
     let mut grad_phi = Vec::with_capacity(n);
     let mut b = Vec::with_capacity(n);
-    let mut M = Matrix4::zeros();
+    let mut grad_b = Vec::with_capacity(n);
+    let mut M = SMatrix::<f64, N, N>::zeros();
     for &k in &reach {
         let (p, r) = (kernels.centers()[k as usize], kernels.radii()[k as usize]);
         let d = x - p;
         let (f, grad_f) = window.value_and_gradient(&d, r);
-        let bk = Vector4::new(1.0, d.x / s, d.y / s, d.z / s);
+        let (bk, grad_bk) = B::at(&d, s);
         M += f * bk * bk.transpose();
         phi.push(f);
         grad_phi.push(grad_f);
         b.push(bk);
+        grad_b.push(grad_bk);
     }
     let chol = M.cholesky().ok_or(0.0)?;
     let diag = chol.l_dirty().diagonal();
@@ -586,14 +609,22 @@ fn evaluate_at(
     if !(rcond >= min_rcond) {
         return Err(rcond);
     }
-    let C = chol.solve(&Vector4::x());
+    let mut e1 = SVector::<f64, N>::zeros();
+    e1[0] = 1.0;
+    let C = chol.solve(&e1);
     let bc: Vec<f64> = b.iter().map(|bk| bk.dot(&C)).collect();
-    let mut dC = [Vector4::zeros(); 3];
+    // (∂_d b_k)·C̃, by kernel and axis.
+    let ubc: Vec<[f64; 3]> = grad_b
+        .iter()
+        .map(|g| std::array::from_fn(|d| g[d].dot(&C)))
+        .collect();
+    let mut dC = [SVector::<f64, N>::zeros(); 3];
     for (d, dCd) in dC.iter_mut().enumerate() {
-        let u = Vector4::ith(d + 1, 1.0 / s);
-        let uc = u.dot(&C);
-        let dMC: Vector4<f64> = (0..n)
-            .map(|j| b[j] * (grad_phi[j][d] * bc[j] + phi[j] * uc) + u * (phi[j] * bc[j]))
+        let dMC: SVector<f64, N> = (0..n)
+            .map(|j| {
+                b[j] * (grad_phi[j][d] * bc[j] + phi[j] * ubc[j][d])
+                    + grad_b[j][d] * (phi[j] * bc[j])
+            })
             .sum();
         *dCd = -chol.solve(&dMC);
     }
@@ -601,7 +632,9 @@ fn evaluate_at(
     let gradients = (0..n)
         .map(|j| {
             Vector3::from_fn(|d, _| {
-                grad_phi[j][d] * bc[j] + phi[j] * C[d + 1] / s + phi[j] * b[j].dot(&dC[d])
+                grad_phi[j][d] * bc[j]
+                    + B::weighted_derivative(phi[j], &grad_b[j][d], &C, d, s)
+                    + phi[j] * b[j].dot(&dC[d])
             })
         })
         .collect();
