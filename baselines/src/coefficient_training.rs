@@ -179,8 +179,8 @@ pub struct CoefficientTrainingReport {
 }
 
 /// Version written into saved coefficient models (2: the shape-function options carry the
-/// reproduction tolerance).
-pub const COEFFICIENTS_FORMAT_VERSION: u32 = 2;
+/// reproduction tolerance; 3: and the polynomial reproduction).
+pub const COEFFICIENTS_FORMAT_VERSION: u32 = 3;
 const MAGIC: &[u8; 8] = b"FFCOEFF\0";
 
 /// A trained basis with what produced it, as saved and cached.

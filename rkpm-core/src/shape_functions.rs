@@ -83,7 +83,9 @@ pub struct ShapeFunctionParams {
     pub window: KernelWindow,
     /// The polynomials reproduced exactly (default [`Reproduction::Linear`], the paper's
     /// Eq. 7; [`Reproduction::Quadratic`] needs at least 10 kernels in reach of every point).
-    #[serde(default, skip_serializing_if = "Reproduction::is_linear")]
+    /// Always written (saved bases are bincode, which cannot skip a field); read as linear
+    /// when a text file leaves it out.
+    #[serde(default)]
     pub reproduction: Reproduction,
 }
 

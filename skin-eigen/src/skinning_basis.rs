@@ -25,8 +25,8 @@ const MAGIC: [u8; 8] = *b"FFBASIS\0";
 /// Format version; bump on any change of [`SkinningBasis`]'s serialized layout (2: the
 /// shape-function options carry the kernel window; 3: region weights for exactly held regions;
 /// 4: the shape-function options carry the reproduction tolerance; 5: the weight of a weighted
-/// basis).
-pub const BASIS_FORMAT_VERSION: u32 = 5;
+/// basis; 6: the shape-function options carry the polynomial reproduction).
+pub const BASIS_FORMAT_VERSION: u32 = 6;
 
 /// Saving or loading a basis failed.
 #[derive(Debug, thiserror::Error)]
