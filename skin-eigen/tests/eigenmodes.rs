@@ -232,6 +232,29 @@ fn saved_basis_reloads_with_identical_weights_and_rejects_other_versions() {
 }
 
 #[test]
+fn a_quadratic_reproduction_basis_reloads_with_its_reproduction_and_weights() {
+    let points = beam_points(0.125);
+    let materials = vec![lame(); points.len()];
+    let mut quadratic = params(100, 4);
+    quadratic.shape_functions.reproduction = rkpm_core::Reproduction::Quadratic;
+    let (basis, _, _) = build_basis(&points, &materials, &quadratic).unwrap();
+    let path = test_support::fixtures::scratch_dir("skin_eigen_quadratic").join("beam.basis");
+    basis.save(&path).unwrap();
+    let loaded = SkinningBasis::load(&path).unwrap();
+    assert_eq!(loaded, basis);
+    assert_eq!(
+        loaded.evaluate(points.positions()).unwrap(),
+        basis.evaluate(points.positions()).unwrap()
+    );
+    // The linear basis on the same points and kernels has other weights.
+    let (linear, _, _) = build_basis(&points, &materials, &params(100, 4)).unwrap();
+    assert_ne!(
+        linear.evaluate(points.positions()).unwrap(),
+        loaded.evaluate(points.positions()).unwrap()
+    );
+}
+
+#[test]
 fn more_modes_than_kernels_is_a_clear_error() {
     let points = beam_points(0.25);
     let materials = vec![lame(); points.len()];
