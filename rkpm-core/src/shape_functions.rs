@@ -13,8 +13,9 @@
 //! `b_k = A(X) P(p_k)` for an invertible affine `A(X)` when the basis is linear, both forms give
 //! the same functions, but M̃ is O(1)-scaled and far better conditioned (tested against
 //! [`shape_function_values_unshifted`]). [`ShapeFunctionParams::reproduction`] may extend P to
-//! the quadratic monomials ([`crate::reproduction`]; 10 terms): the same formulas hold with
-//! `u_d` replaced by `∂_d b_k`, which then depends on k.
+//! the quadratic monomials ([`crate::reproduction`]; 10 terms), and the formulas below hold
+//! unchanged: with `∂_d b_k = D b_k` for any matrix D, the terms in D cancel from `∂_d ϕ_k` but
+//! for `D e₁`, the constant part of ∂_d P, which is `u_d` for either basis.
 //!
 //! Gradients (with `u_d = e_{d+1}/s` the derivative of b_k along axis d):
 //!
@@ -572,7 +573,8 @@ fn evaluate_each(
 
 /// The shifted-and-scaled evaluation at one point with the basis `B` of `N` terms
 /// ([`crate::reproduction`]); `Err(rcond)` when the moment matrix is singular (0 when fewer
-/// than N kernels reach the point or it does not factor).
+/// than N kernels reach the point or it does not factor). The gradients use `u_d = e_{d+1}/s`
+/// for `∂_d b_k` whatever the basis: only ∂P's constant part enters them (module docs).
 #[allow(non_snake_case)]
 fn evaluate_at<const N: usize, B: PolynomialBasis<N>>(
     x: &Vector3<f64>,
@@ -592,18 +594,16 @@ fn evaluate_at<const N: usize, B: PolynomialBasis<N>>(
     let mut phi = Vec::with_capacity(n);
     let mut grad_phi = Vec::with_capacity(n);
     let mut b = Vec::with_capacity(n);
-    let mut grad_b = Vec::with_capacity(n);
     let mut M = SMatrix::<f64, N, N>::zeros();
     for &k in &reach {
         let (p, r) = (kernels.centers()[k as usize], kernels.radii()[k as usize]);
         let d = x - p;
         let (f, grad_f) = window.value_and_gradient(&d, r);
-        let (bk, grad_bk) = B::at(&d, s);
+        let bk = B::at(&d, s);
         M += f * bk * bk.transpose();
         phi.push(f);
         grad_phi.push(grad_f);
         b.push(bk);
-        grad_b.push(grad_bk);
     }
     let chol = M.cholesky().ok_or(0.0)?;
     let diag = chol.l_dirty().diagonal();
@@ -611,22 +611,14 @@ fn evaluate_at<const N: usize, B: PolynomialBasis<N>>(
     if !(rcond >= min_rcond) {
         return Err(rcond);
     }
-    let mut e1 = SVector::<f64, N>::zeros();
-    e1[0] = 1.0;
-    let C = chol.solve(&e1);
+    let C = chol.solve(&unit_vector::<N>(0, 1.0));
     let bc: Vec<f64> = b.iter().map(|bk| bk.dot(&C)).collect();
-    // (∂_d b_k)·C̃, by kernel and axis.
-    let ubc: Vec<[f64; 3]> = grad_b
-        .iter()
-        .map(|g| std::array::from_fn(|d| g[d].dot(&C)))
-        .collect();
     let mut dC = [SVector::<f64, N>::zeros(); 3];
     for (d, dCd) in dC.iter_mut().enumerate() {
+        let u = unit_vector::<N>(d + 1, 1.0 / s);
+        let uc = u.dot(&C);
         let dMC: SVector<f64, N> = (0..n)
-            .map(|j| {
-                b[j] * (grad_phi[j][d] * bc[j] + phi[j] * ubc[j][d])
-                    + grad_b[j][d] * (phi[j] * bc[j])
-            })
+            .map(|j| b[j] * (grad_phi[j][d] * bc[j] + phi[j] * uc) + u * (phi[j] * bc[j]))
             .sum();
         *dCd = -chol.solve(&dMC);
     }
@@ -634,9 +626,7 @@ fn evaluate_at<const N: usize, B: PolynomialBasis<N>>(
     let gradients = (0..n)
         .map(|j| {
             Vector3::from_fn(|d, _| {
-                grad_phi[j][d] * bc[j]
-                    + B::weighted_derivative(phi[j], &grad_b[j][d], &C, d, s)
-                    + phi[j] * b[j].dot(&dC[d])
+                grad_phi[j][d] * bc[j] + phi[j] * C[d + 1] / s + phi[j] * b[j].dot(&dC[d])
             })
         })
         .collect();
@@ -646,6 +636,13 @@ fn evaluate_at<const N: usize, B: PolynomialBasis<N>>(
         gradients,
         local_length: s,
     })
+}
+
+/// `value · e_i` in N dimensions.
+fn unit_vector<const N: usize>(i: usize, value: f64) -> SVector<f64, N> {
+    let mut e = SVector::<f64, N>::zeros();
+    e[i] = value;
+    e
 }
 
 /// The paper's literal, unshifted form (Eqs. 7, 9-11): `ϕ_k(X) = φ_k(X) P(p_k)ᵀ M(X)⁻¹ P(X)`,
