@@ -58,7 +58,9 @@ pub use placement::Placement;
 pub use pressure_space::{PressureSpace, PressureSpaceParams};
 pub use progress::{Progress, Silent};
 pub use recorded_run::{RecordError, RecordedRun, run_recorded};
-pub use region_cells::{CellSplitReport, split_cells_at_regions};
+pub use region_cells::{
+    CellSplitReport, split_cells_at_regions, split_cells_at_regions_with_origins,
+};
 pub use runner::{
     Frame, ObserverResult, RunError, RunReport, Simulation, StaticEquilibrium, prepare_simulator,
     prepare_simulator_for, pressure_inf_sup, run, static_equilibrium,

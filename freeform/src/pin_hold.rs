@@ -32,7 +32,6 @@ use skin_eigen::{
     build_basis_keeping_shape_functions, build_basis_with_regions, build_weighted_basis_sharing,
 };
 
-use crate::region_cells::{CellSplitReport, split_cells_at_regions};
 use crate::scene::{REGION_TOLERANCE, Region, SceneSpec, SceneSpecError};
 
 /// [`PinHold::build_basis`] failed.
@@ -75,10 +74,10 @@ pub enum PinHold {
         /// What the weight's distance to a region measures (default: the material it holds).
         #[serde(default, skip_serializing_if = "WeightDistance::is_default")]
         distance: WeightDistance,
-        /// Whether each simulation point whose cell a region's boundary cuts is split into its
-        /// held and free parts ([`PinHold::simulation_points`]; default false: the point counts
-        /// wholly as held or as free by where it lies, so the result depends a little on how
-        /// the grid falls on the boundary).
+        /// Whether each simulation and basis point whose cell a region's boundary cuts is split
+        /// into its held and free parts ([`PinHold::simulation_points`],
+        /// [`PinHold::basis_points`]; default false: the point counts wholly as held or as free
+        /// by where it lies, so the result depends on how the grids fall on the boundary).
         #[serde(default, skip_serializing_if = "is_false")]
         split_cut_cells: bool,
     },
@@ -163,30 +162,6 @@ impl PinHold {
             .map(|c| c.region.held_region_shape())
             .collect();
         RegionWeight::new(regions, transition_fraction * bounding_box_sides.min()).map(Some)
-    }
-
-    /// The simulation's integration points for this hold: for [`PinHold::Weighted`] with
-    /// `split_cut_cells`, `points` with each cell a constraint region's boundary cuts split
-    /// into its held and free parts ([`split_cells_at_regions`]: the strain jumps at a weighted
-    /// region's boundary, and an unsplit cut cell counts wholly as held or free); `points`
-    /// unchanged otherwise (the penalty's pins are the points inside the regions, the paper's
-    /// setting) and for a scene without constraints.
-    pub fn simulation_points(
-        &self,
-        scene: &SceneSpec,
-        points: IntegrationPoints,
-    ) -> (IntegrationPoints, CellSplitReport) {
-        match self {
-            PinHold::Weighted {
-                split_cut_cells: true,
-                ..
-            } if !scene.constraints.is_empty() => {
-                let regions: Vec<Region> =
-                    scene.constraints.iter().map(|c| c.region.clone()).collect();
-                split_cells_at_regions(&points, &regions)
-            }
-            _ => (points, CellSplitReport::default()),
-        }
     }
 
     /// The basis options for this hold: `params` as given for the penalty; for exact holding,
@@ -369,6 +344,8 @@ impl PinHold {
         let params = self.basis_params(params);
         match self {
             PinHold::Weighted { distance, .. } if !scene.constraints.is_empty() => {
+                let (basis_points, materials) = self.basis_points(scene, basis_points, materials);
+                let (basis_points, materials) = (basis_points.as_ref(), materials.as_ref());
                 let bounds = basis_points.bounding_box();
                 let invalid = |e| SceneSpecError::Invalid(format!("weighted holding: {e}"));
                 let mut weight = self

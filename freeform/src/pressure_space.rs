@@ -78,9 +78,10 @@ pub struct PressureSpace {
 impl PressureSpace {
     /// The pressure space for a model of `basis.eigen.modes` modes held by `hold` in `scene`,
     /// its Neumann modes built on `basis_points` (those outside the held regions, unless the
-    /// hold is the penalty) with `materials` and the kernel options of `basis` (its mode count
-    /// replaced by [`PressureSpaceParams::neumann_modes`]). `shared`: the kernels and shape
-    /// functions a weighted basis of the same points evaluated on their free part
+    /// hold is the penalty; split as [`PinHold::basis_points`] says) with `materials` and the
+    /// kernel options of `basis` (its mode count replaced by
+    /// [`PressureSpaceParams::neumann_modes`]). `shared`: the kernels and shape functions a
+    /// weighted basis of the same points evaluated on their free part
     /// ([`PinHold::build_basis_sharing`]); the Neumann modes are built on them when they are
     /// those a build would place and evaluate ([`skin_eigen::build_basis_sharing`]: the same
     /// modes, set up once).
@@ -97,6 +98,8 @@ impl PressureSpace {
         params: &PressureSpaceParams,
         shared: Option<&KernelShapeFunctions>,
     ) -> Result<PressureSpace, BasisError> {
+        let (basis_points, materials) = hold.basis_points(scene, basis_points, materials);
+        let (basis_points, materials) = (basis_points.as_ref(), materials.as_ref());
         let modes = basis.eigen.modes;
         let held: Vec<Region> = match hold {
             PinHold::Penalty => Vec::new(),

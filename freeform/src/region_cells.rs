@@ -8,7 +8,11 @@
 //! depend on how the grid happens to fall on the boundary (a cantilever's static tip moved by
 //! 2% between grids of 40 000 and 80 000 points). Splitting each cut cell into its part inside
 //! and its part outside, each a point at its part's centroid with its part's volume, integrates
-//! the jump where it is.
+//! the jump where it is. The basis grid has the same cells: a weighted basis's free part is
+//! its points outside every region, and an unsplit cut cell puts too much or too little material
+//! in it (the beam's static Bend moved 1.3–3× between basis grids that cut the clamp plane
+//! differently). [`PinHold::simulation_points`] and [`PinHold::basis_points`] split both when
+//! the hold asks.
 //!
 //! ```text
 //! cell of x_i: the cube of side ∛v_i centred at x_i, sampled by s³ sub-cells (s = 8)
@@ -16,10 +20,14 @@
 //! new points:  one per part, at the part's centroid, volume v_i · (sub-cells in it) / s³
 //! ```
 
+use std::borrow::Cow;
+
+use hyperelastic::LameParameters;
 use nalgebra::Vector3;
 use rkpm_core::IntegrationPoints;
 
-use crate::scene::Region;
+use crate::PinHold;
+use crate::scene::{Region, SceneSpec};
 
 /// Sub-cells per side a cut cell is sampled with (s).
 pub const CELL_SPLIT_SUBDIVISIONS: usize = 8;
@@ -45,10 +53,22 @@ pub fn split_cells_at_regions(
     points: &IntegrationPoints,
     regions: &[Region],
 ) -> (IntegrationPoints, CellSplitReport) {
+    let (split, _, report) = split_cells_at_regions_with_origins(points, regions);
+    (split, report)
+}
+
+/// [`split_cells_at_regions`], also returning, for each new point, the index in `points` of
+/// the point whose cell it is a part of (N' entries, non-decreasing): what carries a per-point
+/// quantity, such as a material, over to the parts.
+pub fn split_cells_at_regions_with_origins(
+    points: &IntegrationPoints,
+    regions: &[Region],
+) -> (IntegrationPoints, Vec<usize>, CellSplitReport) {
     let mut positions = Vec::with_capacity(points.len());
     let mut volumes = Vec::with_capacity(points.len());
+    let mut origins = Vec::with_capacity(points.len());
     let mut report = CellSplitReport::default();
-    for (x, &volume) in points.positions().iter().zip(points.volumes()) {
+    for (i, (x, &volume)) in points.positions().iter().zip(points.volumes()).enumerate() {
         let side = volume.cbrt();
         let parts = if regions.iter().any(|r| boundary_may_cut(r, x, side)) {
             cell_parts(regions, x, side)
@@ -58,6 +78,7 @@ pub fn split_cells_at_regions(
         if parts.len() < 2 {
             positions.push(*x);
             volumes.push(volume);
+            origins.push(i);
             continue;
         }
         report.cut_cells += 1;
@@ -66,11 +87,12 @@ pub fn split_cells_at_regions(
         for part in parts {
             positions.push(part.position);
             volumes.push(volume * part.sub_cells as f64 / total);
+            origins.push(i);
         }
     }
     let split = IntegrationPoints::new(positions, volumes)
         .expect("the parts of valid points are finite with positive volumes");
-    (split, report)
+    (split, origins, report)
 }
 
 /// Whether the boundary of `region` may pass through the cube of side `side` centred at `x`.
@@ -81,6 +103,63 @@ fn boundary_may_cut(region: &Region, x: &Vector3<f64>, side: f64) -> bool {
         }
         Region::Ball { center, radius } => {
             ((x - center).norm() - radius).abs() < 0.5 * 3f64.sqrt() * side
+        }
+    }
+}
+
+impl PinHold {
+    /// The simulation's integration points for this hold: for [`PinHold::Weighted`] with
+    /// `split_cut_cells`, `points` with each cell a constraint region's boundary cuts split
+    /// into its held and free parts ([`split_cells_at_regions`]: the strain jumps at a weighted
+    /// region's boundary, and an unsplit cut cell counts wholly as held or free); `points`
+    /// unchanged otherwise (the penalty's pins are the points inside the regions, the paper's
+    /// setting) and for a scene without constraints.
+    pub fn simulation_points(
+        &self,
+        scene: &SceneSpec,
+        points: IntegrationPoints,
+    ) -> (IntegrationPoints, CellSplitReport) {
+        match self.regions_splitting_cells(scene) {
+            Some(regions) => split_cells_at_regions(&points, &regions),
+            None => (points, CellSplitReport::default()),
+        }
+    }
+
+    /// The basis grid for this hold, with its points' Lamé parameters (one per point): for
+    /// [`PinHold::Weighted`] with `split_cut_cells`, `points` with their cut cells split as
+    /// [`PinHold::simulation_points`] splits the simulation's, each part with its cell's
+    /// `materials` (a weighted basis's free part, the points outside every region, then has the
+    /// free material's exact volume, wherever the grid falls on the regions); `points` and
+    /// `materials` unchanged otherwise. [`PinHold::build_basis`] and
+    /// [`crate::PressureSpace::build`] call it on the grid they are given.
+    pub fn basis_points<'a>(
+        &self,
+        scene: &SceneSpec,
+        points: &'a IntegrationPoints,
+        materials: &'a [LameParameters],
+    ) -> (Cow<'a, IntegrationPoints>, Cow<'a, [LameParameters]>) {
+        let Some(regions) = self.regions_splitting_cells(scene) else {
+            return (Cow::Borrowed(points), Cow::Borrowed(materials));
+        };
+        let (split, origins, report) = split_cells_at_regions_with_origins(points, &regions);
+        if report.cut_cells == 0 {
+            return (Cow::Borrowed(points), Cow::Borrowed(materials));
+        }
+        let materials = origins.iter().map(|&i| materials[i]).collect();
+        (Cow::Owned(split), Cow::Owned(materials))
+    }
+
+    /// The regions whose cut cells this hold splits: the scene's constraint regions for a
+    /// weighted hold with `split_cut_cells` and at least one constraint, `None` otherwise.
+    fn regions_splitting_cells(&self, scene: &SceneSpec) -> Option<Vec<Region>> {
+        match self {
+            PinHold::Weighted {
+                split_cut_cells: true,
+                ..
+            } if !scene.constraints.is_empty() => {
+                Some(scene.constraints.iter().map(|c| c.region.clone()).collect())
+            }
+            _ => None,
         }
     }
 }
@@ -138,8 +217,7 @@ fn cell_parts(regions: &[Region], x: &Vector3<f64>, side: f64) -> Vec<CellPart> 
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::PinHold;
-    use crate::scene::{Constraint, Motion, SceneSpec};
+    use crate::scene::{Constraint, Motion};
     use rkpm_core::sample_box_grid;
 
     /// The beam's clamp: x ≤ 0.5 m.
@@ -205,6 +283,52 @@ mod tests {
         );
         let total: f64 = split.volumes().iter().sum();
         assert!((total - 5.0).abs() < 1e-9, "{total}");
+    }
+
+    #[test]
+    fn a_split_basis_grid_gives_the_free_part_its_exact_volume_and_each_part_its_cells_material() {
+        // 126 × 25 × 25 cells: the clamp's plane x = 0.5 cuts the thirteenth layer.
+        let points = beam((5.0f64 / 80_000.0).cbrt());
+        let side = points.volumes()[0].cbrt();
+        // Point i's material has μ = i + 1: a part's material names the cell it came from.
+        let materials: Vec<LameParameters> = (0..points.len())
+            .map(|i| LameParameters::new(1.0, i as f64 + 1.0).unwrap())
+            .collect();
+        let clamp = SceneSpec {
+            constraints: vec![Constraint {
+                region: CLAMP,
+                motion: Motion::Rest,
+            }],
+            ..SceneSpec::default()
+        };
+        let free_volume = |points: &IntegrationPoints| {
+            let all: f64 = points.volumes().iter().sum();
+            all - held_volume(points, &CLAMP)
+        };
+        assert!((free_volume(&points) - 4.5).abs() > 0.01);
+        let hold = PinHold::Weighted {
+            transition_fraction: 1.0,
+            distance: crate::WeightDistance::HeldMaterial,
+            split_cut_cells: true,
+        };
+        let (split, split_materials) = hold.basis_points(&clamp, &points, &materials);
+        assert_eq!(split.len(), points.len() + 625);
+        assert_eq!(split_materials.len(), split.len());
+        assert!(
+            (free_volume(&split) - 4.5).abs() < 0.005,
+            "free volume {}",
+            free_volume(&split)
+        );
+        for (x, lame) in split.positions().iter().zip(split_materials.iter()) {
+            let cell = points.positions()[lame.mu() as usize - 1];
+            assert!(
+                (x - cell).amax() <= 0.5 * side,
+                "{x} is not in the cell of {cell}"
+            );
+        }
+        // The default hold leaves the grid and its materials as they are.
+        let (kept, kept_materials) = PinHold::WEIGHTED.basis_points(&clamp, &points, &materials);
+        assert!(matches!(kept, Cow::Borrowed(_)) && matches!(kept_materials, Cow::Borrowed(_)));
     }
 
     #[test]
