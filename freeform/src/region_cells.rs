@@ -10,9 +10,8 @@
 //! and its part outside, each a point at its part's centroid with its part's volume, integrates
 //! the jump where it is. The basis grid has the same cells: a weighted basis's free part is
 //! its points outside every region, and an unsplit cut cell puts too much or too little material
-//! in it (the beam's static Bend moved 1.3–3× between basis grids that cut the clamp plane
-//! differently). [`PinHold::simulation_points`] and [`PinHold::basis_points`] split both when
-//! the hold asks.
+//! in it, so the modes depend on how the basis grid falls on the boundary.
+//! [`PinHold::simulation_points`] and [`PinHold::basis_points`] split both when the hold asks.
 //!
 //! ```text
 //! cell of x_i: the cube of side ∛v_i centred at x_i, sampled by s³ sub-cells (s = 8)
@@ -130,7 +129,8 @@ impl PinHold {
     /// [`PinHold::simulation_points`] splits the simulation's, each part with its cell's
     /// `materials` (a weighted basis's free part, the points outside every region, then has the
     /// free material's exact volume, wherever the grid falls on the regions); `points` and
-    /// `materials` unchanged otherwise. [`PinHold::build_basis`] and
+    /// `materials` unchanged otherwise, and when `materials` is not one per point (the basis
+    /// builder then names the mismatch). [`PinHold::build_basis`] and
     /// [`crate::PressureSpace::build`] call it on the grid they are given.
     pub fn basis_points<'a>(
         &self,
@@ -138,7 +138,10 @@ impl PinHold {
         points: &'a IntegrationPoints,
         materials: &'a [LameParameters],
     ) -> (Cow<'a, IntegrationPoints>, Cow<'a, [LameParameters]>) {
-        let Some(regions) = self.regions_splitting_cells(scene) else {
+        let regions = self
+            .regions_splitting_cells(scene)
+            .filter(|_| materials.len() == points.len());
+        let Some(regions) = regions else {
             return (Cow::Borrowed(points), Cow::Borrowed(materials));
         };
         let (split, origins, report) = split_cells_at_regions_with_origins(points, &regions);
@@ -326,9 +329,12 @@ mod tests {
                 "{x} is not in the cell of {cell}"
             );
         }
-        // The default hold leaves the grid and its materials as they are.
+        // The default hold leaves the grid and its materials as they are, and so does a split
+        // given too few materials (the basis builder names the mismatch).
         let (kept, kept_materials) = PinHold::WEIGHTED.basis_points(&clamp, &points, &materials);
         assert!(matches!(kept, Cow::Borrowed(_)) && matches!(kept_materials, Cow::Borrowed(_)));
+        let (kept, kept_materials) = hold.basis_points(&clamp, &points, &materials[..10]);
+        assert_eq!((kept.len(), kept_materials.len()), (points.len(), 10));
     }
 
     #[test]
