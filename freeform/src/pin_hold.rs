@@ -326,7 +326,8 @@ impl PinHold {
     /// [`PinHold::build_basis`], also returning the kernels it placed and their plain shape
     /// functions: at the basis points for the plain basis (the penalty, or a weighted hold with
     /// no constraint; [`skin_eigen::build_basis_keeping_shape_functions`]), on the points outside
-    /// the regions for a weighted basis ([`skin_eigen::build_weighted_basis_sharing`]), `None`
+    /// the regions for a weighted basis ([`skin_eigen::build_weighted_basis_sharing`]; the grid's
+    /// cut cells split first when the hold asks, [`PinHold::basis_points`]), `None`
     /// for exact holding. The pressure space's Neumann modes on the same points are built on
     /// them ([`crate::PressureSpace::build`]).
     ///
